@@ -1,0 +1,75 @@
+// F′ table builder (DESIGN §2): one invocation per row γ_i = π t_i², t_i = i / (rows − 1).
+// Entry j holds T(γ_i, s_j) = ∫₀^{s_j} p exp(−σt (d + x − D)) ds, s_j = j / (n − 1), integrated
+// by 8-point Gauss–Legendre per cell and a compensated running sum along the row.
+
+@group(0) @binding(0) var<uniform> air: Airlight;
+@group(0) @binding(1) var table_out: texture_storage_2d<rgba32float, write>;
+
+const GL8_X = array<f32, 4>(0.1834346424956498, 0.5255324099163290, 0.7966664774136267, 0.9602898564975363);
+const GL8_W = array<f32, 4>(0.3626837833783620, 0.3137066458778873, 0.2223810344533745, 0.1012285362903763);
+
+@compute @workgroup_size(64)
+fn build(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let rows = air.table_size.y;
+    let n = air.table_size.x;
+    let i = gid.x;
+    if (i >= rows) {
+        return;
+    }
+    let t = f32(i) / f32(rows - 1u);
+    let gamma = PI * t * t;
+    // π − γ = π (1 − t)(1 + t) keeps relative precision near γ = π; the last row (γ = π,
+    // light exactly behind) uses the limit w → 0, approached through a tiny w.
+    let w = max(PI * (1.0 - t) * (1.0 + t), 1.0e-6);
+    let sin_half_gamma = sin(0.5 * gamma);
+    var sum = vec3<f32>(0.0);
+    var carry = vec3<f32>(0.0);
+    textureStore(table_out, vec2<u32>(0u, i), vec4<f32>(0.0));
+    let ds = 1.0 / f32(n - 1u);
+    for (var j = 1u; j < n; j++) {
+        var cell = vec3<f32>(0.0);
+        if (j + 1u < n) {
+            cell = gl8(0.5 * ds, (f32(j) - 0.5) * ds, w, sin_half_gamma);
+        } else {
+            // The last cell ends at s = 1 (x = ∞), where exp(−σt (d + x − D)) drops to zero
+            // within a sliver of width ~ 1/(σt D) that one Gauss–Legendre rule cannot see:
+            // split it geometrically towards s = 1, in 1 − s.
+            var hi = ds;
+            for (var k = 0u; k < 24u; k++) {
+                let lo = select(0.25 * hi, 0.0, k == 23u);
+                cell += gl8_tail(0.5 * (hi - lo), 0.5 * (hi + lo), w, sin_half_gamma);
+                hi = lo;
+            }
+        }
+        // Kahan summation: a row of 255 cells keeps the f32 sum to ~1e-7 relative.
+        let y = cell - carry;
+        let next = sum + y;
+        carry = (next - sum) - y;
+        sum = next;
+        textureStore(table_out, vec2<u32>(j, i), vec4<f32>(sum, 0.0));
+    }
+}
+
+// ∫ over [mid − half, mid + half] in s.
+fn gl8(half: f32, mid: f32, w: f32, sin_half_gamma: f32) -> vec3<f32> {
+    var acc = vec3<f32>(0.0);
+    for (var k = 0u; k < 4u; k++) {
+        let off = half * GL8_X[k];
+        acc += GL8_W[k] * (table_integrand(air, mid - off, w, sin_half_gamma)
+                         + table_integrand(air, mid + off, w, sin_half_gamma));
+    }
+    return acc * half;
+}
+
+// ∫ over 1 − s ∈ [mid − half, mid + half].
+fn gl8_tail(half: f32, mid: f32, w: f32, sin_half_gamma: f32) -> vec3<f32> {
+    var acc = vec3<f32>(0.0);
+    for (var k = 0u; k < 4u; k++) {
+        let off = half * GL8_X[k];
+        let r0 = mid - off;
+        let r1 = mid + off;
+        acc += GL8_W[k] * (table_integrand_split(air, 1.0 - r0, r0, w, sin_half_gamma)
+                         + table_integrand_split(air, 1.0 - r1, r1, w, sin_half_gamma));
+    }
+    return acc * half;
+}

@@ -1,0 +1,32 @@
+// Composite node: L = Ls · exp(−σt ds) + L_sctr into the caller's target (fullscreen triangle).
+
+struct Composite {
+    sigma_t: vec4<f32>,
+}
+
+@group(0) @binding(0) var<uniform> comp: Composite;
+@group(0) @binding(1) var<uniform> view: View;
+@group(0) @binding(2) var scene_color: texture_2d<f32>;
+@group(0) @binding(3) var scene_depth: texture_depth_2d;
+@group(0) @binding(4) var inscatter: texture_2d<f32>;
+
+@vertex
+fn vs_fullscreen(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
+    let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
+    return vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
+}
+
+@fragment
+fn fs_composite(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
+    let pixel = vec2<u32>(frag.xy);
+    let color = textureLoad(scene_color, pixel, 0);
+    let depth = textureLoad(scene_depth, pixel, 0);
+    let ray = pixel_ray(view, frag.xy, depth);
+    // Sky: an infinite homogeneous medium hides it, unless a channel does not attenuate at all.
+    var transmittance = select(vec3<f32>(0.0), vec3<f32>(1.0), comp.sigma_t.xyz == vec3<f32>(0.0));
+    if (ray.distance >= 0.0) {
+        transmittance = exp(-comp.sigma_t.xyz * ray.distance);
+    }
+    let sctr = textureLoad(inscatter, pixel, 0).xyz;
+    return vec4<f32>(clamp_radiance(color.xyz * transmittance + sctr), color.w);
+}

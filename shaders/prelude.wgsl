@@ -1,0 +1,194 @@
+// volshadow prelude: the maths shared by every node (phase functions, the bounded airlight
+// integrand of DESIGN §2, the F′ table lookup). Each node's WGSL file is appended to this one.
+
+const PI: f32 = 3.14159265358979;
+const INV_4PI: f32 = 0.0795774715459477;
+// Larger than any radiance we produce; outputs are clamped to it so nothing reaches Inf.
+const MAX_RADIANCE: f32 = 1.0e30;
+
+// Per-frame airlight parameters (DESIGN §1). The phase function is a per-channel mixture of
+// five lobes, so every PhaseFunction variant (and Hoffman–Preetham's RGB mix) is one code path.
+struct Airlight {
+    light_pos: vec4<f32>,   // xyz light position, w = D = |P − E|
+    eye: vec4<f32>,         // xyz eye position, w = pixel angular radius (radians)
+    intensity: vec4<f32>,   // rgb I0
+    sigma_s: vec4<f32>,     // rgb σs
+    sigma_t: vec4<f32>,     // rgb σt = σs + σa
+    w_iso: vec4<f32>,       // per-channel lobe weights, summing to 1
+    w_rayleigh: vec4<f32>,
+    w_hg: vec4<f32>,
+    w_hazy: vec4<f32>,
+    w_murky: vec4<f32>,
+    hg_g: vec4<f32>,        // x = Henyey–Greenstein g
+    table_size: vec4<u32>,  // x = entries along the ray (s), y = rows across rays (γ)
+}
+
+// Phase function at scattering angle θ, given 1 − cos θ and 1 + cos θ computed without
+// cancellation (the forward peak of HG g = 0.95 lives where 1 − cos θ ≈ 1e-3).
+fn phase(a: Airlight, one_minus_mu: f32, one_plus_mu: f32) -> vec3<f32> {
+    let mu = 0.5 * (one_plus_mu - one_minus_mu);
+    var p = a.w_iso.xyz * INV_4PI;
+    p += a.w_rayleigh.xyz * (3.0 / (16.0 * PI)) * (1.0 + mu * mu);
+    if (any(a.w_hg.xyz != vec3<f32>(0.0))) {
+        let g = a.hg_g.x;
+        // 1 + g² − 2gμ as a sum of non-negative terms for either sign of g.
+        var denom = (1.0 - g) * (1.0 - g) + 2.0 * g * one_minus_mu;
+        if (g < 0.0) {
+            denom = (1.0 + g) * (1.0 + g) - 2.0 * g * one_plus_mu;
+        }
+        p += a.w_hg.xyz * (1.0 - g * g) * INV_4PI / (denom * sqrt(denom));
+    }
+    let half_fwd = 0.5 * one_plus_mu;          // (1 + cos θ) / 2
+    let h2 = half_fwd * half_fwd;
+    let h8 = h2 * h2 * h2 * h2;
+    p += a.w_hazy.xyz * (1.0 + 9.0 * h8) / (8.0 * PI);
+    let h32 = h8 * h8 * h8 * h8;
+    p += a.w_murky.xyz * 33.0 * (1.0 + 50.0 * h32) / (332.0 * PI);
+    return p;
+}
+
+// A ray's constants for the airlight (DESIGN §2). w = π − γ is kept separately so that f32
+// keeps its relative precision when the light is behind the eye (γ → π).
+struct AirRay {
+    gamma: f32,            // angle between the view ray and the direction to the light
+    w: f32,                // π − γ
+    sin_half_gamma: f32,   // sin(γ/2)
+    c: f32,                // |v × (P − E)| = D sin γ
+    dotv: f32,             // v · (P − E) = D cos γ
+    prefactor: vec3<f32>,  // I0 σs exp(−σt D) w / (D sin γ), sin γ clamped by the pixel footprint
+}
+
+fn air_ray(a: Airlight, dir: vec3<f32>) -> AirRay {
+    let to_light = a.light_pos.xyz - a.eye.xyz;
+    let d = a.light_pos.w;
+    var r: AirRay;
+    r.c = length(cross(dir, to_light));
+    r.dotv = dot(dir, to_light);
+    r.gamma = atan2(r.c, r.dotv);
+    r.w = atan2(r.c, -r.dotv);
+    r.sin_half_gamma = sin(0.5 * r.gamma);
+    // The singular 1/h of form (2): clamped by the pixel's footprint at the light when looking
+    // towards it (a point light seen through fog is infinitely bright at γ = 0); towards γ = π
+    // the ratio w / sin γ tends to 1 and needs no clamp.
+    var sin_gamma = r.c / d;
+    var ratio = 1.0;
+    if (r.gamma < 0.5 * PI) {
+        sin_gamma = max(sin_gamma, a.eye.w);
+        ratio = r.w / sin_gamma;
+    } else if (sin_gamma > 1.0e-30) {
+        ratio = r.w / sin_gamma;
+    }
+    // In log space: at σt·D = 100, exp(−σt D) = 4e-44 is below f32's normal range while
+    // I0 · exp(−σt D) may still be a visible radiance. log(0) = −inf gives exp = 0, no NaN.
+    r.prefactor = exp(log(a.intensity.xyz) + log(a.sigma_s.xyz) - a.sigma_t.xyz * d) * (ratio / d);
+    return r;
+}
+
+// The bounded integrand of form (2) in the normalised scattering angle s = (2ξ − γ)/(π − γ):
+// T(γ, s) = ∫₀^s p(cos 2ξ) exp(−σt (d + x − D)) ds'. Everything is computed from
+// a = ξ − γ/2 and u = π/2 − ξ, so no difference of nearly equal numbers appears:
+//   d + x − D = 2 D sin(γ/2) sin(a) / sin(u),   1 ± cos 2ξ = 2 sin²(u) resp. 2 cos²(u).
+fn table_integrand(a: Airlight, s: f32, w: f32, sin_half_gamma: f32) -> vec3<f32> {
+    return table_integrand_split(a, s, 1.0 - s, w, sin_half_gamma);
+}
+
+// The same with 1 − s given separately, so the tail next to s = 1 (where the attenuation
+// falls to zero within a sliver of width ~ 1/(σt·D)) keeps its relative precision.
+fn table_integrand_split(a: Airlight, s: f32, one_minus_s: f32, w: f32, sin_half_gamma: f32) -> vec3<f32> {
+    let half_a = 0.5 * s * w;
+    let u = 0.5 * one_minus_s * w;
+    let su = sin(u);
+    let cu = cos(u);
+    let ratio = min(sin(half_a) / max(su, 1.0e-30), 1.0e20);
+    let tau = (2.0 * a.light_pos.w * sin_half_gamma * ratio) * a.sigma_t.xyz;
+    return phase(a, 2.0 * cu * cu, 2.0 * su * su) * exp(-tau);
+}
+
+// Normalised scattering angle of the point at distance x along the ray, from the two angles of
+// the eye–point–light triangle: δ at the light and β at the point, s = δ / (δ + β).
+fn scattering_s(a: Airlight, r: AirRay, x: f32) -> f32 {
+    let d = a.light_pos.w;
+    let delta = atan2(x * r.c, d * d - x * r.dotv);
+    let beta = atan2(r.c, x - r.dotv);
+    return clamp(delta / max(delta + beta, 1.0e-30), 0.0, 1.0);
+}
+
+// Reads T at (row, entry) of the table with the γ rows interpolated linearly.
+fn table_row_mix(table: texture_2d<f32>, a: Airlight, gamma: f32, j: u32) -> vec3<f32> {
+    let rows = a.table_size.y;
+    let tg = sqrt(clamp(gamma / PI, 0.0, 1.0)) * f32(rows - 1u);
+    let i0 = min(u32(tg), rows - 2u);
+    let f = clamp(tg - f32(i0), 0.0, 1.0);
+    let t0 = textureLoad(table, vec2<u32>(j, i0), 0).xyz;
+    let t1 = textureLoad(table, vec2<u32>(j, i0 + 1u), 0).xyz;
+    return mix(t0, t1, f);
+}
+
+// T(γ, s): the table entry at or below s (rows interpolated in γ), plus the rest of the cell
+// integrated exactly at this ray's own γ by 3-point Gauss–Legendre. Interpolating T along s
+// would be wrong exactly where the image is brightest (steep rise near the light, optically
+// deep media); the partial cell costs three integrand evaluations and removes that error.
+fn table_t(table: texture_2d<f32>, a: Airlight, r: AirRay, s: f32) -> vec3<f32> {
+    let n = a.table_size.x;
+    let ts = s * f32(n - 1u);
+    let j = min(u32(ts), n - 1u);
+    let s0 = f32(j) / f32(n - 1u);
+    var t = table_row_mix(table, a, r.gamma, j);
+    let half_len = 0.5 * (s - s0);
+    if (half_len > 0.0) {
+        let mid = s0 + half_len;
+        let k = 0.7745966692414834 * half_len;
+        let f = 0.5555555555555556 * (table_integrand(a, mid - k, r.w, r.sin_half_gamma)
+                                    + table_integrand(a, mid + k, r.w, r.sin_half_gamma))
+              + 0.8888888888888888 * table_integrand(a, mid, r.w, r.sin_half_gamma);
+        t += f * half_len;
+    }
+    return t;
+}
+
+// I0 · F′(x): in-scattered radiance from the eye to distance x (x < 0: sky).
+fn fprime(table: texture_2d<f32>, a: Airlight, r: AirRay, x: f32) -> vec3<f32> {
+    var s = 1.0;
+    if (x >= 0.0) {
+        s = scattering_s(a, r, x);
+    }
+    return r.prefactor * table_t(table, a, r, s);
+}
+
+fn clamp_radiance(v: vec3<f32>) -> vec3<f32> {
+    return min(v, vec3<f32>(MAX_RADIANCE));
+}
+
+// Camera constants shared by the per-pixel passes: rays are built in view space so that
+// large world coordinates do not cost the ray direction its precision.
+struct View {
+    view_from_clip: mat4x4<f32>,
+    world_from_view: mat4x4<f32>,
+    size: vec4<f32>,     // x = width, y = height (pixels of the pass), z = far depth (sky), w unused
+}
+
+// Unit world-space ray direction and eye distance for a pixel centre; distance < 0 means sky.
+struct PixelRay {
+    dir: vec3<f32>,
+    distance: f32,
+}
+
+fn pixel_ray(v: View, pixel: vec2<f32>, depth: f32) -> PixelRay {
+    let ndc = vec2<f32>(pixel.x / v.size.x * 2.0 - 1.0, 1.0 - pixel.y / v.size.y * 2.0);
+    let far_depth = v.size.z;
+    let near_depth = 1.0 - far_depth;
+    let near_h = v.view_from_clip * vec4<f32>(ndc, near_depth, 1.0);
+    let dir_view = near_h.xyz / near_h.w;
+    let m = mat3x3<f32>(v.world_from_view[0].xyz, v.world_from_view[1].xyz, v.world_from_view[2].xyz);
+    var out: PixelRay;
+    out.dir = normalize(m * dir_view);
+    out.distance = -1.0;
+    if (depth != far_depth) {
+        let p = v.view_from_clip * vec4<f32>(ndc, depth, 1.0);
+        // Behind the far end (w of the wrong sign or zero) reads as sky too.
+        if (p.w * near_h.w > 0.0) {
+            out.distance = length(m * (p.xyz / p.w));
+        }
+    }
+    return out;
+}

@@ -1,0 +1,113 @@
+//! The crate's error type: every invalid input names its field and problem.
+
+use thiserror::Error;
+
+/// Everything that can go wrong when building scene types, nodes or frames.
+///
+/// Each variant names the offending field so a caller can report it without guessing.
+#[derive(Debug, Clone, PartialEq, Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// A value that must be finite was NaN or infinite.
+    #[error("`{field}` must be finite, got {value}")]
+    NonFinite {
+        /// Which input.
+        field: &'static str,
+        /// The value received.
+        value: f32,
+    },
+    /// A coefficient that must be zero or positive was negative.
+    #[error("`{field}` must be >= 0, got {value}")]
+    Negative {
+        /// Which input.
+        field: &'static str,
+        /// The value received.
+        value: f32,
+    },
+    /// A Henyey–Greenstein asymmetry parameter outside the open interval (-1, 1).
+    #[error("Henyey-Greenstein asymmetry `g` must lie in (-1, 1), got {g}")]
+    AsymmetryOutOfRange {
+        /// The value received.
+        g: f32,
+    },
+    /// A phase function mixture whose weights are all zero in some colour channel.
+    #[error("phase function `{field}` has zero total weight in channel {channel}")]
+    ZeroPhaseWeight {
+        /// Which phase function.
+        field: &'static str,
+        /// The RGB channel (0, 1, 2) with no weight.
+        channel: usize,
+    },
+    /// A light whose intensity is zero in every channel: it would contribute nothing.
+    #[error("`{field}` is zero in every channel: the light contributes nothing")]
+    ZeroIntensity {
+        /// Which input.
+        field: &'static str,
+    },
+    /// A matrix that must be invertible is singular (or too close to it for f32).
+    #[error(
+        "the {matrix} matrix is singular or not invertible in f32 (determinant {determinant})"
+    )]
+    SingularMatrix {
+        /// `"view"` or `"projection"`.
+        matrix: &'static str,
+        /// Its determinant.
+        determinant: f32,
+    },
+    /// The projection is not a perspective projection (orthographic cameras have no single eye).
+    #[error(
+        "the projection matrix is not a perspective projection (last row must be (0, 0, ±1, 0))"
+    )]
+    NotPerspective,
+    /// A target or table size with a zero or too large dimension.
+    #[error("`{field}` must be between {min} and {max} in each dimension, got {width}x{height}")]
+    InvalidSize {
+        /// Which size.
+        field: &'static str,
+        /// Width received.
+        width: u32,
+        /// Height received.
+        height: u32,
+        /// Smallest allowed dimension.
+        min: u32,
+        /// Largest allowed dimension.
+        max: u32,
+    },
+    /// A texture the caller passed has a format, usage, sample count or size the node cannot use.
+    #[error("`{field}`: {problem}")]
+    InvalidTexture {
+        /// Which input texture.
+        field: &'static str,
+        /// What is wrong with it.
+        problem: String,
+    },
+    /// No GPU adapter could be found (headless helper).
+    #[error("no wgpu adapter found: {0}")]
+    NoAdapter(String),
+    /// Device creation failed (headless helper).
+    #[error("could not create a wgpu device: {0}")]
+    RequestDevice(String),
+    /// Reading a buffer or texture back from the GPU failed (headless helper).
+    #[error("GPU readback failed: {0}")]
+    Readback(String),
+}
+
+/// Shorthand for `Result<T, volshadow::Error>`.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Checks that every component of `value` is finite.
+pub(crate) fn finite(field: &'static str, value: &[f32]) -> Result<()> {
+    match value.iter().find(|v| !v.is_finite()) {
+        Some(&v) => Err(Error::NonFinite { field, value: v }),
+        None => Ok(()),
+    }
+}
+
+/// Checks that every component of `value` is finite and non-negative.
+pub(crate) fn non_negative(field: &'static str, value: &[f32]) -> Result<()> {
+    finite(field, value)?;
+    match value.iter().find(|v| **v < 0.0) {
+        Some(&v) => Err(Error::Negative { field, value: v }),
+        None => Ok(()),
+    }
+}

@@ -1,0 +1,184 @@
+//! A headless device and texture readback, for tests, examples and offline tools.
+//!
+//! The render-graph nodes never submit; this helper does, because reading a result back is
+//! what a test or an offline renderer is for.
+
+use crate::error::{Error, Result};
+
+/// A device and queue on the adapter chosen from the environment.
+pub struct HeadlessGpu {
+    /// The instance the adapter came from.
+    pub instance: wgpu::Instance,
+    /// The chosen adapter.
+    pub adapter: wgpu::Adapter,
+    /// A device with the core feature set plus whichever requested optional features exist.
+    pub device: wgpu::Device,
+    /// Its queue.
+    pub queue: wgpu::Queue,
+}
+
+impl HeadlessGpu {
+    /// A device with no optional features, see [`with_optional_features`](Self::with_optional_features).
+    pub fn new() -> Result<Self> {
+        Self::with_optional_features(wgpu::Features::empty())
+    }
+
+    /// Picks an adapter and creates a device with the default limits and those of `wanted`
+    /// that the adapter offers (never failing for a missing optional feature).
+    ///
+    /// Honours `WGPU_BACKEND` (e.g. `vulkan`) and `WGPU_ADAPTER_NAME` (a case-insensitive
+    /// substring, e.g. `llvmpipe` for lavapipe). Without them it prefers a discrete GPU, then an
+    /// integrated, virtual or software one. No adapter is an error that says how to install
+    /// lavapipe, never a silent fallback.
+    pub fn with_optional_features(wanted: wgpu::Features) -> Result<Self> {
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+        if wgpu::Backends::from_env().is_none() {
+            desc.backends = wgpu::Backends::all();
+        }
+        let instance = wgpu::Instance::new(desc);
+        let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+        let names: Vec<String> = adapters
+            .iter()
+            .map(|a| {
+                let i = a.get_info();
+                format!("{} ({:?}, {:?})", i.name, i.backend, i.device_type)
+            })
+            .collect();
+        let adapter = match std::env::var("WGPU_ADAPTER_NAME") {
+            Ok(wanted_name) => {
+                let wanted_name = wanted_name.to_lowercase();
+                adapters
+                    .into_iter()
+                    .find(|a| a.get_info().name.to_lowercase().contains(&wanted_name))
+                    .ok_or_else(|| {
+                        Error::NoAdapter(format!(
+                            "WGPU_ADAPTER_NAME={wanted_name:?} matches none of {names:?}"
+                        ))
+                    })?
+            }
+            Err(_) => {
+                let rank = |t: wgpu::DeviceType| match t {
+                    wgpu::DeviceType::DiscreteGpu => 0,
+                    wgpu::DeviceType::IntegratedGpu => 1,
+                    wgpu::DeviceType::VirtualGpu => 2,
+                    wgpu::DeviceType::Cpu => 3,
+                    wgpu::DeviceType::Other => 4,
+                };
+                adapters
+                    .into_iter()
+                    .min_by_key(|a| rank(a.get_info().device_type))
+                    .ok_or_else(|| {
+                        Error::NoAdapter(
+                            "no adapter on any backend. On a machine without a GPU driver \
+                             install lavapipe (Debian/Ubuntu: apt-get install -y \
+                             mesa-vulkan-drivers)"
+                                .into(),
+                        )
+                    })?
+            }
+        };
+        let features = adapter.features() & wanted;
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("volshadow headless"),
+            required_features: features,
+            required_limits: wgpu::Limits::default(),
+            experimental_features: wgpu::ExperimentalFeatures::disabled(),
+            memory_hints: wgpu::MemoryHints::Performance,
+            trace: wgpu::Trace::Off,
+        }))
+        .map_err(|e| Error::RequestDevice(e.to_string()))?;
+        Ok(Self {
+            instance,
+            adapter,
+            device,
+            queue,
+        })
+    }
+
+    /// The adapter's name, driver and backend in one line, for reports.
+    pub fn adapter_summary(&self) -> String {
+        let i = self.adapter.get_info();
+        format!(
+            "{} ({:?}, {:?}, driver {} {})",
+            i.name, i.backend, i.device_type, i.driver, i.driver_info
+        )
+    }
+
+    /// Submits `encoder` and waits for the GPU to finish it.
+    pub fn submit_and_wait(&self, encoder: wgpu::CommandEncoder) -> Result<()> {
+        self.queue.submit([encoder.finish()]);
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| Error::Readback(e.to_string()))?;
+        Ok(())
+    }
+
+    /// Reads mip 0 of a 2D texture (usage `COPY_SRC`, a colour format with a fixed block size)
+    /// back as tightly packed rows of bytes.
+    pub fn read_texture_bytes(&self, texture: &wgpu::Texture) -> Result<Vec<u8>> {
+        let format = texture.format();
+        let texel = format
+            .block_copy_size(None)
+            .filter(|_| format.block_dimensions() == (1, 1))
+            .ok_or_else(|| Error::Readback(format!("{format:?} cannot be read back")))?;
+        let (width, height) = (texture.width(), texture.height());
+        let row = width * texel;
+        let padded =
+            row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("volshadow readback"),
+            size: u64::from(padded) * u64::from(height),
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        encoder.copy_texture_to_buffer(
+            texture.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buffer,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(padded),
+                    rows_per_image: Some(height),
+                },
+            },
+            texture.size(),
+        );
+        self.submit_and_wait(encoder)?;
+        let slice = buffer.slice(..);
+        let (sender, receiver) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = sender.send(r);
+        });
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| Error::Readback(e.to_string()))?;
+        receiver
+            .recv()
+            .map_err(|e| Error::Readback(e.to_string()))?
+            .map_err(|e| Error::Readback(e.to_string()))?;
+        let mapped = slice
+            .get_mapped_range()
+            .map_err(|e| Error::Readback(format!("{e:?}")))?;
+        let mut out = Vec::with_capacity((row * height) as usize);
+        for y in 0..height as usize {
+            let start = y * padded as usize;
+            out.extend_from_slice(&mapped[start..start + row as usize]);
+        }
+        drop(mapped);
+        buffer.unmap();
+        Ok(out)
+    }
+
+    /// Reads an `Rgba32Float` texture back, row-major from the top row.
+    pub fn read_rgba32f(&self, texture: &wgpu::Texture) -> Result<Vec<[f32; 4]>> {
+        if texture.format() != wgpu::TextureFormat::Rgba32Float {
+            return Err(Error::Readback(format!(
+                "expected Rgba32Float, got {:?}",
+                texture.format()
+            )));
+        }
+        let bytes = self.read_texture_bytes(texture)?;
+        Ok(bytemuck::pod_collect_to_vec(&bytes))
+    }
+}

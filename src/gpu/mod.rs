@@ -1,0 +1,135 @@
+//! GPU plumbing shared by the nodes: the pipeline cache, uniform layouts, texture checks, and
+//! the headless helper used by tests, examples and offline tools.
+
+mod cache;
+pub mod headless;
+pub(crate) mod uniforms;
+
+pub use cache::Cache;
+
+use crate::error::{Error, Result};
+
+/// A uniform buffer that skips the queue write when the contents did not change.
+pub(crate) struct UniformBuffer<T: bytemuck::Pod + PartialEq> {
+    buffer: wgpu::Buffer,
+    last: Option<T>,
+}
+
+impl<T: bytemuck::Pod + PartialEq> UniformBuffer<T> {
+    pub(crate) fn new(device: &wgpu::Device, label: &str) -> Self {
+        let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: std::mem::size_of::<T>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Self { buffer, last: None }
+    }
+
+    /// Writes `value` unless it equals the last value written; returns whether it wrote.
+    pub(crate) fn write(&mut self, queue: &wgpu::Queue, value: T) -> bool {
+        if self.last == Some(value) {
+            return false;
+        }
+        queue.write_buffer(&self.buffer, 0, bytemuck::bytes_of(&value));
+        self.last = Some(value);
+        true
+    }
+
+    pub(crate) fn binding(&self) -> wgpu::BindingResource<'_> {
+        self.buffer.as_entire_binding()
+    }
+}
+
+/// Checks a depth texture the caller passes: a single-sampled 2D texture with a depth aspect
+/// and `TEXTURE_BINDING` usage.
+pub(crate) fn check_depth_texture(field: &'static str, texture: &wgpu::Texture) -> Result<()> {
+    let problem = |p: String| Err(Error::InvalidTexture { field, problem: p });
+    let format = texture.format();
+    if !format.has_depth_aspect() {
+        return problem(format!("{format:?} has no depth aspect"));
+    }
+    check_common(field, texture)
+}
+
+/// Checks a colour texture read with `textureLoad` as float: single-sampled, 2D,
+/// `TEXTURE_BINDING`, a float sample type.
+pub(crate) fn check_float_texture(field: &'static str, texture: &wgpu::Texture) -> Result<()> {
+    let format = texture.format();
+    match format.sample_type(None, None) {
+        Some(wgpu::TextureSampleType::Float { .. }) => check_common(field, texture),
+        _ => Err(Error::InvalidTexture {
+            field,
+            problem: format!("{format:?} cannot be read as float colour"),
+        }),
+    }
+}
+
+fn check_common(field: &'static str, texture: &wgpu::Texture) -> Result<()> {
+    let problem = |p: String| Err(Error::InvalidTexture { field, problem: p });
+    if texture.dimension() != wgpu::TextureDimension::D2 || texture.depth_or_array_layers() != 1 {
+        return problem("must be a single-layer 2D texture".into());
+    }
+    if texture.sample_count() != 1 {
+        return problem(format!(
+            "must be single-sampled (resolve it first), has {} samples",
+            texture.sample_count()
+        ));
+    }
+    if !texture
+        .usage()
+        .contains(wgpu::TextureUsages::TEXTURE_BINDING)
+    {
+        return problem("needs TextureUsages::TEXTURE_BINDING".into());
+    }
+    Ok(())
+}
+
+/// Checks that `texture` is `width × height`.
+pub(crate) fn check_size(
+    field: &'static str,
+    texture: &wgpu::Texture,
+    width: u32,
+    height: u32,
+) -> Result<()> {
+    if texture.width() != width || texture.height() != height {
+        return Err(Error::InvalidTexture {
+            field,
+            problem: format!(
+                "is {}x{}, expected {width}x{height}",
+                texture.width(),
+                texture.height()
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// A view of the depth aspect alone (depth-stencil formats cannot be sampled otherwise).
+pub(crate) fn depth_view(texture: &wgpu::Texture) -> wgpu::TextureView {
+    texture.create_view(&wgpu::TextureViewDescriptor {
+        label: Some("volshadow depth view"),
+        aspect: wgpu::TextureAspect::DepthOnly,
+        ..Default::default()
+    })
+}
+
+/// Validates a pass size against the device's 2D texture limit.
+pub(crate) fn check_target_size(
+    field: &'static str,
+    device: &wgpu::Device,
+    width: u32,
+    height: u32,
+) -> Result<()> {
+    let max = device.limits().max_texture_dimension_2d;
+    if width == 0 || height == 0 || width > max || height > max {
+        return Err(Error::InvalidSize {
+            field,
+            width,
+            height,
+            min: 1,
+            max,
+        });
+    }
+    Ok(())
+}

@@ -1,0 +1,117 @@
+//! GPU-side uniform structs (mirrors of the WGSL structs in `shaders/prelude.wgsl`) and their
+//! construction from the scene types.
+
+use bytemuck::{Pod, Zeroable};
+use glam::{Vec3, Vec4};
+
+use crate::scene::{Camera, Medium, PhaseFunction, PointLight};
+
+/// WGSL `Airlight`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub(crate) struct AirlightUniform {
+    pub light_pos: [f32; 4],
+    pub eye: [f32; 4],
+    pub intensity: [f32; 4],
+    pub sigma_s: [f32; 4],
+    pub sigma_t: [f32; 4],
+    pub w_iso: [f32; 4],
+    pub w_rayleigh: [f32; 4],
+    pub w_hg: [f32; 4],
+    pub w_hazy: [f32; 4],
+    pub w_murky: [f32; 4],
+    pub hg_g: [f32; 4],
+    pub table_size: [u32; 4],
+}
+
+/// Per-channel weights of the five phase lobes (iso, Rayleigh, HG, hazy, murky) and HG's g.
+fn phase_lobes(phase: PhaseFunction) -> ([Vec3; 5], f32) {
+    let z = Vec3::ZERO;
+    let one = Vec3::ONE;
+    match phase {
+        PhaseFunction::Isotropic => ([one, z, z, z, z], 0.0),
+        PhaseFunction::Rayleigh => ([z, one, z, z, z], 0.0),
+        PhaseFunction::HenyeyGreenstein { g } => ([z, z, one, z, z], g),
+        PhaseFunction::MieHazy => ([z, z, z, one, z], 0.0),
+        PhaseFunction::MieMurky => ([z, z, z, z, one], 0.0),
+        PhaseFunction::HoffmanPreetham { rayleigh, mie, g } => {
+            let sum = rayleigh + mie; // validated > 0 per channel
+            ([z, rayleigh / sum, mie / sum, z, z], g)
+        }
+    }
+}
+
+/// The eye–light distance below which the light is nudged away from the eye: at D = 0 the
+/// airlight is infinite and the ray's angle to the light undefined.
+const MIN_EYE_LIGHT_DISTANCE: f32 = 1e-6;
+
+impl AirlightUniform {
+    pub fn new(
+        eye: Vec3,
+        light: &PointLight,
+        medium: &Medium,
+        pixel_angular_radius: f32,
+        table_size: [u32; 2],
+    ) -> Self {
+        let mut light_pos = light.position();
+        let min_d = MIN_EYE_LIGHT_DISTANCE * eye.abs().max_element().max(1.0);
+        if light_pos.distance(eye) < min_d {
+            light_pos = eye + Vec3::Y * min_d;
+        }
+        let d = light_pos.distance(eye);
+        let (lobes, g) = phase_lobes(medium.phase());
+        let v4 = |v: Vec3| v.extend(0.0).to_array();
+        Self {
+            light_pos: light_pos.extend(d).to_array(),
+            eye: eye.extend(pixel_angular_radius).to_array(),
+            intensity: v4(light.intensity()),
+            sigma_s: v4(medium.sigma_s()),
+            sigma_t: v4(medium.sigma_t()),
+            w_iso: v4(lobes[0]),
+            w_rayleigh: v4(lobes[1]),
+            w_hg: v4(lobes[2]),
+            w_hazy: v4(lobes[3]),
+            w_murky: v4(lobes[4]),
+            hg_g: Vec4::new(g, 0.0, 0.0, 0.0).to_array(),
+            table_size: [table_size[0], table_size[1], 0, 0],
+        }
+    }
+
+    /// The part of the uniform the F′ table depends on: D, σt, the phase and the table size.
+    /// Eye and light may move freely as long as their distance stays the same.
+    pub fn table_key(&self) -> Self {
+        Self {
+            light_pos: [0.0, 0.0, 0.0, self.light_pos[3]],
+            eye: [0.0; 4],
+            intensity: [0.0; 4],
+            sigma_s: [0.0; 4],
+            ..*self
+        }
+    }
+}
+
+/// WGSL `View`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub(crate) struct ViewUniform {
+    pub view_from_clip: [f32; 16],
+    pub world_from_view: [f32; 16],
+    pub size: [f32; 4],
+}
+
+impl ViewUniform {
+    pub fn new(camera: &Camera, width: u32, height: u32) -> Self {
+        Self {
+            view_from_clip: camera.projection().inverse().to_cols_array(),
+            world_from_view: camera.view().inverse().to_cols_array(),
+            size: [width as f32, height as f32, camera.far_depth(), 0.0],
+        }
+    }
+}
+
+/// WGSL `Composite`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub(crate) struct CompositeUniform {
+    pub sigma_t: [f32; 4],
+}

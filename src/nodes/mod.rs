@@ -1,0 +1,12 @@
+//! Render-graph nodes. Each has the same three steps: `new` (long-lived resources), `prepare`
+//! (validate inputs, resize, upload what changed) and `encode` (record into the caller's
+//! `CommandEncoder`; never submits). Each module documents the format, usage and size of every
+//! texture it reads or writes.
+
+mod airlight_table;
+mod composite;
+mod march;
+
+pub use airlight_table::{AirlightTableNode, TableSize};
+pub use composite::{CompositeInputs, CompositeNode};
+pub use march::{MarchInputs, MarchNode};

@@ -1,0 +1,470 @@
+//! The f64 reference: an independent integrator of the single-scattering model, the ground
+//! truth every GPU test compares with.
+//!
+//! It shares no code with the GPU path (no wgpu, no shaders, nothing from `nodes` or `gpu`)
+//! beyond the scene types ([`Medium`], [`PhaseFunction`],
+//! [`PointLight`], [`Camera`]), whose f32 values it converts to f64 on entry.
+//!
+//! # The model
+//!
+//! For a ray from the eye `E` in the unit direction `v`, ending at distance `ds` (infinite for
+//! sky), a point light at `P` with intensity `I0` and a medium with scattering `σs`, extinction
+//! `σt = σs + σa` and phase function `p` (per RGB channel), the in-scattered radiance is
+//!
+//! ```text
+//! L_sctr = ∫₀^ds V(x) · σs · p(cos θ(x)) · I0 · exp(−σt·(d(x) + x)) / d(x)² dx,
+//! d(x) = |E + x·v − P|,   cos θ(x) = v·(P − X)/d(x)
+//! ```
+//!
+//! where `θ` is the scattering angle between the light's direction of travel at `X = E + x·v`
+//! and the direction towards the eye (looking straight at the light is `θ = 0`), and
+//! `V(x) ∈ {0, 1}` is 1 iff the segment from `X` to `P` meets no occluder surface.
+//!
+//! * [`inscatter`] integrates this with exact visibility ([`lit_intervals`]) and adaptive
+//!   Gauss–Kronrod quadrature in `x`, split where the integrand is sharp.
+//! * [`inscatter_closed_form`] evaluates the unshadowed integral through the substitution of
+//!   `DESIGN.md` §2 (an integral in the half scattering angle `ξ`), computed separately: the two
+//!   check each other.
+//! * [`inscatter_image`] does a whole frame for a [`Camera`], for per-pixel comparisons.
+//!
+//! All results are finite for finite input, except where a ray passes exactly through the light
+//! (distance `h = 0` from the light and the light within `[0, ds]`): the integral diverges there
+//! and the channels with `σs·I0 > 0` are `+∞`.
+
+// `!(x > 0.0)` is used on purpose throughout: it also rejects NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+mod occluder;
+mod phase;
+pub(crate) mod quadrature;
+mod visibility;
+
+use std::sync::Mutex;
+
+use glam::{DVec2, DVec3, DVec4};
+
+use crate::scene::{Camera, Medium, PhaseFunction, PointLight};
+
+pub use occluder::{Cuboid, Occluder, Sphere, TriangleMesh};
+pub use phase::phase;
+pub use visibility::lit_intervals;
+
+use phase::Cosine;
+use quadrature::integrate;
+
+/// The relative tolerance every integral of this module is computed to (estimated error of the
+/// adaptive Gauss–Kronrod quadrature, per channel). Measured agreement between [`inscatter`]
+/// and [`inscatter_closed_form`] is well below 1e-12.
+pub const RELATIVE_TOLERANCE: f64 = 1e-12;
+
+/// Most bisections one adaptive integral may spend (a cap that only pathological input reaches).
+const MAX_BISECTIONS: usize = 4000;
+
+/// Transmittance of the medium over a distance `ds`: `exp(−σt·ds)` per channel. `ds = ∞` gives
+/// 0 where `σt > 0` and 1 where `σt = 0`; `ds ≤ 0` (or NaN) gives 1.
+pub fn transmittance(medium: &Medium, ds: f64) -> DVec3 {
+    let sigma_t = medium.sigma_t().as_dvec3();
+    if !(ds > 0.0) {
+        return DVec3::ONE;
+    }
+    DVec3::from_array(
+        sigma_t
+            .to_array()
+            .map(|s| if s > 0.0 { (-s * ds).exp() } else { 1.0 }),
+    )
+}
+
+/// Geometry of a ray relative to the light, in f64.
+#[derive(Debug, Clone, Copy)]
+struct RayLight {
+    /// Unit direction.
+    v: DVec3,
+    /// Distance from the eye to the light, `D`.
+    distance: f64,
+    /// Distance along the ray to the closest approach, `t = v·(P − E) = D cos γ`.
+    t: f64,
+    /// Distance of the light from the ray's line, `h = |v × (P − E)| = D sin γ`.
+    h: f64,
+}
+
+/// `dir` normalised (rescaled first, so that huge or tiny finite vectors work); `None` for a
+/// zero or non-finite vector.
+pub(crate) fn unit(dir: DVec3) -> Option<DVec3> {
+    let largest = dir.abs().max_element();
+    if !(largest > 0.0 && largest.is_finite()) {
+        return None;
+    }
+    let scaled = dir / largest;
+    Some(scaled / scaled.length())
+}
+
+impl RayLight {
+    fn new(origin: DVec3, dir: DVec3, light: DVec3) -> Option<Self> {
+        if !(origin.is_finite() && light.is_finite()) {
+            return None;
+        }
+        let v = unit(dir)?;
+        let to_light = light - origin;
+        Some(Self {
+            v,
+            distance: to_light.length(),
+            t: v.dot(to_light),
+            h: v.cross(to_light).length(),
+        })
+    }
+}
+
+/// Per-ray constants of the integrand of (1).
+struct Integrand {
+    geo: RayLight,
+    /// `σs·I0` per channel.
+    coef: DVec3,
+    sigma_t: DVec3,
+    phase: PhaseFunction,
+}
+
+impl Integrand {
+    fn new(geo: RayLight, medium: &Medium, light: &PointLight) -> Self {
+        Self {
+            geo,
+            coef: medium.sigma_s().as_dvec3() * light.intensity().as_dvec3(),
+            sigma_t: medium.sigma_t().as_dvec3(),
+            phase: medium.phase(),
+        }
+    }
+
+    /// `exp(−σt·path)` per channel (1 where `σt = 0`, so that `path = ∞` is no NaN).
+    fn attenuation(&self, path: f64) -> DVec3 {
+        DVec3::from_array(self.sigma_t.to_array().map(|s| {
+            if s > 0.0 {
+                (-s * path).exp()
+            } else {
+                1.0
+            }
+        }))
+    }
+
+    /// The integrand of (1) with `V = 1`, multiplied by `scale`, at `x = t + w`: the argument is
+    /// the signed offset `w` from the closest approach to the light, so that a peak of width
+    /// `h` far smaller than the spacing of f64 numbers near `t` is still resolved.
+    fn at(&self, w: f64, scale: f64) -> DVec3 {
+        let RayLight { t, h, .. } = self.geo;
+        let d = h.hypot(w);
+        if !(d > 0.0) {
+            return DVec3::ZERO;
+        }
+        // μ = v·(P − X)/d = −w/d; 1 − μ, 1 + μ and d + w without cancellation.
+        let (one_minus, one_plus, d_plus_w) = if w <= 0.0 {
+            let dm = d - w;
+            ((h / d) * (h / dm), dm / d, (h / dm) * h)
+        } else {
+            let dp = d + w;
+            (dp / d, (h / d) * (h / dp), dp)
+        };
+        let cosine = Cosine {
+            mu: -w / d,
+            one_minus,
+            one_plus,
+        };
+        let p = phase::eval(&self.phase, cosine);
+        // d + x = (d + w) + t ≥ D.
+        self.coef * p * self.attenuation(d_plus_w + t) * ((scale / d) * (1.0 / d))
+    }
+
+    /// `+∞` in the channels that scatter at all, 0 in the others: the value of an interval
+    /// that reaches the light itself.
+    fn divergent(&self) -> DVec3 {
+        DVec3::from_array(
+            self.coef
+                .to_array()
+                .map(|c| if c > 0.0 { f64::INFINITY } else { 0.0 }),
+        )
+    }
+
+    /// ∫ over `[a, b]` (`b` may be `∞`) of the unshadowed integrand, by adaptive Gauss–Kronrod
+    /// in `x` with breakpoints where it is sharp.
+    fn integrate_x(&self, a: f64, b: f64) -> DVec3 {
+        let RayLight { distance, t, h, .. } = self.geo;
+        if !(a < b) || self.coef == DVec3::ZERO {
+            return DVec3::ZERO;
+        }
+        if h == 0.0 && a <= t && t <= b {
+            return self.divergent(); // the ray runs through the light
+        }
+        // Work in w = x − t. Breakpoints: the closest approach w = 0 and a geometric ladder
+        // ±base·4^j around it (the peak of 1/d² has width h; with h = 0 the light is outside
+        // [a, b] and the integrand varies on the scale of the distance to it), and the
+        // extinction lengths from a.
+        let (wa, wb) = (a - t, b - t);
+        let base = if h > 0.0 {
+            h
+        } else if wa > 0.0 {
+            wa
+        } else {
+            -wb
+        };
+        let reach = if b.is_finite() {
+            wa.abs().max(wb.abs())
+        } else {
+            64.0 * distance.max(h).max(wa.abs())
+        };
+        let mut points = vec![0.0];
+        let mut step = base / 16.0;
+        for _ in 0..80 {
+            if !(step <= reach) {
+                break;
+            }
+            points.extend([-step, step]);
+            step *= 4.0;
+        }
+        for s in self.sigma_t.to_array() {
+            if s > 0.0 {
+                points.extend([0.25, 1.0, 4.0, 16.0].map(|k| wa + k / s));
+            }
+        }
+        points.retain(|&w| w > wa && w < wb && w.is_finite());
+        points.push(wa);
+        points.sort_by(f64::total_cmp);
+        points.dedup();
+        let mut segments: Vec<(usize, f64, f64)> =
+            points.windows(2).map(|p| (0, p[0], p[1])).collect();
+        let last = *points.last().unwrap_or(&wa);
+        // Tail [last, ∞) mapped onto z ∈ [0, 1): w = last + L·z/(1 − z).
+        let tail_len = (last - wa)
+            .max(distance)
+            .max(h)
+            .max(f64::MIN_POSITIVE.sqrt());
+        if b.is_finite() {
+            segments.push((0, last, wb));
+        } else {
+            segments.push((1, 0.0, 1.0));
+        }
+        // Factor the singular 1/h out of the integrand so that the peak 1/h² cannot overflow.
+        let scale = if h > 0.0 { h } else { 1.0 };
+        let value = integrate(
+            |map, u| {
+                if map == 0 {
+                    self.at(u, scale)
+                } else {
+                    let one_minus = 1.0 - u;
+                    let w = last + tail_len * u / one_minus;
+                    self.at(w, scale) * (tail_len / (one_minus * one_minus))
+                }
+            },
+            &segments,
+            RELATIVE_TOLERANCE,
+            MAX_BISECTIONS,
+        );
+        value / scale
+    }
+}
+
+/// In-scattered radiance (RGB) along the ray `origin + x·dir`, `0 ≤ x ≤ ds` (`ds = ∞` for
+/// sky), with shadows: the integral (1) of the [module docs](self) over the [`lit_intervals`],
+/// each by adaptive Gauss–Kronrod (7, 15) quadrature in `x` to [`RELATIVE_TOLERANCE`], split at
+/// the closest approach to the light, on a geometric ladder around it, and at the extinction
+/// length scales; infinite tails are mapped onto a finite interval. Includes `σs` and `I0`,
+/// excludes the attenuated surface term (see [`transmittance`]).
+///
+/// `dir` need not be unit length. Returns zero for `ds ≤ 0`, NaN `ds`, a zero or non-finite
+/// `dir` or non-finite positions; `+∞` (in the channels with `σs·I0 > 0`) where the ray passes
+/// exactly through the light inside a lit interval; finite values otherwise.
+pub fn inscatter(
+    origin: DVec3,
+    dir: DVec3,
+    ds: f64,
+    medium: &Medium,
+    light: &PointLight,
+    occluders: &[Occluder],
+) -> DVec3 {
+    let light_pos = light.position().as_dvec3();
+    let Some(geo) = RayLight::new(origin, dir, light_pos) else {
+        return DVec3::ZERO;
+    };
+    if !(ds > 0.0) {
+        return DVec3::ZERO;
+    }
+    let integrand = Integrand::new(geo, medium, light);
+    lit_intervals(origin, geo.v, ds, light_pos, occluders)
+        .into_iter()
+        .map(|(a, b)| integrand.integrate_x(a, b))
+        .sum()
+}
+
+/// The unshadowed in-scattered radiance of [`inscatter`] with no occluders, evaluated
+/// independently through the closed form (2) of `DESIGN.md`:
+///
+/// ```text
+/// (2·σs·I0·exp(−σt·D) / h) · ∫_{γ/2}^{ξ(ds)} p(cos 2ξ) · exp(−σt·h·(tan ξ − tan(γ/2))) dξ
+/// ```
+///
+/// with `D = |P − E|`, `γ` the angle between `dir` and `P − E`, `h = D sin γ`,
+/// `ξ(x) = π/4 + ½·atan((x − D cos γ)/h)`, `ξ(∞) = π/2`; the scattering angle at `ξ` is `2ξ`.
+/// The integral is taken by adaptive Gauss–Kronrod in `s = ξ − γ/2`, whose range (half the
+/// angle that `[E, E + ds·v]` subtends at the light) is computed directly, and in which the
+/// exponent is `σt·h·sin s/(cos ξ · cos(γ/2))`; `ξ` itself is formed as `γ/2 + s` below π/4 and
+/// as `π/2 − (η₀ − s)` above (`η₀ = (π − γ)/2`), so every factor keeps its relative precision
+/// with the light straight ahead (`γ → 0`), behind the eye (`γ → π`) or for tiny `ds`.
+///
+/// When the light lies exactly on the ray's line (`h = 0`) the substitution does not exist: the
+/// result is `+∞` if the light lies within `[0, ds]` (as for [`inscatter`]) and otherwise the
+/// integral (1) taken in `x`. Degenerate input is handled as in [`inscatter`].
+pub fn inscatter_closed_form(
+    origin: DVec3,
+    dir: DVec3,
+    ds: f64,
+    medium: &Medium,
+    light: &PointLight,
+) -> DVec3 {
+    let Some(geo) = RayLight::new(origin, dir, light.position().as_dvec3()) else {
+        return DVec3::ZERO;
+    };
+    if !(ds > 0.0) {
+        return DVec3::ZERO;
+    }
+    let integrand = Integrand::new(geo, medium, light);
+    let RayLight { distance, t, h, .. } = geo;
+    if integrand.coef == DVec3::ZERO {
+        return DVec3::ZERO;
+    }
+    if h == 0.0 {
+        return integrand.integrate_x(0.0, ds);
+    }
+    // Integrate in s = ξ − γ/2 ∈ [0, S]: the width S is computed directly (half the angle that
+    // [E, X(ds)] subtends at the light), not as a difference of two angles, and the exponent
+    // is sin(s)/(cos ξ·cos(γ/2)) with no cancellation. ξ is formed from whichever of γ/2 + s
+    // and π/2 − (η0 − s) keeps its relative precision (η0 = π/2 − γ/2 = (π − γ)/2).
+    let half_gamma = 0.5 * h.atan2(t);
+    let eta0 = 0.5 * h.atan2(-t);
+    let width = if ds.is_finite() {
+        // angle at P between E − P and X − P = (E − P) + ds·v: atan2(ds·h, D² − ds·t).
+        0.5 * (ds * h).atan2(distance * distance - ds * t)
+    } else {
+        eta0
+    };
+    if !(width > 0.0) {
+        return DVec3::ZERO;
+    }
+    let cos_half_gamma = eta0.sin();
+    let sigma_h = integrand.sigma_t * h;
+    let phase = integrand.phase;
+    let f = |s: f64| {
+        let xi = half_gamma + s;
+        let (sin_xi, cos_xi) = if xi <= std::f64::consts::FRAC_PI_4 {
+            xi.sin_cos()
+        } else {
+            let (sin_eta, cos_eta) = (eta0 - s).sin_cos();
+            (cos_eta, sin_eta)
+        };
+        // Scattering angle 2ξ: μ = cos 2ξ, 1 − μ = 2 sin²ξ, 1 + μ = 2 cos²ξ.
+        let cosine = Cosine {
+            mu: (cos_xi - sin_xi) * (cos_xi + sin_xi),
+            one_minus: 2.0 * sin_xi * sin_xi,
+            one_plus: 2.0 * cos_xi * cos_xi,
+        };
+        let p = phase::eval(&phase, cosine);
+        // tan ξ − tan(γ/2) = sin(ξ − γ/2) / (cos ξ · cos(γ/2)) ≥ 0.
+        let excess = s.sin() / (cos_xi * cos_half_gamma);
+        let decay = DVec3::from_array(sigma_h.to_array().map(|sh| {
+            if sh > 0.0 {
+                (-sh * excess).exp()
+            } else {
+                1.0
+            }
+        }));
+        p * decay
+    };
+    // Breakpoints where the exponential falls off (scale cos²(γ/2) / (σt·h) in s).
+    let mut points = vec![0.0, width];
+    for sh in sigma_h.to_array() {
+        if sh > 0.0 {
+            let scale = cos_half_gamma * cos_half_gamma / sh;
+            points.extend([1.0, 4.0, 16.0, 64.0].map(|k| k * scale));
+        }
+    }
+    points.retain(|&s| (0.0..=width).contains(&s));
+    points.sort_by(f64::total_cmp);
+    points.dedup();
+    let segments: Vec<(usize, f64, f64)> = points.windows(2).map(|w| (0, w[0], w[1])).collect();
+    let bounded = integrate(|_, s| f(s), &segments, RELATIVE_TOLERANCE, MAX_BISECTIONS);
+    2.0 * integrand.coef * integrand.attenuation(distance) * (bounded / h)
+}
+
+/// Normalised device coordinates of the centre of pixel `(px, py)` in a `width × height` image
+/// (row 0 at the top): `x = (px + 0.5)/width·2 − 1`, `y = 1 − (py + 0.5)/height·2`.
+pub fn pixel_ndc(width: u32, height: u32, px: u32, py: u32) -> DVec2 {
+    DVec2::new(
+        (px as f64 + 0.5) / width.max(1) as f64 * 2.0 - 1.0,
+        1.0 - (py as f64 + 0.5) / height.max(1) as f64 * 2.0,
+    )
+}
+
+/// The eye position and unit world-space ray direction through the NDC point `ndc`, computed in
+/// f64 from the camera's view and projection matrices: the eye is `view⁻¹·(0, 0, 0, 1)`; the
+/// NDC point is unprojected at depth 0 and at depth 1 through `projection⁻¹`, and the one that
+/// is finite (unprojected `w` not ~0) and nearer the eye is used, so standard and reversed Z,
+/// finite and infinite far planes all work; the view-space point is taken to world space by
+/// `view⁻¹`, and the direction is it minus the eye, normalised.
+pub fn camera_ray(camera: &Camera, ndc: DVec2) -> (DVec3, DVec3) {
+    let inv_view = camera.view().as_dmat4().inverse();
+    let inv_proj = camera.projection().as_dmat4().inverse();
+    let eye_h = inv_view * DVec4::new(0.0, 0.0, 0.0, 1.0);
+    let eye = eye_h.truncate() / eye_h.w;
+    let mut best: Option<(f64, DVec3)> = None;
+    for depth in [0.0, 1.0] {
+        let p = inv_proj * DVec4::new(ndc.x, ndc.y, depth, 1.0);
+        let xyz = p.truncate();
+        if !(p.w.abs() > 1e-12 * xyz.length()) {
+            continue; // at infinity
+        }
+        let point = xyz / p.w; // view space, eye at the origin
+        let dist = point.length();
+        if dist.is_finite() && dist > 0.0 && best.is_none_or(|(d, _)| dist < d) {
+            best = Some((dist, point));
+        }
+    }
+    let view_point = best.map_or(DVec3::NEG_Z, |(_, p)| p);
+    let world = inv_view * view_point.extend(1.0);
+    let dir = (world.truncate() / world.w - eye).normalize_or(DVec3::NEG_Z);
+    (eye, dir)
+}
+
+/// [`inscatter`] for every pixel of a `width × height` image seen by `camera`, row-major with
+/// row 0 at the top. Pixel `(px, py)` uses the ray of [`camera_ray`] through [`pixel_ndc`], and
+/// `distance(eye, dir)` gives its `ds` (`f64::INFINITY` for sky). Rows are shared among
+/// `std::thread::available_parallelism()` threads.
+pub fn inscatter_image(
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    distance: impl Fn(DVec3, DVec3) -> f64 + Sync,
+    medium: &Medium,
+    light: &PointLight,
+    occluders: &[Occluder],
+) -> Vec<DVec3> {
+    let (w, h) = (width as usize, height as usize);
+    let mut image = vec![DVec3::ZERO; w * h];
+    if w == 0 || h == 0 {
+        return image;
+    }
+    let rows = Mutex::new(image.chunks_mut(w).enumerate());
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(h);
+    let work = || loop {
+        let next = rows.lock().map(|mut it| it.next()).unwrap_or(None);
+        let Some((py, row)) = next else { break };
+        for (px, out) in row.iter_mut().enumerate() {
+            let (eye, dir) = camera_ray(camera, pixel_ndc(width, height, px as u32, py as u32));
+            let ds = distance(eye, dir);
+            *out = inscatter(eye, dir, ds, medium, light, occluders);
+        }
+    };
+    std::thread::scope(|scope| {
+        for _ in 1..threads {
+            scope.spawn(work);
+        }
+        work();
+    });
+    image
+}

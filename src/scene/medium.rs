@@ -1,0 +1,130 @@
+//! The participating medium: scattering and absorption per RGB channel, and its phase function.
+
+use glam::Vec3;
+
+use crate::error::{finite, non_negative, Error, Result};
+
+/// How a medium scatters light, as a function of the scattering angle θ between the light's
+/// direction of travel and the direction towards the eye. Every variant is normalised so that its
+/// integral over the sphere is 1 (isotropic = 1/(4π)).
+///
+/// Validated by [`Medium::new`] (and [`PhaseFunction::validate`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
+pub enum PhaseFunction {
+    /// `1/(4π)`.
+    Isotropic,
+    /// Henyey–Greenstein, `(1 − g²) / (4π (1 + g² − 2g cos θ)^{3/2})`, with `g` in (−1, 1):
+    /// positive `g` scatters forward (bright halo looking towards the light).
+    HenyeyGreenstein {
+        /// Asymmetry parameter, the mean cosine of the scattering angle.
+        g: f32,
+    },
+    /// Rayleigh (small particles, clear air), `3/(16π) (1 + cos² θ)`.
+    Rayleigh,
+    /// Hoffman–Preetham's sky model: Rayleigh plus a Henyey–Greenstein Mie lobe, mixed per
+    /// channel in proportion to the two scattering coefficients. `rayleigh` and `mie` are the
+    /// coefficients βR and βM (per world unit); [`Medium::hoffman_preetham`] also sets the
+    /// medium's σs to their sum.
+    HoffmanPreetham {
+        /// Rayleigh scattering coefficient βR, RGB.
+        rayleigh: Vec3,
+        /// Mie scattering coefficient βM, RGB.
+        mie: Vec3,
+        /// Asymmetry of the Mie lobe, in (−1, 1).
+        g: f32,
+    },
+    /// Nishita's "hazy" Mie approximation, `∝ 1 + 9 ((1 + cos θ)/2)^8` (Biri et al. 2006).
+    MieHazy,
+    /// Nishita's "murky" Mie approximation, `∝ 1 + 50 ((1 + cos θ)/2)^32` (Biri et al. 2006).
+    MieMurky,
+}
+
+impl PhaseFunction {
+    /// Checks the parameters: finite, `|g| < 1`, non-negative Hoffman–Preetham coefficients
+    /// with a non-zero sum in every channel.
+    pub fn validate(&self) -> Result<()> {
+        let check_g = |g: f32| {
+            finite("phase.g", &[g])?;
+            if g.abs() >= 1.0 {
+                return Err(Error::AsymmetryOutOfRange { g });
+            }
+            Ok(())
+        };
+        match *self {
+            PhaseFunction::Isotropic | PhaseFunction::Rayleigh => Ok(()),
+            PhaseFunction::MieHazy | PhaseFunction::MieMurky => Ok(()),
+            PhaseFunction::HenyeyGreenstein { g } => check_g(g),
+            PhaseFunction::HoffmanPreetham { rayleigh, mie, g } => {
+                check_g(g)?;
+                non_negative("phase.rayleigh", &rayleigh.to_array())?;
+                non_negative("phase.mie", &mie.to_array())?;
+                let sum = rayleigh + mie;
+                match (0..3).find(|&c| sum[c] <= 0.0) {
+                    Some(channel) => Err(Error::ZeroPhaseWeight {
+                        field: "phase (Hoffman-Preetham rayleigh + mie)",
+                        channel,
+                    }),
+                    None => Ok(()),
+                }
+            }
+        }
+    }
+}
+
+/// A homogeneous participating medium. σs (scattering) and σa (absorption) are per world unit
+/// and per RGB channel; the extinction σt = σs + σa attenuates, σs alone scatters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Medium {
+    sigma_s: Vec3,
+    sigma_a: Vec3,
+    phase: PhaseFunction,
+}
+
+impl Medium {
+    /// A medium with scattering `sigma_s`, absorption `sigma_a` (both ≥ 0 and finite, per
+    /// channel) and a phase function.
+    pub fn new(sigma_s: Vec3, sigma_a: Vec3, phase: PhaseFunction) -> Result<Self> {
+        non_negative("medium.sigma_s", &sigma_s.to_array())?;
+        non_negative("medium.sigma_a", &sigma_a.to_array())?;
+        phase.validate()?;
+        Ok(Self {
+            sigma_s,
+            sigma_a,
+            phase,
+        })
+    }
+
+    /// Hoffman–Preetham: σs = βR + βM, phase mixed per channel by βR and βM.
+    pub fn hoffman_preetham(
+        beta_rayleigh: Vec3,
+        beta_mie: Vec3,
+        g: f32,
+        sigma_a: Vec3,
+    ) -> Result<Self> {
+        let phase = PhaseFunction::HoffmanPreetham {
+            rayleigh: beta_rayleigh,
+            mie: beta_mie,
+            g,
+        };
+        phase.validate()?;
+        Self::new(beta_rayleigh + beta_mie, sigma_a, phase)
+    }
+
+    /// Scattering coefficient σs, RGB.
+    pub fn sigma_s(&self) -> Vec3 {
+        self.sigma_s
+    }
+    /// Absorption coefficient σa, RGB.
+    pub fn sigma_a(&self) -> Vec3 {
+        self.sigma_a
+    }
+    /// Extinction coefficient σt = σs + σa, RGB.
+    pub fn sigma_t(&self) -> Vec3 {
+        self.sigma_s + self.sigma_a
+    }
+    /// The phase function.
+    pub fn phase(&self) -> PhaseFunction {
+        self.phase
+    }
+}

@@ -1,0 +1,10 @@
+//! Scene types shared by the GPU nodes and the f64 reference: medium, phase function, lights,
+//! camera. Every constructor validates its input and returns [`crate::Error`] on bad values.
+
+mod camera;
+mod light;
+mod medium;
+
+pub use camera::Camera;
+pub use light::PointLight;
+pub use medium::{Medium, PhaseFunction};

@@ -1,0 +1,214 @@
+//! Shared test helpers: the device, depth buffers written from known values, and the
+//! table → march → readback chain.
+#![allow(dead_code)]
+
+use glam::{DMat4, DVec3, DVec4, Vec3};
+use volshadow::nodes::{AirlightTableNode, MarchInputs, MarchNode, TableSize};
+use volshadow::{Cache, Camera, HeadlessGpu, Medium, PointLight};
+
+/// The test device. A missing adapter fails the test with the installation hint.
+pub fn gpu() -> HeadlessGpu {
+    match HeadlessGpu::new() {
+        Ok(gpu) => gpu,
+        Err(e) => panic!("GPU tests need a wgpu adapter (lavapipe works): {e}"),
+    }
+}
+
+/// NDC depth of a world point seen by `camera`, in f64.
+pub fn ndc_depth(camera: &Camera, point: DVec3) -> f32 {
+    let clip = (camera.projection().as_dmat4() * camera.view().as_dmat4())
+        * DVec4::new(point.x, point.y, point.z, 1.0);
+    (clip.z / clip.w) as f32
+}
+
+/// Eye position and ray direction through the centre of pixel (px, py), in f64, computed from
+/// the matrices (independent of the crate's shaders).
+pub fn pixel_ray(camera: &Camera, width: u32, height: u32, px: u32, py: u32) -> (DVec3, DVec3) {
+    let view: DMat4 = camera.view().as_dmat4();
+    let proj: DMat4 = camera.projection().as_dmat4();
+    let eye = view.inverse().w_axis.truncate();
+    let ndc_x = (px as f64 + 0.5) / width as f64 * 2.0 - 1.0;
+    let ndc_y = 1.0 - (py as f64 + 0.5) / height as f64 * 2.0;
+    let near = if camera.far_depth() == 1.0 { 0.0 } else { 1.0 };
+    let p = (proj * view).inverse() * DVec4::new(ndc_x, ndc_y, near, 1.0);
+    (eye, (p.truncate() / p.w - eye).normalize())
+}
+
+/// A `Depth32Float` texture holding `values` (row-major, top row first), written by a
+/// fullscreen pass through `frag_depth` (buffer → depth copies are not in the core feature set).
+pub fn depth_texture(gpu: &HeadlessGpu, width: u32, height: u32, values: &[f32]) -> wgpu::Texture {
+    depth_texture_with_format(
+        gpu,
+        width,
+        height,
+        values,
+        wgpu::TextureFormat::Depth32Float,
+    )
+}
+
+pub fn depth_texture_with_format(
+    gpu: &HeadlessGpu,
+    width: u32,
+    height: u32,
+    values: &[f32],
+    format: wgpu::TextureFormat,
+) -> wgpu::Texture {
+    assert_eq!(values.len(), (width * height) as usize);
+    let device = &gpu.device;
+    let size = wgpu::Extent3d {
+        width,
+        height,
+        depth_or_array_layers: 1,
+    };
+    let source = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("depth values"),
+        size,
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::R32Float,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    gpu.queue.write_texture(
+        source.as_image_copy(),
+        bytemuck::cast_slice(values),
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(width * 4),
+            rows_per_image: Some(height),
+        },
+        size,
+    );
+    let depth = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("test depth"),
+        size,
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::RENDER_ATTACHMENT,
+        view_formats: &[],
+    });
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("depth writer"),
+        source: wgpu::ShaderSource::Wgsl(
+            r#"
+@group(0) @binding(0) var values: texture_2d<f32>;
+@vertex fn vs(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
+    let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
+    return vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
+}
+@fragment fn fs(@builtin(position) p: vec4<f32>) -> @builtin(frag_depth) f32 {
+    return textureLoad(values, vec2<u32>(p.xy), 0).x;
+}"#
+            .into(),
+        ),
+    });
+    let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("depth writer"),
+        layout: None,
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some("vs"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: Default::default(),
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Always),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: &module,
+            entry_point: Some("fs"),
+            compilation_options: Default::default(),
+            targets: &[],
+        }),
+        multiview_mask: None,
+        cache: None,
+    });
+    let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &[wgpu::BindGroupEntry {
+            binding: 0,
+            resource: wgpu::BindingResource::TextureView(&source.create_view(&Default::default())),
+        }],
+    });
+    let mut encoder = device.create_command_encoder(&Default::default());
+    {
+        let view = depth.create_view(&Default::default());
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("write depth"),
+            color_attachments: &[],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(0.0),
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &bind_group, &[]);
+        pass.draw(0..3, 0..1);
+    }
+    gpu.submit_and_wait(encoder).expect("depth upload");
+    depth
+}
+
+/// Builds the table and runs the analytic march for one frame; returns the in-scatter
+/// texture's texels (rgb radiance, a = distance).
+pub fn march_frame(
+    gpu: &HeadlessGpu,
+    cache: &Cache,
+    table_size: TableSize,
+    camera: &Camera,
+    light: &PointLight,
+    medium: &Medium,
+    depth: &wgpu::Texture,
+) -> Vec<[f32; 4]> {
+    let mut table = AirlightTableNode::new(&gpu.device, cache, table_size).unwrap();
+    let mut march = MarchNode::new(&gpu.device, cache);
+    table.prepare(&gpu.queue, camera.eye(), light, medium);
+    march
+        .prepare(
+            &gpu.device,
+            &gpu.queue,
+            &table,
+            &MarchInputs {
+                camera,
+                light,
+                medium,
+                scene_depth: depth,
+            },
+        )
+        .unwrap();
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    table.encode(&mut encoder);
+    march.encode(&mut encoder);
+    gpu.submit_and_wait(encoder).unwrap();
+    gpu.read_rgba32f(march.output().unwrap()).unwrap()
+}
+
+/// A right-handed look-at camera with a standard-Z perspective projection.
+pub fn look_at(eye: Vec3, target: Vec3, fov_y_deg: f32, aspect: f32) -> Camera {
+    Camera::new(
+        glam::camera::rh::view::look_at_mat4(eye, target, Vec3::Y),
+        glam::camera::rh::proj::directx::perspective(fov_y_deg.to_radians(), aspect, 0.05, 500.0),
+    )
+    .unwrap()
+}
+
+pub fn max_abs_rel(a: f64, b: f64) -> f64 {
+    (a - b).abs() / b.abs().max(f64::MIN_POSITIVE)
+}
