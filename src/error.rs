@@ -44,6 +44,18 @@ pub enum Error {
         /// Which input.
         field: &'static str,
     },
+    /// A direction vector of zero length.
+    #[error("`{field}` has zero length")]
+    DegenerateDirection {
+        /// Which input.
+        field: &'static str,
+    },
+    /// A spot light's apex angle outside (0, π).
+    #[error("spot light cone angle must lie in (0, π) radians, got {angle}")]
+    ConeAngleOutOfRange {
+        /// The angle received, radians.
+        angle: f32,
+    },
     /// A matrix that must be invertible is singular (or too close to it for f32).
     #[error(
         "the {matrix} matrix is singular or not invertible in f32 (determinant {determinant})"

@@ -27,7 +27,7 @@ pub mod scene;
 pub use error::{Error, Result};
 pub use gpu::headless::HeadlessGpu;
 pub use gpu::Cache;
-pub use scene::{Camera, Medium, PhaseFunction, PointLight};
+pub use scene::{Camera, Light, Medium, PhaseFunction, PointLight, SpotLight};
 
 pub use glam;
 pub use wgpu;

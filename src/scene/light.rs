@@ -36,3 +36,121 @@ impl PointLight {
         self.intensity
     }
 }
+
+/// A spot light: a point light whose emission is limited to a cone around `direction`, with a
+/// hard edge at half the apex angle `cone_angle`. Its shadows come from a 2D shadow map.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpotLight {
+    position: Vec3,
+    direction: Vec3,
+    cos_half_angle: f32,
+    cone_angle: f32,
+    intensity: Vec3,
+}
+
+impl SpotLight {
+    /// A spot light at `position` pointing along `direction` (any non-zero length), with apex
+    /// angle `cone_angle` in radians, strictly between 0 and π, and radiant intensity
+    /// `intensity` inside the cone (finite, non-negative, non-zero in some channel).
+    pub fn new(position: Vec3, direction: Vec3, cone_angle: f32, intensity: Vec3) -> Result<Self> {
+        finite("spot_light.position", &position.to_array())?;
+        finite("spot_light.direction", &direction.to_array())?;
+        finite("spot_light.cone_angle", &[cone_angle])?;
+        non_negative("spot_light.intensity", &intensity.to_array())?;
+        let len = direction.length();
+        if !(len.is_finite() && len > 0.0) {
+            return Err(Error::DegenerateDirection {
+                field: "spot_light.direction",
+            });
+        }
+        if !(cone_angle > 0.0 && cone_angle < std::f32::consts::PI) {
+            return Err(Error::ConeAngleOutOfRange { angle: cone_angle });
+        }
+        if intensity.max_element() <= 0.0 {
+            return Err(Error::ZeroIntensity {
+                field: "spot_light.intensity",
+            });
+        }
+        Ok(Self {
+            position,
+            direction: direction / len,
+            cos_half_angle: (0.5 * cone_angle).cos(),
+            cone_angle,
+            intensity,
+        })
+    }
+    /// World-space position.
+    pub fn position(&self) -> Vec3 {
+        self.position
+    }
+    /// Unit direction of the cone's axis.
+    pub fn direction(&self) -> Vec3 {
+        self.direction
+    }
+    /// Apex angle of the cone, radians.
+    pub fn cone_angle(&self) -> f32 {
+        self.cone_angle
+    }
+    /// Cosine of half the apex angle: a point X is inside the cone when
+    /// `direction · (X − position) ≥ cos_half_angle · |X − position|`.
+    pub fn cos_half_angle(&self) -> f32 {
+        self.cos_half_angle
+    }
+    /// Radiant intensity inside the cone, RGB.
+    pub fn intensity(&self) -> Vec3 {
+        self.intensity
+    }
+}
+
+/// Any light the crate renders.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
+pub enum Light {
+    /// Omnidirectional; shadows from a cube shadow map.
+    Point(PointLight),
+    /// Cone-limited; shadows from a 2D shadow map.
+    Spot(SpotLight),
+}
+
+impl Light {
+    /// World-space position.
+    pub fn position(&self) -> Vec3 {
+        match self {
+            Light::Point(l) => l.position(),
+            Light::Spot(l) => l.position(),
+        }
+    }
+    /// Radiant intensity (inside the cone for a spot light), RGB.
+    pub fn intensity(&self) -> Vec3 {
+        match self {
+            Light::Point(l) => l.intensity(),
+            Light::Spot(l) => l.intensity(),
+        }
+    }
+}
+
+impl From<PointLight> for Light {
+    fn from(l: PointLight) -> Self {
+        Light::Point(l)
+    }
+}
+impl From<SpotLight> for Light {
+    fn from(l: SpotLight) -> Self {
+        Light::Spot(l)
+    }
+}
+impl From<&PointLight> for Light {
+    fn from(l: &PointLight) -> Self {
+        Light::Point(*l)
+    }
+}
+impl From<&SpotLight> for Light {
+    fn from(l: &SpotLight) -> Self {
+        Light::Spot(*l)
+    }
+}
+impl From<&Light> for Light {
+    fn from(l: &Light) -> Self {
+        *l
+    }
+}

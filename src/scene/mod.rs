@@ -6,5 +6,5 @@ mod light;
 mod medium;
 
 pub use camera::Camera;
-pub use light::PointLight;
+pub use light::{Light, PointLight, SpotLight};
 pub use medium::{Medium, PhaseFunction};
