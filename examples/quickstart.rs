@@ -12,9 +12,10 @@ use std::time::Instant;
 
 use volshadow::glam::{Mat4, Vec3};
 use volshadow::nodes::{
-    AirlightTableNode, CompositeInputs, CompositeNode, MarchInputs, MarchNode, TableSize,
+    AirlightTableNode, CompositeInputs, CompositeNode, MarchInputs, MarchNode, MarchSettings,
+    TableSize,
 };
-use volshadow::{Cache, Camera, HeadlessGpu, Medium, PhaseFunction, PointLight};
+use volshadow::{Cache, Camera, HeadlessGpu, Light, Medium, PhaseFunction, PointLight};
 
 const WIDTH: u32 = 640;
 const HEIGHT: u32 = 400;
@@ -37,7 +38,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             200.0,
         ),
     )?;
-    let light = PointLight::new(Vec3::new(0.8, 2.6, -1.5), Vec3::new(60.0, 52.0, 40.0))?;
+    let point = PointLight::new(Vec3::new(0.8, 2.6, -1.5), Vec3::new(60.0, 52.0, 40.0))?;
+    let light = Light::from(point);
     let medium = Medium::new(
         Vec3::new(0.06, 0.07, 0.09),
         Vec3::splat(0.01),
@@ -45,12 +47,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     )?;
 
     // The application's own frame: colour (linear radiance) and depth.
-    let (color, depth) = draw_scene(&gpu, &camera, &light, &medium);
+    let (color, depth) = draw_scene(&gpu, &camera, &point, &medium);
 
     // volshadow: shared cache, then one node per pass.
     let cache = Cache::new(&gpu.device);
     let mut table = AirlightTableNode::new(&gpu.device, &cache, TableSize::default())?;
-    let mut march = MarchNode::new(&gpu.device, &cache);
+    let mut march = MarchNode::new(&gpu.device, &cache, MarchSettings::default())?;
     let mut composite = CompositeNode::new(&gpu.device, &cache, wgpu::TextureFormat::Rgba32Float)?;
     let output = gpu.device.create_texture(&texture_desc(
         "output",
@@ -69,6 +71,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             light: &light,
             medium: &medium,
             scene_depth: &depth,
+            shadows: None,
         },
     )?;
     let inscatter = march.output().expect("prepared").clone();
@@ -84,9 +87,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         },
     )?;
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    table.encode(&mut encoder);
-    march.encode(&mut encoder);
-    composite.encode(&mut encoder, &output.create_view(&Default::default()))?;
+    table.encode(&mut encoder, None);
+    march.encode(&mut encoder, None);
+    composite.encode(&mut encoder, &output.create_view(&Default::default()), None)?;
     gpu.submit_and_wait(encoder)?;
     println!(
         "table + march + composite at {WIDTH}x{HEIGHT}: {:.1} ms (wall clock, first frame)",

@@ -1,11 +1,197 @@
-// March node: in-scattered radiance per pixel. With no shadow-volume extents the whole ray is
-// lit and the airlight is analytic: I0 · (F′(ds) − F′(0)) = I0 · F′(ds), F′(0) = 0.
+// March node: in-scattered radiance per pixel (DESIGN §3, seed paper 000 §3.1).
+//
+// Everything is done in the normalised scattering angle s of the F′ table: the airlight over
+// [s0, s1] is prefactor · (T(s1) − T(s0)). Uniform steps in s are uniform steps in the angle
+// seen from the light (seed 000 Fig. 4): dense near the light where the integrand is large,
+// and the sky is just s = 1.
+//   analytic:    the whole lit support at once (no occluders);
+//   hybrid:      analytic outside the shadow-volume extents, `steps` steps inside them;
+//   brute force: `steps` steps over the whole support.
+// Lit support: [0, ds] for a point light; its intersection with the cone for a spot light.
+
+struct MarchParams {
+    mode: vec4<u32>,      // x: 0 analytic, 1 hybrid, 2 brute force; y: steps; z: bisections; w: 1 = spot
+    spot: vec4<f32>,      // xyz cone axis (unit), w = cos(half apex angle)
+    shadow: vec4<f32>,    // x: shadow-map layers (1 spot, 6 cube), y: relative depth bias, z: extents near plane
+    faces: array<mat4x4<f32>, 6>,  // shadow-map face clip_from_world
+}
 
 @group(0) @binding(0) var<uniform> air: Airlight;
 @group(0) @binding(1) var<uniform> view: View;
 @group(0) @binding(2) var table: texture_2d<f32>;
 @group(0) @binding(3) var scene_depth: texture_depth_2d;
 @group(0) @binding(4) var inscatter_out: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(5) var<uniform> mp: MarchParams;
+@group(0) @binding(6) var shadow_map: texture_depth_2d_array;
+@group(0) @binding(7) var shadow_sampler: sampler_comparison;
+@group(0) @binding(8) var extent_front: texture_depth_2d;
+@group(0) @binding(9) var extent_back_near: texture_depth_2d;
+@group(0) @binding(10) var extent_back_far: texture_depth_2d;
+@group(0) @binding(11) var steps_out: texture_storage_2d<r32uint, write>;
+
+// Distance along the ray of the point with normalised scattering angle s (law of sines in the
+// eye–point–light triangle: x = D sin δ / sin β, δ = s w, β = (1 − s) w). sin β is taken as
+// sin(γ + δ) when β is near π, where it is small and f32 would lose it.
+fn x_of_s(r: AirRay, s: f32) -> f32 {
+    let sc = min(s, 1.0 - 1.0e-6);
+    let beta = (1.0 - sc) * r.w;
+    var sin_beta = sin(beta);
+    if (beta > 0.5 * PI) {
+        sin_beta = sin(r.gamma + sc * r.w);
+    }
+    return air.light_pos.w * sin(sc * r.w) / max(sin_beta, 1.0e-30);
+}
+
+// Shadow-map visibility of a world point, in [0, 1] (2×2 percentage-closer filtered).
+fn visibility(p: vec3<f32>) -> f32 {
+    let rel = p - air.light_pos.xyz;
+    var face = 0u;
+    if (mp.shadow.x > 1.5) {
+        let m = abs(rel);
+        if (m.x >= m.y && m.x >= m.z) {
+            face = select(1u, 0u, rel.x > 0.0);
+        } else if (m.y >= m.z) {
+            face = select(3u, 2u, rel.y > 0.0);
+        } else {
+            face = select(5u, 4u, rel.z > 0.0);
+        }
+    }
+    let clip = mp.faces[face] * vec4<f32>(p, 1.0);
+    if (clip.w <= 0.0) {
+        return 1.0; // behind a spot light: outside its cone, which the support already excludes
+    }
+    let ndc = clip.xyz / clip.w;
+    if (any(abs(ndc.xy) > vec2<f32>(1.0))) {
+        return 1.0;
+    }
+    let uv = vec2<f32>(0.5 + 0.5 * ndc.x, 0.5 - 0.5 * ndc.y);
+    // Reversed Z: depth = near / distance; nearer than the occluder ⇔ larger depth. The bias
+    // is relative, so it means the same at every scene scale.
+    let reference = ndc.z / (1.0 - mp.shadow.y);
+    return textureSampleCompareLevel(shadow_map, shadow_sampler, uv, i32(face), reference);
+}
+
+fn vis_at(ray: PixelRay, r: AirRay, s: f32) -> f32 {
+    return visibility(air.eye.xyz + x_of_s(r, s) * ray.dir);
+}
+
+struct Marched {
+    t: vec3<f32>,
+    steps: u32,
+}
+
+// ∫ V dT over [s0, s1] in `steps` uniform steps, visibility sampled at each step's midpoint
+// (so the ends of a hybrid interval, which sit on shadow-volume faces, are never half-lit).
+// With bisection on, where two neighbouring midpoints disagree the transition between them
+// is located to 2^-bisections of a step and the midpoint rule's assumed edge is corrected.
+fn march_interval(ray: PixelRay, r: AirRay, s0: f32, s1: f32) -> Marched {
+    var out: Marched;
+    out.t = vec3<f32>(0.0);
+    out.steps = 0u;
+    let n = max(mp.mode.y, 1u);
+    let ds = (s1 - s0) / f32(n);
+    var t_a = table_t(table, air, r, s0);
+    var v_prev = 0.0;
+    for (var i = 0u; i < n; i++) {
+        let a = s0 + ds * f32(i);
+        let b = select(s0 + ds * f32(i + 1u), s1, i + 1u == n);
+        let mid = 0.5 * (a + b);
+        let t_b = table_t(table, air, r, b);
+        let v = vis_at(ray, r, mid);
+        out.t += (t_b - t_a) * v;
+        if (mp.mode.z > 0u && i > 0u && (v >= 0.5) != (v_prev >= 0.5)) {
+            // The transition lies between the previous midpoint and this one.
+            var lo = a - 0.5 * ds;
+            var hi = mid;
+            for (var k = 0u; k < mp.mode.z; k++) {
+                let m = 0.5 * (lo + hi);
+                if ((vis_at(ray, r, m) >= 0.5) == (v_prev >= 0.5)) {
+                    lo = m;
+                } else {
+                    hi = m;
+                }
+            }
+            let t_edge = table_t(table, air, r, 0.5 * (lo + hi));
+            out.t += (v_prev - v) * (t_edge - t_a);
+            out.steps += mp.mode.z;
+        }
+        t_a = t_b;
+        v_prev = v;
+    }
+    out.steps += n;
+    return out;
+}
+
+// The spot cone along the ray, as up to two intervals of distance (−1 ends mean empty).
+// Roots of (a·(X − P))² = cos²α |X − P|² on the light's nappe a·(X − P) ≥ 0.
+struct Support {
+    x: array<vec2<f32>, 2>,
+    count: u32,
+}
+
+fn inside_cone(p: vec3<f32>) -> bool {
+    let rel = p - air.light_pos.xyz;
+    return dot(mp.spot.xyz, rel) >= mp.spot.w * length(rel);
+}
+
+fn cone_support(dir: vec3<f32>, x_end: f32) -> Support {
+    var sup: Support;
+    sup.count = 0u;
+    let axis = mp.spot.xyz;
+    let c2 = mp.spot.w * mp.spot.w;
+    let w0 = air.eye.xyz - air.light_pos.xyz;
+    let av = dot(axis, dir);
+    let aw = dot(axis, w0);
+    let qa = av * av - c2;
+    let qb = 2.0 * (av * aw - c2 * dot(dir, w0));
+    let qc = aw * aw - c2 * dot(w0, w0);
+    var roots = array<f32, 2>(-1.0, -1.0);
+    if (abs(qa) > 1.0e-12 * max(abs(qb), abs(qc))) {
+        let disc = qb * qb - 4.0 * qa * qc;
+        if (disc >= 0.0) {
+            let q = -0.5 * (qb + select(-1.0, 1.0, qb >= 0.0) * sqrt(disc));
+            var r0 = q / qa;
+            var r1 = select(r0, qc / q, q != 0.0);
+            roots = array<f32, 2>(min(r0, r1), max(r0, r1));
+        }
+    } else if (qb != 0.0) {
+        roots[0] = -qc / qb;
+    }
+    // Split [0, x_end] at the roots and keep the pieces whose midpoint is inside the cone.
+    var cuts = array<f32, 4>(0.0, x_end, x_end, x_end);
+    var k = 1u;
+    for (var i = 0u; i < 2u; i++) {
+        if (roots[i] > 0.0 && roots[i] < x_end) {
+            cuts[k] = roots[i];
+            k++;
+        }
+    }
+    cuts[k] = x_end;
+    for (var i = 0u; i < k; i++) {
+        let a = cuts[i];
+        let b = cuts[i + 1u];
+        var mid = 0.5 * (a + b);
+        if (b >= 3.0e38) {
+            mid = a + 1.0 + 2.0 * abs(a) + 1.0e3 * air.light_pos.w; // far along an unbounded piece
+        }
+        if (b > a && inside_cone(air.eye.xyz + mid * dir)) {
+            if (sup.count > 0u && sup.x[sup.count - 1u].y == a) {
+                sup.x[sup.count - 1u].y = b;
+            } else if (sup.count < 2u) {
+                sup.x[sup.count] = vec2<f32>(a, b);
+                sup.count++;
+            }
+        }
+    }
+    return sup;
+}
+
+fn s_of_x(r: AirRay, x: f32) -> f32 {
+    if (x >= 3.0e38) {
+        return 1.0;
+    }
+    return scattering_s(air, r, x);
+}
 
 @compute @workgroup_size(8, 8)
 fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -16,6 +202,65 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
     let depth = textureLoad(scene_depth, gid.xy, 0);
     let ray = pixel_ray(view, vec2<f32>(gid.xy) + 0.5, depth);
     let r = air_ray(air, ray.dir);
-    let radiance = fprime(table, air, r, ray.distance);
+    let x_end = select(3.4e38, ray.distance, ray.distance >= 0.0);
+
+    // Lit support in s.
+    var support: array<vec2<f32>, 2>;
+    var count = 1u;
+    support[0] = vec2<f32>(0.0, s_of_x(r, x_end));
+    if (mp.mode.w == 1u) {
+        let cone = cone_support(ray.dir, x_end);
+        count = cone.count;
+        for (var i = 0u; i < cone.count; i++) {
+            support[i] = vec2<f32>(s_of_x(r, cone.x[i].x), s_of_x(r, cone.x[i].y));
+        }
+    }
+
+    // Shadow-volume extents in s (hybrid): start at 0 when the nearest face is a back face
+    // (eye inside a volume, or its front cut away by the near plane), else at the nearest front
+    // face; end at the farthest back face (0 depth = at infinity).
+    var ext = vec2<f32>(1.0, 0.0); // empty
+    if (mp.mode.x == 1u) {
+        let front = textureLoad(extent_front, gid.xy, 0);
+        let back_near = textureLoad(extent_back_near, gid.xy, 0);
+        let back_far = textureLoad(extent_back_far, gid.xy, 0);
+        let has_front = front > 0.0;
+        let has_back = back_far < 1.0;
+        if (has_front || has_back) {
+            let to_x = mp.shadow.z * ray.depth_to_distance;
+            var x0 = 0.0;
+            if (has_front && back_near <= front) {
+                x0 = to_x / front;
+            }
+            var x1 = 3.4e38;
+            if (has_back && back_far > 0.0) {
+                x1 = to_x / back_far;
+            }
+            // Widening is always safe (DESIGN §3): a relative margin covers rasterisation
+            // and depth rounding.
+            ext = vec2<f32>(s_of_x(r, x0 * 0.999), s_of_x(r, min(x1 * 1.001, 3.4e38)));
+        }
+    } else if (mp.mode.x == 2u) {
+        ext = vec2<f32>(0.0, 1.0);
+    }
+
+    var total = vec3<f32>(0.0);
+    var steps = 0u;
+    for (var i = 0u; i < count; i++) {
+        let u0 = support[i].x;
+        let u1 = support[i].y;
+        let m0 = max(u0, ext.x);
+        let m1 = min(u1, ext.y);
+        if (m0 < m1) {
+            let marched = march_interval(ray, r, m0, m1);
+            total += (table_t(table, air, r, m0) - table_t(table, air, r, u0)) + marched.t
+                   + (table_t(table, air, r, u1) - table_t(table, air, r, m1));
+            steps += marched.steps;
+        } else {
+            total += table_t(table, air, r, u1) - table_t(table, air, r, u0);
+        }
+    }
+    let radiance = r.prefactor * max(total, vec3<f32>(0.0));
     textureStore(inscatter_out, gid.xy, vec4<f32>(clamp_radiance(radiance), ray.distance));
+    textureStore(steps_out, gid.xy, vec4<u32>(steps, 0u, 0u, 0u));
 }

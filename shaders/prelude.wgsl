@@ -171,6 +171,9 @@ struct View {
 struct PixelRay {
     dir: vec3<f32>,
     distance: f32,
+    // World distance along the ray per unit of view depth (−z): converts view depths to
+    // distances for any view matrix, rigid or scaled.
+    depth_to_distance: f32,
 }
 
 fn pixel_ray(v: View, pixel: vec2<f32>, depth: f32) -> PixelRay {
@@ -183,6 +186,7 @@ fn pixel_ray(v: View, pixel: vec2<f32>, depth: f32) -> PixelRay {
     var out: PixelRay;
     out.dir = normalize(m * dir_view);
     out.distance = -1.0;
+    out.depth_to_distance = length(m * dir_view) / max(-dir_view.z, 1.0e-30);
     if (depth != far_depth) {
         let p = v.view_from_clip * vec4<f32>(ndc, depth, 1.0);
         // Behind the far end (w of the wrong sign or zero) reads as sky too.

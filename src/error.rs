@@ -93,6 +93,64 @@ pub enum Error {
         /// What is wrong with it.
         problem: String,
     },
+    /// A mesh with no positions or no indices.
+    #[error("mesh is empty: {positions} positions, {indices} indices")]
+    EmptyMesh {
+        /// Number of positions received.
+        positions: usize,
+        /// Number of indices received.
+        indices: usize,
+    },
+    /// A triangle-list index buffer whose length is not a multiple of 3.
+    #[error("mesh index count must be a multiple of 3, got {count}")]
+    IndexCountNotMultipleOf3 {
+        /// Number of indices received.
+        count: usize,
+    },
+    /// A mesh index that does not name a position.
+    #[error(
+        "mesh index at position {position} is {index}, but the mesh has {vertex_count} vertices"
+    )]
+    IndexOutOfRange {
+        /// Where in the index slice the bad index is.
+        position: usize,
+        /// The index value.
+        index: u32,
+        /// Number of positions in the mesh.
+        vertex_count: usize,
+    },
+    /// A mesh vertex position with a NaN or infinite component.
+    #[error("mesh vertex {vertex} has a non-finite position {position}")]
+    NonFinitePosition {
+        /// Which vertex (index into the positions).
+        vertex: usize,
+        /// Its position.
+        position: glam::Vec3,
+    },
+    /// A mesh whose triangles all have zero area: it cannot occlude anything.
+    #[error("all {triangles} triangles of the mesh have zero area")]
+    DegenerateMesh {
+        /// Number of triangles in the mesh.
+        triangles: usize,
+    },
+    /// A mesh with more triangles or positions than the crate supports.
+    #[error("mesh has too many {field}: {count} (at most {max})")]
+    MeshTooLarge {
+        /// `"triangles"` or `"positions"`.
+        field: &'static str,
+        /// Number received.
+        count: usize,
+        /// Largest supported number.
+        max: usize,
+    },
+    /// A node setting outside its documented range.
+    #[error("`{field}`: {problem}")]
+    InvalidSetting {
+        /// Which setting.
+        field: &'static str,
+        /// What is wrong with it.
+        problem: String,
+    },
     /// No GPU adapter could be found (headless helper).
     #[error("no wgpu adapter found: {0}")]
     NoAdapter(String),

@@ -31,9 +31,12 @@ fn table_error(
     let light = PointLight::new(eye + Vec3::new(0.0, 0.0, d), Vec3::ONE).unwrap();
 
     let mut table = AirlightTableNode::new(&gpu.device, cache, size).unwrap();
-    table.prepare(&gpu.queue, eye, &light, &medium);
+    table.prepare(&gpu.queue, eye, &light.into(), &medium);
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    assert!(table.encode(&mut encoder), "a fresh table must be built");
+    assert!(
+        table.encode(&mut encoder, None),
+        "a fresh table must be built"
+    );
     gpu.submit_and_wait(encoder).unwrap();
     let texels = gpu.read_rgba32f(table.texture()).unwrap();
     assert!(

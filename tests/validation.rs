@@ -5,7 +5,8 @@ mod common;
 
 use glam::{Mat4, Vec3};
 use volshadow::nodes::{
-    AirlightTableNode, CompositeInputs, CompositeNode, MarchInputs, MarchNode, TableSize,
+    AirlightTableNode, CompositeInputs, CompositeNode, MarchInputs, MarchNode, MarchSettings,
+    TableSize,
 };
 use volshadow::{Cache, Camera, Error, Medium, PhaseFunction, PointLight};
 
@@ -253,7 +254,7 @@ fn bad_textures_are_typed_errors_not_validation_errors() {
     let gpu = common::gpu();
     let cache = Cache::new(&gpu.device);
     let camera = Camera::new(view(), projection()).unwrap();
-    let light = PointLight::new(Vec3::Y, Vec3::ONE).unwrap();
+    let light = volshadow::Light::from(PointLight::new(Vec3::Y, Vec3::ONE).unwrap());
     let medium = Medium::new(Vec3::splat(0.1), Vec3::ZERO, PhaseFunction::Isotropic).unwrap();
     let tex = |format, usage, w, h| {
         gpu.device.create_texture(&wgpu::TextureDescriptor {
@@ -273,7 +274,7 @@ fn bad_textures_are_typed_errors_not_validation_errors() {
     };
     let sampled = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::RENDER_ATTACHMENT;
     let table = AirlightTableNode::new(&gpu.device, &cache, TableSize::default()).unwrap();
-    let mut march = MarchNode::new(&gpu.device, &cache);
+    let mut march = MarchNode::new(&gpu.device, &cache, MarchSettings::default()).unwrap();
     let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
 
     // A colour texture passed as depth.
@@ -283,6 +284,7 @@ fn bad_textures_are_typed_errors_not_validation_errors() {
         light: &light,
         medium: &medium,
         scene_depth: &colour,
+        shadows: None,
     };
     let err = march
         .prepare(&gpu.device, &gpu.queue, &table, &inputs)
@@ -366,7 +368,7 @@ fn bad_textures_are_typed_errors_not_validation_errors() {
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
     let target = tex(wgpu::TextureFormat::Rgba8Unorm, sampled, 16, 16);
     let err = composite
-        .encode(&mut encoder, &target.create_view(&Default::default()))
+        .encode(&mut encoder, &target.create_view(&Default::default()), None)
         .err();
     assert!(
         matches!(

@@ -13,6 +13,15 @@ pub struct Cache {
     pub(crate) march_layout: wgpu::BindGroupLayout,
     pub(crate) march_pipeline: wgpu::ComputePipeline,
     pub(crate) composite_layout: wgpu::BindGroupLayout,
+    pub(crate) shadow_layout: wgpu::BindGroupLayout,
+    pub(crate) shadow_pipeline: wgpu::RenderPipeline,
+    pub(crate) extents_extrude_layout: wgpu::BindGroupLayout,
+    pub(crate) extents_reset_pipeline: wgpu::ComputePipeline,
+    pub(crate) extents_extrude_pipeline: wgpu::ComputePipeline,
+    pub(crate) extents_raster_layout: wgpu::BindGroupLayout,
+    pub(crate) extents_front_pipeline: wgpu::RenderPipeline,
+    pub(crate) extents_back_near_pipeline: wgpu::RenderPipeline,
+    pub(crate) extents_back_far_pipeline: wgpu::RenderPipeline,
     composite_pipeline_layout: wgpu::PipelineLayout,
     composite_module: wgpu::ShaderModule,
     composite_pipelines: Mutex<HashMap<wgpu::TextureFormat, wgpu::RenderPipeline>>,
@@ -58,16 +67,87 @@ fn texture_entry(
 }
 
 fn storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    storage_texture_entry(binding, wgpu::TextureFormat::Rgba32Float)
+}
+
+fn storage_texture_entry(binding: u32, format: wgpu::TextureFormat) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: wgpu::ShaderStages::COMPUTE,
         ty: wgpu::BindingType::StorageTexture {
             access: wgpu::StorageTextureAccess::WriteOnly,
-            format: wgpu::TextureFormat::Rgba32Float,
+            format,
             view_dimension: wgpu::TextureViewDimension::D2,
         },
         count: None,
     }
+}
+
+fn buffer_entry(
+    binding: u32,
+    ty: wgpu::BufferBindingType,
+    dynamic: bool,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: dynamic,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// A depth-only render pipeline (no colour target).
+#[allow(clippy::too_many_arguments)]
+fn depth_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    module: &wgpu::ShaderModule,
+    vertex_entry: &str,
+    fragment_entry: Option<&str>,
+    buffers: &[wgpu::VertexBufferLayout<'_>],
+    compare: wgpu::CompareFunction,
+) -> wgpu::RenderPipeline {
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(layout)],
+        immediate_size: 0,
+    });
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(label),
+        layout: Some(&pipeline_layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some(vertex_entry),
+            compilation_options: Default::default(),
+            buffers: &buffers.iter().cloned().map(Some).collect::<Vec<_>>(),
+        },
+        // Both sides: occluders may be open meshes; volume faces are classified in the shader.
+        primitive: wgpu::PrimitiveState {
+            cull_mode: None,
+            ..Default::default()
+        },
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: wgpu::TextureFormat::Depth32Float,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(compare),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: Default::default(),
+        fragment: fragment_entry.map(|entry| wgpu::FragmentState {
+            module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            targets: &[],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
 }
 
 const UNFILTERED: wgpu::TextureSampleType = wgpu::TextureSampleType::Float { filterable: false };
@@ -124,6 +204,27 @@ impl Cache {
                 texture_entry(2, compute, UNFILTERED),
                 texture_entry(3, compute, wgpu::TextureSampleType::Depth),
                 storage_entry(4),
+                uniform_entry(5, compute),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 6,
+                    visibility: compute,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Depth,
+                        view_dimension: wgpu::TextureViewDimension::D2Array,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 7,
+                    visibility: compute,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Comparison),
+                    count: None,
+                },
+                texture_entry(8, compute, wgpu::TextureSampleType::Depth),
+                texture_entry(9, compute, wgpu::TextureSampleType::Depth),
+                texture_entry(10, compute, wgpu::TextureSampleType::Depth),
+                storage_texture_entry(11, wgpu::TextureFormat::R32Uint),
             ],
         });
         let march_module = module(
@@ -161,7 +262,122 @@ impl Cache {
             "volshadow composite.wgsl",
             include_str!("../../shaders/composite.wgsl"),
         );
+        let vertex = wgpu::ShaderStages::VERTEX;
+        let dynamic_uniform = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: vertex,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: true,
+                min_binding_size: wgpu::BufferSize::new(64),
+            },
+            count: None,
+        };
+        let shadow_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("volshadow shadow map"),
+            entries: &[dynamic_uniform(0), dynamic_uniform(1)],
+        });
+        let shadow_module = module(
+            device,
+            "volshadow shadow_map.wgsl",
+            include_str!("../../shaders/shadow_map.wgsl"),
+        );
+        let shadow_pipeline = depth_pipeline(
+            device,
+            "volshadow shadow map",
+            &shadow_layout,
+            &shadow_module,
+            "vs_shadow",
+            None,
+            &[wgpu::VertexBufferLayout {
+                array_stride: 16,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &wgpu::vertex_attr_array![0 => Float32x4],
+            }],
+            wgpu::CompareFunction::Greater,
+        );
+
+        let storage = |read_only| wgpu::BufferBindingType::Storage { read_only };
+        let extents_extrude_layout =
+            device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("volshadow extrude"),
+                entries: &[
+                    buffer_entry(0, wgpu::BufferBindingType::Uniform, false),
+                    buffer_entry(1, storage(true), false),
+                    buffer_entry(2, storage(true), false),
+                    buffer_entry(3, storage(true), false),
+                    buffer_entry(4, storage(false), false),
+                    buffer_entry(5, storage(false), false),
+                ],
+            });
+        let extents_module = module(
+            device,
+            "volshadow extents.wgsl",
+            include_str!("../../shaders/extents.wgsl"),
+        );
+        let extents_reset_pipeline = compute_pipeline(
+            device,
+            "volshadow extrude reset",
+            &extents_extrude_layout,
+            &extents_module,
+            "reset",
+        );
+        let extents_extrude_pipeline = compute_pipeline(
+            device,
+            "volshadow extrude",
+            &extents_extrude_layout,
+            &extents_module,
+            "extrude",
+        );
+        let extents_raster_layout =
+            device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("volshadow extents raster"),
+                entries: &[uniform_entry(0, vertex)],
+            });
+        let volume_vertices = [wgpu::VertexBufferLayout {
+            array_stride: 32,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32x4],
+        }];
+        let extents_pipeline = |label, entry, compare| {
+            depth_pipeline(
+                device,
+                label,
+                &extents_raster_layout,
+                &extents_module,
+                "vs_volume",
+                Some(entry),
+                &volume_vertices,
+                compare,
+            )
+        };
+        // Reversed Z: nearest = greatest depth.
+        let extents_front_pipeline = extents_pipeline(
+            "volshadow extents front",
+            "fs_front",
+            wgpu::CompareFunction::Greater,
+        );
+        let extents_back_near_pipeline = extents_pipeline(
+            "volshadow extents back near",
+            "fs_back",
+            wgpu::CompareFunction::Greater,
+        );
+        let extents_back_far_pipeline = extents_pipeline(
+            "volshadow extents back far",
+            "fs_back",
+            wgpu::CompareFunction::Less,
+        );
+
         Self {
+            shadow_layout,
+            shadow_pipeline,
+            extents_extrude_layout,
+            extents_reset_pipeline,
+            extents_extrude_pipeline,
+            extents_raster_layout,
+            extents_front_pipeline,
+            extents_back_near_pipeline,
+            extents_back_far_pipeline,
             table_layout,
             table_pipeline,
             march_layout,

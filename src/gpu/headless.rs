@@ -113,12 +113,17 @@ impl HeadlessGpu {
         Ok(())
     }
 
-    /// Reads mip 0 of a 2D texture (usage `COPY_SRC`, a colour format with a fixed block size)
-    /// back as tightly packed rows of bytes.
+    /// Reads mip 0, layer 0 of a 2D texture (usage `COPY_SRC`; a colour format with a fixed
+    /// block size, or `Depth32Float`) back as tightly packed rows of bytes.
     pub fn read_texture_bytes(&self, texture: &wgpu::Texture) -> Result<Vec<u8>> {
         let format = texture.format();
+        let aspect = if format.is_depth_stencil_format() {
+            wgpu::TextureAspect::DepthOnly
+        } else {
+            wgpu::TextureAspect::All
+        };
         let texel = format
-            .block_copy_size(None)
+            .block_copy_size(Some(aspect))
             .filter(|_| format.block_dimensions() == (1, 1))
             .ok_or_else(|| Error::Readback(format!("{format:?} cannot be read back")))?;
         let (width, height) = (texture.width(), texture.height());
@@ -133,7 +138,12 @@ impl HeadlessGpu {
         });
         let mut encoder = self.device.create_command_encoder(&Default::default());
         encoder.copy_texture_to_buffer(
-            texture.as_image_copy(),
+            wgpu::TexelCopyTextureInfo {
+                texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect,
+            },
             wgpu::TexelCopyBufferInfo {
                 buffer: &buffer,
                 layout: wgpu::TexelCopyBufferLayout {
@@ -142,7 +152,11 @@ impl HeadlessGpu {
                     rows_per_image: Some(height),
                 },
             },
-            texture.size(),
+            wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
         );
         self.submit_and_wait(encoder)?;
         let slice = buffer.slice(..);

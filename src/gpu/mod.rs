@@ -3,9 +3,13 @@
 
 mod cache;
 pub mod headless;
+mod mesh;
+mod timer;
 pub(crate) mod uniforms;
 
 pub use cache::Cache;
+pub use mesh::{Occluder, OccluderMesh};
+pub use timer::{GpuTimer, PassTime};
 
 use crate::error::{Error, Result};
 
@@ -44,10 +48,25 @@ impl<T: bytemuck::Pod + PartialEq> UniformBuffer<T> {
 /// Checks a depth texture the caller passes: a single-sampled 2D texture with a depth aspect
 /// and `TEXTURE_BINDING` usage.
 pub(crate) fn check_depth_texture(field: &'static str, texture: &wgpu::Texture) -> Result<()> {
+    check_depth_layers(field, texture, 1)
+}
+
+/// Checks a depth texture with `layers` array layers (a shadow map).
+pub(crate) fn check_depth_layers(
+    field: &'static str,
+    texture: &wgpu::Texture,
+    layers: u32,
+) -> Result<()> {
     let problem = |p: String| Err(Error::InvalidTexture { field, problem: p });
     let format = texture.format();
     if !format.has_depth_aspect() {
         return problem(format!("{format:?} has no depth aspect"));
+    }
+    if texture.depth_or_array_layers() != layers {
+        return problem(format!(
+            "has {} layers, expected {layers}",
+            texture.depth_or_array_layers()
+        ));
     }
     check_common(field, texture)
 }
@@ -57,18 +76,20 @@ pub(crate) fn check_depth_texture(field: &'static str, texture: &wgpu::Texture) 
 pub(crate) fn check_float_texture(field: &'static str, texture: &wgpu::Texture) -> Result<()> {
     let format = texture.format();
     match format.sample_type(None, None) {
-        Some(wgpu::TextureSampleType::Float { .. }) => check_common(field, texture),
+        Some(wgpu::TextureSampleType::Float { .. }) if texture.depth_or_array_layers() == 1 => {
+            check_common(field, texture)
+        }
         _ => Err(Error::InvalidTexture {
             field,
-            problem: format!("{format:?} cannot be read as float colour"),
+            problem: format!("{format:?} cannot be read as float colour, or has several layers"),
         }),
     }
 }
 
 fn check_common(field: &'static str, texture: &wgpu::Texture) -> Result<()> {
     let problem = |p: String| Err(Error::InvalidTexture { field, problem: p });
-    if texture.dimension() != wgpu::TextureDimension::D2 || texture.depth_or_array_layers() != 1 {
-        return problem("must be a single-layer 2D texture".into());
+    if texture.dimension() != wgpu::TextureDimension::D2 {
+        return problem("must be a 2D texture".into());
     }
     if texture.sample_count() != 1 {
         return problem(format!(

@@ -31,7 +31,7 @@
 use crate::error::{Error, Result};
 use crate::gpu::uniforms::AirlightUniform;
 use crate::gpu::{Cache, UniformBuffer};
-use crate::scene::{Medium, PointLight};
+use crate::scene::{Light, Medium, PointLight};
 
 /// Size of the F′ table: entries along each ray (s) and rows across rays (γ).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -134,10 +134,12 @@ impl AirlightTableNode {
         &mut self,
         queue: &wgpu::Queue,
         eye: glam::Vec3,
-        light: &PointLight,
+        light: &Light,
         medium: &Medium,
     ) -> bool {
-        let key = AirlightUniform::new(eye, light, medium, 0.0, self.table_dims()).table_key();
+        // The table depends on the light only through D = |P − E|.
+        let point = PointLight::new(light.position(), glam::Vec3::ONE).expect("unit intensity");
+        let key = AirlightUniform::new(eye, &point, medium, 0.0, self.table_dims()).table_key();
         let changed = self.uniform.write(queue, key);
         self.pending |= changed;
         changed
@@ -145,13 +147,18 @@ impl AirlightTableNode {
 
     /// Records the table build into `encoder` if [`prepare`](Self::prepare) found a change since
     /// the last build; otherwise records nothing. Returns whether it recorded.
-    pub fn encode(&mut self, encoder: &mut wgpu::CommandEncoder) -> bool {
+    pub fn encode(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: Option<&mut crate::gpu::GpuTimer>,
+    ) -> bool {
         if !std::mem::take(&mut self.pending) {
             return false;
         }
+        let timestamp_writes = timer.and_then(|t| t.compute_pass("airlight table"));
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("volshadow F' table"),
-            timestamp_writes: None,
+            timestamp_writes,
         });
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);

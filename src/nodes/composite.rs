@@ -152,6 +152,7 @@ impl CompositeNode {
         &self,
         encoder: &mut wgpu::CommandEncoder,
         output: &wgpu::TextureView,
+        timer: Option<&mut crate::gpu::GpuTimer>,
     ) -> Result<()> {
         let problem = |p: String| Error::InvalidTexture {
             field: "output",
@@ -192,7 +193,7 @@ impl CompositeNode {
                 },
             })],
             depth_stencil_attachment: None,
-            timestamp_writes: None,
+            timestamp_writes: timer.and_then(|t| t.render_pass("composite")),
             occlusion_query_set: None,
             multiview_mask: None,
         });

@@ -1,8 +1,13 @@
-//! The march node: in-scattered radiance `L_sctr` per pixel.
+//! The march node: in-scattered radiance `L_sctr` per pixel (DESIGN §3, seed paper 000 §3.1).
 //!
-//! Every ray is integrated from the eye to the scene depth (or to infinity for sky pixels)
-//! as `I0 · F′(ds)`, read from the [`AirlightTableNode`]'s table with the singular prefactor
-//! applied per pixel, clamped by the pixel's footprint when looking into the light (DESIGN §2).
+//! Without shadows every ray is integrated analytically from the [`AirlightTableNode`]'s table:
+//! `I0 · F′(ds)`, with the singular prefactor clamped by the pixel's footprint when looking into
+//! the light (DESIGN §2). With shadows, [`MarchMethod::Hybrid`] keeps the analytic form outside
+//! the shadow-volume extents and marches only between them, sampling the shadow map and adding
+//! `I0 · (F′(x₁) − F′(x₀))` over lit steps; [`MarchMethod::BruteForce`] marches the whole ray
+//! (the baseline). Steps are uniform in the normalised scattering angle, i.e. in the angle seen
+//! from the light (seed 000 Fig. 4). A spot light contributes only inside its cone, whose entry
+//! and exit along each ray are found analytically.
 //!
 //! # Inputs
 //! * `scene_depth`: the caller's depth buffer, any depth format (`Depth16Unorm`, `Depth24Plus`,
@@ -10,63 +15,213 @@
 //!   size is the size of the pass. Depth values equal to the camera's far depth
 //!   ([`Camera::far_depth`]) are sky.
 //! * the table from [`AirlightTableNode`], prepared for the same eye, light and medium.
+//! * optionally [`Shadows`]: a [`ShadowMap`] and, for the hybrid, the [`Extents`] of the same
+//!   size as `scene_depth`.
 //!
 //! # Output
 //! [`MarchNode::output`]: `Rgba32Float`, the size of `scene_depth`, usages
-//! `STORAGE_BINDING | TEXTURE_BINDING | COPY_SRC`. rgb = in-scattered radiance, a = eye
-//! distance of the pixel's surface (−1 for sky).
+//! `STORAGE_BINDING | TEXTURE_BINDING | COPY_SRC`; rgb = in-scattered radiance, a = eye
+//! distance of the pixel's surface (−1 for sky). [`MarchNode::step_counts`]: `R32Uint`, same
+//! size: march steps (and bisections) each pixel executed.
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::gpu::uniforms::{AirlightUniform, ViewUniform};
-use crate::gpu::{check_depth_texture, check_target_size, depth_view, Cache, UniformBuffer};
+use crate::gpu::{
+    check_depth_layers, check_depth_texture, check_size, check_target_size, depth_view, Cache,
+    GpuTimer, UniformBuffer,
+};
+use crate::nodes::shadow_map::ShadowMap;
 use crate::nodes::AirlightTableNode;
-use crate::scene::{Camera, Medium, PointLight};
+use crate::scene::{Camera, Light, Medium};
+
+/// How the shadowed part of each ray is integrated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum MarchMethod {
+    /// Analytic outside the shadow-volume extents, marched between them (seed paper 000).
+    #[default]
+    Hybrid,
+    /// Marched over the whole ray: the baseline.
+    BruteForce,
+}
+
+/// March settings.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MarchSettings {
+    /// Hybrid or brute force.
+    pub method: MarchMethod,
+    /// Steps per marched interval (1 ..= 4096). Default 64.
+    pub steps: u32,
+    /// Bisection steps locating each lit/shadow transition between two samples (0 = off,
+    /// at most 16). Default 0.
+    pub bisections: u32,
+}
+
+impl Default for MarchSettings {
+    fn default() -> Self {
+        Self {
+            method: MarchMethod::Hybrid,
+            steps: 64,
+            bisections: 0,
+        }
+    }
+}
+
+impl MarchSettings {
+    fn validate(&self) -> Result<()> {
+        if !(1..=4096).contains(&self.steps) {
+            return Err(Error::InvalidSetting {
+                field: "march.steps",
+                problem: format!("must be in 1..=4096, got {}", self.steps),
+            });
+        }
+        if self.bisections > 16 {
+            return Err(Error::InvalidSetting {
+                field: "march.bisections",
+                problem: format!("must be at most 16, got {}", self.bisections),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Per-pixel shadow-volume extents, as written by [`ExtentsNode`](crate::nodes::ExtentsNode).
+#[derive(Clone, Copy)]
+pub struct Extents<'a> {
+    /// Front, back-near and back-far depth textures (see the extents node).
+    pub textures: &'a [wgpu::Texture; 3],
+    /// The extents projection's near plane.
+    pub near: f32,
+}
+
+/// What shadows the march: the shadow map, and for the hybrid the extents.
+#[derive(Clone, Copy)]
+pub struct Shadows<'a> {
+    /// Visibility from the light.
+    pub shadow_map: ShadowMap<'a>,
+    /// Where the shadow volumes are along each ray. `None` marches the whole ray, as brute force.
+    pub extents: Option<Extents<'a>>,
+}
 
 /// What the march reads in a frame.
-#[derive(Debug, Clone, Copy)]
+#[derive(Clone, Copy)]
 pub struct MarchInputs<'a> {
     /// The camera the depth buffer was rendered with.
     pub camera: &'a Camera,
     /// The light.
-    pub light: &'a PointLight,
+    pub light: &'a Light,
     /// The medium.
     pub medium: &'a Medium,
     /// The caller's depth buffer (see the module docs).
     pub scene_depth: &'a wgpu::Texture,
+    /// Occluders' shadows; `None`: no occluders, analytic everywhere.
+    pub shadows: Option<Shadows<'a>>,
+}
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+struct MarchUniform {
+    mode: [u32; 4],
+    spot: [f32; 4],
+    shadow: [f32; 4],
+    faces: [[f32; 16]; 6],
 }
 
 /// Computes in-scattered radiance per pixel into its own `Rgba32Float` texture.
 pub struct MarchNode {
+    settings: MarchSettings,
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
     airlight: UniformBuffer<AirlightUniform>,
     view: UniformBuffer<ViewUniform>,
-    output: Option<wgpu::Texture>,
+    params: UniformBuffer<MarchUniform>,
+    sampler: wgpu::Sampler,
+    dummy_shadow: wgpu::Texture,
+    dummy_depth: wgpu::Texture,
+    outputs: Option<[wgpu::Texture; 2]>,
     bound: Option<Bound>,
 }
 
 /// The bind group and the textures it was made for, so it is rebuilt only when they change.
 struct Bound {
-    depth: wgpu::Texture,
-    table: wgpu::Texture,
-    output: wgpu::Texture,
+    textures: Vec<wgpu::Texture>,
     bind_group: wgpu::BindGroup,
+    size: (u32, u32),
+}
+
+fn texture_2d(
+    device: &wgpu::Device,
+    label: &str,
+    size: (u32, u32, u32),
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width: size.0,
+            height: size.1,
+            depth_or_array_layers: size.2,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    })
 }
 
 impl MarchNode {
     /// Creates the node; textures are allocated by the first [`prepare`](Self::prepare).
-    pub fn new(device: &wgpu::Device, cache: &Cache) -> Self {
-        Self {
+    pub fn new(device: &wgpu::Device, cache: &Cache, settings: MarchSettings) -> Result<Self> {
+        settings.validate()?;
+        let sampled = wgpu::TextureUsages::TEXTURE_BINDING;
+        Ok(Self {
+            settings,
             pipeline: cache.march_pipeline.clone(),
             layout: cache.march_layout.clone(),
             airlight: UniformBuffer::new(device, "volshadow march airlight"),
             view: UniformBuffer::new(device, "volshadow march view"),
-            output: None,
+            params: UniformBuffer::new(device, "volshadow march params"),
+            sampler: device.create_sampler(&wgpu::SamplerDescriptor {
+                label: Some("volshadow shadow compare"),
+                mag_filter: wgpu::FilterMode::Linear,
+                min_filter: wgpu::FilterMode::Linear,
+                compare: Some(wgpu::CompareFunction::GreaterEqual),
+                ..Default::default()
+            }),
+            dummy_shadow: texture_2d(
+                device,
+                "volshadow no shadow map",
+                (1, 1, 1),
+                wgpu::TextureFormat::Depth32Float,
+                sampled,
+            ),
+            dummy_depth: texture_2d(
+                device,
+                "volshadow no extents",
+                (1, 1, 1),
+                wgpu::TextureFormat::Depth32Float,
+                sampled,
+            ),
+            outputs: None,
             bound: None,
-        }
+        })
     }
 
-    /// Validates the inputs, (re)creates the output when the size changed, and uploads the
+    /// The settings.
+    pub fn settings(&self) -> MarchSettings {
+        self.settings
+    }
+
+    /// Changes the settings (validated); takes effect at the next `prepare`.
+    pub fn set_settings(&mut self, settings: MarchSettings) -> Result<()> {
+        settings.validate()?;
+        self.settings = settings;
+        Ok(())
+    }
+
+    /// Validates the inputs, (re)creates the outputs when the size changed, and uploads the
     /// uniforms that changed.
     pub fn prepare(
         &mut self,
@@ -78,38 +233,97 @@ impl MarchNode {
         check_depth_texture("scene_depth", inputs.scene_depth)?;
         let (width, height) = (inputs.scene_depth.width(), inputs.scene_depth.height());
         check_target_size("scene_depth size", device, width, height)?;
-
-        let output = match &self.output {
-            Some(t) if t.width() == width && t.height() == height => t.clone(),
-            _ => {
-                let t = device.create_texture(&wgpu::TextureDescriptor {
-                    label: Some("volshadow in-scatter"),
-                    size: wgpu::Extent3d {
-                        width,
-                        height,
-                        depth_or_array_layers: 1,
-                    },
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format: wgpu::TextureFormat::Rgba32Float,
-                    usage: wgpu::TextureUsages::STORAGE_BINDING
-                        | wgpu::TextureUsages::TEXTURE_BINDING
-                        | wgpu::TextureUsages::COPY_SRC,
-                    view_formats: &[],
+        if let Some(shadows) = &inputs.shadows {
+            let expected = match inputs.light {
+                Light::Point(_) => 6,
+                Light::Spot(_) => 1,
+            };
+            check_depth_layers("shadow_map", shadows.shadow_map.texture, expected)?;
+            if shadows.shadow_map.faces.len() != expected as usize {
+                return Err(Error::InvalidTexture {
+                    field: "shadow_map",
+                    problem: format!(
+                        "has {} face matrices; this light needs {expected}",
+                        shadows.shadow_map.faces.len()
+                    ),
                 });
-                self.output = Some(t.clone());
-                t
             }
-        };
+            if let Some(extents) = &shadows.extents {
+                for t in extents.textures {
+                    check_depth_texture("extents", t)?;
+                    check_size("extents", t, width, height)?;
+                }
+            }
+        }
 
-        let same = |b: &Bound| {
-            b.depth == *inputs.scene_depth && b.table == *table.texture() && b.output == output
+        if !self
+            .outputs
+            .as_ref()
+            .is_some_and(|o| o[0].width() == width && o[0].height() == height)
+        {
+            let storage = wgpu::TextureUsages::STORAGE_BINDING
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC;
+            self.outputs = Some([
+                texture_2d(
+                    device,
+                    "volshadow in-scatter",
+                    (width, height, 1),
+                    wgpu::TextureFormat::Rgba32Float,
+                    storage,
+                ),
+                texture_2d(
+                    device,
+                    "volshadow march steps",
+                    (width, height, 1),
+                    wgpu::TextureFormat::R32Uint,
+                    storage,
+                ),
+            ]);
+        }
+        let outputs = self.outputs.as_ref().expect("created above");
+
+        let shadow_texture = inputs
+            .shadows
+            .as_ref()
+            .map_or(&self.dummy_shadow, |s| s.shadow_map.texture);
+        let extents = inputs.shadows.as_ref().and_then(|s| s.extents);
+        let extent_textures: [&wgpu::Texture; 3] = match &extents {
+            Some(e) => [&e.textures[0], &e.textures[1], &e.textures[2]],
+            None => [&self.dummy_depth; 3],
         };
-        if !self.bound.as_ref().is_some_and(same) {
-            let depth = depth_view(inputs.scene_depth);
-            let table_view = table.texture().create_view(&Default::default());
-            let output_view = output.create_view(&Default::default());
+        let textures: Vec<wgpu::Texture> = [
+            table.texture(),
+            inputs.scene_depth,
+            &outputs[0],
+            shadow_texture,
+            extent_textures[0],
+            extent_textures[1],
+            extent_textures[2],
+            &outputs[1],
+        ]
+        .into_iter()
+        .cloned()
+        .collect();
+        if self.bound.as_ref().is_none_or(|b| b.textures != textures) {
+            let views: Vec<wgpu::TextureView> = textures
+                .iter()
+                .enumerate()
+                .map(|(i, t)| match i {
+                    1 | 4 | 5 | 6 => depth_view(t),
+                    3 => t.create_view(&wgpu::TextureViewDescriptor {
+                        label: Some("volshadow shadow map array"),
+                        dimension: Some(wgpu::TextureViewDimension::D2Array),
+                        aspect: wgpu::TextureAspect::DepthOnly,
+                        ..Default::default()
+                    }),
+                    _ => t.create_view(&Default::default()),
+                })
+                .collect();
+            let view_entry = |binding, view| wgpu::BindGroupEntry {
+                binding,
+                resource: wgpu::BindingResource::TextureView(view),
+            };
             let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("volshadow march"),
                 layout: &self.layout,
@@ -122,34 +336,41 @@ impl MarchNode {
                         binding: 1,
                         resource: self.view.binding(),
                     },
+                    view_entry(2, &views[0]),
+                    view_entry(3, &views[1]),
+                    view_entry(4, &views[2]),
                     wgpu::BindGroupEntry {
-                        binding: 2,
-                        resource: wgpu::BindingResource::TextureView(&table_view),
+                        binding: 5,
+                        resource: self.params.binding(),
                     },
+                    view_entry(6, &views[3]),
                     wgpu::BindGroupEntry {
-                        binding: 3,
-                        resource: wgpu::BindingResource::TextureView(&depth),
+                        binding: 7,
+                        resource: wgpu::BindingResource::Sampler(&self.sampler),
                     },
-                    wgpu::BindGroupEntry {
-                        binding: 4,
-                        resource: wgpu::BindingResource::TextureView(&output_view),
-                    },
+                    view_entry(8, &views[4]),
+                    view_entry(9, &views[5]),
+                    view_entry(10, &views[6]),
+                    view_entry(11, &views[7]),
                 ],
             });
             self.bound = Some(Bound {
-                depth: inputs.scene_depth.clone(),
-                table: table.texture().clone(),
-                output,
+                textures,
                 bind_group,
+                size: (width, height),
             });
         }
 
         let camera = inputs.camera;
+        let point = match inputs.light {
+            Light::Point(p) => *p,
+            Light::Spot(s) => crate::scene::PointLight::new(s.position(), s.intensity())?,
+        };
         self.airlight.write(
             queue,
             AirlightUniform::new(
                 camera.eye(),
-                inputs.light,
+                &point,
                 inputs.medium,
                 camera.pixel_angular_radius(height),
                 table.table_dims(),
@@ -157,28 +378,68 @@ impl MarchNode {
         );
         self.view
             .write(queue, ViewUniform::new(camera, width, height));
+
+        let mut faces = [[0.0; 16]; 6];
+        let mut shadow = [0.0; 4];
+        let mode_x = match &inputs.shadows {
+            None => 0,
+            Some(s) => {
+                for (slot, face) in faces.iter_mut().zip(s.shadow_map.faces) {
+                    *slot = face.to_cols_array();
+                }
+                shadow = [
+                    s.shadow_map.faces.len() as f32,
+                    s.shadow_map.depth_bias,
+                    s.extents.map_or(0.0, |e| e.near),
+                    0.0,
+                ];
+                match (self.settings.method, s.extents) {
+                    (MarchMethod::Hybrid, Some(_)) => 1,
+                    _ => 2,
+                }
+            }
+        };
+        let spot = match inputs.light {
+            Light::Spot(s) => s.direction().extend(s.cos_half_angle()).to_array(),
+            Light::Point(_) => [0.0; 4],
+        };
+        self.params.write(
+            queue,
+            MarchUniform {
+                mode: [
+                    mode_x,
+                    self.settings.steps,
+                    self.settings.bisections,
+                    u32::from(matches!(inputs.light, Light::Spot(_))),
+                ],
+                spot,
+                shadow,
+                faces,
+            },
+        );
         Ok(())
     }
 
-    /// Records the march. Records nothing before the first successful
-    /// [`prepare`](Self::prepare).
-    pub fn encode(&self, encoder: &mut wgpu::CommandEncoder) {
+    /// Records the march. Records nothing before the first successful `prepare`.
+    pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, timer: Option<&mut GpuTimer>) {
         let Some(bound) = &self.bound else { return };
+        let timestamp_writes = timer.and_then(|t| t.compute_pass("march"));
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("volshadow march"),
-            timestamp_writes: None,
+            timestamp_writes,
         });
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &bound.bind_group, &[]);
-        pass.dispatch_workgroups(
-            bound.output.width().div_ceil(8),
-            bound.output.height().div_ceil(8),
-            1,
-        );
+        pass.dispatch_workgroups(bound.size.0.div_ceil(8), bound.size.1.div_ceil(8), 1);
     }
 
     /// The in-scatter texture (see the module docs); `None` before the first `prepare`.
     pub fn output(&self) -> Option<&wgpu::Texture> {
-        self.output.as_ref()
+        self.outputs.as_ref().map(|o| &o[0])
+    }
+
+    /// Steps each pixel executed (`R32Uint`); `None` before the first `prepare`.
+    pub fn step_counts(&self) -> Option<&wgpu::Texture> {
+        self.outputs.as_ref().map(|o| &o[1])
     }
 }

@@ -5,8 +5,12 @@
 
 mod airlight_table;
 mod composite;
+mod extents;
 mod march;
+mod shadow_map;
 
 pub use airlight_table::{AirlightTableNode, TableSize};
 pub use composite::{CompositeInputs, CompositeNode};
-pub use march::{MarchInputs, MarchNode};
+pub use extents::{ExtentsInputs, ExtentsNode, EXTENTS_NEAR};
+pub use march::{Extents, MarchInputs, MarchMethod, MarchNode, MarchSettings, Shadows};
+pub use shadow_map::{ShadowMap, ShadowMapNode, ShadowMapSettings};

@@ -2,8 +2,8 @@
 //! truth every GPU test compares with.
 //!
 //! It shares no code with the GPU path (no wgpu, no shaders, nothing from `nodes` or `gpu`)
-//! beyond the scene types ([`Medium`], [`PhaseFunction`],
-//! [`PointLight`], [`Camera`]), whose f32 values it converts to f64 on entry.
+//! beyond the scene types ([`Medium`], [`PhaseFunction`], [`Light`] ([`PointLight`],
+//! [`SpotLight`]), [`Camera`]), whose f32 values it converts to f64 on entry.
 //!
 //! # The model
 //!
@@ -20,11 +20,30 @@
 //! and the direction towards the eye (looking straight at the light is `θ = 0`), and
 //! `V(x) ∈ {0, 1}` is 1 iff the segment from `X` to `P` meets no occluder surface.
 //!
-//! * [`inscatter`] integrates this with exact visibility ([`lit_intervals`]) and adaptive
-//!   Gauss–Kronrod quadrature in `x`, split where the integrand is sharp.
-//! * [`inscatter_closed_form`] evaluates the unshadowed integral through the substitution of
-//!   `DESIGN.md` §2 (an integral in the half scattering angle `ξ`), computed separately: the two
-//!   check each other.
+//! A [`SpotLight`] is the same point light with `V(x)` also 0 outside its cone: `X` is lit
+//! iff `a·(X − P) ≥ c·|X − P|` (axis `a = direction()`, `c = cos_half_angle()`, the f32 values
+//! in f64, not renormalised) and the segment to `P` is unoccluded, with a hard edge and the
+//! same `I0` everywhere inside. Along a ray
+//! `w(x) = E − P + x·v` the cone's surface is where the quadratic
+//! `f(x) = (a·w)² − c²·|w|² = A·x² + 2·B·x + C` vanishes, with
+//!
+//! ```text
+//! A = (a·v)² − c²,   B = (a·w₀)(a·v) − c²·(v·w₀),   C = (a·w₀)² − c²·|w₀|²,   w₀ = E − P,
+//! ```
+//!
+//! so the ray's entry into and exit from the cone are its real roots (the nappe behind the
+//! light, `a·w < 0`, is the other half of the zero set and is discarded by the membership test).
+//! These roots are breakpoints of [`light_intervals`] like the occluders' ones, so the cone's
+//! edge is exact, not sampled.
+//!
+//! * [`inscatter`] integrates this with exact visibility ([`light_intervals`], which for a
+//!   point light is [`lit_intervals`]) and adaptive Gauss–Kronrod quadrature in `x`, split
+//!   where the integrand is sharp. It takes any light by reference (`&PointLight`,
+//!   `&SpotLight`, `&Light`: see [`LightSource`]).
+//! * [`inscatter_closed_form`] evaluates the unshadowed integral of a *point* light through the
+//!   substitution of `DESIGN.md` §2 (an integral in the half scattering angle `ξ`), computed
+//!   separately: the two check each other. (A spot light's unshadowed value is the point
+//!   light's closed form over the cone's intervals: the integrand inside is the same.)
 //! * [`inscatter_image`] does a whole frame for a [`Camera`], for per-pixel comparisons.
 //!
 //! All results are finite for finite input, except where a ray passes exactly through the light
@@ -34,6 +53,7 @@
 // `!(x > 0.0)` is used on purpose throughout: it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+mod cone;
 mod occluder;
 mod phase;
 pub(crate) mod quadrature;
@@ -43,11 +63,11 @@ use std::sync::Mutex;
 
 use glam::{DVec2, DVec3, DVec4};
 
-use crate::scene::{Camera, Medium, PhaseFunction, PointLight};
+use crate::scene::{Camera, Light, Medium, PhaseFunction, PointLight, SpotLight};
 
 pub use occluder::{Cuboid, Occluder, Sphere, TriangleMesh};
 pub use phase::phase;
-pub use visibility::lit_intervals;
+pub use visibility::{light_intervals, lit_intervals};
 
 use phase::Cosine;
 use quadrature::integrate;
@@ -59,6 +79,34 @@ pub const RELATIVE_TOLERANCE: f64 = 1e-12;
 
 /// Most bisections one adaptive integral may spend (a cap that only pathological input reaches).
 const MAX_BISECTIONS: usize = 4000;
+
+/// A light the reference integrates: [`PointLight`], [`SpotLight`] or the [`Light`] enum,
+/// taken by reference by [`inscatter`], [`inscatter_image`] and [`light_intervals`], so that
+/// `&point`, `&spot` and `&light` all work at the call site. (A reference parameter rather than
+/// `impl Into<Light>`, which would make clippy's `needless_borrows_for_generic_args` flag every
+/// existing `&light` argument.)
+pub trait LightSource {
+    /// This light as a [`Light`] (a copy).
+    fn light(&self) -> Light;
+}
+
+impl LightSource for PointLight {
+    fn light(&self) -> Light {
+        Light::Point(*self)
+    }
+}
+
+impl LightSource for SpotLight {
+    fn light(&self) -> Light {
+        Light::Spot(*self)
+    }
+}
+
+impl LightSource for Light {
+    fn light(&self) -> Light {
+        *self
+    }
+}
 
 /// Transmittance of the medium over a distance `ds`: `exp(−σt·ds)` per channel. `ds = ∞` gives
 /// 0 where `σt > 0` and 1 where `σt = 0`; `ds ≤ 0` (or NaN) gives 1.
@@ -124,10 +172,11 @@ struct Integrand {
 }
 
 impl Integrand {
-    fn new(geo: RayLight, medium: &Medium, light: &PointLight) -> Self {
+    /// `intensity` is the light's `I0` (inside the cone, for a spot light).
+    fn new(geo: RayLight, medium: &Medium, intensity: glam::Vec3) -> Self {
         Self {
             geo,
-            coef: medium.sigma_s().as_dvec3() * light.intensity().as_dvec3(),
+            coef: medium.sigma_s().as_dvec3() * intensity.as_dvec3(),
             sigma_t: medium.sigma_t().as_dvec3(),
             phase: medium.phase(),
         }
@@ -260,39 +309,45 @@ impl Integrand {
 }
 
 /// In-scattered radiance (RGB) along the ray `origin + x·dir`, `0 ≤ x ≤ ds` (`ds = ∞` for
-/// sky), with shadows: the integral (1) of the [module docs](self) over the [`lit_intervals`],
-/// each by adaptive Gauss–Kronrod (7, 15) quadrature in `x` to [`RELATIVE_TOLERANCE`], split at
-/// the closest approach to the light, on a geometric ladder around it, and at the extinction
-/// length scales; infinite tails are mapped onto a finite interval. Includes `σs` and `I0`,
-/// excludes the attenuated surface term (see [`transmittance`]).
+/// sky), from `light` (`&PointLight`, `&SpotLight` or `&Light`, see [`LightSource`]), with
+/// shadows: the integral (1) of the [module docs](self) over the [`light_intervals`] (the
+/// unoccluded parts of the ray, and for a spot light only those inside its cone, whose edges
+/// are found exactly), each by adaptive Gauss–Kronrod (7, 15) quadrature in `x` to
+/// [`RELATIVE_TOLERANCE`], split at the closest approach to the light, on a geometric ladder
+/// around it, and at the extinction length scales; infinite tails are mapped onto a finite
+/// interval. Includes `σs` and `I0`, excludes the attenuated surface term (see
+/// [`transmittance`]).
 ///
 /// `dir` need not be unit length. Returns zero for `ds ≤ 0`, NaN `ds`, a zero or non-finite
 /// `dir` or non-finite positions; `+∞` (in the channels with `σs·I0 > 0`) where the ray passes
-/// exactly through the light inside a lit interval; finite values otherwise.
+/// exactly through the light inside a lit interval (for a spot light: a ray through the apex
+/// that enters the cone there); finite values otherwise. A ray that never enters a spot
+/// light's cone gives exactly 0, and one that stays inside it gives exactly the point light's
+/// value.
 pub fn inscatter(
     origin: DVec3,
     dir: DVec3,
     ds: f64,
     medium: &Medium,
-    light: &PointLight,
+    light: &impl LightSource,
     occluders: &[Occluder],
 ) -> DVec3 {
-    let light_pos = light.position().as_dvec3();
-    let Some(geo) = RayLight::new(origin, dir, light_pos) else {
+    let light = light.light();
+    let Some(geo) = RayLight::new(origin, dir, light.position().as_dvec3()) else {
         return DVec3::ZERO;
     };
     if !(ds > 0.0) {
         return DVec3::ZERO;
     }
-    let integrand = Integrand::new(geo, medium, light);
-    lit_intervals(origin, geo.v, ds, light_pos, occluders)
+    let integrand = Integrand::new(geo, medium, light.intensity());
+    light_intervals(origin, geo.v, ds, &light, occluders)
         .into_iter()
         .map(|(a, b)| integrand.integrate_x(a, b))
         .sum()
 }
 
-/// The unshadowed in-scattered radiance of [`inscatter`] with no occluders, evaluated
-/// independently through the closed form (2) of `DESIGN.md`:
+/// The unshadowed in-scattered radiance of [`inscatter`] with no occluders, for a point light
+/// only, evaluated independently through the closed form (2) of `DESIGN.md`:
 ///
 /// ```text
 /// (2·σs·I0·exp(−σt·D) / h) · ∫_{γ/2}^{ξ(ds)} p(cos 2ξ) · exp(−σt·h·(tan ξ − tan(γ/2))) dξ
@@ -309,6 +364,10 @@ pub fn inscatter(
 /// When the light lies exactly on the ray's line (`h = 0`) the substitution does not exist: the
 /// result is `+∞` if the light lies within `[0, ds]` (as for [`inscatter`]) and otherwise the
 /// integral (1) taken in `x`. Degenerate input is handled as in [`inscatter`].
+///
+/// There is no spot-light variant: a spot light's cone is a set of intervals in `x`
+/// ([`light_intervals`]), and over each the integrand is the point light's, so [`inscatter`]
+/// is its reference.
 pub fn inscatter_closed_form(
     origin: DVec3,
     dir: DVec3,
@@ -322,7 +381,7 @@ pub fn inscatter_closed_form(
     if !(ds > 0.0) {
         return DVec3::ZERO;
     }
-    let integrand = Integrand::new(geo, medium, light);
+    let integrand = Integrand::new(geo, medium, light.intensity());
     let RayLight { distance, t, h, .. } = geo;
     if integrand.coef == DVec3::ZERO {
         return DVec3::ZERO;
@@ -431,17 +490,18 @@ pub fn camera_ray(camera: &Camera, ndc: DVec2) -> (DVec3, DVec3) {
 
 /// [`inscatter`] for every pixel of a `width × height` image seen by `camera`, row-major with
 /// row 0 at the top. Pixel `(px, py)` uses the ray of [`camera_ray`] through [`pixel_ndc`], and
-/// `distance(eye, dir)` gives its `ds` (`f64::INFINITY` for sky). Rows are shared among
-/// `std::thread::available_parallelism()` threads.
+/// `distance(eye, dir)` gives its `ds` (`f64::INFINITY` for sky). `light` is any light, as for
+/// [`inscatter`]. Rows are shared among `std::thread::available_parallelism()` threads.
 pub fn inscatter_image(
     camera: &Camera,
     width: u32,
     height: u32,
     distance: impl Fn(DVec3, DVec3) -> f64 + Sync,
     medium: &Medium,
-    light: &PointLight,
+    light: &impl LightSource,
     occluders: &[Occluder],
 ) -> Vec<DVec3> {
+    let light = light.light();
     let (w, h) = (width as usize, height as usize);
     let mut image = vec![DVec3::ZERO; w * h];
     if w == 0 || h == 0 {
@@ -457,7 +517,7 @@ pub fn inscatter_image(
         for (px, out) in row.iter_mut().enumerate() {
             let (eye, dir) = camera_ray(camera, pixel_ndc(width, height, px as u32, py as u32));
             let ds = distance(eye, dir);
-            *out = inscatter(eye, dir, ds, medium, light, occluders);
+            *out = inscatter(eye, dir, ds, medium, &light, occluders);
         }
     };
     std::thread::scope(|scope| {

@@ -4,7 +4,10 @@
 mod camera;
 mod light;
 mod medium;
+mod mesh;
+pub mod shapes;
 
 pub use camera::Camera;
 pub use light::{Light, PointLight, SpotLight};
 pub use medium::{Medium, PhaseFunction};
+pub use mesh::{Edge, Mesh, MeshSummary};

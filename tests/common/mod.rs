@@ -3,8 +3,8 @@
 #![allow(dead_code)]
 
 use glam::{DMat4, DVec3, DVec4, Vec3};
-use volshadow::nodes::{AirlightTableNode, MarchInputs, MarchNode, TableSize};
-use volshadow::{Cache, Camera, HeadlessGpu, Medium, PointLight};
+use volshadow::nodes::{AirlightTableNode, MarchInputs, MarchNode, MarchSettings, TableSize};
+use volshadow::{Cache, Camera, HeadlessGpu, Light, Medium, PointLight};
 
 /// The test device. A missing adapter fails the test with the installation hint.
 pub fn gpu() -> HeadlessGpu {
@@ -177,9 +177,10 @@ pub fn march_frame(
     medium: &Medium,
     depth: &wgpu::Texture,
 ) -> Vec<[f32; 4]> {
+    let light = Light::from(light);
     let mut table = AirlightTableNode::new(&gpu.device, cache, table_size).unwrap();
-    let mut march = MarchNode::new(&gpu.device, cache);
-    table.prepare(&gpu.queue, camera.eye(), light, medium);
+    let mut march = MarchNode::new(&gpu.device, cache, MarchSettings::default()).unwrap();
+    table.prepare(&gpu.queue, camera.eye(), &light, medium);
     march
         .prepare(
             &gpu.device,
@@ -187,15 +188,16 @@ pub fn march_frame(
             &table,
             &MarchInputs {
                 camera,
-                light,
+                light: &light,
                 medium,
                 scene_depth: depth,
+                shadows: None,
             },
         )
         .unwrap();
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    table.encode(&mut encoder);
-    march.encode(&mut encoder);
+    table.encode(&mut encoder, None);
+    march.encode(&mut encoder, None);
     gpu.submit_and_wait(encoder).unwrap();
     gpu.read_rgba32f(march.output().unwrap()).unwrap()
 }
@@ -211,4 +213,124 @@ pub fn look_at(eye: Vec3, target: Vec3, fov_y_deg: f32, aspect: f32) -> Camera {
 
 pub fn max_abs_rel(a: f64, b: f64) -> f64 {
     (a - b).abs() / b.abs().max(f64::MIN_POSITIVE)
+}
+
+/// A device with timestamp queries when the adapter has them (lavapipe does).
+pub fn gpu_timed() -> HeadlessGpu {
+    match HeadlessGpu::with_optional_features(wgpu::Features::TIMESTAMP_QUERY) {
+        Ok(gpu) => gpu,
+        Err(e) => panic!("GPU tests need a wgpu adapter (lavapipe works): {e}"),
+    }
+}
+
+/// What a shadowed frame produced.
+pub struct ShadowFrame {
+    pub inscatter: Vec<[f32; 4]>,
+    pub steps: Vec<u32>,
+    /// Front, back-near, back-far extents depths.
+    pub extents: [Vec<f32>; 3],
+    pub times: Vec<volshadow::gpu::PassTime>,
+}
+
+impl ShadowFrame {
+    pub fn has_extents(&self, i: usize) -> bool {
+        self.extents[0][i] > 0.0 || self.extents[2][i] < 1.0
+    }
+    pub fn time_ms(&self, label: &str) -> f64 {
+        self.times
+            .iter()
+            .filter(|t| t.label == label)
+            .map(|t| t.ms)
+            .sum()
+    }
+}
+
+/// Shadow map + extents + table + march for one frame, timed when the device allows.
+#[allow(clippy::too_many_arguments)]
+pub fn shadow_frame(
+    gpu: &HeadlessGpu,
+    cache: &Cache,
+    camera: &Camera,
+    light: &Light,
+    medium: &Medium,
+    depth: &wgpu::Texture,
+    occluders: &[volshadow::gpu::Occluder<'_>],
+    settings: MarchSettings,
+    shadow_resolution: u32,
+) -> ShadowFrame {
+    use volshadow::gpu::GpuTimer;
+    use volshadow::nodes::{ExtentsNode, ShadowMapNode, ShadowMapSettings, Shadows};
+    let (w, h) = (depth.width(), depth.height());
+    let mut shadow = ShadowMapNode::new(
+        &gpu.device,
+        cache,
+        ShadowMapSettings {
+            resolution: shadow_resolution,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let mut extents = ExtentsNode::new(&gpu.device, cache);
+    let mut table = AirlightTableNode::new(&gpu.device, cache, TableSize::default()).unwrap();
+    let mut march = MarchNode::new(&gpu.device, cache, settings).unwrap();
+    let mut timer = GpuTimer::new(&gpu.device, &gpu.queue, 32);
+
+    shadow
+        .prepare(&gpu.device, &gpu.queue, light, occluders)
+        .unwrap();
+    extents
+        .prepare(
+            &gpu.device,
+            &gpu.queue,
+            &volshadow::nodes::ExtentsInputs {
+                camera,
+                light,
+                occluders,
+                size: (w, h),
+            },
+        )
+        .unwrap();
+    table.prepare(&gpu.queue, camera.eye(), light, medium);
+    march
+        .prepare(
+            &gpu.device,
+            &gpu.queue,
+            &table,
+            &MarchInputs {
+                camera,
+                light,
+                medium,
+                scene_depth: depth,
+                shadows: Some(Shadows {
+                    shadow_map: shadow.shadow_map().unwrap(),
+                    extents: extents.extents(),
+                }),
+            },
+        )
+        .unwrap();
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    shadow.encode(&mut encoder, Some(&mut timer));
+    extents.encode(&mut encoder, Some(&mut timer));
+    table.encode(&mut encoder, Some(&mut timer));
+    march.encode(&mut encoder, Some(&mut timer));
+    timer.resolve(&mut encoder);
+    gpu.submit_and_wait(encoder).unwrap();
+    let times = timer.read(&gpu.device).unwrap();
+    let read_depth = |t: &wgpu::Texture| -> Vec<f32> {
+        bytemuck::pod_collect_to_vec(&gpu.read_texture_bytes(t).unwrap())
+    };
+    let ext = extents.extents().unwrap();
+    let steps_bytes = gpu
+        .read_texture_bytes(march.step_counts().unwrap())
+        .unwrap();
+    ShadowFrame {
+        inscatter: gpu.read_rgba32f(march.output().unwrap()).unwrap(),
+        steps: bytemuck::pod_collect_to_vec(&steps_bytes),
+        extents: [
+            read_depth(&ext.textures[0]),
+            read_depth(&ext.textures[1]),
+            read_depth(&ext.textures[2]),
+        ],
+        times,
+    }
 }

@@ -1,0 +1,160 @@
+// Shadow-volume extents node (DESIGN §3).
+//
+// 1. `reset` and `extrude` (compute): per occluder edge, a silhouette edge (one adjacent face
+//    towards the light, one away) or an edge with a single face is extruded away from the light
+//    to infinity (w = 0) as a quad; per triangle, light-facing ones form the front cap and the
+//    others, projected to infinity, the back cap. Vertices are appended to a buffer whose count
+//    is the vertex count of an indirect draw: no CPU readback.
+// 2. Three depth-only passes over those volumes, with the camera's view and a reversed-Z
+//    infinite projection (depth = near / view depth): nearest front face, nearest back face,
+//    farthest back face. Faces of open or non-manifold meshes count as back faces, which makes
+//    their extents conservative (march from the eye, through the whole volume).
+
+struct DrawArgs {
+    vertex_count: atomic<u32>,
+    instance_count: u32,
+    first_vertex: u32,
+    first_instance: u32,
+}
+
+struct VolumeVertex {
+    position: vec4<f32>,  // homogeneous world position, w = 0 at infinity
+    flags: vec4<f32>,     // x = 1 for faces of an open or non-manifold mesh (conservative)
+}
+
+struct Extrude {
+    world_from_object: mat4x4<f32>,
+    light: vec4<f32>,        // xyz light position
+    counts: vec4<u32>,       // x = edges, y = triangles, z = 1 if the mesh is closed, w = capacity
+    flags: vec4<f32>,        // x = −1 if the transform mirrors (flips the winding), else 1
+}
+
+@group(0) @binding(0) var<uniform> ex: Extrude;
+@group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> indices: array<u32>;
+@group(0) @binding(3) var<storage, read> edges: array<vec4<u32>>;
+@group(0) @binding(4) var<storage, read_write> volume: array<VolumeVertex>;
+@group(0) @binding(5) var<storage, read_write> args: DrawArgs;
+
+@compute @workgroup_size(1)
+fn reset() {
+    atomicStore(&args.vertex_count, 0u);
+    args.instance_count = 1u;
+    args.first_vertex = 0u;
+    args.first_instance = 0u;
+}
+
+fn world(i: u32) -> vec3<f32> {
+    let p = ex.world_from_object * vec4<f32>(positions[i].xyz, 1.0);
+    return p.xyz / p.w;
+}
+
+fn faces_light(face: u32) -> bool {
+    let a = world(indices[3u * face]);
+    let b = world(indices[3u * face + 1u]);
+    let c = world(indices[3u * face + 2u]);
+    let n = cross(b - a, c - a) * ex.flags.x;
+    return dot(n, ex.light.xyz - a) > 0.0;
+}
+
+fn emit(vertices: array<vec4<f32>, 6>, count: u32) {
+    let base = atomicAdd(&args.vertex_count, count);
+    if (base + count > ex.counts.w) {
+        return; // cannot happen: capacity is sized for every edge and triangle
+    }
+    let conservative = select(1.0, 0.0, ex.counts.z == 1u);
+    for (var k = 0u; k < count; k++) {
+        volume[base + k].position = vertices[k];
+        volume[base + k].flags = vec4<f32>(conservative, 0.0, 0.0, 0.0);
+    }
+}
+
+fn at_infinity(p: vec3<f32>) -> vec4<f32> {
+    return vec4<f32>(p - ex.light.xyz, 0.0);
+}
+
+@compute @workgroup_size(64)
+fn extrude(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    let edge_count = ex.counts.x;
+    let tri_count = ex.counts.y;
+    if (i < edge_count) {
+        let e = edges[i];
+        let f0_lit = faces_light(e.z);
+        var extrude_edge = true;
+        var from_face0 = f0_lit;
+        if (e.w != 0xffffffffu) {
+            let f1_lit = faces_light(e.w);
+            extrude_edge = f0_lit != f1_lit;
+        }
+        if (extrude_edge) {
+            // Orient the quad by the light-facing side's winding so its outward normal points
+            // out of the volume: edge a→b of the lit face gives (b, a, a∞) and (b, a∞, b∞).
+            var a = world(e.x);
+            var b = world(e.y);
+            if (!from_face0) {
+                let t = a;
+                a = b;
+                b = t;
+            }
+            let ai = at_infinity(a);
+            let bi = at_infinity(b);
+            emit(array<vec4<f32>, 6>(vec4<f32>(b, 1.0), vec4<f32>(a, 1.0), ai,
+                                     vec4<f32>(b, 1.0), ai, bi), 6u);
+        }
+    } else if (i < edge_count + tri_count) {
+        let f = i - edge_count;
+        var a = world(indices[3u * f]);
+        var b = world(indices[3u * f + 1u]);
+        let c = world(indices[3u * f + 2u]);
+        if (ex.flags.x < 0.0) {
+            let t = a;
+            a = b;
+            b = t;
+        }
+        let zero = vec4<f32>(0.0);
+        let lit = dot(cross(b - a, c - a), ex.light.xyz - a) > 0.0;
+        if (lit || ex.counts.z != 1u) {
+            emit(array<vec4<f32>, 6>(vec4<f32>(a, 1.0), vec4<f32>(b, 1.0), vec4<f32>(c, 1.0), zero, zero, zero), 3u);
+        }
+        if (!lit || ex.counts.z != 1u) {
+            emit(array<vec4<f32>, 6>(at_infinity(a), at_infinity(b), at_infinity(c), zero, zero, zero), 3u);
+        }
+    }
+}
+
+// ---- rasterising the volumes ----
+
+struct VolumeView {
+    clip_from_world: mat4x4<f32>,   // reversed-Z infinite projection × camera view
+}
+@group(0) @binding(0) var<uniform> vv: VolumeView;
+
+struct VolumeOut {
+    @builtin(position) position: vec4<f32>,
+    @location(0) conservative: f32,
+}
+
+@vertex
+fn vs_volume(@location(0) position: vec4<f32>, @location(1) flags: vec4<f32>) -> VolumeOut {
+    var out: VolumeOut;
+    out.position = vv.clip_from_world * position;
+    out.conservative = flags.x;
+    return out;
+}
+
+// Nearest front face: front faces of closed meshes only.
+@fragment
+fn fs_front(in: VolumeOut, @builtin(front_facing) front: bool) {
+    if (!front || in.conservative > 0.5) {
+        discard;
+    }
+}
+
+// Nearest and farthest back face: back faces, and every face of an open mesh.
+@fragment
+fn fs_back(in: VolumeOut, @builtin(front_facing) front: bool) {
+    if (front && in.conservative < 0.5) {
+        discard;
+    }
+}

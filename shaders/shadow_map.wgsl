@@ -1,0 +1,18 @@
+// Shadow-map node: occluder depth from the light, one layer per face (six for a point light's
+// cube, one for a spot light). Reversed-Z infinite perspective: depth = near / distance along
+// the face's axis, so nearer occluders win with `Greater` and nothing is clipped far away.
+
+struct ShadowFace {
+    clip_from_world: mat4x4<f32>,
+}
+struct Instance {
+    world_from_object: mat4x4<f32>,
+}
+
+@group(0) @binding(0) var<uniform> face: ShadowFace;
+@group(0) @binding(1) var<uniform> instance: Instance;
+
+@vertex
+fn vs_shadow(@location(0) position: vec4<f32>) -> @builtin(position) vec4<f32> {
+    return face.clip_from_world * (instance.world_from_object * vec4<f32>(position.xyz, 1.0));
+}

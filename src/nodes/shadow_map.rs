@@ -1,0 +1,335 @@
+//! The shadow-map node: occluder depth seen from the light.
+//!
+//! A point light gets a cube of six faces (+X, −X, +Y, −Y, +Z, −Z, 90° each), a spot light one
+//! face covering its cone. Each face uses a reversed-Z infinite perspective projection
+//! ([`ShadowMapNode::face_matrices`]): depth = near / (distance along the face's axis), so the
+//! nearest occluder has the largest depth and nothing is clipped far away.
+//!
+//! # Output
+//! [`ShadowMap`]: a `Depth32Float` 2D array texture, `resolution²`, 6 layers (point) or 1
+//! (spot), usages `RENDER_ATTACHMENT | TEXTURE_BINDING`, cleared to 0 (nothing); plus the
+//! face matrices and the depth bias. A shadow map the caller renders itself can be passed to the
+//! march instead, in the same layout and convention (any depth format that can be sampled).
+
+use glam::{Mat4, Vec3};
+
+use crate::error::{finite, Error, Result};
+use crate::gpu::{Cache, GpuTimer, Occluder};
+use crate::scene::Light;
+
+/// Shadow-map settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ShadowMapSettings {
+    /// Width and height of each face, in texels (1 ..= device limit). Default 1024.
+    pub resolution: u32,
+    /// Relative depth bias: a point counts as lit while its distance from the light is below
+    /// `(1 + bias)`-ish times the occluder's (exactly: depth ≥ stored · (1 − bias)). It is
+    /// relative so it works at any scene scale. Default 2e-3; must be in [0, 0.5).
+    pub depth_bias: f32,
+}
+
+impl Default for ShadowMapSettings {
+    fn default() -> Self {
+        Self {
+            resolution: 1024,
+            depth_bias: 2e-3,
+        }
+    }
+}
+
+/// A shadow map as the march reads it.
+#[derive(Clone, Copy)]
+pub struct ShadowMap<'a> {
+    /// Depth 2D array texture: 6 layers (cube faces +X, −X, +Y, −Y, +Z, −Z) or 1 (spot).
+    pub texture: &'a wgpu::Texture,
+    /// clip_from_world of each layer, reversed-Z infinite perspective (see the module docs).
+    pub faces: &'a [Mat4],
+    /// Relative depth bias.
+    pub depth_bias: f32,
+}
+
+/// Renders the occluders' depth from the light. Re-renders only when the light, an occluder or
+/// a transform changed since the last render.
+pub struct ShadowMapNode {
+    settings: ShadowMapSettings,
+    pipeline: wgpu::RenderPipeline,
+    layout: wgpu::BindGroupLayout,
+    texture: Option<wgpu::Texture>,
+    faces: Vec<Mat4>,
+    face_buffer: wgpu::Buffer,
+    instance_buffer: Option<wgpu::Buffer>,
+    bind_group: Option<wgpu::BindGroup>,
+    draws: Vec<Draw>,
+    key: Vec<u32>,
+    pending: bool,
+}
+
+struct Draw {
+    positions: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    index_count: u32,
+}
+
+/// Uniform slots are 256 bytes apart (the core minimum dynamic-offset alignment).
+const SLOT: u64 = 256;
+
+impl ShadowMapNode {
+    /// Creates the node. Errors on a zero or too large resolution or a bias outside [0, 0.5).
+    pub fn new(device: &wgpu::Device, cache: &Cache, settings: ShadowMapSettings) -> Result<Self> {
+        let max = device.limits().max_texture_dimension_2d;
+        if settings.resolution == 0 || settings.resolution > max {
+            return Err(Error::InvalidSize {
+                field: "shadow map resolution",
+                width: settings.resolution,
+                height: settings.resolution,
+                min: 1,
+                max,
+            });
+        }
+        finite("shadow_map.depth_bias", &[settings.depth_bias])?;
+        if !(0.0..0.5).contains(&settings.depth_bias) {
+            return Err(Error::Negative {
+                field: "shadow_map.depth_bias (must lie in [0, 0.5))",
+                value: settings.depth_bias,
+            });
+        }
+        Ok(Self {
+            settings,
+            pipeline: cache.shadow_pipeline.clone(),
+            layout: cache.shadow_layout.clone(),
+            texture: None,
+            faces: Vec::new(),
+            face_buffer: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("volshadow shadow faces"),
+                size: 6 * SLOT,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            instance_buffer: None,
+            bind_group: None,
+            draws: Vec::new(),
+            key: Vec::new(),
+            pending: false,
+        })
+    }
+
+    /// The face matrices this node uses for `light`, with near plane `near`: reversed-Z
+    /// infinite perspective per face (90° cube faces, or the spot cone plus a small margin).
+    pub fn face_matrices(light: &Light, near: f32) -> Vec<Mat4> {
+        use glam::camera::rh::{proj::directx::perspective_infinite_reverse, view::look_to_mat4};
+        let p = light.position();
+        match light {
+            Light::Point(_) => {
+                let proj = perspective_infinite_reverse(std::f32::consts::FRAC_PI_2, 1.0, near);
+                [
+                    (Vec3::X, Vec3::Y),
+                    (Vec3::NEG_X, Vec3::Y),
+                    (Vec3::Y, Vec3::Z),
+                    (Vec3::NEG_Y, Vec3::Z),
+                    (Vec3::Z, Vec3::Y),
+                    (Vec3::NEG_Z, Vec3::Y),
+                ]
+                .iter()
+                .map(|&(dir, up)| proj * look_to_mat4(p, dir, up))
+                .collect()
+            }
+            Light::Spot(spot) => {
+                // The cone inscribed in the square frustum, with a texel of margin.
+                let fov = (spot.cone_angle() * 1.02).min(179f32.to_radians());
+                let proj = perspective_infinite_reverse(fov, 1.0, near);
+                let dir = spot.direction();
+                let up = if dir.y.abs() < 0.9 { Vec3::Y } else { Vec3::X };
+                vec![proj * look_to_mat4(p, dir, up)]
+            }
+        }
+    }
+
+    /// Validates the occluders and decides whether the map must be re-rendered. Returns
+    /// whether the next [`encode`](Self::encode) will render.
+    pub fn prepare(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        light: &Light,
+        occluders: &[Occluder<'_>],
+    ) -> Result<bool> {
+        for occluder in occluders {
+            occluder.validate()?;
+        }
+        let layers = match light {
+            Light::Point(_) => 6,
+            Light::Spot(_) => 1,
+        };
+        let resolution = self.settings.resolution;
+        let recreate = self
+            .texture
+            .as_ref()
+            .is_none_or(|t| t.depth_or_array_layers() != layers);
+        if recreate {
+            self.texture = Some(device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("volshadow shadow map"),
+                size: wgpu::Extent3d {
+                    width: resolution,
+                    height: resolution,
+                    depth_or_array_layers: layers,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::Depth32Float,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            }));
+        }
+
+        // Re-render only when something the map depends on changed.
+        let bits = |v: &[f32]| v.iter().map(|f| f.to_bits()).collect::<Vec<u32>>();
+        let mut key = bits(&light.position().to_array());
+        if let Light::Spot(s) = light {
+            key.extend(bits(&s.direction().to_array()));
+            key.push(s.cone_angle().to_bits());
+        }
+        for o in occluders {
+            key.extend([o.mesh.id() as u32, (o.mesh.id() >> 32) as u32]);
+            key.extend(bits(&o.transform.to_cols_array()));
+        }
+        if !recreate && key == self.key {
+            return Ok(false);
+        }
+        self.key = key;
+
+        // Near plane: half the distance to the nearest occluder bound, so every occluder is
+        // in front of it; tiny when the light sits inside an occluder's bounds.
+        let p = light.position();
+        let mut near = f32::INFINITY;
+        let mut extent: f32 = 0.0;
+        for o in occluders {
+            let (lo, hi) = o.world_bounds();
+            let closest = p.clamp(lo, hi);
+            near = near.min(0.5 * closest.distance(p));
+            extent = extent.max((hi - lo).length());
+        }
+        let near = if near.is_finite() && near > 1e-4 * extent {
+            near
+        } else {
+            (1e-4 * extent).max(1e-6)
+        };
+        self.faces = Self::face_matrices(light, near);
+        for (i, face) in self.faces.iter().enumerate() {
+            queue.write_buffer(&self.face_buffer, i as u64 * SLOT, bytemuck::bytes_of(face));
+        }
+
+        let needed = (occluders.len().max(1) as u64) * SLOT;
+        if self
+            .instance_buffer
+            .as_ref()
+            .is_none_or(|b| b.size() < needed)
+        {
+            let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("volshadow shadow instances"),
+                size: needed,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            self.bind_group = Some(device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("volshadow shadow map"),
+                layout: &self.layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: &self.face_buffer,
+                            offset: 0,
+                            size: wgpu::BufferSize::new(64),
+                        }),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: &buffer,
+                            offset: 0,
+                            size: wgpu::BufferSize::new(64),
+                        }),
+                    },
+                ],
+            }));
+            self.instance_buffer = Some(buffer);
+        }
+        let instances = self.instance_buffer.as_ref().expect("just created");
+        self.draws.clear();
+        for (i, o) in occluders.iter().enumerate() {
+            queue.write_buffer(instances, i as u64 * SLOT, bytemuck::bytes_of(&o.transform));
+            self.draws.push(Draw {
+                positions: o.mesh.positions.clone(),
+                indices: o.mesh.indices.clone(),
+                index_count: o.mesh.triangle_count * 3,
+            });
+        }
+        self.pending = true;
+        Ok(true)
+    }
+
+    /// Records the render of every face, if [`prepare`](Self::prepare) found a change.
+    /// Returns whether it recorded.
+    pub fn encode(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        mut timer: Option<&mut GpuTimer>,
+    ) -> bool {
+        if !std::mem::take(&mut self.pending) {
+            return false;
+        }
+        let (Some(texture), Some(bind_group)) = (&self.texture, &self.bind_group) else {
+            return false;
+        };
+        for layer in 0..texture.depth_or_array_layers() {
+            let view = texture.create_view(&wgpu::TextureViewDescriptor {
+                label: Some("volshadow shadow face"),
+                dimension: Some(wgpu::TextureViewDimension::D2),
+                base_array_layer: layer,
+                array_layer_count: Some(1),
+                ..Default::default()
+            });
+            let timestamp_writes = timer
+                .as_deref_mut()
+                .and_then(|t| t.render_pass("shadow map"));
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("volshadow shadow map"),
+                color_attachments: &[],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(0.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            for (i, draw) in self.draws.iter().enumerate() {
+                pass.set_bind_group(
+                    0,
+                    bind_group,
+                    &[layer * SLOT as u32, i as u32 * SLOT as u32],
+                );
+                pass.set_vertex_buffer(0, draw.positions.slice(..));
+                pass.set_index_buffer(draw.indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..draw.index_count, 0, 0..1);
+            }
+        }
+        true
+    }
+
+    /// The shadow map for the march (`None` before the first `prepare`).
+    pub fn shadow_map(&self) -> Option<ShadowMap<'_>> {
+        Some(ShadowMap {
+            texture: self.texture.as_ref()?,
+            faces: &self.faces,
+            depth_bias: self.settings.depth_bias,
+        })
+    }
+}
