@@ -8,9 +8,11 @@ mod composite;
 mod extents;
 mod march;
 mod shadow_map;
+mod upsample;
 
 pub use airlight_table::{AirlightTableNode, TableSize};
 pub use composite::{CompositeInputs, CompositeNode};
 pub use extents::{ExtentsInputs, ExtentsNode, EXTENTS_NEAR};
 pub use march::{Extents, MarchInputs, MarchMethod, MarchNode, MarchSettings, Shadows};
 pub use shadow_map::{ShadowMap, ShadowMapNode, ShadowMapSettings};
+pub use upsample::{Scale, UpsampleFilter};

@@ -137,9 +137,7 @@ impl ShadowMapNode {
                 // The cone inscribed in the square frustum, with a texel of margin.
                 let fov = (spot.cone_angle() * 1.02).min(179f32.to_radians());
                 let proj = perspective_infinite_reverse(fov, 1.0, near);
-                let dir = spot.direction();
-                let up = if dir.y.abs() < 0.9 { Vec3::Y } else { Vec3::X };
-                vec![proj * look_to_mat4(p, dir, up)]
+                vec![proj * spot.texture_frame()]
             }
         }
     }

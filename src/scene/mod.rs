@@ -3,11 +3,13 @@
 
 mod camera;
 mod light;
+mod light_texture;
 mod medium;
 mod mesh;
 pub mod shapes;
 
 pub use camera::Camera;
 pub use light::{Light, PointLight, SpotLight};
+pub use light_texture::LightTexture;
 pub use medium::{Medium, PhaseFunction};
 pub use mesh::{Edge, Mesh, MeshSummary};

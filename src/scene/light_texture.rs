@@ -1,0 +1,161 @@
+//! A spot light's projected texture (stained glass, gobo): linear RGB texels on the CPU.
+//!
+//! A textured spot light emits `intensity × texel(uv)` towards a point X, where uv is X seen
+//! through the spot's texture frame ([`SpotLight::texture_frame`]):
+//!
+//! ```text
+//! (x, y, z) = view · X,  t = tan(cone_angle / 2)
+//! uv = (0.5 + 0.5 · x / (−z · t),  0.5 − 0.5 · y / (−z · t))      (v = 0 is the top row)
+//! ```
+//!
+//! looked up bilinearly between texel centres, clamped to the edge. The texture covers the
+//! square around the cone; its corners lie outside the cone and are never seen.
+
+use glam::{Mat4, Vec3};
+
+use crate::error::{Error, Result};
+use crate::scene::SpotLight;
+
+/// Linear RGB texels, row-major from the top row.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LightTexture {
+    width: u32,
+    height: u32,
+    texels: Vec<Vec3>,
+}
+
+impl LightTexture {
+    /// Largest width or height accepted.
+    pub const MAX_SIZE: u32 = 8192;
+
+    /// A texture of `width × height` texels (row-major, top row first; finite, ≥ 0).
+    pub fn new(width: u32, height: u32, texels: Vec<Vec3>) -> Result<Self> {
+        if width == 0 || height == 0 || width > Self::MAX_SIZE || height > Self::MAX_SIZE {
+            return Err(Error::InvalidSize {
+                field: "light texture",
+                width,
+                height,
+                min: 1,
+                max: Self::MAX_SIZE,
+            });
+        }
+        if texels.len() != (width as usize) * (height as usize) {
+            return Err(Error::InvalidTexture {
+                field: "light texture",
+                problem: format!(
+                    "{} texels for {width}x{height}",
+                    texels.len()
+                ),
+            });
+        }
+        for t in &texels {
+            crate::error::non_negative("light texture texel", &t.to_array())?;
+        }
+        Ok(Self {
+            width,
+            height,
+            texels,
+        })
+    }
+
+    /// A `cells × cells` checkerboard of two colours, `size × size` texels.
+    pub fn checkerboard(size: u32, cells: u32, a: Vec3, b: Vec3) -> Result<Self> {
+        let cells = cells.max(1);
+        let texels = (0..size * size)
+            .map(|i| {
+                let (x, y) = (i % size, i / size);
+                if ((x * cells / size.max(1)) + (y * cells / size.max(1))) % 2 == 0 {
+                    a
+                } else {
+                    b
+                }
+            })
+            .collect();
+        Self::new(size, size, texels)
+    }
+
+    /// Loads an image file (PNG) as sRGB-encoded colour and converts it to linear RGB.
+    #[cfg(feature = "image")]
+    pub fn from_image_file(path: impl AsRef<std::path::Path>) -> Result<Self> {
+        let path = path.as_ref();
+        let image = image::open(path)
+            .map_err(|e| Error::InvalidTexture {
+                field: "light texture file",
+                problem: format!("{}: {e}", path.display()),
+            })?
+            .to_rgb8();
+        let decode = |c: u8| {
+            let c = f32::from(c) / 255.0;
+            if c <= 0.04045 {
+                c / 12.92
+            } else {
+                ((c + 0.055) / 1.055).powf(2.4)
+            }
+        };
+        let texels = image
+            .pixels()
+            .map(|p| Vec3::new(decode(p[0]), decode(p[1]), decode(p[2])))
+            .collect();
+        Self::new(image.width(), image.height(), texels)
+    }
+
+    /// Width in texels.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+    /// Height in texels.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+    /// The texels, row-major from the top row.
+    pub fn texels(&self) -> &[Vec3] {
+        &self.texels
+    }
+
+    /// Uploads the texels as an `Rgba16Float` texture (`TEXTURE_BINDING | COPY_DST`), one mip
+    /// level: what the march's light-texture input expects.
+    pub fn upload(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> wgpu::Texture {
+        let size = wgpu::Extent3d {
+            width: self.width,
+            height: self.height,
+            depth_or_array_layers: 1,
+        };
+        let texture = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("volshadow light texture"),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba16Float,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        let data: Vec<half::f16> = self
+            .texels
+            .iter()
+            .flat_map(|t| [t.x, t.y, t.z, 1.0])
+            .map(half::f16::from_f32)
+            .collect();
+        queue.write_texture(
+            texture.as_image_copy(),
+            bytemuck::cast_slice(&data),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(self.width * 8),
+                rows_per_image: Some(self.height),
+            },
+            size,
+        );
+        texture
+    }
+}
+
+impl SpotLight {
+    /// The spot's texture frame: a view matrix looking along the cone's axis from the light,
+    /// with up = +Y (or +X when the axis is within ~25° of vertical). See [`LightTexture`].
+    pub fn texture_frame(&self) -> Mat4 {
+        let dir = self.direction();
+        let up = if dir.y.abs() < 0.9 { Vec3::Y } else { Vec3::X };
+        glam::camera::rh::view::look_to_mat4(self.position(), dir, up)
+    }
+}
