@@ -12,7 +12,7 @@
 struct MarchParams {
     mode: vec4<u32>,      // x: 0 analytic, 1 hybrid, 2 brute force; y: steps; z: bisections; w: 1 = spot
     spot: vec4<f32>,      // xyz cone axis (unit), w = cos(half apex angle)
-    shadow: vec4<f32>,    // x: shadow-map layers (1 spot, 6 cube), y: relative depth bias, z: extents near plane
+    shadow: vec4<f32>,    // x: shadow-map layers (1 spot, 6 cube), y: relative depth bias, z: extents near plane, w: 1 = write the lit fraction (reduced resolution)
     faces: array<mat4x4<f32>, 6>,  // shadow-map face clip_from_world
 }
 
@@ -122,99 +122,22 @@ fn march_interval(ray: PixelRay, r: AirRay, s0: f32, s1: f32) -> Marched {
     return out;
 }
 
-// The spot cone along the ray, as up to two intervals of distance (−1 ends mean empty).
-// Roots of (a·(X − P))² = cos²α |X − P|² on the light's nappe a·(X − P) ≥ 0.
-struct Support {
-    x: array<vec2<f32>, 2>,
-    count: u32,
-}
-
-fn inside_cone(p: vec3<f32>) -> bool {
-    let rel = p - air.light_pos.xyz;
-    return dot(mp.spot.xyz, rel) >= mp.spot.w * length(rel);
-}
-
-fn cone_support(dir: vec3<f32>, x_end: f32) -> Support {
-    var sup: Support;
-    sup.count = 0u;
-    let axis = mp.spot.xyz;
-    let c2 = mp.spot.w * mp.spot.w;
-    let w0 = air.eye.xyz - air.light_pos.xyz;
-    let av = dot(axis, dir);
-    let aw = dot(axis, w0);
-    let qa = av * av - c2;
-    let qb = 2.0 * (av * aw - c2 * dot(dir, w0));
-    let qc = aw * aw - c2 * dot(w0, w0);
-    var roots = array<f32, 2>(-1.0, -1.0);
-    if (abs(qa) > 1.0e-12 * max(abs(qb), abs(qc))) {
-        let disc = qb * qb - 4.0 * qa * qc;
-        if (disc >= 0.0) {
-            let q = -0.5 * (qb + select(-1.0, 1.0, qb >= 0.0) * sqrt(disc));
-            var r0 = q / qa;
-            var r1 = select(r0, qc / q, q != 0.0);
-            roots = array<f32, 2>(min(r0, r1), max(r0, r1));
-        }
-    } else if (qb != 0.0) {
-        roots[0] = -qc / qb;
-    }
-    // Split [0, x_end] at the roots and keep the pieces whose midpoint is inside the cone.
-    var cuts = array<f32, 4>(0.0, x_end, x_end, x_end);
-    var k = 1u;
-    for (var i = 0u; i < 2u; i++) {
-        if (roots[i] > 0.0 && roots[i] < x_end) {
-            cuts[k] = roots[i];
-            k++;
-        }
-    }
-    cuts[k] = x_end;
-    for (var i = 0u; i < k; i++) {
-        let a = cuts[i];
-        let b = cuts[i + 1u];
-        var mid = 0.5 * (a + b);
-        if (b >= 3.0e38) {
-            mid = a + 1.0 + 2.0 * abs(a) + 1.0e3 * air.light_pos.w; // far along an unbounded piece
-        }
-        if (b > a && inside_cone(air.eye.xyz + mid * dir)) {
-            if (sup.count > 0u && sup.x[sup.count - 1u].y == a) {
-                sup.x[sup.count - 1u].y = b;
-            } else if (sup.count < 2u) {
-                sup.x[sup.count] = vec2<f32>(a, b);
-                sup.count++;
-            }
-        }
-    }
-    return sup;
-}
-
-fn s_of_x(r: AirRay, x: f32) -> f32 {
-    if (x >= 3.0e38) {
-        return 1.0;
-    }
-    return scattering_s(air, r, x);
-}
-
 @compute @workgroup_size(8, 8)
 fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
     let size = vec2<u32>(view.size.xy);
     if (gid.x >= size.x || gid.y >= size.y) {
         return;
     }
-    let depth = textureLoad(scene_depth, gid.xy, 0);
+    // At reduced resolution the ray goes through this pass's pixel centre (where the extents
+    // were rasterised) and ends at the depth of the output pixel under that centre.
+    let full = textureDimensions(scene_depth);
+    let under = min(vec2<u32>((vec2<f32>(gid.xy) + 0.5) * vec2<f32>(full) / view.size.xy), full - 1u);
+    let depth = textureLoad(scene_depth, under, 0);
     let ray = pixel_ray(view, vec2<f32>(gid.xy) + 0.5, depth);
     let r = air_ray(air, ray.dir);
     let x_end = select(3.4e38, ray.distance, ray.distance >= 0.0);
 
-    // Lit support in s.
-    var support: array<vec2<f32>, 2>;
-    var count = 1u;
-    support[0] = vec2<f32>(0.0, s_of_x(r, x_end));
-    if (mp.mode.w == 1u) {
-        let cone = cone_support(ray.dir, x_end);
-        count = cone.count;
-        for (var i = 0u; i < cone.count; i++) {
-            support[i] = vec2<f32>(s_of_x(r, cone.x[i].x), s_of_x(r, cone.x[i].y));
-        }
-    }
+    let sup = support_s(air, r, mp.mode.w == 1u, mp.spot, ray.dir, x_end);
 
     // Shadow-volume extents in s (hybrid): start at 0 when the nearest face is a back face
     // (eye inside a volume, or its front cut away by the near plane), else at the nearest front
@@ -238,7 +161,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
             // Widening is always safe (DESIGN §3): a relative margin covers rasterisation
             // and depth rounding.
-            ext = vec2<f32>(s_of_x(r, x0 * 0.999), s_of_x(r, min(x1 * 1.001, 3.4e38)));
+            ext = vec2<f32>(s_of_x(air, r, x0 * 0.999), s_of_x(air, r, min(x1 * 1.001, 3.4e38)));
         }
     } else if (mp.mode.x == 2u) {
         ext = vec2<f32>(0.0, 1.0);
@@ -246,9 +169,9 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
 
     var total = vec3<f32>(0.0);
     var steps = 0u;
-    for (var i = 0u; i < count; i++) {
-        let u0 = support[i].x;
-        let u1 = support[i].y;
+    for (var i = 0u; i < sup.count; i++) {
+        let u0 = sup.s[i].x;
+        let u1 = sup.s[i].y;
         let m0 = max(u0, ext.x);
         let m1 = min(u1, ext.y);
         if (m0 < m1) {
@@ -260,7 +183,15 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
             total += table_t(table, air, r, u1) - table_t(table, air, r, u0);
         }
     }
-    let radiance = r.prefactor * max(total, vec3<f32>(0.0));
-    textureStore(inscatter_out, gid.xy, vec4<f32>(clamp_radiance(radiance), ray.distance));
+    total = max(total, vec3<f32>(0.0));
+    var value = clamp_radiance(r.prefactor * total);
+    if (mp.shadow.w > 0.5) {
+        // Reduced resolution: the fraction of the unshadowed airlight that arrives, which the
+        // upsample multiplies into a full-resolution analytic airlight. It is smooth where the
+        // airlight itself is peaked (around the light) and keeps hard edges only at shadows.
+        let open = unshadowed_t(table, air, r, sup);
+        value = select(vec3<f32>(1.0), min(total / open, vec3<f32>(1.0)), open > vec3<f32>(0.0));
+    }
+    textureStore(inscatter_out, gid.xy, vec4<f32>(value, ray.distance));
     textureStore(steps_out, gid.xy, vec4<u32>(steps, 0u, 0u, 0u));
 }

@@ -155,6 +155,107 @@ fn fprime(table: texture_2d<f32>, a: Airlight, r: AirRay, x: f32) -> vec3<f32> {
     return r.prefactor * table_t(table, a, r, s);
 }
 
+// The spot cone along the ray, as up to two intervals of distance (−1 ends mean empty).
+// Roots of (a·(X − P))² = cos²α |X − P|² on the light's nappe a·(X − P) ≥ 0.
+struct Support {
+    x: array<vec2<f32>, 2>,
+    count: u32,
+}
+
+fn inside_cone(a: Airlight, spot: vec4<f32>, p: vec3<f32>) -> bool {
+    let rel = p - a.light_pos.xyz;
+    return dot(spot.xyz, rel) >= spot.w * length(rel);
+}
+
+fn cone_support(air: Airlight, spot: vec4<f32>, dir: vec3<f32>, x_end: f32) -> Support {
+    var sup: Support;
+    sup.count = 0u;
+    let axis = spot.xyz;
+    let c2 = spot.w * spot.w;
+    let w0 = air.eye.xyz - air.light_pos.xyz;
+    let av = dot(axis, dir);
+    let aw = dot(axis, w0);
+    let qa = av * av - c2;
+    let qb = 2.0 * (av * aw - c2 * dot(dir, w0));
+    let qc = aw * aw - c2 * dot(w0, w0);
+    var roots = array<f32, 2>(-1.0, -1.0);
+    if (abs(qa) > 1.0e-12 * max(abs(qb), abs(qc))) {
+        let disc = qb * qb - 4.0 * qa * qc;
+        if (disc >= 0.0) {
+            let q = -0.5 * (qb + select(-1.0, 1.0, qb >= 0.0) * sqrt(disc));
+            var r0 = q / qa;
+            var r1 = select(r0, qc / q, q != 0.0);
+            roots = array<f32, 2>(min(r0, r1), max(r0, r1));
+        }
+    } else if (qb != 0.0) {
+        roots[0] = -qc / qb;
+    }
+    // Split [0, x_end] at the roots and keep the pieces whose midpoint is inside the cone.
+    var cuts = array<f32, 4>(0.0, x_end, x_end, x_end);
+    var k = 1u;
+    for (var i = 0u; i < 2u; i++) {
+        if (roots[i] > 0.0 && roots[i] < x_end) {
+            cuts[k] = roots[i];
+            k++;
+        }
+    }
+    cuts[k] = x_end;
+    for (var i = 0u; i < k; i++) {
+        let a = cuts[i];
+        let b = cuts[i + 1u];
+        var mid = 0.5 * (a + b);
+        if (b >= 3.0e38) {
+            mid = a + 1.0 + 2.0 * abs(a) + 1.0e3 * air.light_pos.w; // far along an unbounded piece
+        }
+        if (b > a && inside_cone(air, spot, air.eye.xyz + mid * dir)) {
+            if (sup.count > 0u && sup.x[sup.count - 1u].y == a) {
+                sup.x[sup.count - 1u].y = b;
+            } else if (sup.count < 2u) {
+                sup.x[sup.count] = vec2<f32>(a, b);
+                sup.count++;
+            }
+        }
+    }
+    return sup;
+}
+
+fn s_of_x(a: Airlight, r: AirRay, x: f32) -> f32 {
+    if (x >= 3.0e38) {
+        return 1.0;
+    }
+    return scattering_s(a, r, x);
+}
+
+// The lit support of a ray in s: [0, s(ds)] for a point light, its intersection with the cone
+// for a spot light (spot.w = cos half angle; spot_on = false for a point light).
+struct SupportS {
+    s: array<vec2<f32>, 2>,
+    count: u32,
+}
+
+fn support_s(a: Airlight, r: AirRay, spot_on: bool, spot: vec4<f32>, dir: vec3<f32>, x_end: f32) -> SupportS {
+    var out: SupportS;
+    out.count = 1u;
+    out.s[0] = vec2<f32>(0.0, s_of_x(a, r, x_end));
+    if (spot_on) {
+        let cone = cone_support(a, spot, dir, x_end);
+        out.count = cone.count;
+        for (var i = 0u; i < cone.count; i++) {
+            out.s[i] = vec2<f32>(s_of_x(a, r, cone.x[i].x), s_of_x(a, r, cone.x[i].y));
+        }
+    }
+    return out;
+}
+
+// Unshadowed T over the lit support.
+fn unshadowed_t(table: texture_2d<f32>, a: Airlight, r: AirRay, sup: SupportS) -> vec3<f32> {
+    var t = vec3<f32>(0.0);
+    for (var i = 0u; i < sup.count; i++) {
+        t += table_t(table, a, r, sup.s[i].y) - table_t(table, a, r, sup.s[i].x);
+    }
+    return t;
+}
+
 fn clamp_radiance(v: vec3<f32>) -> vec3<f32> {
     return min(v, vec3<f32>(MAX_RADIANCE));
 }

@@ -13,6 +13,10 @@ pub struct Cache {
     pub(crate) march_layout: wgpu::BindGroupLayout,
     pub(crate) march_pipeline: wgpu::ComputePipeline,
     pub(crate) composite_layout: wgpu::BindGroupLayout,
+    pub(crate) upsample_layout: wgpu::BindGroupLayout,
+    pub(crate) upsample_pipeline: wgpu::ComputePipeline,
+    pub(crate) upsample_h_pipeline: wgpu::ComputePipeline,
+    pub(crate) upsample_v_pipeline: wgpu::ComputePipeline,
     pub(crate) shadow_layout: wgpu::BindGroupLayout,
     pub(crate) shadow_pipeline: wgpu::RenderPipeline,
     pub(crate) extents_extrude_layout: wgpu::BindGroupLayout,
@@ -368,7 +372,37 @@ impl Cache {
             wgpu::CompareFunction::Less,
         );
 
+        let upsample_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("volshadow upsample"),
+            entries: &[
+                uniform_entry(0, compute),
+                uniform_entry(1, compute),
+                texture_entry(2, compute, UNFILTERED),
+                texture_entry(3, compute, wgpu::TextureSampleType::Depth),
+                texture_entry(4, compute, UNFILTERED),
+                storage_entry(5),
+                texture_entry(6, compute, UNFILTERED),
+                uniform_entry(7, compute),
+                uniform_entry(8, compute),
+                uniform_entry(9, compute),
+            ],
+        });
+        let upsample_module = module(
+            device,
+            "volshadow upsample.wgsl",
+            include_str!("../../shaders/upsample.wgsl"),
+        );
+        let upsample = |entry| {
+            compute_pipeline(device, "volshadow upsample", &upsample_layout, &upsample_module, entry)
+        };
+        let (upsample_pipeline, upsample_h_pipeline, upsample_v_pipeline) =
+            (upsample("upsample"), upsample("separable_h"), upsample("separable_v"));
+
         Self {
+            upsample_layout,
+            upsample_pipeline,
+            upsample_h_pipeline,
+            upsample_v_pipeline,
             shadow_layout,
             shadow_pipeline,
             extents_extrude_layout,

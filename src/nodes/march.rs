@@ -12,16 +12,20 @@
 //! # Inputs
 //! * `scene_depth`: the caller's depth buffer, any depth format (`Depth16Unorm`, `Depth24Plus`,
 //!   `Depth24PlusStencil8`, `Depth32Float`, …), single-sampled, usage `TEXTURE_BINDING`; its
-//!   size is the size of the pass. Depth values equal to the camera's far depth
+//!   size divided by [`MarchSettings::scale`] is the size of the pass. Depth values equal to the camera's far depth
 //!   ([`Camera::far_depth`]) are sky.
 //! * the table from [`AirlightTableNode`], prepared for the same eye, light and medium.
 //! * optionally [`Shadows`]: a [`ShadowMap`] and, for the hybrid, the [`Extents`] of the same
 //!   size as `scene_depth`.
 //!
 //! # Output
-//! [`MarchNode::output`]: `Rgba32Float`, the size of `scene_depth`, usages
-//! `STORAGE_BINDING | TEXTURE_BINDING | COPY_SRC`; rgb = in-scattered radiance, a = eye
-//! distance of the pixel's surface (−1 for sky). [`MarchNode::step_counts`]: `R32Uint`, same
+//! [`MarchNode::output`]: `Rgba32Float`, the size of `scene_depth` divided by
+//! [`MarchSettings::scale`] (rounded up), usages
+//! `STORAGE_BINDING | TEXTURE_BINDING | COPY_SRC`; a = eye distance of the pixel's surface
+//! (−1 for sky). At full scale rgb is the in-scattered radiance; at reduced scale it is the
+//! fraction of the unshadowed airlight that arrives (in [0, 1]), which
+//! [`UpsampleNode`](crate::nodes::UpsampleNode) multiplies into the full-resolution analytic
+//! airlight — so the peak around the light stays sharp and only shadows are low-resolution. [`MarchNode::step_counts`]: `R32Uint`, same
 //! size: march steps (and bisections) each pixel executed.
 
 use crate::error::{Error, Result};
@@ -54,6 +58,8 @@ pub struct MarchSettings {
     /// Bisection steps locating each lit/shadow transition between two samples (0 = off,
     /// at most 16). Default 0.
     pub bisections: u32,
+    /// Resolution of the march relative to `scene_depth` (full, ½, ¼). Default full.
+    pub scale: crate::nodes::Scale,
 }
 
 impl Default for MarchSettings {
@@ -62,6 +68,7 @@ impl Default for MarchSettings {
             method: MarchMethod::Hybrid,
             steps: 64,
             bisections: 0,
+            scale: crate::nodes::Scale::Full,
         }
     }
 }
@@ -231,8 +238,9 @@ impl MarchNode {
         inputs: &MarchInputs<'_>,
     ) -> Result<()> {
         check_depth_texture("scene_depth", inputs.scene_depth)?;
-        let (width, height) = (inputs.scene_depth.width(), inputs.scene_depth.height());
-        check_target_size("scene_depth size", device, width, height)?;
+        let (full_width, full_height) = (inputs.scene_depth.width(), inputs.scene_depth.height());
+        check_target_size("scene_depth size", device, full_width, full_height)?;
+        let (width, height) = self.settings.scale.apply(full_width, full_height);
         if let Some(shadows) = &inputs.shadows {
             let expected = match inputs.light {
                 Light::Point(_) => 6,
@@ -398,6 +406,11 @@ impl MarchNode {
                     _ => 2,
                 }
             }
+        };
+        shadow[3] = if self.settings.scale == crate::nodes::Scale::Full {
+            0.0
+        } else {
+            1.0
         };
         let spot = match inputs.light {
             Light::Spot(s) => s.direction().extend(s.cos_half_angle()).to_array(),

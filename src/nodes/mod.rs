@@ -15,4 +15,4 @@ pub use composite::{CompositeInputs, CompositeNode};
 pub use extents::{ExtentsInputs, ExtentsNode, EXTENTS_NEAR};
 pub use march::{Extents, MarchInputs, MarchMethod, MarchNode, MarchSettings, Shadows};
 pub use shadow_map::{ShadowMap, ShadowMapNode, ShadowMapSettings};
-pub use upsample::{Scale, UpsampleFilter};
+pub use upsample::{Scale, UpsampleFilter, UpsampleInputs, UpsampleNode};

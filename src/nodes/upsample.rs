@@ -100,3 +100,246 @@ impl UpsampleFilter {
         Ok(())
     }
 }
+
+use crate::gpu::uniforms::ViewUniform;
+use crate::gpu::{check_depth_texture, check_float_texture, Cache, GpuTimer, UniformBuffer};
+use crate::scene::Camera;
+
+/// What the upsample reads in a frame.
+#[derive(Clone, Copy)]
+pub struct UpsampleInputs<'a> {
+    /// The camera of the frame.
+    pub camera: &'a Camera,
+    /// The caller's full-resolution depth buffer (any depth format, `TEXTURE_BINDING`); its size
+    /// is the output size.
+    pub scene_depth: &'a wgpu::Texture,
+    /// The reduced-scale march output ([`MarchNode::output`](crate::nodes::MarchNode::output)):
+    /// `Rgba32Float`, rgb = lit fraction, a = eye distance (−1 sky).
+    pub low: &'a wgpu::Texture,
+    /// The frame's F′ table, for the full-resolution analytic airlight.
+    pub table: &'a crate::nodes::AirlightTableNode,
+    /// The light.
+    pub light: &'a crate::scene::Light,
+    /// The medium.
+    pub medium: &'a crate::scene::Medium,
+}
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+struct UpsampleUniform {
+    params: [f32; 4],
+    sizes: [f32; 4],
+}
+
+/// Brings low-resolution in-scatter to the output resolution with a depth-aware filter.
+///
+/// # Output
+/// [`UpsampleNode::output`]: `Rgba32Float`, the size of `scene_depth`, usages
+/// `STORAGE_BINDING | TEXTURE_BINDING | COPY_SRC`; rgb = in-scatter, a = eye distance (−1 sky).
+pub struct UpsampleNode {
+    filter: UpsampleFilter,
+    layout: wgpu::BindGroupLayout,
+    single: wgpu::ComputePipeline,
+    horizontal: wgpu::ComputePipeline,
+    vertical: wgpu::ComputePipeline,
+    uniform: UniformBuffer<UpsampleUniform>,
+    view: UniformBuffer<ViewUniform>,
+    airlight: UniformBuffer<crate::gpu::uniforms::AirlightUniform>,
+    spot: UniformBuffer<[f32; 4]>,
+    spot_on: UniformBuffer<[u32; 4]>,
+    dummy: wgpu::Texture,
+    output: Option<wgpu::Texture>,
+    intermediate: Option<wgpu::Texture>,
+    bound: Option<(Vec<wgpu::Texture>, Vec<wgpu::BindGroup>)>,
+    size: (u32, u32),
+    low_height: u32,
+}
+
+impl UpsampleNode {
+    /// Creates the node for `filter` (validated).
+    pub fn new(device: &wgpu::Device, cache: &Cache, filter: UpsampleFilter) -> Result<Self> {
+        filter.validate()?;
+        Ok(Self {
+            filter,
+            layout: cache.upsample_layout.clone(),
+            single: cache.upsample_pipeline.clone(),
+            horizontal: cache.upsample_h_pipeline.clone(),
+            vertical: cache.upsample_v_pipeline.clone(),
+            uniform: UniformBuffer::new(device, "volshadow upsample"),
+            view: UniformBuffer::new(device, "volshadow upsample view"),
+            airlight: UniformBuffer::new(device, "volshadow upsample airlight"),
+            spot: UniformBuffer::new(device, "volshadow upsample spot"),
+            spot_on: UniformBuffer::new(device, "volshadow upsample spot flag"),
+            dummy: storage_texture(device, "volshadow upsample dummy", 1, 1),
+            output: None,
+            intermediate: None,
+            bound: None,
+            size: (0, 0),
+            low_height: 0,
+        })
+    }
+
+    /// The filter.
+    pub fn filter(&self) -> UpsampleFilter {
+        self.filter
+    }
+
+    /// Validates the inputs, (re)creates textures when sizes change, uploads what changed.
+    pub fn prepare(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        inputs: &UpsampleInputs<'_>,
+    ) -> Result<()> {
+        check_depth_texture("scene_depth", inputs.scene_depth)?;
+        check_float_texture("low", inputs.low)?;
+        let (w, h) = (inputs.scene_depth.width(), inputs.scene_depth.height());
+        let (lw, lh) = (inputs.low.width(), inputs.low.height());
+        if lw > w || lh > h {
+            return Err(Error::InvalidTexture {
+                field: "low",
+                problem: format!("is {lw}x{lh}, larger than the output {w}x{h}"),
+            });
+        }
+        if self.output.as_ref().is_none_or(|t| (t.width(), t.height()) != (w, h)) {
+            self.output = Some(storage_texture(device, "volshadow upsampled in-scatter", w, h));
+        }
+        let separable = matches!(self.filter, UpsampleFilter::Separable { .. });
+        if separable
+            && self
+                .intermediate
+                .as_ref()
+                .is_none_or(|t| (t.width(), t.height()) != (w, lh))
+        {
+            self.intermediate = Some(storage_texture(device, "volshadow upsample horizontal", w, lh));
+        }
+        let output = self.output.clone().expect("created above");
+        let mid = if separable {
+            self.intermediate.clone().expect("created above")
+        } else {
+            self.dummy.clone()
+        };
+        let textures = vec![
+            inputs.low.clone(),
+            inputs.scene_depth.clone(),
+            mid.clone(),
+            output.clone(),
+            inputs.table.texture().clone(),
+        ];
+        if self.bound.as_ref().is_none_or(|(t, _)| *t != textures) {
+            let low_view = inputs.low.create_view(&Default::default());
+            let table_view = inputs.table.texture().create_view(&Default::default());
+            let depth = crate::gpu::depth_view(inputs.scene_depth);
+            let make = |mid_sampled: &wgpu::Texture, out: &wgpu::Texture| {
+                let mid_view = mid_sampled.create_view(&Default::default());
+                let out_view = out.create_view(&Default::default());
+                device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("volshadow upsample"),
+                    layout: &self.layout,
+                    entries: &[
+                        wgpu::BindGroupEntry { binding: 0, resource: self.uniform.binding() },
+                        wgpu::BindGroupEntry { binding: 1, resource: self.view.binding() },
+                        wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&low_view) },
+                        wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::TextureView(&depth) },
+                        wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&mid_view) },
+                        wgpu::BindGroupEntry { binding: 5, resource: wgpu::BindingResource::TextureView(&out_view) },
+                        wgpu::BindGroupEntry { binding: 6, resource: wgpu::BindingResource::TextureView(&table_view) },
+                        wgpu::BindGroupEntry { binding: 7, resource: self.airlight.binding() },
+                        wgpu::BindGroupEntry { binding: 8, resource: self.spot.binding() },
+                        wgpu::BindGroupEntry { binding: 9, resource: self.spot_on.binding() },
+                    ],
+                })
+            };
+            let groups = if separable {
+                // Horizontal: writes the intermediate; vertical: reads it, writes the output.
+                vec![make(&self.dummy, &mid), make(&mid, &output)]
+            } else {
+                vec![make(&self.dummy, &output)]
+            };
+            self.bound = Some((textures, groups));
+        }
+        let (kind, taps, sigma_s, sigma_z) = match self.filter {
+            UpsampleFilter::Bilinear => (0.0, 0, 1.0, 1.0),
+            UpsampleFilter::DepthAware3x3 => (1.0, 3, 1.0, 1.0),
+            UpsampleFilter::Separable { taps, sigma_spatial, sigma_depth } => {
+                (2.0, taps, sigma_spatial, sigma_depth)
+            }
+        };
+        self.uniform.write(
+            queue,
+            UpsampleUniform {
+                params: [kind, taps as f32, sigma_s, sigma_z],
+                sizes: [lw as f32, lh as f32, w as f32, h as f32],
+            },
+        );
+        self.view.write(queue, ViewUniform::new(inputs.camera, w, h));
+        let camera = inputs.camera;
+        let point = crate::scene::PointLight::new(inputs.light.position(), inputs.light.intensity())?;
+        self.airlight.write(
+            queue,
+            crate::gpu::uniforms::AirlightUniform::new(
+                camera.eye(),
+                &point,
+                inputs.medium,
+                camera.pixel_angular_radius(h),
+                inputs.table.table_dims(),
+            ),
+        );
+        let (spot, on) = match inputs.light {
+            crate::scene::Light::Spot(s) => (s.direction().extend(s.cos_half_angle()).to_array(), 1),
+            crate::scene::Light::Point(_) => ([0.0; 4], 0),
+        };
+        self.spot.write(queue, spot);
+        self.spot_on.write(queue, [on, 0, 0, 0]);
+        self.size = (w, h);
+        self.low_height = lh;
+        Ok(())
+    }
+
+    /// Records the upsample (one pass, or two for the separable filter).
+    pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, timer: Option<&mut GpuTimer>) {
+        let Some((_, groups)) = &self.bound else { return };
+        let timestamp_writes = timer.and_then(|t| t.compute_pass("upsample"));
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("volshadow upsample"),
+            timestamp_writes,
+        });
+        let (w, h) = self.size;
+        if let [horizontal, vertical] = groups.as_slice() {
+            pass.set_pipeline(&self.horizontal);
+            pass.set_bind_group(0, horizontal, &[]);
+            pass.dispatch_workgroups(w.div_ceil(8), self.low_height.div_ceil(8), 1);
+            pass.set_pipeline(&self.vertical);
+            pass.set_bind_group(0, vertical, &[]);
+            pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+        } else {
+            pass.set_pipeline(&self.single);
+            pass.set_bind_group(0, &groups[0], &[]);
+            pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+        }
+    }
+
+    /// The upsampled in-scatter; `None` before the first `prepare`.
+    pub fn output(&self) -> Option<&wgpu::Texture> {
+        self.output.as_ref()
+    }
+}
+
+fn storage_texture(device: &wgpu::Device, label: &str, width: u32, height: u32) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba32Float,
+        usage: wgpu::TextureUsages::STORAGE_BINDING
+            | wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    })
+}

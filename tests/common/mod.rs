@@ -258,9 +258,27 @@ pub fn shadow_frame(
     settings: MarchSettings,
     shadow_resolution: u32,
 ) -> ShadowFrame {
+    shadow_frame_upsampled(gpu, cache, camera, light, medium, depth, occluders, settings, shadow_resolution, volshadow::nodes::UpsampleFilter::DepthAware3x3)
+}
+
+/// As [`shadow_frame`], with the march at `settings.scale` brought back to full resolution by
+/// `filter` (the in-scatter is full resolution; steps and extents are at the march's).
+#[allow(clippy::too_many_arguments)]
+pub fn shadow_frame_upsampled(
+    gpu: &HeadlessGpu,
+    cache: &Cache,
+    camera: &Camera,
+    light: &Light,
+    medium: &Medium,
+    depth: &wgpu::Texture,
+    occluders: &[volshadow::gpu::Occluder<'_>],
+    settings: MarchSettings,
+    shadow_resolution: u32,
+    filter: volshadow::nodes::UpsampleFilter,
+) -> ShadowFrame {
     use volshadow::gpu::GpuTimer;
     use volshadow::nodes::{ExtentsNode, ShadowMapNode, ShadowMapSettings, Shadows};
-    let (w, h) = (depth.width(), depth.height());
+    let (w, h) = settings.scale.apply(depth.width(), depth.height());
     let mut shadow = ShadowMapNode::new(
         &gpu.device,
         cache,
@@ -308,11 +326,31 @@ pub fn shadow_frame(
             },
         )
         .unwrap();
+    let mut upsample = (settings.scale != volshadow::nodes::Scale::Full).then(|| {
+        let mut node = volshadow::nodes::UpsampleNode::new(&gpu.device, cache, filter).unwrap();
+        node.prepare(
+            &gpu.device,
+            &gpu.queue,
+            &volshadow::nodes::UpsampleInputs {
+                camera,
+                scene_depth: depth,
+                low: march.output().unwrap(),
+                table: &table,
+                light,
+                medium,
+            },
+        )
+        .unwrap();
+        node
+    });
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
     shadow.encode(&mut encoder, Some(&mut timer));
     extents.encode(&mut encoder, Some(&mut timer));
     table.encode(&mut encoder, Some(&mut timer));
     march.encode(&mut encoder, Some(&mut timer));
+    if let Some(node) = upsample.as_mut() {
+        node.encode(&mut encoder, Some(&mut timer));
+    }
     timer.resolve(&mut encoder);
     gpu.submit_and_wait(encoder).unwrap();
     let times = timer.read(&gpu.device).unwrap();
@@ -324,7 +362,12 @@ pub fn shadow_frame(
         .read_texture_bytes(march.step_counts().unwrap())
         .unwrap();
     ShadowFrame {
-        inscatter: gpu.read_rgba32f(march.output().unwrap()).unwrap(),
+        inscatter: gpu
+            .read_rgba32f(match &upsample {
+                Some(node) => node.output().unwrap(),
+                None => march.output().unwrap(),
+            })
+            .unwrap(),
         steps: bytemuck::pod_collect_to_vec(&steps_bytes),
         extents: [
             read_depth(&ext.textures[0]),

@@ -1,0 +1,173 @@
+// Upsample node: the low-resolution lit fraction (rgb in [0, 1], a = eye distance, −1 sky)
+// brought to the output resolution without blending across depth discontinuities (seed 000
+// §3.3, seed 003), times the full-resolution analytic airlight of each output pixel.
+//   filter 0: plain bilinear (depth-blind baseline)
+//   filter 1: 3×3 Gaussian over the low-resolution samples whose depth matches the pixel's
+//   filter 2: separable N-tap bilateral, horizontal pass then vertical pass
+
+struct Upsample {
+    params: vec4<f32>,   // x: filter, y: taps, z: spatial sigma (low-res px), w: depth sigma (relative)
+    sizes: vec4<f32>,    // xy: low-res size, zw: output size
+}
+
+@group(0) @binding(0) var<uniform> up: Upsample;
+@group(0) @binding(1) var<uniform> view: View;          // output resolution
+@group(0) @binding(2) var low: texture_2d<f32>;
+@group(0) @binding(3) var scene_depth: texture_depth_2d;
+@group(0) @binding(4) var mid: texture_2d<f32>;           // horizontal pass result (separable)
+@group(0) @binding(5) var out_tex: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(6) var table: texture_2d<f32>;
+@group(0) @binding(7) var<uniform> air: Airlight;
+@group(0) @binding(8) var<uniform> spot: vec4<f32>;     // spot axis, cos half angle (0 = point light)
+@group(0) @binding(9) var<uniform> spot_on: vec4<u32>;  // x = 1 for a spot light
+
+// Unshadowed airlight of an output pixel, analytic at full resolution.
+fn airlight_full(p: vec2<u32>) -> vec4<f32> {
+    let ray = pixel_ray(view, vec2<f32>(p) + 0.5, textureLoad(scene_depth, p, 0));
+    let r = air_ray(air, ray.dir);
+    let x_end = select(3.4e38, ray.distance, ray.distance >= 0.0);
+    let sup = support_s(air, r, spot_on.x == 1u, spot, ray.dir, x_end);
+    return vec4<f32>(r.prefactor * unshadowed_t(table, air, r, sup), ray.distance);
+}
+
+// Depth matching within this relative tolerance counts as "the same surface" for the 3×3.
+const SAME_SURFACE: f32 = 0.05;
+
+fn full_distance(p: vec2<u32>) -> f32 {
+    return pixel_ray(view, vec2<f32>(p) + 0.5, textureLoad(scene_depth, p, 0)).distance;
+}
+
+// Relative depth difference; sky (< 0) matches only sky.
+fn depth_delta(a: f32, b: f32) -> f32 {
+    if (a < 0.0 || b < 0.0) {
+        return select(1.0e30, 0.0, a < 0.0 && b < 0.0);
+    }
+    return abs(a - b) / max(min(a, b), 1.0e-30);
+}
+
+fn low_at(p: vec2<i32>) -> vec4<f32> {
+    let size = vec2<i32>(up.sizes.xy);
+    return textureLoad(low, clamp(p, vec2<i32>(0), size - 1), 0);
+}
+
+// Continuous low-resolution coordinate of an output pixel's centre (texel centres at +0.5).
+fn low_coord(p: vec2<u32>) -> vec2<f32> {
+    return (vec2<f32>(p) + 0.5) * up.sizes.xy / up.sizes.zw - 0.5;
+}
+
+@compute @workgroup_size(8, 8)
+fn upsample(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let full = vec2<u32>(up.sizes.zw);
+    if (gid.x >= full.x || gid.y >= full.y) {
+        return;
+    }
+    let analytic = airlight_full(gid.xy);
+    let z = analytic.w;
+    let q = low_coord(gid.xy);
+    var result = vec3<f32>(0.0);
+    if (up.params.x < 0.5) {
+        let b = floor(q);
+        let f = q - b;
+        let i = vec2<i32>(b);
+        result = mix(mix(low_at(i).xyz, low_at(i + vec2<i32>(1, 0)).xyz, f.x),
+                     mix(low_at(i + vec2<i32>(0, 1)).xyz, low_at(i + vec2<i32>(1, 1)).xyz, f.x), f.y);
+    } else {
+        let centre = vec2<i32>(floor(q + 0.5));
+        var sum = vec3<f32>(0.0);
+        var weight = 0.0;
+        var nearest = low_at(centre).xyz;
+        var nearest_delta = 1.0e38;
+        for (var j = -1; j <= 1; j++) {
+            for (var i = -1; i <= 1; i++) {
+                let c = centre + vec2<i32>(i, j);
+                let s = low_at(c);
+                let delta = depth_delta(s.w, z);
+                if (delta < nearest_delta) {
+                    nearest_delta = delta;
+                    nearest = s.xyz;
+                }
+                if (delta <= SAME_SURFACE) {
+                    let d = vec2<f32>(c) - q;
+                    let w = exp(-0.5 * dot(d, d));
+                    sum += w * s.xyz;
+                    weight += w;
+                }
+            }
+        }
+        result = select(nearest, sum / weight, weight > 1.0e-6);
+    }
+    textureStore(out_tex, gid.xy, vec4<f32>(clamp_radiance(result * analytic.xyz), z));
+}
+
+fn bilateral_weight(offset: f32, delta: f32) -> f32 {
+    let s = offset / up.params.z;
+    let d = delta / up.params.w;
+    return exp(-0.5 * (s * s + d * d));
+}
+
+// Horizontal pass: output width × low-res height; each row's reference depth is the output
+// pixel that the march sampled for that low-res row.
+@compute @workgroup_size(8, 8)
+fn separable_h(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let full = vec2<u32>(up.sizes.zw);
+    let low_size = vec2<u32>(up.sizes.xy);
+    if (gid.x >= full.x || gid.y >= low_size.y) {
+        return;
+    }
+    let row = min(u32((f32(gid.y) + 0.5) * up.sizes.w / up.sizes.y), full.y - 1u);
+    let z = full_distance(vec2<u32>(gid.x, row));
+    let cx = (f32(gid.x) + 0.5) * up.sizes.x / up.sizes.z - 0.5;
+    let half = i32(up.params.y) / 2;
+    let base = i32(floor(cx + 0.5));
+    var sum = vec3<f32>(0.0);
+    var weight = 0.0;
+    var nearest = vec3<f32>(0.0);
+    var nearest_delta = 1.0e38;
+    for (var k = -half; k <= half; k++) {
+        let x = base + k;
+        let s = low_at(vec2<i32>(x, i32(gid.y)));
+        let delta = depth_delta(s.w, z);
+        if (delta < nearest_delta) {
+            nearest_delta = delta;
+            nearest = s.xyz;
+        }
+        let w = bilateral_weight(f32(x) - cx, delta);
+        sum += w * s.xyz;
+        weight += w;
+    }
+    let value = select(nearest, sum / weight, weight > 1.0e-6);
+    textureStore(out_tex, gid.xy, vec4<f32>(value, z));
+}
+
+// Vertical pass over the horizontal result, against each output pixel's own depth.
+@compute @workgroup_size(8, 8)
+fn separable_v(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let full = vec2<u32>(up.sizes.zw);
+    if (gid.x >= full.x || gid.y >= full.y) {
+        return;
+    }
+    let analytic = airlight_full(gid.xy);
+    let z = analytic.w;
+    let cy = (f32(gid.y) + 0.5) * up.sizes.y / up.sizes.w - 0.5;
+    let half = i32(up.params.y) / 2;
+    let base = i32(floor(cy + 0.5));
+    let rows = i32(up.sizes.y);
+    var sum = vec3<f32>(0.0);
+    var weight = 0.0;
+    var nearest = vec3<f32>(0.0);
+    var nearest_delta = 1.0e38;
+    for (var k = -half; k <= half; k++) {
+        let y = base + k;
+        let s = textureLoad(mid, vec2<i32>(i32(gid.x), clamp(y, 0, rows - 1)), 0);
+        let delta = depth_delta(s.w, z);
+        if (delta < nearest_delta) {
+            nearest_delta = delta;
+            nearest = s.xyz;
+        }
+        let w = bilateral_weight(f32(y) - cy, delta);
+        sum += w * s.xyz;
+        weight += w;
+    }
+    let value = select(nearest, sum / weight, weight > 1.0e-6);
+    textureStore(out_tex, gid.xy, vec4<f32>(clamp_radiance(value * analytic.xyz), z));
+}
