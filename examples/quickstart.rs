@@ -1,8 +1,9 @@
 //! Quickstart: a lit foggy scene rendered headless to `quickstart.png`.
 //!
 //! The "application" here draws its own frame (a ground plane and two spheres, ray-cast in a
-//! fragment shader that writes colour and depth); volshadow then adds the airlight of a point
-//! light in fog: F′ table → march → composite, recorded into the application's encoder.
+//! fragment shader that writes colour and depth); volshadow then adds the light scattered in
+//! the fog, with the dark shafts the spheres cut through it, recorded into the application's
+//! encoder by `VolumetricShadows` (its plan and per-pass GPU times are printed).
 //!
 //! ```text
 //! cargo run --release --example quickstart [-- OUTPUT.png]
@@ -11,26 +12,32 @@
 use std::time::Instant;
 
 use volshadow::glam::{Mat4, Vec3};
-use volshadow::nodes::{
-    AirlightTableNode, CompositeInputs, CompositeNode, MarchInputs, MarchNode, MarchSettings,
-    TableSize,
+use volshadow::scene::shapes;
+use volshadow::{
+    Cache, Camera, Frame, HeadlessGpu, Light, Medium, Occluder, OccluderMesh, PhaseFunction,
+    PointLight, Settings, VolumetricShadows,
 };
-use volshadow::{Cache, Camera, HeadlessGpu, Light, Medium, PhaseFunction, PointLight};
 
 const WIDTH: u32 = 640;
 const HEIGHT: u32 = 400;
+/// The spheres of the scene (centre, radius): drawn by the app, and occluders for volshadow.
+const SPHERES: [(Vec3, f32); 2] = [
+    (Vec3::new(-0.6, 2.2, -2.2), 0.5),
+    (Vec3::new(0.8, 1.7, -1.4), 0.4),
+];
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let output_path = std::env::args()
         .nth(1)
         .unwrap_or_else(|| "quickstart.png".into());
-    let gpu = HeadlessGpu::new()?;
+    let gpu = HeadlessGpu::with_optional_features(wgpu::Features::TIMESTAMP_QUERY)?;
     println!("adapter: {}", gpu.adapter_summary());
 
-    // The scene: camera, one point light, a hazy medium.
+    // The scene: camera, a point light behind two spheres, hazy air: the spheres cut dark
+    // shafts towards the camera.
     let eye = Vec3::new(0.0, 1.6, 7.0);
     let camera = Camera::new(
-        volshadow::glam::camera::rh::view::look_at_mat4(eye, Vec3::new(0.0, 1.2, 0.0), Vec3::Y),
+        volshadow::glam::camera::rh::view::look_at_mat4(eye, Vec3::new(0.0, 1.3, 0.0), Vec3::Y),
         volshadow::glam::camera::rh::proj::directx::perspective(
             55f32.to_radians(),
             WIDTH as f32 / HEIGHT as f32,
@@ -38,63 +45,69 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             200.0,
         ),
     )?;
-    let point = PointLight::new(Vec3::new(0.8, 2.6, -1.5), Vec3::new(60.0, 52.0, 40.0))?;
-    let light = Light::from(point);
+    let point = PointLight::new(Vec3::new(0.1, 2.9, -4.6), Vec3::new(90.0, 78.0, 60.0))?;
     let medium = Medium::new(
-        Vec3::new(0.06, 0.07, 0.09),
+        Vec3::new(0.10, 0.11, 0.13),
         Vec3::splat(0.01),
-        PhaseFunction::HenyeyGreenstein { g: 0.6 },
+        PhaseFunction::HenyeyGreenstein { g: 0.7 },
     )?;
 
     // The application's own frame: colour (linear radiance) and depth.
     let (color, depth) = draw_scene(&gpu, &camera, &point, &medium);
 
-    // volshadow: shared cache, then one node per pass.
+    // volshadow: a shared cache, the occluder meshes (uploaded once), the facade.
     let cache = Cache::new(&gpu.device);
-    let mut table = AirlightTableNode::new(&gpu.device, &cache, TableSize::default())?;
-    let mut march = MarchNode::new(&gpu.device, &cache, MarchSettings::default())?;
-    let mut composite = CompositeNode::new(&gpu.device, &cache, wgpu::TextureFormat::Rgba32Float)?;
+    let meshes: Vec<OccluderMesh> = SPHERES
+        .iter()
+        .map(|&(c, r)| OccluderMesh::new(&gpu.device, &shapes::uv_sphere(c, r, 48, 24)))
+        .collect();
+    let occluders: Vec<Occluder> = meshes
+        .iter()
+        .map(|mesh| Occluder {
+            mesh,
+            transform: Mat4::IDENTITY,
+        })
+        .collect();
+    let settings = Settings {
+        output_format: wgpu::TextureFormat::Rgba32Float,
+        ..Settings::default()
+    };
+    let mut volumetric = VolumetricShadows::new(&gpu.device, &gpu.queue, &cache, settings)?;
     let output = gpu.device.create_texture(&texture_desc(
         "output",
         wgpu::TextureFormat::Rgba32Float,
         wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
     ));
 
-    let start = Instant::now();
-    table.prepare(&gpu.queue, camera.eye(), &light, &medium);
-    march.prepare(
-        &gpu.device,
-        &gpu.queue,
-        &table,
-        &MarchInputs {
-            camera: &camera,
-            light: &light,
-            medium: &medium,
-            scene_depth: &depth,
-            shadows: None,
-        },
-    )?;
-    let inscatter = march.output().expect("prepared").clone();
-    composite.prepare(
-        &gpu.device,
-        &gpu.queue,
-        &CompositeInputs {
-            camera: &camera,
-            medium: &medium,
-            scene_color: &color,
-            scene_depth: &depth,
-            inscatter: &inscatter,
-        },
-    )?;
-    let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    table.encode(&mut encoder, None);
-    march.encode(&mut encoder, None);
-    composite.encode(&mut encoder, &output.create_view(&Default::default()), None)?;
-    gpu.submit_and_wait(encoder)?;
-    println!(
-        "table + march + composite at {WIDTH}x{HEIGHT}: {:.1} ms (wall clock, first frame)",
-        start.elapsed().as_secs_f64() * 1e3
-    );
+    // Every frame: prepare (validate, upload, plan), record into our encoder, submit.
+    let lights = [Light::from(point).into()];
+    let frame = Frame {
+        camera: &camera,
+        lights: &lights,
+        medium: &medium,
+        occluders: &occluders,
+        scene_color: &color,
+        scene_depth: &depth,
+    };
+    for frame_index in 0..2 {
+        let start = Instant::now();
+        let plan = volumetric.prepare(&gpu.device, &gpu.queue, &frame)?;
+        println!("frame {frame_index} plan:\n{plan}");
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        volumetric.encode(&mut encoder, &output.create_view(&Default::default()))?;
+        gpu.submit_and_wait(encoder)?;
+        let wall = start.elapsed().as_secs_f64() * 1e3;
+        let timings = volumetric.read_timings(&gpu.device)?;
+        let gpu_ms: f64 = timings.iter().map(|t| t.ms).sum();
+        let per_pass: Vec<String> = timings
+            .iter()
+            .map(|t| format!("{} {:.2} ms", t.label, t.ms))
+            .collect();
+        println!(
+            "frame {frame_index}: GPU {gpu_ms:.2} ms ({}); wall clock {wall:.1} ms at {WIDTH}x{HEIGHT}",
+            per_pass.join(", ")
+        );
+    }
 
     let pixels = gpu.read_rgba32f(&output)?;
     let image = tone_map(&pixels);
@@ -287,7 +300,7 @@ struct Out {
     return vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
 }
 
-const SPHERES = array<vec4<f32>, 2>(vec4<f32>(-0.9, 1.0, -0.2, 0.9), vec4<f32>(1.6, 0.6, 0.8, 0.6));
+const SPHERES = array<vec4<f32>, 2>(vec4<f32>(-0.6, 2.2, -2.2, 0.5), vec4<f32>(0.8, 1.7, -1.4, 0.4));
 
 fn hit_sphere(o: vec3<f32>, d: vec3<f32>, s: vec4<f32>) -> f32 {
     let oc = o - s.xyz;

@@ -1,14 +1,19 @@
-// Composite node: L = Ls · exp(−σt ds) + L_sctr into the caller's target (fullscreen triangle).
+// Composite node: L = Ls · exp(−σt ds) + Σ L_sctr (one per light) into the caller's target
+// (fullscreen triangle).
 
 struct Composite {
     sigma_t: vec4<f32>,
+    count: vec4<u32>,   // x: how many in-scatter inputs (one per light, 0 ..= 4) to add
 }
 
 @group(0) @binding(0) var<uniform> comp: Composite;
 @group(0) @binding(1) var<uniform> view: View;
 @group(0) @binding(2) var scene_color: texture_2d<f32>;
 @group(0) @binding(3) var scene_depth: texture_depth_2d;
-@group(0) @binding(4) var inscatter: texture_2d<f32>;
+@group(0) @binding(4) var inscatter0: texture_2d<f32>;
+@group(0) @binding(5) var inscatter1: texture_2d<f32>;
+@group(0) @binding(6) var inscatter2: texture_2d<f32>;
+@group(0) @binding(7) var inscatter3: texture_2d<f32>;
 
 @vertex
 fn vs_fullscreen(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
@@ -27,6 +32,12 @@ fn fs_composite(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     if (ray.distance >= 0.0) {
         transmittance = exp(-comp.sigma_t.xyz * ray.distance);
     }
-    let sctr = textureLoad(inscatter, pixel, 0).xyz;
+    // One in-scatter texture per light; unused slots hold placeholders and are not read.
+    var sctr = vec3<f32>(0.0);
+    let n = comp.count.x;
+    if (n > 0u) { sctr += textureLoad(inscatter0, pixel, 0).xyz; }
+    if (n > 1u) { sctr += textureLoad(inscatter1, pixel, 0).xyz; }
+    if (n > 2u) { sctr += textureLoad(inscatter2, pixel, 0).xyz; }
+    if (n > 3u) { sctr += textureLoad(inscatter3, pixel, 0).xyz; }
     return vec4<f32>(clamp_radiance(color.xyz * transmittance + sctr), color.w);
 }

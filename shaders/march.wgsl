@@ -14,6 +14,9 @@ struct MarchParams {
     spot: vec4<f32>,      // xyz cone axis (unit), w = cos(half apex angle)
     shadow: vec4<f32>,    // x: shadow-map layers (1 spot, 6 cube), y: relative depth bias, z: extents near plane, w: 1 = write the lit fraction (reduced resolution)
     faces: array<mat4x4<f32>, 6>,  // shadow-map face clip_from_world
+    tex_frame: mat4x4<f32>,  // textured spot: the spot's texture frame (view matrix)
+    tex: vec4<f32>,          // x: 1 = textured, y: tan(half apex angle), z: texture width, w: mip levels
+    budget: vec4<u32>,       // x: steps before and after the extents (textured spot)
 }
 
 @group(0) @binding(0) var<uniform> air: Airlight;
@@ -28,6 +31,8 @@ struct MarchParams {
 @group(0) @binding(9) var extent_back_near: texture_depth_2d;
 @group(0) @binding(10) var extent_back_far: texture_depth_2d;
 @group(0) @binding(11) var steps_out: texture_storage_2d<r32uint, write>;
+@group(0) @binding(12) var light_tex: texture_2d<f32>;
+@group(0) @binding(13) var light_sampler: sampler;
 
 // Distance along the ray of the point with normalised scattering angle s (law of sines in the
 // eye–point–light triangle: x = D sin δ / sin β, δ = s w, β = (1 − s) w). sin β is taken as
@@ -80,26 +85,53 @@ struct Marched {
     steps: u32,
 }
 
-// ∫ V dT over [s0, s1] in `steps` uniform steps, visibility sampled at each step's midpoint
-// (so the ends of a hybrid interval, which sit on shadow-volume faces, are never half-lit).
-// With bisection on, where two neighbouring midpoints disagree the transition between them
-// is located to 2^-bisections of a step and the midpoint rule's assumed edge is corrected.
-fn march_interval(ray: PixelRay, r: AirRay, s0: f32, s1: f32) -> Marched {
+// The textured spot's I0 multiplier at a world point, read at the mip level whose texel
+// matches `step_angle` (the angle a march step subtends at the light; seed 000 §3.3).
+fn light_texture(p: vec3<f32>, step_angle: f32) -> vec3<f32> {
+    let v = (mp.tex_frame * vec4<f32>(p, 1.0)).xyz;
+    let k = 1.0 / (max(-v.z, 1.0e-30) * mp.tex.y);
+    let uv = vec2<f32>(0.5 + 0.5 * v.x * k, 0.5 - 0.5 * v.y * k);
+    let texel_angle = 2.0 * mp.tex.y / mp.tex.z;
+    let lod = clamp(log2(max(step_angle / texel_angle, 1.0)), 0.0, mp.tex.w - 1.0);
+    return textureSampleLevel(light_tex, light_sampler, uv, lod).xyz;
+}
+
+// ∫ V·tex dT over [s0, s1] in n uniform steps, each weighted at its midpoint (so the ends of
+// a hybrid interval, which sit on shadow-volume faces, are never half-lit). `shadowed` samples
+// the shadow map; `textured` the spot's texture. With bisection on, where two neighbouring
+// midpoints disagree about visibility the transition between them is located to
+// 2^-bisections of a step and the midpoint rule's assumed edge is corrected.
+fn march_interval(ray: PixelRay, r: AirRay, s0: f32, s1: f32, n: u32, shadowed: bool, textured: bool) -> Marched {
     var out: Marched;
     out.t = vec3<f32>(0.0);
     out.steps = 0u;
-    let n = max(mp.mode.y, 1u);
+    if (!(s1 > s0)) {
+        return out;
+    }
     let ds = (s1 - s0) / f32(n);
     var t_a = table_t(table, air, r, s0);
-    var v_prev = 0.0;
+    var v_prev = 1.0;
+    var w_prev = vec3<f32>(1.0);
     for (var i = 0u; i < n; i++) {
         let a = s0 + ds * f32(i);
         let b = select(s0 + ds * f32(i + 1u), s1, i + 1u == n);
         let mid = 0.5 * (a + b);
         let t_b = table_t(table, air, r, b);
-        let v = vis_at(ray, r, mid);
-        out.t += (t_b - t_a) * v;
-        if (mp.mode.z > 0u && i > 0u && (v >= 0.5) != (v_prev >= 0.5)) {
+        var v = 1.0;
+        if (shadowed) {
+            v = vis_at(ray, r, mid);
+        }
+        var w = vec3<f32>(1.0);
+        if (textured) {
+            // Two samples per step (Gauss–Legendre points): the texture is only piecewise
+            // smooth, and its edges dominate the error of a one-sample step.
+            let h = 0.2886751 * (b - a);
+            let footprint = 0.5 * ds * r.w;
+            w = 0.5 * (light_texture(air.eye.xyz + x_of_s(r, mid - h) * ray.dir, footprint)
+                     + light_texture(air.eye.xyz + x_of_s(r, mid + h) * ray.dir, footprint));
+        }
+        out.t += (t_b - t_a) * (v * w);
+        if (shadowed && mp.mode.z > 0u && i > 0u && (v >= 0.5) != (v_prev >= 0.5)) {
             // The transition lies between the previous midpoint and this one.
             var lo = a - 0.5 * ds;
             var hi = mid;
@@ -112,11 +144,12 @@ fn march_interval(ray: PixelRay, r: AirRay, s0: f32, s1: f32) -> Marched {
                 }
             }
             let t_edge = table_t(table, air, r, 0.5 * (lo + hi));
-            out.t += (v_prev - v) * (t_edge - t_a);
+            out.t += (t_edge - t_a) * (v_prev * w_prev - v * w);
             out.steps += mp.mode.z;
         }
         t_a = t_b;
         v_prev = v;
+        w_prev = w;
     }
     out.steps += n;
     return out;
@@ -169,18 +202,29 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
 
     var total = vec3<f32>(0.0);
     var steps = 0u;
+    let textured = mp.tex.x > 0.5;
     for (var i = 0u; i < sup.count; i++) {
         let u0 = sup.s[i].x;
         let u1 = sup.s[i].y;
-        let m0 = max(u0, ext.x);
-        let m1 = min(u1, ext.y);
-        if (m0 < m1) {
-            let marched = march_interval(ray, r, m0, m1);
-            total += (table_t(table, air, r, m0) - table_t(table, air, r, u0)) + marched.t
-                   + (table_t(table, air, r, u1) - table_t(table, air, r, m1));
-            steps += marched.steps;
+        var m0 = max(u0, ext.x);
+        var m1 = min(u1, ext.y);
+        if (!(m0 < m1)) {
+            m0 = u1;
+            m1 = u1;
+        }
+        // Before, between and after the extents: analytic for a plain light; for a textured
+        // spot marched with its own step budget, only inside the cone.
+        let inside = march_interval(ray, r, m0, m1, mp.mode.y, true, textured);
+        total += inside.t;
+        steps += inside.steps;
+        if (textured) {
+            let before = march_interval(ray, r, u0, m0, mp.budget.x, false, true);
+            let after = march_interval(ray, r, m1, u1, mp.budget.x, false, true);
+            total += before.t + after.t;
+            steps += before.steps + after.steps;
         } else {
-            total += table_t(table, air, r, u1) - table_t(table, air, r, u0);
+            total += (table_t(table, air, r, m0) - table_t(table, air, r, u0))
+                   + (table_t(table, air, r, u1) - table_t(table, air, r, m1));
         }
     }
     total = max(total, vec3<f32>(0.0));

@@ -151,6 +151,51 @@ pub enum Error {
         /// What is wrong with it.
         problem: String,
     },
+    /// A glTF file that could not be loaded (feature `gltf`): unreadable, not glTF, truncated,
+    /// a missing buffer file, an accessor or index out of range, no triangle meshes, an invalid
+    /// node transform, ...
+    #[cfg(feature = "gltf")]
+    #[error("glTF `{path}`: {problem}")]
+    Gltf {
+        /// The file as given to [`crate::gltf::load`], or `<memory>` for
+        /// [`crate::gltf::load_slice`].
+        path: String,
+        /// What kind of problem, for callers that handle some differently.
+        kind: crate::gltf::ErrorKind,
+        /// What is wrong, naming the glTF object (mesh, primitive, accessor, node, buffer).
+        problem: String,
+    },
+    /// A glTF mesh primitive that [`crate::scene::Mesh::new`] rejected (feature `gltf`):
+    /// non-finite positions, all triangles degenerate, an index count that is not a multiple
+    /// of 3, too many triangles or positions.
+    #[cfg(feature = "gltf")]
+    #[error("glTF `{path}`: mesh {mesh} primitive {primitive}: {source}")]
+    GltfPrimitive {
+        /// The file as given to [`crate::gltf::load`], or `<memory>` for
+        /// [`crate::gltf::load_slice`].
+        path: String,
+        /// Index of the mesh in the file's `meshes`.
+        mesh: usize,
+        /// Index of the primitive in the mesh's `primitives`.
+        primitive: usize,
+        /// The error from [`crate::scene::Mesh::new`].
+        source: Box<Error>,
+    },
+    /// A scene file (see [`crate::scene_file`]) that could not be read, parsed or validated.
+    ///
+    /// `field` is the path of the offending value inside the file, such as
+    /// `lights[1].cone_angle_degrees`; `(file)` for I/O errors and `(json)` for syntax errors,
+    /// whose `problem` gives the line and column.
+    #[error("{path}: {field}: {problem}")]
+    SceneFile {
+        /// The file as given to [`crate::scene_file::SceneDescription::load`], or `<string>`
+        /// for [`crate::scene_file::SceneDescription::from_json`].
+        path: String,
+        /// Where in the file: a path of keys and indices, such as `objects[2].shape.radius`.
+        field: String,
+        /// What is wrong with it.
+        problem: String,
+    },
     /// No GPU adapter could be found (headless helper).
     #[error("no wgpu adapter found: {0}")]
     NoAdapter(String),

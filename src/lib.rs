@@ -19,14 +19,22 @@
 #![warn(missing_docs)]
 
 pub mod error;
+mod facade;
+#[cfg(feature = "gltf")]
+pub mod gltf;
 pub mod gpu;
 pub mod nodes;
+pub mod plan;
 pub mod reference;
 pub mod scene;
+pub mod scene_file;
 
 pub use error::{Error, Result};
+pub use facade::{Frame, FrameLight, Settings, VolumetricShadows};
 pub use gpu::headless::HeadlessGpu;
 pub use gpu::Cache;
+pub use gpu::{Occluder, OccluderMesh};
+pub use plan::Plan;
 pub use scene::{Camera, Light, Medium, PhaseFunction, PointLight, SpotLight};
 
 pub use glam;

@@ -68,7 +68,16 @@ fn render(
     scene: &Scene,
     settings: MarchSettings,
 ) -> Metrics {
-    render_upsampled(gpu, cache, camera, light, medium, scene, settings, UpsampleFilter::DepthAware3x3)
+    render_upsampled(
+        gpu,
+        cache,
+        camera,
+        light,
+        medium,
+        scene,
+        settings,
+        UpsampleFilter::DepthAware3x3,
+    )
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -110,8 +119,8 @@ fn render_upsampled(
             transform: *transform,
         })
         .collect();
-    let frame = common::shadow_frame(
-        gpu, cache, camera, light, medium, &depth, &occluders, settings, SHADOW_RES,
+    let frame = common::shadow_frame_upsampled(
+        gpu, cache, camera, light, medium, &depth, &occluders, settings, SHADOW_RES, filter,
     );
     assert!(
         frame
@@ -120,16 +129,6 @@ fn render_upsampled(
             .all(|t| t[0..3].iter().all(|v| v.is_finite() && *v >= 0.0)),
         "NaN, Inf or negative in-scatter"
     );
-    if let Ok(path) = std::env::var("VS_DUMP") {
-        let max = frame.inscatter.iter().map(|t| t[0]).fold(0.0, f32::max);
-        image::GrayImage::from_fn(SIZE, SIZE, |x, y| {
-            image::Luma([
-                ((frame.inscatter[(y * SIZE + x) as usize][0] / max).sqrt() * 255.0) as u8,
-            ])
-        })
-        .save(path)
-        .unwrap();
-    }
     let ref_occ = scene.reference_occluders();
     let reference = reference::inscatter_image(
         camera,
@@ -625,11 +624,30 @@ fn sphere_at_quarter_resolution_with_bilateral_upsampling() {
     let full = render(&gpu, &cache, &camera, &light, &medium(), &scene, hybrid(64));
     let filters = [
         ("3x3 depth-aware", UpsampleFilter::DepthAware3x3),
-        ("separable 7-tap", UpsampleFilter::Separable { taps: 7, sigma_spatial: 1.0, sigma_depth: 0.05 }),
+        (
+            "separable 7-tap",
+            UpsampleFilter::Separable {
+                taps: 7,
+                sigma_spatial: 1.0,
+                sigma_depth: 0.05,
+            },
+        ),
     ];
     for (name, filter) in filters {
-        let settings = MarchSettings { scale: Scale::Quarter, ..hybrid(64) };
-        let q = render_upsampled(&gpu, &cache, &camera, &light, &medium(), &scene, settings, filter);
+        let settings = MarchSettings {
+            scale: Scale::Quarter,
+            ..hybrid(64)
+        };
+        let q = render_upsampled(
+            &gpu,
+            &cache,
+            &camera,
+            &light,
+            &medium(),
+            &scene,
+            settings,
+            filter,
+        );
         let (full_steps, quarter_steps): (u64, u64) = (
             full.frame.steps.iter().map(|&s| u64::from(s)).sum(),
             q.frame.steps.iter().map(|&s| u64::from(s)).sum(),
@@ -642,6 +660,9 @@ fn sphere_at_quarter_resolution_with_bilateral_upsampling() {
         assert!(q.rmse_rel <= 0.03, "{name}: RMSE {:.4}", q.rmse_rel);
         // A sixteenth of the pixels march: the work is at most an eighth of full resolution
         // (GPU times are in the printout and the report, not asserted in a test).
-        assert!(quarter_steps * 8 <= full_steps, "{quarter_steps} steps vs {full_steps}");
+        assert!(
+            quarter_steps * 8 <= full_steps,
+            "{quarter_steps} steps vs {full_steps}"
+        );
     }
 }

@@ -14,9 +14,25 @@ const EDGE: u32 = 61;
 
 /// Shadowed in-scatter (hybrid, 64 steps) at `scale`, upsampled by `filter` when reduced.
 #[allow(clippy::too_many_arguments)]
-fn inscatter(gpu: &HeadlessGpu, cache: &Cache, camera: &Camera, light: &Light, medium: &Medium, depth: &wgpu::Texture, occluders: &[Occluder], scale: Scale, filter: UpsampleFilter) -> Vec<[f32; 4]> {
-    let settings = MarchSettings { scale, ..Default::default() };
-    common::shadow_frame_upsampled(gpu, cache, camera, light, medium, depth, occluders, settings, 512, filter).inscatter
+fn inscatter(
+    gpu: &HeadlessGpu,
+    cache: &Cache,
+    camera: &Camera,
+    light: &Light,
+    medium: &Medium,
+    depth: &wgpu::Texture,
+    occluders: &[Occluder],
+    scale: Scale,
+    filter: UpsampleFilter,
+) -> Vec<[f32; 4]> {
+    let settings = MarchSettings {
+        scale,
+        ..Default::default()
+    };
+    common::shadow_frame_upsampled(
+        gpu, cache, camera, light, medium, depth, occluders, settings, 512, filter,
+    )
+    .inscatter
 }
 
 /// Largest pull towards the other side of the edge among pixels within 3 pixels of it:
@@ -27,7 +43,11 @@ fn worst_pull(truth: &[[f32; 4]], test: &[[f32; 4]]) -> f64 {
         for x in EDGE.saturating_sub(3)..(EDGE + 3).min(SIZE) {
             let i = (y * SIZE + x) as usize;
             // The nearest pixel on the other side, in the same row.
-            let other = if x < EDGE { (y * SIZE + EDGE) as usize } else { (y * SIZE + EDGE - 1) as usize };
+            let other = if x < EDGE {
+                (y * SIZE + EDGE) as usize
+            } else {
+                (y * SIZE + EDGE - 1) as usize
+            };
             for c in 0..3 {
                 let across = f64::from(truth[other][c] - truth[i][c]);
                 let moved = f64::from(test[i][c] - truth[i][c]);
@@ -42,15 +62,33 @@ fn worst_pull(truth: &[[f32; 4]], test: &[[f32; 4]]) -> f64 {
 fn bilateral_filters_do_not_blend_across_a_depth_edge() {
     let gpu = common::gpu();
     let cache = Cache::new(&gpu.device);
-    let camera = common::look_at(Vec3::new(0.0, 1.0, 6.0), Vec3::new(0.0, 1.0, 0.0), 50.0, 1.0);
+    let camera = common::look_at(
+        Vec3::new(0.0, 1.0, 6.0),
+        Vec3::new(0.0, 1.0, 0.0),
+        50.0,
+        1.0,
+    );
     // Dense fog, a light between the eye and the wall (just out of view), and a small box on
     // the line from the light to the eye that puts the eye in shadow: rays stopped by the near
     // occluder stay in the shadow (lit fraction ~0), rays to the far wall leave it (lit
     // fraction ~1) and gather far more in-scatter.
-    let light: Light = PointLight::new(Vec3::new(0.0, 2.5, 3.0), Vec3::splat(40.0)).unwrap().into();
-    let block = OccluderMesh::new(&gpu.device, &shapes::cuboid(Vec3::new(0.0, 1.75, 4.5), Vec3::splat(0.3)));
-    let occluders = [Occluder { mesh: &block, transform: glam::Mat4::IDENTITY }];
-    let medium = Medium::new(Vec3::splat(0.12), Vec3::splat(0.02), PhaseFunction::HenyeyGreenstein { g: 0.4 }).unwrap();
+    let light: Light = PointLight::new(Vec3::new(0.0, 2.5, 3.0), Vec3::splat(40.0))
+        .unwrap()
+        .into();
+    let block = OccluderMesh::new(
+        &gpu.device,
+        &shapes::cuboid(Vec3::new(0.0, 1.75, 4.5), Vec3::splat(0.3)),
+    );
+    let occluders = [Occluder {
+        mesh: &block,
+        transform: glam::Mat4::IDENTITY,
+    }];
+    let medium = Medium::new(
+        Vec3::splat(0.12),
+        Vec3::splat(0.02),
+        PhaseFunction::HenyeyGreenstein { g: 0.4 },
+    )
+    .unwrap();
     let depths: Vec<f32> = (0..SIZE * SIZE)
         .map(|i| {
             let (x, y) = (i % SIZE, i / SIZE);
@@ -61,41 +99,110 @@ fn bilateral_filters_do_not_blend_across_a_depth_edge() {
         })
         .collect();
     let depth = common::depth_texture(&gpu, SIZE, SIZE, &depths);
-    let truth = inscatter(&gpu, &cache, &camera, &light, &medium, &depth, &occluders, Scale::Full, UpsampleFilter::DepthAware3x3);
+    let truth = inscatter(
+        &gpu,
+        &cache,
+        &camera,
+        &light,
+        &medium,
+        &depth,
+        &occluders,
+        Scale::Full,
+        UpsampleFilter::DepthAware3x3,
+    );
     let near = truth[(64 * SIZE + EDGE - 1) as usize][0];
     let far = truth[(64 * SIZE + EDGE) as usize][0];
     println!("in-scatter: near side {near:.4}, far side {far:.4}");
-    assert!(far > 3.0 * near, "the edge must separate very different in-scatter");
+    assert!(
+        far > 3.0 * near,
+        "the edge must separate very different in-scatter"
+    );
 
     // Issue 4: no pixel within 3 pixels of the edge pulled more than 5% toward the other side.
     let filters = [
         ("3x3 depth-aware", UpsampleFilter::DepthAware3x3),
-        ("separable 7-tap", UpsampleFilter::Separable { taps: 7, sigma_spatial: 1.0, sigma_depth: 0.05 }),
+        (
+            "separable 7-tap",
+            UpsampleFilter::Separable {
+                taps: 7,
+                sigma_spatial: 1.0,
+                sigma_depth: 0.05,
+            },
+        ),
     ];
     for (name, filter) in filters {
-        let up = inscatter(&gpu, &cache, &camera, &light, &medium, &depth, &occluders, Scale::Quarter, filter);
+        let up = inscatter(
+            &gpu,
+            &cache,
+            &camera,
+            &light,
+            &medium,
+            &depth,
+            &occluders,
+            Scale::Quarter,
+            filter,
+        );
         assert!(up.iter().all(|t| t[0..3].iter().all(|v| v.is_finite())));
         let pull = worst_pull(&truth, &up);
         println!("1/4 resolution + {name}: worst pull across the edge {pull:.4}");
         assert!(pull <= 0.05, "{name} pulls {pull:.4} across the edge");
     }
     // Plain bilinear blends across the edge: the same test fails for it.
-    let up = inscatter(&gpu, &cache, &camera, &light, &medium, &depth, &occluders, Scale::Quarter, UpsampleFilter::Bilinear);
+    let up = inscatter(
+        &gpu,
+        &cache,
+        &camera,
+        &light,
+        &medium,
+        &depth,
+        &occluders,
+        Scale::Quarter,
+        UpsampleFilter::Bilinear,
+    );
     let pull = worst_pull(&truth, &up);
     println!("1/4 resolution + plain bilinear: worst pull across the edge {pull:.4}");
-    assert!(pull > 0.05, "plain bilinear should fail the edge test, pulled only {pull:.4}");
+    assert!(
+        pull > 0.05,
+        "plain bilinear should fail the edge test, pulled only {pull:.4}"
+    );
 }
 
 #[test]
 fn invalid_scales_and_filters_are_errors() {
-    assert!(matches!(Scale::from_divisor(3), Err(volshadow::Error::InvalidSetting { field: "scattering scale", .. })));
-    assert!(matches!(Scale::from_divisor(0), Err(volshadow::Error::InvalidSetting { .. })));
+    assert!(matches!(
+        Scale::from_divisor(3),
+        Err(volshadow::Error::InvalidSetting {
+            field: "scattering scale",
+            ..
+        })
+    ));
+    assert!(matches!(
+        Scale::from_divisor(0),
+        Err(volshadow::Error::InvalidSetting { .. })
+    ));
     assert_eq!(Scale::from_divisor(4), Ok(Scale::Quarter));
     let gpu = common::gpu();
     let cache = Cache::new(&gpu.device);
-    for (taps, ss, sz) in [(0, 1.0, 0.1), (4, 1.0, 0.1), (33, 1.0, 0.1), (5, 0.0, 0.1), (5, 1.0, -1.0), (5, f32::NAN, 0.1)] {
-        let filter = UpsampleFilter::Separable { taps, sigma_spatial: ss, sigma_depth: sz };
+    for (taps, ss, sz) in [
+        (0, 1.0, 0.1),
+        (4, 1.0, 0.1),
+        (33, 1.0, 0.1),
+        (5, 0.0, 0.1),
+        (5, 1.0, -1.0),
+        (5, f32::NAN, 0.1),
+    ] {
+        let filter = UpsampleFilter::Separable {
+            taps,
+            sigma_spatial: ss,
+            sigma_depth: sz,
+        };
         let err = UpsampleNode::new(&gpu.device, &cache, filter).err();
-        assert!(matches!(err, Some(volshadow::Error::InvalidSetting { .. } | volshadow::Error::NonFinite { .. })), "{filter:?}: {err:?}");
+        assert!(
+            matches!(
+                err,
+                Some(volshadow::Error::InvalidSetting { .. } | volshadow::Error::NonFinite { .. })
+            ),
+            "{filter:?}: {err:?}"
+        );
     }
 }

@@ -285,6 +285,7 @@ fn bad_textures_are_typed_errors_not_validation_errors() {
         medium: &medium,
         scene_depth: &colour,
         shadows: None,
+        light_texture: None,
     };
     let err = march
         .prepare(&gpu.device, &gpu.queue, &table, &inputs)
@@ -350,7 +351,7 @@ fn bad_textures_are_typed_errors_not_validation_errors() {
                 medium: &medium,
                 scene_color: &colour,
                 scene_depth: &depth,
-                inscatter: &small,
+                inscatter: &[&small],
             },
         )
         .err();

@@ -2,17 +2,22 @@
 //! `Cache` serves any number of nodes and views on the same device (as glyphon's `Cache`).
 
 use std::collections::HashMap;
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 const PRELUDE: &str = include_str!("../../shaders/prelude.wgsl");
 
-/// Shader modules, layouts and pipelines shared by every node on one device.
+/// Shader modules, layouts and pipelines shared by every node on one device. Cloning is
+/// cheap (handles).
+#[derive(Clone)]
 pub struct Cache {
     pub(crate) table_layout: wgpu::BindGroupLayout,
     pub(crate) table_pipeline: wgpu::ComputePipeline,
     pub(crate) march_layout: wgpu::BindGroupLayout,
     pub(crate) march_pipeline: wgpu::ComputePipeline,
     pub(crate) composite_layout: wgpu::BindGroupLayout,
+    pub(crate) light_texture_layout: wgpu::BindGroupLayout,
+    pub(crate) light_copy_pipeline: wgpu::RenderPipeline,
+    pub(crate) light_down_pipeline: wgpu::RenderPipeline,
     pub(crate) upsample_layout: wgpu::BindGroupLayout,
     pub(crate) upsample_pipeline: wgpu::ComputePipeline,
     pub(crate) upsample_h_pipeline: wgpu::ComputePipeline,
@@ -28,7 +33,7 @@ pub struct Cache {
     pub(crate) extents_back_far_pipeline: wgpu::RenderPipeline,
     composite_pipeline_layout: wgpu::PipelineLayout,
     composite_module: wgpu::ShaderModule,
-    composite_pipelines: Mutex<HashMap<wgpu::TextureFormat, wgpu::RenderPipeline>>,
+    composite_pipelines: Arc<Mutex<HashMap<wgpu::TextureFormat, wgpu::RenderPipeline>>>,
 }
 
 /// Creates a shader module from the prelude followed by one node's WGSL.
@@ -229,6 +234,17 @@ impl Cache {
                 texture_entry(9, compute, wgpu::TextureSampleType::Depth),
                 texture_entry(10, compute, wgpu::TextureSampleType::Depth),
                 storage_texture_entry(11, wgpu::TextureFormat::R32Uint),
+                texture_entry(
+                    12,
+                    compute,
+                    wgpu::TextureSampleType::Float { filterable: true },
+                ),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 13,
+                    visibility: compute,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
             ],
         });
         let march_module = module(
@@ -253,6 +269,9 @@ impl Cache {
                 texture_entry(2, fragment, UNFILTERED),
                 texture_entry(3, fragment, wgpu::TextureSampleType::Depth),
                 texture_entry(4, fragment, UNFILTERED),
+                texture_entry(5, fragment, UNFILTERED),
+                texture_entry(6, fragment, UNFILTERED),
+                texture_entry(7, fragment, UNFILTERED),
             ],
         });
         let composite_pipeline_layout =
@@ -393,12 +412,78 @@ impl Cache {
             include_str!("../../shaders/upsample.wgsl"),
         );
         let upsample = |entry| {
-            compute_pipeline(device, "volshadow upsample", &upsample_layout, &upsample_module, entry)
+            compute_pipeline(
+                device,
+                "volshadow upsample",
+                &upsample_layout,
+                &upsample_module,
+                entry,
+            )
         };
-        let (upsample_pipeline, upsample_h_pipeline, upsample_v_pipeline) =
-            (upsample("upsample"), upsample("separable_h"), upsample("separable_v"));
+        let (upsample_pipeline, upsample_h_pipeline, upsample_v_pipeline) = (
+            upsample("upsample"),
+            upsample("separable_h"),
+            upsample("separable_v"),
+        );
+
+        let light_texture_layout =
+            device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("volshadow light texture"),
+                entries: &[
+                    texture_entry(
+                        0,
+                        fragment,
+                        wgpu::TextureSampleType::Float { filterable: true },
+                    ),
+                    wgpu::BindGroupLayoutEntry {
+                        binding: 1,
+                        visibility: fragment,
+                        ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                        count: None,
+                    },
+                ],
+            });
+        let light_module = module(
+            device,
+            "volshadow light_texture.wgsl",
+            include_str!("../../shaders/light_texture.wgsl"),
+        );
+        let light_pipeline_layout =
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("volshadow light texture"),
+                bind_group_layouts: &[Some(&light_texture_layout)],
+                immediate_size: 0,
+            });
+        let light_pipeline = |entry| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("volshadow light texture"),
+                layout: Some(&light_pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: &light_module,
+                    entry_point: Some("vs_fullscreen"),
+                    compilation_options: Default::default(),
+                    buffers: &[],
+                },
+                primitive: Default::default(),
+                depth_stencil: None,
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &light_module,
+                    entry_point: Some(entry),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::TextureFormat::Rgba16Float.into())],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let (light_copy_pipeline, light_down_pipeline) =
+            (light_pipeline("fs_copy"), light_pipeline("fs_down"));
 
         Self {
+            light_texture_layout,
+            light_copy_pipeline,
+            light_down_pipeline,
             upsample_layout,
             upsample_pipeline,
             upsample_h_pipeline,
@@ -419,7 +504,7 @@ impl Cache {
             composite_layout,
             composite_pipeline_layout,
             composite_module,
-            composite_pipelines: Mutex::new(HashMap::new()),
+            composite_pipelines: Arc::new(Mutex::new(HashMap::new())),
         }
     }
 

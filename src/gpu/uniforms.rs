@@ -114,4 +114,5 @@ impl ViewUniform {
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
 pub(crate) struct CompositeUniform {
     pub sigma_t: [f32; 4],
+    pub count: [u32; 4],
 }

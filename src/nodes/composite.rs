@@ -5,7 +5,10 @@
 //!   sample type (`Rgba16Float`, `Rgba32Float`, `Rgba8Unorm`, …). Alpha is passed through.
 //! * `scene_depth`: the caller's depth buffer, any depth format; far depth is sky (see
 //!   [`Camera::far_depth`]), which an attenuating medium hides completely.
-//! * `inscatter`: [`MarchNode::output`](crate::nodes::MarchNode::output).
+//! * `inscatter`: up to [`MAX_LIGHTS`] in-scatter textures, one per light, added together:
+//!   [`MarchNode::output`](crate::nodes::MarchNode::output) at full scale, or
+//!   [`UpsampleNode::output`](crate::nodes::UpsampleNode::output). Empty for a medium that
+//!   does not scatter (attenuation only).
 //!
 //! # Output
 //! A view of a texture with usage `RENDER_ATTACHMENT`, of the format given to
@@ -30,9 +33,12 @@ pub struct CompositeInputs<'a> {
     pub scene_color: &'a wgpu::Texture,
     /// The caller's depth buffer.
     pub scene_depth: &'a wgpu::Texture,
-    /// The in-scattered radiance from the march.
-    pub inscatter: &'a wgpu::Texture,
+    /// The in-scattered radiance of each light (0 ..= [`MAX_LIGHTS`] textures).
+    pub inscatter: &'a [&'a wgpu::Texture],
 }
+
+/// The most lights one composite adds.
+pub const MAX_LIGHTS: usize = 4;
 
 /// Writes the attenuated scene plus in-scattered light into the caller's target.
 pub struct CompositeNode {
@@ -41,13 +47,12 @@ pub struct CompositeNode {
     layout: wgpu::BindGroupLayout,
     uniform: UniformBuffer<CompositeUniform>,
     view: UniformBuffer<ViewUniform>,
+    placeholder: wgpu::Texture,
     bound: Option<Bound>,
 }
 
 struct Bound {
-    color: wgpu::Texture,
-    depth: wgpu::Texture,
-    inscatter: wgpu::Texture,
+    textures: Vec<wgpu::Texture>,
     bind_group: wgpu::BindGroup,
 }
 
@@ -75,6 +80,20 @@ impl CompositeNode {
             layout: cache.composite_layout.clone(),
             uniform: UniformBuffer::new(device, "volshadow composite"),
             view: UniformBuffer::new(device, "volshadow composite view"),
+            placeholder: device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("volshadow no in-scatter"),
+                size: wgpu::Extent3d {
+                    width: 1,
+                    height: 1,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::Rgba32Float,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            }),
             bound: None,
         })
     }
@@ -88,50 +107,68 @@ impl CompositeNode {
     ) -> Result<()> {
         check_float_texture("scene_color", inputs.scene_color)?;
         check_depth_texture("scene_depth", inputs.scene_depth)?;
-        check_float_texture("inscatter", inputs.inscatter)?;
         let (width, height) = (inputs.scene_color.width(), inputs.scene_color.height());
         check_size("scene_depth", inputs.scene_depth, width, height)?;
-        check_size("inscatter", inputs.inscatter, width, height)?;
+        if inputs.inscatter.len() > MAX_LIGHTS {
+            return Err(Error::InvalidSetting {
+                field: "inscatter",
+                problem: format!(
+                    "{} in-scatter inputs, at most {MAX_LIGHTS}",
+                    inputs.inscatter.len()
+                ),
+            });
+        }
+        for t in inputs.inscatter {
+            check_float_texture("inscatter", t)?;
+            check_size("inscatter", t, width, height)?;
+        }
 
-        let same = |b: &Bound| {
-            b.color == *inputs.scene_color
-                && b.depth == *inputs.scene_depth
-                && b.inscatter == *inputs.inscatter
-        };
-        if !self.bound.as_ref().is_some_and(same) {
-            let color = inputs.scene_color.create_view(&Default::default());
-            let depth = depth_view(inputs.scene_depth);
-            let inscatter = inputs.inscatter.create_view(&Default::default());
+        let mut textures = vec![inputs.scene_color.clone(), inputs.scene_depth.clone()];
+        textures.extend((0..MAX_LIGHTS).map(|i| {
+            inputs
+                .inscatter
+                .get(i)
+                .map_or(&self.placeholder, |t| *t)
+                .clone()
+        }));
+        if self.bound.as_ref().is_none_or(|b| b.textures != textures) {
+            let color = textures[0].create_view(&Default::default());
+            let depth = depth_view(&textures[1]);
+            let lights: Vec<wgpu::TextureView> = textures[2..]
+                .iter()
+                .map(|t| t.create_view(&Default::default()))
+                .collect();
+            let mut entries = vec![
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: self.uniform.binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: self.view.binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::TextureView(&color),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::TextureView(&depth),
+                },
+            ];
+            for (i, view) in lights.iter().enumerate() {
+                entries.push(wgpu::BindGroupEntry {
+                    binding: 4 + i as u32,
+                    resource: wgpu::BindingResource::TextureView(view),
+                });
+            }
             let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("volshadow composite"),
                 layout: &self.layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: self.uniform.binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: self.view.binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 2,
-                        resource: wgpu::BindingResource::TextureView(&color),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 3,
-                        resource: wgpu::BindingResource::TextureView(&depth),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 4,
-                        resource: wgpu::BindingResource::TextureView(&inscatter),
-                    },
-                ],
+                entries: &entries,
             });
             self.bound = Some(Bound {
-                color: inputs.scene_color.clone(),
-                depth: inputs.scene_depth.clone(),
-                inscatter: inputs.inscatter.clone(),
+                textures,
                 bind_group,
             });
         }
@@ -139,6 +176,7 @@ impl CompositeNode {
             queue,
             CompositeUniform {
                 sigma_t: inputs.medium.sigma_t().extend(0.0).to_array(),
+                count: [inputs.inscatter.len() as u32, 0, 0, 0],
             },
         );
         self.view
@@ -177,8 +215,13 @@ impl CompositeNode {
         {
             return Err(problem("needs TextureUsages::RENDER_ATTACHMENT".into()));
         }
-        check_size("output", target, bound.color.width(), bound.color.height())?;
-        if *target == bound.color || *target == bound.inscatter {
+        check_size(
+            "output",
+            target,
+            bound.textures[0].width(),
+            bound.textures[0].height(),
+        )?;
+        if bound.textures.contains(target) {
             return Err(problem("must not be one of the composite's inputs".into()));
         }
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {

@@ -60,6 +60,9 @@ pub struct MarchSettings {
     pub bisections: u32,
     /// Resolution of the march relative to `scene_depth` (full, ½, ¼). Default full.
     pub scale: crate::nodes::Scale,
+    /// Textured spot lights: steps before and after the shadow-volume extents (inside the
+    /// cone; 1 ..= 4096). Default 32.
+    pub texture_steps: u32,
 }
 
 impl Default for MarchSettings {
@@ -69,6 +72,7 @@ impl Default for MarchSettings {
             steps: 64,
             bisections: 0,
             scale: crate::nodes::Scale::Full,
+            texture_steps: 32,
         }
     }
 }
@@ -79,6 +83,12 @@ impl MarchSettings {
             return Err(Error::InvalidSetting {
                 field: "march.steps",
                 problem: format!("must be in 1..=4096, got {}", self.steps),
+            });
+        }
+        if !(1..=4096).contains(&self.texture_steps) {
+            return Err(Error::InvalidSetting {
+                field: "march.texture_steps",
+                problem: format!("must be in 1..=4096, got {}", self.texture_steps),
             });
         }
         if self.bisections > 16 {
@@ -122,6 +132,10 @@ pub struct MarchInputs<'a> {
     pub scene_depth: &'a wgpu::Texture,
     /// Occluders' shadows; `None`: no occluders, analytic everywhere.
     pub shadows: Option<Shadows<'a>>,
+    /// A spot light's texture as a blurred mip chain
+    /// ([`LightTextureNode::texture`](crate::nodes::LightTextureNode::texture)); `None` for an
+    /// untextured light.
+    pub light_texture: Option<&'a wgpu::Texture>,
 }
 
 #[repr(C)]
@@ -131,6 +145,9 @@ struct MarchUniform {
     spot: [f32; 4],
     shadow: [f32; 4],
     faces: [[f32; 16]; 6],
+    tex_frame: [f32; 16],
+    tex: [f32; 4],
+    budget: [u32; 4],
 }
 
 /// Computes in-scattered radiance per pixel into its own `Rgba32Float` texture.
@@ -142,6 +159,8 @@ pub struct MarchNode {
     view: UniformBuffer<ViewUniform>,
     params: UniformBuffer<MarchUniform>,
     sampler: wgpu::Sampler,
+    linear: wgpu::Sampler,
+    dummy_light: wgpu::Texture,
     dummy_shadow: wgpu::Texture,
     dummy_depth: wgpu::Texture,
     outputs: Option<[wgpu::Texture; 2]>,
@@ -197,6 +216,20 @@ impl MarchNode {
                 compare: Some(wgpu::CompareFunction::GreaterEqual),
                 ..Default::default()
             }),
+            linear: device.create_sampler(&wgpu::SamplerDescriptor {
+                label: Some("volshadow light texture"),
+                mag_filter: wgpu::FilterMode::Linear,
+                min_filter: wgpu::FilterMode::Linear,
+                mipmap_filter: wgpu::MipmapFilterMode::Linear,
+                ..Default::default()
+            }),
+            dummy_light: texture_2d(
+                device,
+                "volshadow no light texture",
+                (1, 1, 1),
+                wgpu::TextureFormat::Rgba16Float,
+                sampled,
+            ),
             dummy_shadow: texture_2d(
                 device,
                 "volshadow no shadow map",
@@ -264,6 +297,12 @@ impl MarchNode {
             }
         }
 
+        if inputs.light_texture.is_some() && !matches!(inputs.light, Light::Spot(_)) {
+            return Err(Error::InvalidTexture {
+                field: "light_texture",
+                problem: "only a spot light can be textured".into(),
+            });
+        }
         if !self
             .outputs
             .as_ref()
@@ -309,6 +348,7 @@ impl MarchNode {
             extent_textures[1],
             extent_textures[2],
             &outputs[1],
+            inputs.light_texture.unwrap_or(&self.dummy_light),
         ]
         .into_iter()
         .cloned()
@@ -360,6 +400,11 @@ impl MarchNode {
                     view_entry(9, &views[5]),
                     view_entry(10, &views[6]),
                     view_entry(11, &views[7]),
+                    view_entry(12, &views[8]),
+                    wgpu::BindGroupEntry {
+                        binding: 13,
+                        resource: wgpu::BindingResource::Sampler(&self.linear),
+                    },
                 ],
             });
             self.bound = Some(Bound {
@@ -416,6 +461,18 @@ impl MarchNode {
             Light::Spot(s) => s.direction().extend(s.cos_half_angle()).to_array(),
             Light::Point(_) => [0.0; 4],
         };
+        let (tex_frame, tex) = match (inputs.light, inputs.light_texture) {
+            (Light::Spot(s), Some(t)) => (
+                s.texture_frame().to_cols_array(),
+                [
+                    1.0,
+                    (0.5 * s.cone_angle()).tan(),
+                    t.width() as f32,
+                    t.mip_level_count() as f32,
+                ],
+            ),
+            _ => ([0.0; 16], [0.0; 4]),
+        };
         self.params.write(
             queue,
             MarchUniform {
@@ -428,6 +485,9 @@ impl MarchNode {
                 spot,
                 shadow,
                 faces,
+                tex_frame,
+                tex,
+                budget: [self.settings.texture_steps, 0, 0, 0],
             },
         );
         Ok(())

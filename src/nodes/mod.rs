@@ -6,13 +6,15 @@
 mod airlight_table;
 mod composite;
 mod extents;
+mod light_texture;
 mod march;
 mod shadow_map;
 mod upsample;
 
 pub use airlight_table::{AirlightTableNode, TableSize};
-pub use composite::{CompositeInputs, CompositeNode};
+pub use composite::{CompositeInputs, CompositeNode, MAX_LIGHTS};
 pub use extents::{ExtentsInputs, ExtentsNode, EXTENTS_NEAR};
+pub use light_texture::LightTextureNode;
 pub use march::{Extents, MarchInputs, MarchMethod, MarchNode, MarchSettings, Shadows};
 pub use shadow_map::{ShadowMap, ShadowMapNode, ShadowMapSettings};
 pub use upsample::{Scale, UpsampleFilter, UpsampleInputs, UpsampleNode};

@@ -45,13 +45,14 @@ impl Scale {
 }
 
 /// How low-resolution scattering is brought to the output resolution.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[non_exhaustive]
 pub enum UpsampleFilter {
     /// Plain bilinear, blind to depth: blends across depth edges. A baseline for tests.
     Bilinear,
     /// Seed 000 §3.3: a 3×3 Gaussian over the low-resolution samples whose depth matches the
     /// full-resolution pixel's; falls back to the nearest-depth sample when none matches.
+    #[default]
     DepthAware3x3,
     /// Seed 003: a separable N-tap bilateral (horizontal then vertical), weights
     /// `exp(−d²/2σs²) · exp(−Δz²/2σz²)` with Δz relative to the pixel's depth.
@@ -63,12 +64,6 @@ pub enum UpsampleFilter {
         /// Depth sigma, relative to the pixel's eye distance (> 0).
         sigma_depth: f32,
     },
-}
-
-impl Default for UpsampleFilter {
-    fn default() -> Self {
-        UpsampleFilter::DepthAware3x3
-    }
 }
 
 impl UpsampleFilter {
@@ -201,8 +196,17 @@ impl UpsampleNode {
                 problem: format!("is {lw}x{lh}, larger than the output {w}x{h}"),
             });
         }
-        if self.output.as_ref().is_none_or(|t| (t.width(), t.height()) != (w, h)) {
-            self.output = Some(storage_texture(device, "volshadow upsampled in-scatter", w, h));
+        if self
+            .output
+            .as_ref()
+            .is_none_or(|t| (t.width(), t.height()) != (w, h))
+        {
+            self.output = Some(storage_texture(
+                device,
+                "volshadow upsampled in-scatter",
+                w,
+                h,
+            ));
         }
         let separable = matches!(self.filter, UpsampleFilter::Separable { .. });
         if separable
@@ -211,7 +215,12 @@ impl UpsampleNode {
                 .as_ref()
                 .is_none_or(|t| (t.width(), t.height()) != (w, lh))
         {
-            self.intermediate = Some(storage_texture(device, "volshadow upsample horizontal", w, lh));
+            self.intermediate = Some(storage_texture(
+                device,
+                "volshadow upsample horizontal",
+                w,
+                lh,
+            ));
         }
         let output = self.output.clone().expect("created above");
         let mid = if separable {
@@ -237,16 +246,46 @@ impl UpsampleNode {
                     label: Some("volshadow upsample"),
                     layout: &self.layout,
                     entries: &[
-                        wgpu::BindGroupEntry { binding: 0, resource: self.uniform.binding() },
-                        wgpu::BindGroupEntry { binding: 1, resource: self.view.binding() },
-                        wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&low_view) },
-                        wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::TextureView(&depth) },
-                        wgpu::BindGroupEntry { binding: 4, resource: wgpu::BindingResource::TextureView(&mid_view) },
-                        wgpu::BindGroupEntry { binding: 5, resource: wgpu::BindingResource::TextureView(&out_view) },
-                        wgpu::BindGroupEntry { binding: 6, resource: wgpu::BindingResource::TextureView(&table_view) },
-                        wgpu::BindGroupEntry { binding: 7, resource: self.airlight.binding() },
-                        wgpu::BindGroupEntry { binding: 8, resource: self.spot.binding() },
-                        wgpu::BindGroupEntry { binding: 9, resource: self.spot_on.binding() },
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: self.uniform.binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: self.view.binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: wgpu::BindingResource::TextureView(&low_view),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 3,
+                            resource: wgpu::BindingResource::TextureView(&depth),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 4,
+                            resource: wgpu::BindingResource::TextureView(&mid_view),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 5,
+                            resource: wgpu::BindingResource::TextureView(&out_view),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 6,
+                            resource: wgpu::BindingResource::TextureView(&table_view),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 7,
+                            resource: self.airlight.binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 8,
+                            resource: self.spot.binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 9,
+                            resource: self.spot_on.binding(),
+                        },
                     ],
                 })
             };
@@ -261,9 +300,11 @@ impl UpsampleNode {
         let (kind, taps, sigma_s, sigma_z) = match self.filter {
             UpsampleFilter::Bilinear => (0.0, 0, 1.0, 1.0),
             UpsampleFilter::DepthAware3x3 => (1.0, 3, 1.0, 1.0),
-            UpsampleFilter::Separable { taps, sigma_spatial, sigma_depth } => {
-                (2.0, taps, sigma_spatial, sigma_depth)
-            }
+            UpsampleFilter::Separable {
+                taps,
+                sigma_spatial,
+                sigma_depth,
+            } => (2.0, taps, sigma_spatial, sigma_depth),
         };
         self.uniform.write(
             queue,
@@ -272,9 +313,11 @@ impl UpsampleNode {
                 sizes: [lw as f32, lh as f32, w as f32, h as f32],
             },
         );
-        self.view.write(queue, ViewUniform::new(inputs.camera, w, h));
+        self.view
+            .write(queue, ViewUniform::new(inputs.camera, w, h));
         let camera = inputs.camera;
-        let point = crate::scene::PointLight::new(inputs.light.position(), inputs.light.intensity())?;
+        let point =
+            crate::scene::PointLight::new(inputs.light.position(), inputs.light.intensity())?;
         self.airlight.write(
             queue,
             crate::gpu::uniforms::AirlightUniform::new(
@@ -286,7 +329,9 @@ impl UpsampleNode {
             ),
         );
         let (spot, on) = match inputs.light {
-            crate::scene::Light::Spot(s) => (s.direction().extend(s.cos_half_angle()).to_array(), 1),
+            crate::scene::Light::Spot(s) => {
+                (s.direction().extend(s.cos_half_angle()).to_array(), 1)
+            }
             crate::scene::Light::Point(_) => ([0.0; 4], 0),
         };
         self.spot.write(queue, spot);
@@ -298,7 +343,9 @@ impl UpsampleNode {
 
     /// Records the upsample (one pass, or two for the separable filter).
     pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, timer: Option<&mut GpuTimer>) {
-        let Some((_, groups)) = &self.bound else { return };
+        let Some((_, groups)) = &self.bound else {
+            return;
+        };
         let timestamp_writes = timer.and_then(|t| t.compute_pass("upsample"));
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("volshadow upsample"),

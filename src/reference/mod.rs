@@ -36,10 +36,30 @@
 //! These roots are breakpoints of [`light_intervals`] like the occluders' ones, so the cone's
 //! edge is exact, not sampled.
 //!
+//! A [`TexturedSpot`] (a spot light with a [`LightTexture`]) has the same lit intervals, and
+//! inside them `I0` becomes `I0·bilinear(texture, uv(X))` ([`TexturedSpot::uv`],
+//! [`bilinear`]: the definition in [`LightTexture`]'s docs, in f64). The integrand is then
+//! only piecewise smooth along the ray: the bilinear lookup has a kink wherever `uv` crosses a
+//! texel-centre line `u = (i + 0.5)/W` or `v = (j + 0.5)/H`. Each such line is a plane through
+//! the light, so each kink is one ray–plane intersection, and since `u` and `v` are monotonic
+//! along a ray inside the cone (ratios of affine functions of `x`), each line is crossed at
+//! most once and only the lines between the ends' `uv` need testing. All of them are added as
+//! breakpoints, so every quadrature panel is smooth and the adaptive rule keeps its accuracy
+//! ([`RELATIVE_TOLERANCE`]).
+//!
+//! Cost: one Gauss–Kronrod panel (15 integrand evaluations, each with one bilinear lookup) per
+//! crossed line, on top of the untextured ray's; a ray across the whole cone crosses about
+//! `W + H` lines (at most `W + H`), a ray along the axis or near the light far fewer.
+//! Measured (`tests/reference_texture.rs`, one ray across a 50° cone, noise textures, the
+//! crate's optimised dev profile): untextured 30 µs; 8² 35 µs; 64² 0.13 ms; 256² 0.45 ms;
+//! 1024² 18 ms; 4096² 30–40 ms. Without these breakpoints the same rays took 0.5 ms (8²) and
+//! 12 ms (64², where the bisection cap was reached and the error was 1e-8).
+//!
 //! * [`inscatter`] integrates this with exact visibility ([`light_intervals`], which for a
 //!   point light is [`lit_intervals`]) and adaptive Gauss–Kronrod quadrature in `x`, split
-//!   where the integrand is sharp. It takes any light by reference (`&PointLight`,
-//!   `&SpotLight`, `&Light`: see [`LightSource`]).
+//!   where the integrand is sharp (and, for a textured spot, at the texture's kinks). It takes
+//!   any light by reference (`&PointLight`, `&SpotLight`, `&Light`, `&TexturedSpot`: see
+//!   [`LightSource`]).
 //! * [`inscatter_closed_form`] evaluates the unshadowed integral of a *point* light through the
 //!   substitution of `DESIGN.md` §2 (an integral in the half scattering angle `ξ`), computed
 //!   separately: the two check each other. (A spot light's unshadowed value is the point
@@ -57,20 +77,23 @@ mod cone;
 mod occluder;
 mod phase;
 pub(crate) mod quadrature;
+mod texture;
 mod visibility;
 
 use std::sync::Mutex;
 
 use glam::{DVec2, DVec3, DVec4};
 
-use crate::scene::{Camera, Light, Medium, PhaseFunction, PointLight, SpotLight};
+use crate::scene::{Camera, Light, LightTexture, Medium, PhaseFunction, PointLight, SpotLight};
 
 pub use occluder::{Cuboid, Occluder, Sphere, TriangleMesh};
 pub use phase::phase;
+pub use texture::{bilinear, texture_axes, TexturedSpot};
 pub use visibility::{light_intervals, lit_intervals};
 
 use phase::Cosine;
 use quadrature::integrate;
+use texture::Projection;
 
 /// The relative tolerance every integral of this module is computed to (estimated error of the
 /// adaptive Gauss–Kronrod quadrature, per channel). Measured agreement between [`inscatter`]
@@ -80,14 +103,22 @@ pub const RELATIVE_TOLERANCE: f64 = 1e-12;
 /// Most bisections one adaptive integral may spend (a cap that only pathological input reaches).
 const MAX_BISECTIONS: usize = 4000;
 
-/// A light the reference integrates: [`PointLight`], [`SpotLight`] or the [`Light`] enum,
-/// taken by reference by [`inscatter`], [`inscatter_image`] and [`light_intervals`], so that
-/// `&point`, `&spot` and `&light` all work at the call site. (A reference parameter rather than
-/// `impl Into<Light>`, which would make clippy's `needless_borrows_for_generic_args` flag every
-/// existing `&light` argument.)
+/// A light the reference integrates: [`PointLight`], [`SpotLight`], the [`Light`] enum or a
+/// [`TexturedSpot`], taken by reference by [`inscatter`], [`inscatter_image`] and
+/// [`light_intervals`], so that `&point`, `&spot`, `&light` and `&textured` all work at the call
+/// site. (A reference parameter rather than `impl Into<Light>`, which would make clippy's
+/// `needless_borrows_for_generic_args` flag every existing `&light` argument.)
 pub trait LightSource {
-    /// This light as a [`Light`] (a copy).
+    /// This light as a [`Light`] (a copy): its position, intensity and, for a spot light, cone.
     fn light(&self) -> Light;
+
+    /// The texture the light projects, if any: the emission towards `X` inside the cone is
+    /// then `intensity × bilinear(texture, uv(X))` (see [`TexturedSpot`]). Only used when
+    /// [`light`](Self::light) is a [`Light::Spot`]; ignored for any other light. `None` by
+    /// default.
+    fn texture(&self) -> Option<&LightTexture> {
+        None
+    }
 }
 
 impl LightSource for PointLight {
@@ -105,6 +136,16 @@ impl LightSource for SpotLight {
 impl LightSource for Light {
     fn light(&self) -> Light {
         *self
+    }
+}
+
+impl LightSource for TexturedSpot<'_> {
+    fn light(&self) -> Light {
+        Light::Spot(self.spot)
+    }
+
+    fn texture(&self) -> Option<&LightTexture> {
+        Some(self.texture)
     }
 }
 
@@ -133,6 +174,9 @@ struct RayLight {
     t: f64,
     /// Distance of the light from the ray's line, `h = |v × (P − E)| = D sin γ`.
     h: f64,
+    /// The closest approach minus the light, `E + t·v − P` (length `h`, perpendicular to `v`):
+    /// the point at `x = t + w` is `P + offset + w·v`.
+    offset: DVec3,
 }
 
 /// `dir` normalised (rescaled first, so that huge or tiny finite vectors work); `None` for a
@@ -153,25 +197,29 @@ impl RayLight {
         }
         let v = unit(dir)?;
         let to_light = light - origin;
+        let t = v.dot(to_light);
         Some(Self {
             v,
             distance: to_light.length(),
-            t: v.dot(to_light),
+            t,
             h: v.cross(to_light).length(),
+            offset: v * t - to_light,
         })
     }
 }
 
 /// Per-ray constants of the integrand of (1).
-struct Integrand {
+struct Integrand<'a> {
     geo: RayLight,
     /// `σs·I0` per channel.
     coef: DVec3,
     sigma_t: DVec3,
     phase: PhaseFunction,
+    /// A textured spot light's projection: `I0` is then `coef` times its texel.
+    projection: Option<Projection<'a>>,
 }
 
-impl Integrand {
+impl<'a> Integrand<'a> {
     /// `intensity` is the light's `I0` (inside the cone, for a spot light).
     fn new(geo: RayLight, medium: &Medium, intensity: glam::Vec3) -> Self {
         Self {
@@ -179,7 +227,13 @@ impl Integrand {
             coef: medium.sigma_s().as_dvec3() * intensity.as_dvec3(),
             sigma_t: medium.sigma_t().as_dvec3(),
             phase: medium.phase(),
+            projection: None,
         }
+    }
+
+    /// The same, with `I0` modulated by a spot light's texture.
+    fn textured(self, projection: Option<Projection<'a>>) -> Self {
+        Self { projection, ..self }
     }
 
     /// `exp(−σt·path)` per channel (1 where `σt = 0`, so that `path = ∞` is no NaN).
@@ -216,16 +270,40 @@ impl Integrand {
             one_plus,
         };
         let p = phase::eval(&self.phase, cosine);
+        let coef = match &self.projection {
+            Some(projection) => self.coef * projection.texel(self.geo.offset + self.geo.v * w),
+            None => self.coef,
+        };
         // d + x = (d + w) + t ≥ D.
-        self.coef * p * self.attenuation(d_plus_w + t) * ((scale / d) * (1.0 / d))
+        coef * p * self.attenuation(d_plus_w + t) * ((scale / d) * (1.0 / d))
     }
 
     /// `+∞` in the channels that scatter at all, 0 in the others: the value of an interval
-    /// that reaches the light itself.
-    fn divergent(&self) -> DVec3 {
+    /// `[a, b]` that reaches the light itself (`h = 0`, `a ≤ t ≤ b`). For a textured light the
+    /// emission along the ray is the texel towards `−v` before the light and towards `+v`
+    /// after it, and only the channels where one of those (on a side within `[a, b]`) is
+    /// non-zero diverge.
+    fn divergent(&self, a: f64, b: f64) -> DVec3 {
+        let coef = match &self.projection {
+            Some(projection) => {
+                let v = self.geo.v;
+                let t = self.geo.t;
+                let before = if a < t {
+                    projection.texel(-v)
+                } else {
+                    DVec3::ZERO
+                };
+                let after = if t < b {
+                    projection.texel(v)
+                } else {
+                    DVec3::ZERO
+                };
+                self.coef * before.max(after)
+            }
+            None => self.coef,
+        };
         DVec3::from_array(
-            self.coef
-                .to_array()
+            coef.to_array()
                 .map(|c| if c > 0.0 { f64::INFINITY } else { 0.0 }),
         )
     }
@@ -238,7 +316,7 @@ impl Integrand {
             return DVec3::ZERO;
         }
         if h == 0.0 && a <= t && t <= b {
-            return self.divergent(); // the ray runs through the light
+            return self.divergent(a, b); // the ray runs through the light
         }
         // Work in w = x − t. Breakpoints: the closest approach w = 0 and a geometric ladder
         // ±base·4^j around it (the peak of 1/d² has width h; with h = 0 the light is outside
@@ -270,6 +348,10 @@ impl Integrand {
             if s > 0.0 {
                 points.extend([0.25, 1.0, 4.0, 16.0].map(|k| wa + k / s));
             }
+        }
+        if let Some(projection) = &self.projection {
+            // The kinks of the bilinear lookup (see `Projection::crossings`).
+            projection.crossings(self.geo.offset, self.geo.v, wa, wb, &mut points);
         }
         points.retain(|&w| w > wa && w < wb && w.is_finite());
         points.push(wa);
@@ -309,21 +391,24 @@ impl Integrand {
 }
 
 /// In-scattered radiance (RGB) along the ray `origin + x·dir`, `0 ≤ x ≤ ds` (`ds = ∞` for
-/// sky), from `light` (`&PointLight`, `&SpotLight` or `&Light`, see [`LightSource`]), with
+/// sky), from `light` (`&PointLight`, `&SpotLight`, `&Light` or `&TexturedSpot`, see
+/// [`LightSource`]), with
 /// shadows: the integral (1) of the [module docs](self) over the [`light_intervals`] (the
 /// unoccluded parts of the ray, and for a spot light only those inside its cone, whose edges
 /// are found exactly), each by adaptive Gauss–Kronrod (7, 15) quadrature in `x` to
 /// [`RELATIVE_TOLERANCE`], split at the closest approach to the light, on a geometric ladder
-/// around it, and at the extinction length scales; infinite tails are mapped onto a finite
-/// interval. Includes `σs` and `I0`, excludes the attenuated surface term (see
-/// [`transmittance`]).
+/// around it, at the extinction length scales and, for a [`TexturedSpot`], where the ray
+/// crosses a texel-centre line of the texture (see the [module docs](self)); infinite tails
+/// are mapped onto a finite interval. Includes `σs` and `I0` (times the texel for a textured
+/// spot), excludes the attenuated surface term (see [`transmittance`]).
 ///
 /// `dir` need not be unit length. Returns zero for `ds ≤ 0`, NaN `ds`, a zero or non-finite
 /// `dir` or non-finite positions; `+∞` (in the channels with `σs·I0 > 0`) where the ray passes
 /// exactly through the light inside a lit interval (for a spot light: a ray through the apex
-/// that enters the cone there); finite values otherwise. A ray that never enters a spot
-/// light's cone gives exactly 0, and one that stays inside it gives exactly the point light's
-/// value.
+/// that enters the cone there; for a textured spot only the channels whose texel along the
+/// ray is non-zero); finite values otherwise. A ray that never enters a spot light's cone
+/// gives exactly 0, and one that stays inside an untextured cone gives exactly the point
+/// light's value.
 pub fn inscatter(
     origin: DVec3,
     dir: DVec3,
@@ -332,14 +417,38 @@ pub fn inscatter(
     light: &impl LightSource,
     occluders: &[Occluder],
 ) -> DVec3 {
-    let light = light.light();
+    inscatter_light(
+        origin,
+        dir,
+        ds,
+        medium,
+        light.light(),
+        light.texture(),
+        occluders,
+    )
+}
+
+/// [`inscatter`] for `light` projecting `texture` (used only for a spot light).
+fn inscatter_light(
+    origin: DVec3,
+    dir: DVec3,
+    ds: f64,
+    medium: &Medium,
+    light: Light,
+    texture: Option<&LightTexture>,
+    occluders: &[Occluder],
+) -> DVec3 {
     let Some(geo) = RayLight::new(origin, dir, light.position().as_dvec3()) else {
         return DVec3::ZERO;
     };
     if !(ds > 0.0) {
         return DVec3::ZERO;
     }
-    let integrand = Integrand::new(geo, medium, light.intensity());
+    let projection = match (light, texture) {
+        (Light::Spot(spot), Some(texture)) => Some(Projection::new(&spot, texture)),
+        _ => None,
+    };
+    let integrand = Integrand::new(geo, medium, light.intensity()).textured(projection);
     light_intervals(origin, geo.v, ds, &light, occluders)
         .into_iter()
         .map(|(a, b)| integrand.integrate_x(a, b))
@@ -501,6 +610,7 @@ pub fn inscatter_image(
     light: &impl LightSource,
     occluders: &[Occluder],
 ) -> Vec<DVec3> {
+    let texture = light.texture();
     let light = light.light();
     let (w, h) = (width as usize, height as usize);
     let mut image = vec![DVec3::ZERO; w * h];
@@ -517,7 +627,7 @@ pub fn inscatter_image(
         for (px, out) in row.iter_mut().enumerate() {
             let (eye, dir) = camera_ray(camera, pixel_ndc(width, height, px as u32, py as u32));
             let ds = distance(eye, dir);
-            *out = inscatter(eye, dir, ds, medium, &light, occluders);
+            *out = inscatter_light(eye, dir, ds, medium, light, texture, occluders);
         }
     };
     std::thread::scope(|scope| {

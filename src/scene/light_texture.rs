@@ -42,10 +42,7 @@ impl LightTexture {
         if texels.len() != (width as usize) * (height as usize) {
             return Err(Error::InvalidTexture {
                 field: "light texture",
-                problem: format!(
-                    "{} texels for {width}x{height}",
-                    texels.len()
-                ),
+                problem: format!("{} texels for {width}x{height}", texels.len()),
             });
         }
         for t in &texels {
@@ -64,7 +61,7 @@ impl LightTexture {
         let texels = (0..size * size)
             .map(|i| {
                 let (x, y) = (i % size, i / size);
-                if ((x * cells / size.max(1)) + (y * cells / size.max(1))) % 2 == 0 {
+                if ((x * cells / size.max(1)) + (y * cells / size.max(1))).is_multiple_of(2) {
                     a
                 } else {
                     b

@@ -128,3 +128,35 @@ impl Medium {
         self.phase
     }
 }
+
+impl PhaseFunction {
+    /// Smallest and largest value of the phase function over all scattering angles, per RGB
+    /// channel (exact for every variant; for Hoffman–Preetham, bounds of the per-channel mix).
+    pub fn range(&self) -> (Vec3, Vec3) {
+        use std::f32::consts::PI;
+        let hg = |g: f32| {
+            let a = g.abs();
+            (
+                (1.0 - a) / (4.0 * PI * (1.0 + a).powi(2)),
+                (1.0 + a) / (4.0 * PI * (1.0 - a).powi(2)),
+            )
+        };
+        let splat = |(lo, hi): (f32, f32)| (Vec3::splat(lo), Vec3::splat(hi));
+        match *self {
+            PhaseFunction::Isotropic => splat((0.25 / PI, 0.25 / PI)),
+            PhaseFunction::HenyeyGreenstein { g } => splat(hg(g)),
+            PhaseFunction::Rayleigh => splat((3.0 / (16.0 * PI), 6.0 / (16.0 * PI))),
+            PhaseFunction::MieHazy => splat((1.0 / (8.0 * PI), 10.0 / (8.0 * PI))),
+            PhaseFunction::MieMurky => splat((33.0 / (332.0 * PI), 33.0 * 51.0 / (332.0 * PI))),
+            PhaseFunction::HoffmanPreetham { rayleigh, mie, g } => {
+                let (rl, rh) = (3.0 / (16.0 * PI), 6.0 / (16.0 * PI));
+                let (ml, mh) = hg(g);
+                let sum = rayleigh + mie;
+                (
+                    (rayleigh * rl + mie * ml) / sum,
+                    (rayleigh * rh + mie * mh) / sum,
+                )
+            }
+        }
+    }
+}

@@ -192,6 +192,7 @@ pub fn march_frame(
                 medium,
                 scene_depth: depth,
                 shadows: None,
+                light_texture: None,
             },
         )
         .unwrap();
@@ -258,7 +259,18 @@ pub fn shadow_frame(
     settings: MarchSettings,
     shadow_resolution: u32,
 ) -> ShadowFrame {
-    shadow_frame_upsampled(gpu, cache, camera, light, medium, depth, occluders, settings, shadow_resolution, volshadow::nodes::UpsampleFilter::DepthAware3x3)
+    shadow_frame_upsampled(
+        gpu,
+        cache,
+        camera,
+        light,
+        medium,
+        depth,
+        occluders,
+        settings,
+        shadow_resolution,
+        volshadow::nodes::UpsampleFilter::DepthAware3x3,
+    )
 }
 
 /// As [`shadow_frame`], with the march at `settings.scale` brought back to full resolution by
@@ -276,6 +288,41 @@ pub fn shadow_frame_upsampled(
     shadow_resolution: u32,
     filter: volshadow::nodes::UpsampleFilter,
 ) -> ShadowFrame {
+    shadow_frame_full(
+        gpu,
+        cache,
+        camera,
+        light,
+        medium,
+        depth,
+        occluders,
+        settings,
+        shadow_resolution,
+        filter,
+        None,
+    )
+}
+
+/// As [`shadow_frame_upsampled`], with an optional light texture for a spot light.
+#[allow(clippy::too_many_arguments)]
+pub fn shadow_frame_full(
+    gpu: &HeadlessGpu,
+    cache: &Cache,
+    camera: &Camera,
+    light: &Light,
+    medium: &Medium,
+    depth: &wgpu::Texture,
+    occluders: &[volshadow::gpu::Occluder<'_>],
+    settings: MarchSettings,
+    shadow_resolution: u32,
+    filter: volshadow::nodes::UpsampleFilter,
+    texture: Option<&wgpu::Texture>,
+) -> ShadowFrame {
+    let mut light_texture = texture.map(|t| {
+        let mut node = volshadow::nodes::LightTextureNode::new(&gpu.device, cache);
+        node.prepare(&gpu.device, t).unwrap();
+        node
+    });
     use volshadow::gpu::GpuTimer;
     use volshadow::nodes::{ExtentsNode, ShadowMapNode, ShadowMapSettings, Shadows};
     let (w, h) = settings.scale.apply(depth.width(), depth.height());
@@ -323,6 +370,7 @@ pub fn shadow_frame_upsampled(
                     shadow_map: shadow.shadow_map().unwrap(),
                     extents: extents.extents(),
                 }),
+                light_texture: light_texture.as_ref().and_then(|n| n.texture()),
             },
         )
         .unwrap();
@@ -344,6 +392,9 @@ pub fn shadow_frame_upsampled(
         node
     });
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    if let Some(node) = light_texture.as_mut() {
+        node.encode(&mut encoder, Some(&mut timer));
+    }
     shadow.encode(&mut encoder, Some(&mut timer));
     extents.encode(&mut encoder, Some(&mut timer));
     table.encode(&mut encoder, Some(&mut timer));

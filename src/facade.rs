@@ -1,0 +1,430 @@
+//! `VolumetricShadows`: owns the nodes, asks the planner what to run, records it.
+
+use crate::error::{Error, Result};
+use crate::gpu::{Cache, GpuTimer, Occluder, PassTime};
+use crate::nodes::{
+    AirlightTableNode, CompositeInputs, CompositeNode, ExtentsInputs, ExtentsNode,
+    LightTextureNode, MarchInputs, MarchMethod, MarchNode, MarchSettings, Scale, ShadowMapNode,
+    ShadowMapSettings, Shadows, TableSize, UpsampleFilter, UpsampleInputs, UpsampleNode,
+    MAX_LIGHTS,
+};
+use crate::plan::{self, Culled, FrameFacts, LightFacts, Pass, Plan};
+use crate::scene::{Camera, Light, Medium};
+
+/// Everything that is fixed for a `VolumetricShadows` (change it with [`VolumetricShadows::set_settings`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Settings {
+    /// Method, steps, bisections and scattering resolution of the march.
+    pub march: MarchSettings,
+    /// How reduced-resolution scattering is brought to the output.
+    pub upsample: UpsampleFilter,
+    /// The F′ table's size.
+    pub table: TableSize,
+    /// Shadow-map resolution and bias.
+    pub shadow_map: ShadowMapSettings,
+    /// The format of the caller's output target.
+    pub output_format: wgpu::TextureFormat,
+    /// An occluder whose effect on every pixel is provably below this fraction of the
+    /// in-scatter is left out of the shadow map and extents (0 = never).
+    pub cull_threshold: f32,
+}
+
+impl Settings {
+    /// Reproducible settings for test images (as egui-wgpu's `PREDICTABLE`): full resolution,
+    /// hybrid with 64 steps, no bisection, no culling, `Rgba16Float` output.
+    pub const PREDICTABLE: Settings = Settings {
+        march: MarchSettings {
+            method: MarchMethod::Hybrid,
+            steps: 64,
+            bisections: 0,
+            scale: Scale::Full,
+            texture_steps: 32,
+        },
+        upsample: UpsampleFilter::DepthAware3x3,
+        table: TableSize {
+            along_ray: 256,
+            across_rays: 256,
+        },
+        shadow_map: ShadowMapSettings {
+            resolution: 1024,
+            depth_bias: 2e-3,
+        },
+        output_format: wgpu::TextureFormat::Rgba16Float,
+        cull_threshold: 0.0,
+    };
+}
+
+impl Default for Settings {
+    /// Real-time defaults: hybrid, 64 steps and 2 bisections at half resolution with the 3×3
+    /// depth-aware upsample; occluders culled below 1e-3.
+    fn default() -> Self {
+        Settings {
+            march: MarchSettings {
+                scale: Scale::Half,
+                bisections: 2,
+                ..MarchSettings::default()
+            },
+            cull_threshold: 1e-3,
+            ..Settings::PREDICTABLE
+        }
+    }
+}
+
+/// A light of the frame, with an optional texture for a spot light (any filterable format,
+/// `TEXTURE_BINDING`, e.g. from [`LightTexture::upload`](crate::scene::LightTexture::upload)).
+#[derive(Clone, Copy)]
+pub struct FrameLight<'a> {
+    /// The light.
+    pub light: Light,
+    /// The spot's projected texture.
+    pub texture: Option<&'a wgpu::Texture>,
+}
+
+impl From<Light> for FrameLight<'_> {
+    fn from(light: Light) -> Self {
+        Self {
+            light,
+            texture: None,
+        }
+    }
+}
+
+/// One frame's scene and the caller's rendered frame.
+#[derive(Clone, Copy)]
+pub struct Frame<'a> {
+    /// The camera the frame was rendered with.
+    pub camera: &'a Camera,
+    /// Up to [`MAX_LIGHTS`] lights, summed.
+    pub lights: &'a [FrameLight<'a>],
+    /// The medium.
+    pub medium: &'a Medium,
+    /// The occluders (for every light).
+    pub occluders: &'a [Occluder<'a>],
+    /// The caller's shaded colour (float sample type, `TEXTURE_BINDING`), the output's size.
+    pub scene_color: &'a wgpu::Texture,
+    /// The caller's depth buffer (any depth format, `TEXTURE_BINDING`), the output's size.
+    pub scene_depth: &'a wgpu::Texture,
+}
+
+/// The nodes of one light.
+struct LightSlot {
+    texture: LightTextureNode,
+    shadow: ShadowMapNode,
+    extents: ExtentsNode,
+    table: AirlightTableNode,
+    march: MarchNode,
+    upsample: UpsampleNode,
+}
+
+/// Volumetric shadows for a view: prepare a frame, then record it into the caller's encoder.
+pub struct VolumetricShadows {
+    cache: Cache,
+    settings: Settings,
+    slots: Vec<LightSlot>,
+    composite: CompositeNode,
+    plan: Plan,
+    timer: Option<GpuTimer>,
+}
+
+impl VolumetricShadows {
+    /// Creates the composite for `settings.output_format` and validates the settings. Per-light
+    /// nodes are created by the first frame that needs them.
+    pub fn new(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        cache: &Cache,
+        settings: Settings,
+    ) -> Result<Self> {
+        validate(&settings)?;
+        let timer = device
+            .features()
+            .contains(wgpu::Features::TIMESTAMP_QUERY)
+            .then(|| GpuTimer::new(device, queue, 128));
+        Ok(Self {
+            cache: cache.clone(),
+            composite: CompositeNode::new(device, cache, settings.output_format)?,
+            settings,
+            slots: Vec::new(),
+            plan: Plan::default(),
+            timer,
+        })
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> Settings {
+        self.settings
+    }
+
+    /// Changes the settings (validated; the output format must stay the same).
+    pub fn set_settings(&mut self, settings: Settings) -> Result<()> {
+        validate(&settings)?;
+        if settings.output_format != self.settings.output_format {
+            return Err(Error::InvalidSetting {
+                field: "output_format",
+                problem: "create a new VolumetricShadows for another output format".into(),
+            });
+        }
+        if settings.table != self.settings.table || settings.shadow_map != self.settings.shadow_map
+        {
+            self.slots.clear();
+        }
+        self.settings = settings;
+        Ok(())
+    }
+
+    /// Validates the frame, uploads what changed, and plans the passes. Records nothing.
+    pub fn prepare(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        frame: &Frame<'_>,
+    ) -> Result<&Plan> {
+        if frame.lights.len() > MAX_LIGHTS {
+            return Err(Error::InvalidSetting {
+                field: "lights",
+                problem: format!("{} lights, at most {MAX_LIGHTS}", frame.lights.len()),
+            });
+        }
+        while self.slots.len() < frame.lights.len() {
+            self.slots.push(LightSlot {
+                texture: LightTextureNode::new(device, &self.cache),
+                shadow: ShadowMapNode::new(device, &self.cache, self.settings.shadow_map)?,
+                extents: ExtentsNode::new(device, &self.cache),
+                table: AirlightTableNode::new(device, &self.cache, self.settings.table)?,
+                march: MarchNode::new(device, &self.cache, self.settings.march)?,
+                upsample: UpsampleNode::new(device, &self.cache, self.settings.upsample)?,
+            });
+        }
+        let scatters = frame.medium.sigma_s().max_element() > 0.0;
+        let (width, height) = (frame.scene_depth.width(), frame.scene_depth.height());
+        let mut facts = FrameFacts {
+            scatters,
+            lights: Vec::new(),
+            method: self.settings.march.method,
+            steps: self.settings.march.steps,
+            scale: self.settings.march.scale,
+            filter: self.settings.upsample,
+            culled: Vec::new(),
+        };
+        for (i, (fl, slot)) in frame.lights.iter().zip(&mut self.slots).enumerate() {
+            let light = &fl.light;
+            // Occluders whose effect is provably below the threshold stay out of this light's
+            // shadow map and extents.
+            let mut kept: Vec<Occluder<'_>> = Vec::new();
+            for (j, o) in frame.occluders.iter().enumerate() {
+                o.validate()?;
+                let bound =
+                    plan::occluder_bound(frame.camera.eye(), light, frame.medium, o.world_bounds());
+                if bound < f64::from(self.settings.cull_threshold) {
+                    facts.culled.push(Culled {
+                        light: i,
+                        occluder: j,
+                        bound,
+                    });
+                } else {
+                    kept.push(*o);
+                }
+            }
+            if !scatters {
+                facts.lights.push(LightFacts {
+                    textured: fl.texture.is_some(),
+                    texture_changed: false,
+                    occluders: kept.len(),
+                    shadow_changed: false,
+                    table_changed: false,
+                });
+                continue;
+            }
+            if let Some(t) = fl.texture {
+                slot.texture.prepare(device, t)?;
+            }
+            let shadowed = !kept.is_empty();
+            let shadow_changed = shadowed && slot.shadow.prepare(device, queue, light, &kept)?;
+            let scale = if shadowed {
+                self.settings.march.scale
+            } else {
+                Scale::Full
+            };
+            if shadowed && self.settings.march.method == MarchMethod::Hybrid {
+                let (w, h) = scale.apply(width, height);
+                slot.extents.prepare(
+                    device,
+                    queue,
+                    &ExtentsInputs {
+                        camera: frame.camera,
+                        light,
+                        occluders: &kept,
+                        size: (w, h),
+                    },
+                )?;
+            }
+            let table_changed = slot
+                .table
+                .prepare(queue, frame.camera.eye(), light, frame.medium);
+            slot.march.set_settings(MarchSettings {
+                scale,
+                ..self.settings.march
+            })?;
+            slot.march.prepare(
+                device,
+                queue,
+                &slot.table,
+                &MarchInputs {
+                    camera: frame.camera,
+                    light,
+                    medium: frame.medium,
+                    scene_depth: frame.scene_depth,
+                    shadows: shadowed
+                        .then(|| {
+                            Some(Shadows {
+                                shadow_map: slot.shadow.shadow_map()?,
+                                extents: match self.settings.march.method {
+                                    MarchMethod::Hybrid => slot.extents.extents(),
+                                    MarchMethod::BruteForce => None,
+                                },
+                            })
+                        })
+                        .flatten(),
+                    light_texture: fl.texture.and(slot.texture.texture()),
+                },
+            )?;
+            if scale != Scale::Full {
+                slot.upsample.prepare(
+                    device,
+                    queue,
+                    &UpsampleInputs {
+                        camera: frame.camera,
+                        scene_depth: frame.scene_depth,
+                        low: slot.march.output().expect("prepared"),
+                        table: &slot.table,
+                        light,
+                        medium: frame.medium,
+                    },
+                )?;
+            }
+            facts.lights.push(LightFacts {
+                textured: fl.texture.is_some(),
+                texture_changed: slot.texture.is_pending(),
+                occluders: kept.len(),
+                shadow_changed,
+                table_changed,
+            });
+        }
+        self.plan = plan::plan(&facts);
+
+        let inscatter: Vec<&wgpu::Texture> = if scatters {
+            self.slots[..frame.lights.len()]
+                .iter()
+                .enumerate()
+                .map(|(i, slot)| {
+                    if self.plan.runs(Pass::Upsample, Some(i)) {
+                        slot.upsample.output()
+                    } else {
+                        slot.march.output()
+                    }
+                    .expect("prepared")
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        self.composite.prepare(
+            device,
+            queue,
+            &CompositeInputs {
+                camera: frame.camera,
+                medium: frame.medium,
+                scene_color: frame.scene_color,
+                scene_depth: frame.scene_depth,
+                inscatter: &inscatter,
+            },
+        )?;
+        Ok(&self.plan)
+    }
+
+    /// Records the planned passes into `encoder` and the composite into `output` (a view of a
+    /// `RENDER_ATTACHMENT` texture of the settings' output format, the frame's size, not one of
+    /// its inputs). Never submits.
+    pub fn encode(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        output: &wgpu::TextureView,
+    ) -> Result<()> {
+        if let Some(t) = self.timer.as_mut() {
+            t.clear();
+        }
+        let steps = self.plan.steps.clone();
+        for step in &steps {
+            let timer = self.timer.as_mut();
+            match (step.pass, step.light) {
+                (Pass::Composite, _) => self.composite.encode(encoder, output, timer)?,
+                (pass, Some(i)) => {
+                    let slot = &mut self.slots[i];
+                    match pass {
+                        Pass::LightTexture => {
+                            slot.texture.encode(encoder, timer);
+                        }
+                        Pass::ShadowMap => {
+                            slot.shadow.encode(encoder, timer);
+                        }
+                        Pass::Extents => slot.extents.encode(encoder, timer),
+                        Pass::AirlightTable => {
+                            slot.table.encode(encoder, timer);
+                        }
+                        Pass::March => slot.march.encode(encoder, timer),
+                        Pass::Upsample => slot.upsample.encode(encoder, timer),
+                        Pass::Composite => unreachable!("handled above"),
+                    }
+                }
+                (_, None) => {}
+            }
+        }
+        if let Some(t) = &self.timer {
+            t.resolve(encoder);
+        }
+        Ok(())
+    }
+
+    /// The plan of the last `prepare`.
+    pub fn plan(&self) -> &Plan {
+        &self.plan
+    }
+
+    /// GPU time per pass of the last submitted frame (timestamp queries; empty when the device
+    /// lacks `TIMESTAMP_QUERY`: time the submission with the wall clock then). Blocks until
+    /// the GPU is done.
+    pub fn read_timings(&self, device: &wgpu::Device) -> Result<Vec<PassTime>> {
+        match &self.timer {
+            Some(t) => t.read(device),
+            None => Ok(Vec::new()),
+        }
+    }
+
+    /// The in-scatter each light added last frame (full resolution, `Rgba32Float`), for
+    /// debugging and tests.
+    pub fn inscatter(&self, light: usize) -> Option<&wgpu::Texture> {
+        let slot = self.slots.get(light)?;
+        if self.plan.runs(Pass::Upsample, Some(light)) {
+            slot.upsample.output()
+        } else {
+            slot.march.output()
+        }
+    }
+
+    /// March steps per pixel of a light's last march (`R32Uint`, at the march's resolution).
+    pub fn step_counts(&self, light: usize) -> Option<&wgpu::Texture> {
+        self.slots.get(light)?.march.step_counts()
+    }
+}
+
+fn validate(settings: &Settings) -> Result<()> {
+    settings.upsample.validate()?;
+    crate::error::finite("cull_threshold", &[settings.cull_threshold])?;
+    if !(0.0..=1.0).contains(&settings.cull_threshold) {
+        return Err(Error::InvalidSetting {
+            field: "cull_threshold",
+            problem: format!("must be in [0, 1], got {}", settings.cull_threshold),
+        });
+    }
+    Ok(())
+}

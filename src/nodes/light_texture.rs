@@ -1,0 +1,182 @@
+//! The light-texture node: a textured spot light's texture as a blurred mip chain.
+//!
+//! # Input
+//! The caller's texture (e.g. from [`LightTexture::upload`](crate::scene::LightTexture::upload)):
+//! 2D, single-sampled, usage `TEXTURE_BINDING`, a format that can be filtered on this device
+//! (`Rgba8Unorm[Srgb]`, `Rgba16Float`, …; `Rgba32Float` only with `FLOAT32_FILTERABLE`), linear
+//! RGB radiance multipliers, row 0 at the top of the spot's frame.
+//!
+//! # Output
+//! `Rgba16Float`, the input's size, a full mip chain (each level a 4×4 tent of the one above),
+//! rebuilt only when the input texture changes.
+
+use crate::error::{Error, Result};
+use crate::gpu::{Cache, GpuTimer};
+
+/// Builds and holds the blurred mip chain of a light texture.
+pub struct LightTextureNode {
+    pipelines: [wgpu::RenderPipeline; 2],
+    layout: wgpu::BindGroupLayout,
+    sampler: wgpu::Sampler,
+    source: Option<wgpu::Texture>,
+    mips: Option<wgpu::Texture>,
+    /// Per level: the bind group reading the level above (or the source) and the target view.
+    levels: Vec<(wgpu::BindGroup, wgpu::TextureView)>,
+    pending: bool,
+}
+
+impl LightTextureNode {
+    /// Creates the node.
+    pub fn new(device: &wgpu::Device, cache: &Cache) -> Self {
+        Self {
+            pipelines: [
+                cache.light_copy_pipeline.clone(),
+                cache.light_down_pipeline.clone(),
+            ],
+            layout: cache.light_texture_layout.clone(),
+            sampler: device.create_sampler(&wgpu::SamplerDescriptor {
+                label: Some("volshadow light texture"),
+                mag_filter: wgpu::FilterMode::Linear,
+                min_filter: wgpu::FilterMode::Linear,
+                ..Default::default()
+            }),
+            source: None,
+            mips: None,
+            levels: Vec::new(),
+            pending: false,
+        }
+    }
+
+    /// Validates `texture` and schedules a rebuild when it differs from the last one.
+    pub fn prepare(&mut self, device: &wgpu::Device, texture: &wgpu::Texture) -> Result<()> {
+        let problem = |p: String| {
+            Err(Error::InvalidTexture {
+                field: "light_texture",
+                problem: p,
+            })
+        };
+        let format = texture.format();
+        let filterable = format
+            .guaranteed_format_features(device.features())
+            .flags
+            .contains(wgpu::TextureFormatFeatureFlags::FILTERABLE);
+        let float = matches!(
+            format.sample_type(None, Some(device.features())),
+            Some(wgpu::TextureSampleType::Float { filterable: true })
+        );
+        if !(filterable && float) {
+            return problem(format!("{format:?} cannot be filtered on this device"));
+        }
+        if texture.dimension() != wgpu::TextureDimension::D2 || texture.sample_count() != 1 {
+            return problem("must be a single-sampled 2D texture".into());
+        }
+        if !texture
+            .usage()
+            .contains(wgpu::TextureUsages::TEXTURE_BINDING)
+        {
+            return problem("needs TextureUsages::TEXTURE_BINDING".into());
+        }
+        if self.source.as_ref() == Some(texture) {
+            return Ok(());
+        }
+        let (w, h) = (texture.width(), texture.height());
+        let levels = 32 - w.max(h).leading_zeros();
+        self.mips = Some(device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("volshadow light texture mips"),
+            size: wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: levels,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba16Float,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        }));
+        let mips = self.mips.as_ref().expect("created above");
+        self.levels = (0..levels)
+            .map(|level| {
+                let input = if level == 0 {
+                    texture.create_view(&Default::default())
+                } else {
+                    mips.create_view(&wgpu::TextureViewDescriptor {
+                        base_mip_level: level - 1,
+                        mip_level_count: Some(1),
+                        ..Default::default()
+                    })
+                };
+                let target = mips.create_view(&wgpu::TextureViewDescriptor {
+                    base_mip_level: level,
+                    mip_level_count: Some(1),
+                    ..Default::default()
+                });
+                let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("volshadow light texture level"),
+                    layout: &self.layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: wgpu::BindingResource::TextureView(&input),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: wgpu::BindingResource::Sampler(&self.sampler),
+                        },
+                    ],
+                });
+                (bind_group, target)
+            })
+            .collect();
+        self.source = Some(texture.clone());
+        self.pending = true;
+        Ok(())
+    }
+
+    /// Whether the next [`encode`](Self::encode) rebuilds the mip chain.
+    pub fn is_pending(&self) -> bool {
+        self.pending
+    }
+
+    /// Records the mip chain build if the texture changed. Returns whether it recorded.
+    pub fn encode(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        mut timer: Option<&mut GpuTimer>,
+    ) -> bool {
+        if !std::mem::take(&mut self.pending) {
+            return false;
+        }
+        for (level, (bind_group, target)) in self.levels.iter().enumerate() {
+            let timestamp_writes = timer
+                .as_deref_mut()
+                .and_then(|t| t.render_pass("light texture"));
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("volshadow light texture level"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: target,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.pipelines[usize::from(level > 0)]);
+            pass.set_bind_group(0, bind_group, &[]);
+            pass.draw(0..3, 0..1);
+        }
+        true
+    }
+
+    /// The mip chain (`None` before the first `prepare`).
+    pub fn texture(&self) -> Option<&wgpu::Texture> {
+        self.mips.as_ref()
+    }
+}

@@ -1,0 +1,322 @@
+//! The planner: the one place that decides which passes a frame records, and says why the
+//! others are left out (DESIGN §3, "Leave out what a scene does not need").
+
+use std::fmt;
+
+use crate::nodes::{MarchMethod, Scale, UpsampleFilter};
+
+/// A pass the facade can record.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum Pass {
+    /// A textured spot light's blurred mip chain.
+    LightTexture,
+    /// Occluder depth from the light.
+    ShadowMap,
+    /// Shadow-volume extents along each view ray.
+    Extents,
+    /// The per-frame F′ table.
+    AirlightTable,
+    /// In-scattered light per pixel (analytic, hybrid or brute force).
+    March,
+    /// Low-resolution scattering brought to the output resolution.
+    Upsample,
+    /// Attenuated scene plus in-scattered light into the caller's target.
+    Composite,
+}
+
+impl fmt::Display for Pass {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Pass::LightTexture => "light texture",
+            Pass::ShadowMap => "shadow map",
+            Pass::Extents => "extents",
+            Pass::AirlightTable => "F' table",
+            Pass::March => "march",
+            Pass::Upsample => "upsample",
+            Pass::Composite => "composite",
+        })
+    }
+}
+
+/// Why a pass is left out.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum Reason {
+    /// The light has no occluders (or all were culled): the airlight is analytic everywhere.
+    NoOccluders,
+    /// σs = 0 in every channel: the medium only attenuates.
+    NoScattering,
+    /// The light has no texture.
+    Untextured,
+    /// Scattering runs at the output resolution.
+    FullResolution,
+    /// Nothing it depends on changed since the last frame; last frame's result is reused.
+    Unchanged,
+}
+
+impl fmt::Display for Reason {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Reason::NoOccluders => "no occluders: analytic airlight only",
+            Reason::NoScattering => "the medium does not scatter (sigma_s = 0): attenuation only",
+            Reason::Untextured => "the light is not textured",
+            Reason::FullResolution => "scattering already at output resolution",
+            Reason::Unchanged => "unchanged since last frame",
+        })
+    }
+}
+
+/// One planned pass, for one light (or for the frame).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Step {
+    /// The pass.
+    pub pass: Pass,
+    /// The light it serves (`None`: the whole frame).
+    pub light: Option<usize>,
+    /// What it does, in words (method, steps, resolution).
+    pub detail: String,
+}
+
+/// One pass left out, and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Skip {
+    /// The pass.
+    pub pass: Pass,
+    /// The light it would have served (`None`: the whole frame).
+    pub light: Option<usize>,
+    /// Why it does not run.
+    pub reason: Reason,
+}
+
+/// An occluder left out of one light's shadow map and extents because its shadow lies
+/// optically so deep that removing it changes no pixel by more than the cull threshold.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Culled {
+    /// The light.
+    pub light: usize,
+    /// Index into the frame's occluders.
+    pub occluder: usize,
+    /// Upper bound of the occluder's effect, relative to the in-scatter of a ray reaching it.
+    pub bound: f64,
+}
+
+/// What a frame records and why the rest is left out. `Display` prints it as a table.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Plan {
+    /// Passes that run, in recording order.
+    pub steps: Vec<Step>,
+    /// Passes left out.
+    pub skipped: Vec<Skip>,
+    /// Occluders culled per light.
+    pub culled: Vec<Culled>,
+}
+
+impl Plan {
+    /// Whether `pass` runs for `light`.
+    pub fn runs(&self, pass: Pass, light: Option<usize>) -> bool {
+        self.steps
+            .iter()
+            .any(|s| s.pass == pass && s.light == light)
+    }
+    /// How many passes of this kind run (over all lights).
+    pub fn count(&self, pass: Pass) -> usize {
+        self.steps.iter().filter(|s| s.pass == pass).count()
+    }
+    /// The reason `pass` is left out for `light`, if it is.
+    pub fn skip_reason(&self, pass: Pass, light: Option<usize>) -> Option<&Reason> {
+        self.skipped
+            .iter()
+            .find(|s| s.pass == pass && s.light == light)
+            .map(|s| &s.reason)
+    }
+}
+
+impl fmt::Display for Plan {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let who = |light: Option<usize>| match light {
+            Some(i) => format!("light {i}"),
+            None => "frame".to_string(),
+        };
+        for s in &self.steps {
+            writeln!(
+                f,
+                "  run   {:<8} {:<14} {}",
+                who(s.light),
+                s.pass.to_string(),
+                s.detail
+            )?;
+        }
+        for s in &self.skipped {
+            writeln!(
+                f,
+                "  skip  {:<8} {:<14} {}",
+                who(s.light),
+                s.pass.to_string(),
+                s.reason
+            )?;
+        }
+        for c in &self.culled {
+            writeln!(
+                f,
+                "  cull  light {:<2} occluder {} (effect below {:.1e} of the in-scatter)",
+                c.light, c.occluder, c.bound
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// What the planner knows about one light this frame.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct LightFacts {
+    pub textured: bool,
+    pub texture_changed: bool,
+    /// Occluders left after culling.
+    pub occluders: usize,
+    pub shadow_changed: bool,
+    pub table_changed: bool,
+}
+
+/// What the planner knows about the frame.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct FrameFacts {
+    pub scatters: bool,
+    pub lights: Vec<LightFacts>,
+    pub method: MarchMethod,
+    pub steps: u32,
+    pub scale: Scale,
+    pub filter: UpsampleFilter,
+    pub culled: Vec<Culled>,
+}
+
+/// Decides the passes of a frame.
+pub(crate) fn plan(facts: &FrameFacts) -> Plan {
+    let mut plan = Plan {
+        culled: facts.culled.clone(),
+        ..Plan::default()
+    };
+    let mut run = |pass, light, detail: String| {
+        plan.steps.push(Step {
+            pass,
+            light,
+            detail,
+        })
+    };
+    let mut skips = Vec::new();
+    let mut skip = |pass, light, reason| {
+        skips.push(Skip {
+            pass,
+            light,
+            reason,
+        })
+    };
+    for (i, l) in facts.lights.iter().enumerate() {
+        let light = Some(i);
+        if !facts.scatters {
+            for pass in [
+                Pass::LightTexture,
+                Pass::ShadowMap,
+                Pass::Extents,
+                Pass::AirlightTable,
+                Pass::March,
+                Pass::Upsample,
+            ] {
+                skip(pass, light, Reason::NoScattering);
+            }
+            continue;
+        }
+        match (l.textured, l.texture_changed) {
+            (false, _) => skip(Pass::LightTexture, light, Reason::Untextured),
+            (true, false) => skip(Pass::LightTexture, light, Reason::Unchanged),
+            (true, true) => run(Pass::LightTexture, light, "blurred mip chain".into()),
+        }
+        let shadowed = l.occluders > 0;
+        // Without shadows the analytic airlight is exact and costs one lookup per pixel, so
+        // it always runs at the output resolution.
+        let scale = if shadowed { facts.scale } else { Scale::Full };
+        if !shadowed {
+            skip(Pass::ShadowMap, light, Reason::NoOccluders);
+            skip(Pass::Extents, light, Reason::NoOccluders);
+        } else {
+            if l.shadow_changed {
+                run(
+                    Pass::ShadowMap,
+                    light,
+                    format!("{} occluder(s)", l.occluders),
+                );
+            } else {
+                skip(Pass::ShadowMap, light, Reason::Unchanged);
+            }
+            if facts.method == MarchMethod::Hybrid {
+                run(Pass::Extents, light, format!("at 1/{}", scale.divisor()));
+            }
+        }
+        if l.table_changed {
+            run(Pass::AirlightTable, light, "rebuilt".into());
+        } else {
+            skip(Pass::AirlightTable, light, Reason::Unchanged);
+        }
+        let method = match (shadowed, facts.method) {
+            (false, _) => "analytic".to_string(),
+            (true, MarchMethod::Hybrid) => format!("hybrid, {} steps", facts.steps),
+            (true, MarchMethod::BruteForce) => format!("brute force, {} steps", facts.steps),
+        };
+        run(
+            Pass::March,
+            light,
+            format!("{method}, at 1/{}", scale.divisor()),
+        );
+        if scale == Scale::Full {
+            skip(Pass::Upsample, light, Reason::FullResolution);
+        } else {
+            run(Pass::Upsample, light, format!("{:?}", facts.filter));
+        }
+    }
+    run(
+        Pass::Composite,
+        None,
+        format!("{} light(s)", facts.lights.len()),
+    );
+    plan.skipped = skips;
+    plan
+}
+
+/// Upper bound of how much an occluder can change the in-scatter of any pixel, relative to the
+/// unshadowed in-scatter of a ray that reaches it (DESIGN §3): every point it shadows is at
+/// least `r` from the light and `e` from the eye, so its loss is at most
+/// `σs·p_max·I0·exp(−σt (r + e))·π/r`, while the first `l = min(e, D)/2` of that ray gather at
+/// least `l·σs·p_min·I0·exp(−σt (D + 2l))/(D + l)²`. Returns ∞ when no bound applies (the eye or
+/// the light inside the occluder's bounds, a spot light whose cone may exclude that segment).
+pub(crate) fn occluder_bound(
+    eye: glam::Vec3,
+    light: &crate::scene::Light,
+    medium: &crate::scene::Medium,
+    bounds: (glam::Vec3, glam::Vec3),
+) -> f64 {
+    if !matches!(light, crate::scene::Light::Point(_)) {
+        return f64::INFINITY;
+    }
+    let p = light.position();
+    let r = f64::from(p.clamp(bounds.0, bounds.1).distance(p));
+    let e = f64::from(eye.clamp(bounds.0, bounds.1).distance(eye));
+    let d = f64::from(p.distance(eye));
+    if r <= 0.0 || e <= 0.0 || d <= 0.0 {
+        return f64::INFINITY;
+    }
+    let l = 0.5 * e.min(d);
+    let (p_min, p_max) = medium.phase().range();
+    let sigma_s = medium.sigma_s();
+    let sigma_t = medium.sigma_t();
+    (0..3)
+        .filter(|&c| sigma_s[c] > 0.0)
+        .map(|c| {
+            let log = (f64::from(p_max[c]) / f64::from(p_min[c])).ln()
+                + (std::f64::consts::PI / r).ln()
+                + 2.0 * (d + l).ln()
+                - l.ln()
+                - f64::from(sigma_t[c]) * (r + e - d - 2.0 * l);
+            log.exp()
+        })
+        .fold(0.0, f64::max)
+}

@@ -1,0 +1,411 @@
+//! JSON scene files: camera, lights, medium, objects, output size and method in one file, so
+//! any image can be reproduced from it (`DESIGN.md` §7).
+//!
+//! [`SceneDescription::load`] reads, validates and builds everything: the scene types
+//! ([`Camera`], [`Light`], [`Medium`], [`Mesh`], [`LightTexture`]) are constructed, so a
+//! loaded scene is ready to render. Every problem is an [`Error::SceneFile`] naming the file,
+//! the field (a path such as `lights[1].cone_angle_degrees`) and what is wrong; no input
+//! panics.
+//!
+//! # Format
+//!
+//! ```json
+//! {
+//!   "name": "sphere",
+//!   "description": "optional free text",
+//!   "size": [512, 512],
+//!   "camera": { "eye": [0, 2, 8], "target": [0, 1, 0], "up": [0, 1, 0],
+//!               "fov_y_degrees": 45, "near": 0.1, "far": null, "reversed_z": false },
+//!   "lights": [
+//!     { "type": "point", "position": [0, 6, 0], "intensity": 40 },
+//!     { "type": "spot", "position": [0, 6, 0], "direction": [0, -1, 0],
+//!       "cone_angle_degrees": 50, "intensity": [40, 38, 35],
+//!       "texture": { "stained_glass": { "size": 256, "cells": 8, "seed": 7 } } }
+//!   ],
+//!   "medium": { "sigma_s": 0.04, "sigma_a": [0.01, 0.01, 0.01],
+//!               "phase": { "henyey_greenstein": 0.3 } },
+//!   "objects": [
+//!     { "name": "ground", "shape": { "type": "plane", "center": [0, 0, 0], "half_size": [20, 20] },
+//!       "casts_shadow": false, "albedo": 0.5 },
+//!     { "name": "ball", "shape": { "type": "sphere", "center": [0, 0, 0], "radius": 1 },
+//!       "transform": { "translate": [0, 2, 0], "rotate_degrees": [0, 30, 0], "scale": [1.5, 1, 1] } }
+//!   ],
+//!   "method": { "type": "hybrid", "steps": 64, "scale": 2, "upsample": "depth_aware_3x3",
+//!               "bisections": 0 }
+//! }
+//! ```
+//!
+//! Unknown keys are errors everywhere; `null` counts as absent.
+//!
+//! * `name` (required string), `description` (optional string).
+//! * `size`: `[width, height]`, each 1..=8192; default `[512, 512]`.
+//! * `camera` (required): `eye`, `target` (required points), `up` (default `[0, 1, 0]`, not
+//!   parallel to the view direction), `fov_y_degrees` (required, in (0, 180)), `near`
+//!   (required, > 0), `far` (absent or `null`: infinite; else > `near`), `reversed_z` (default
+//!   `false`). The aspect ratio is `width / height`. The view is
+//!   [`glam::camera::rh::view::look_at_mat4`], the projection
+//!   `glam::camera::rh::proj::directx::{perspective, perspective_infinite,
+//!   perspective_infinite_reverse}` (reversed Z with a finite far plane swaps near and far).
+//! * `lights` (required, at least one), each with `"type"`:
+//!   * `"point"`: `position`, `intensity` (RGB or one number; >= 0, not all zero).
+//!   * `"spot"`: `position`, `direction` (non-zero), `cone_angle_degrees` (apex angle, in
+//!     (0, 180)), `intensity`, optional `texture`, one of
+//!     `{"checkerboard": {"size", "cells", "a", "b"}}` (size 1..=4096, cells 1..=size, colours
+//!     RGB >= 0), `{"stained_glass": {"size", "cells", "seed"}}` (see [`stained_glass`]; size
+//!     1..=4096, cells 1..=size) or `{"file": "window.png"}` (feature `image`; relative to the
+//!     scene file's folder).
+//! * `medium` (required): `sigma_s` (RGB or one number, >= 0; required unless the phase is
+//!   `hoffman_preetham`, which sets it and forbids it), `sigma_a` (default 0), `phase` (default
+//!   `"isotropic"`): `"isotropic"`, `"rayleigh"`, `"mie_hazy"`, `"mie_murky"`,
+//!   `{"henyey_greenstein": g}` or `{"hoffman_preetham": {"rayleigh": [..], "mie": [..], "g": g}}`,
+//!   with `|g| < 1`.
+//! * `objects` (default none), each: `name` (default `"<type>_<index>"`), `shape` (required),
+//!   `transform` (default identity), `casts_shadow` (default `true`), `albedo` (RGB or one
+//!   number in [0, 1], default 0.8). Shapes, by `"type"` (lengths in [1e-6, 1e6], points within
+//!   ±1e6, segment counts 3..=1024):
+//!   * `"sphere"`: `center`, `radius`, `segments` (default 32), `rings` (default 16, 2..=1024).
+//!   * `"box"`: `center`, `half_extents`.
+//!   * `"plane"`: `center`, `half_size` `[x, z]`: a rectangle in the XZ plane facing +Y (open).
+//!   * `"torus"`: `center`, `major_radius`, `minor_radius` (< major, >= 1e-4 major), axis +Y,
+//!     `major_segments` (default 48), `minor_segments` (default 16).
+//!   * `"spring"`: `center`, `coil_radius`, `wire_radius` (>= 1e-4 of the coil radius and
+//!     height), `turns` (in [0.01, 1000]), `height`, axis +Y, `segments_per_turn` (default 32,
+//!     3..=256, turns × segments_per_turn at most 16384), `wire_segments` (default 12, 3..=64).
+//!   * `"cylinder"`: `center`, `radius`, `half_height`, `segments` (default 32): an open tube
+//!     along +Y.
+//!   * `"fence"`: `posts` (1..=1024), `spacing` (centre to centre, along X), `post_half_extents`,
+//!     `center` (default origin; the centre of the row of posts), `rail` (default `false`: two
+//!     horizontal rails at 30% and 75% of the post height, slightly narrower than the posts);
+//!     all boxes merged into one mesh.
+//!   * `"gltf"`: `path` (relative to the scene file's folder; feature `gltf`): every mesh of the
+//!     file (each triangle primitive of each node that places a mesh, as `volshadow::gltf::load` gives them) becomes
+//!     one object named `"<name>/<mesh name>"` (`"<name>/<index>:<mesh name>"` when several
+//!     primitives share the mesh name, `"<name>/<index>"` without one), with transform
+//!     `transform × (the mesh's node transform)`.
+//!
+//!   `transform` is either `{"translate": [x, y, z], "rotate_degrees": [x, y, z],
+//!   "scale": s or [x, y, z]}` (each optional; the matrix is `T · Rz · Ry · Rx · S`: scale,
+//!   then rotate about X, then Y, then Z, then translate; scales > 0) or `{"matrix": [16
+//!   numbers]}`, column-major, affine with a positive determinant (mirroring would flip the
+//!   triangles' winding).
+//! * `method` (default hybrid): `"reference"`, `"hybrid"`, `"brute_force"` (each with default
+//!   settings), or an object with `"type"` and, for `"brute_force"`, `steps` (1..=4096, default
+//!   64), `bisections` (0..=16, default 0), `scale` (the divisor of the output size for the
+//!   scattering passes: 1, 2 or 4, default 1); for `"hybrid"` the same plus `upsample`:
+//!   `"bilinear"`, `"depth_aware_3x3"` (default) or `{"separable": {"taps" (odd, 3..=31),
+//!   "sigma_spatial" (> 0), "sigma_depth" (> 0)}}`.
+
+mod glass;
+mod json;
+mod parse;
+
+use std::path::Path;
+
+use glam::{DMat4, DVec3, Mat4, Vec3};
+
+use crate::error::{Error, Result};
+use crate::nodes::{MarchMethod, MarchSettings, Scale, UpsampleFilter};
+use crate::reference::{Occluder, TriangleMesh};
+use crate::scene::{Camera, Light, LightTexture, Medium, Mesh};
+
+pub use glass::stained_glass;
+
+/// A scene read from a JSON file: everything validated and constructed (see the
+/// [module docs](self) for the format).
+#[derive(Debug, Clone)]
+pub struct SceneDescription {
+    /// The scene's name.
+    pub name: String,
+    /// Optional free text (what the scene shows, derived numbers).
+    pub description: Option<String>,
+    /// Output width and height in pixels (1..=8192 each).
+    pub size: (u32, u32),
+    /// The camera, with the aspect ratio of `size`.
+    pub camera: Camera,
+    /// The lights, at least one.
+    pub lights: Vec<SceneLight>,
+    /// The medium.
+    pub medium: Medium,
+    /// Occluders and receivers.
+    pub objects: Vec<SceneObject>,
+    /// How to render it.
+    pub method: Method,
+}
+
+/// A light and, for a spot light, its optional projected texture.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneLight {
+    /// The light.
+    pub light: Light,
+    /// The spot light's texture (`None` for point lights and untextured spots).
+    pub texture: Option<LightTexture>,
+}
+
+/// One object: a mesh in its own space placed in the world by `transform`.
+#[derive(Debug, Clone)]
+pub struct SceneObject {
+    /// The object's name (from the file, or `"<shape type>_<index>"`).
+    pub name: String,
+    /// The mesh, in object space (a shape's `center` is already applied).
+    pub mesh: Mesh,
+    /// Object → world (affine, positive determinant).
+    pub transform: Mat4,
+    /// Whether it casts shadows (is an occluder); receivers such as the ground set `false`.
+    pub casts_shadow: bool,
+    /// Diffuse reflectance, linear RGB in [0, 1].
+    pub albedo: Vec3,
+}
+
+/// How a scene is rendered.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
+pub enum Method {
+    /// The f64 reference integrator ([`crate::reference`]).
+    Reference,
+    /// The GPU march over the whole ray ([`MarchMethod::BruteForce`]).
+    BruteForce {
+        /// Steps per ray (1..=4096).
+        steps: u32,
+        /// Bisection steps per lit/shadow transition (0..=16).
+        bisections: u32,
+        /// Resolution of the scattering passes.
+        scale: Scale,
+    },
+    /// The GPU hybrid: analytic outside the shadow volumes, marched inside
+    /// ([`MarchMethod::Hybrid`]).
+    Hybrid {
+        /// Steps per marched interval (1..=4096).
+        steps: u32,
+        /// Resolution of the scattering passes.
+        scale: Scale,
+        /// How low-resolution scattering is upsampled (used when `scale` is not full).
+        upsample: UpsampleFilter,
+        /// Bisection steps per lit/shadow transition (0..=16).
+        bisections: u32,
+    },
+}
+
+impl Default for Method {
+    /// `Hybrid { steps: 64, scale: Full, upsample: DepthAware3x3, bisections: 0 }`.
+    fn default() -> Self {
+        Method::Hybrid {
+            steps: 64,
+            scale: Scale::Full,
+            upsample: UpsampleFilter::DepthAware3x3,
+            bisections: 0,
+        }
+    }
+}
+
+impl Method {
+    /// The march settings of a GPU method; `None` for [`Method::Reference`].
+    pub fn march_settings(&self) -> Option<MarchSettings> {
+        match *self {
+            Method::Reference => None,
+            Method::BruteForce {
+                steps,
+                bisections,
+                scale,
+                ..
+            } => Some(MarchSettings {
+                method: MarchMethod::BruteForce,
+                steps,
+                bisections,
+                scale,
+                ..MarchSettings::default()
+            }),
+            Method::Hybrid {
+                steps,
+                bisections,
+                scale,
+                ..
+            } => Some(MarchSettings {
+                method: MarchMethod::Hybrid,
+                steps,
+                bisections,
+                scale,
+                ..MarchSettings::default()
+            }),
+        }
+    }
+
+    /// The scattering resolution ([`Scale::Full`] for the reference).
+    pub fn scale(&self) -> Scale {
+        match *self {
+            Method::Reference => Scale::Full,
+            Method::BruteForce { scale, .. } | Method::Hybrid { scale, .. } => scale,
+        }
+    }
+
+    /// The upsample filter ([`UpsampleFilter::default`] where the method has none).
+    pub fn upsample(&self) -> UpsampleFilter {
+        match *self {
+            Method::Hybrid { upsample, .. } => upsample,
+            _ => UpsampleFilter::default(),
+        }
+    }
+}
+
+impl SceneDescription {
+    /// Reads and validates a scene file. Relative paths inside it (light texture files, glTF
+    /// files) are resolved against the file's folder.
+    pub fn load(path: impl AsRef<Path>) -> Result<Self> {
+        let path = path.as_ref();
+        let shown = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| Error::SceneFile {
+            path: shown.clone(),
+            field: "(file)".to_owned(),
+            problem: format!("cannot read the file: {e}"),
+        })?;
+        let base_dir = path.parent().unwrap_or_else(|| Path::new(""));
+        Self::parse(&text, base_dir, &shown)
+    }
+
+    /// Parses and validates a scene from JSON text; relative paths inside it resolve against
+    /// `base_dir`. Errors name the path `<string>`.
+    pub fn from_json(text: &str, base_dir: &Path) -> Result<Self> {
+        Self::parse(text, base_dir, "<string>")
+    }
+
+    fn parse(text: &str, base_dir: &Path, shown: &str) -> Result<Self> {
+        let value: serde_json::Value =
+            serde_json::from_str(text).map_err(|e| Error::SceneFile {
+                path: shown.to_owned(),
+                field: "(json)".to_owned(),
+                problem: format!("invalid JSON: {e}"),
+            })?;
+        parse::scene(&value, base_dir).map_err(|p| Error::SceneFile {
+            path: shown.to_owned(),
+            field: p.field,
+            problem: p.problem,
+        })
+    }
+
+    /// Distance along the ray from `origin` in direction `dir` (any non-zero length) to the
+    /// nearest triangle of any object (receivers included), in world units, or
+    /// `f64::INFINITY` when it hits none (or `dir` is zero or not finite).
+    ///
+    /// Exact f64 Möller–Trumbore on the world-space triangles (object positions in f64 through
+    /// the f64 transform, as [`reference_occluders`](Self::reference_occluders) places them),
+    /// both sides, edges included, hits at distance > 0 only. Objects whose world-space bounding
+    /// box the ray misses, or meets only beyond the nearest hit so far, are skipped.
+    pub fn ray_distance(&self, origin: DVec3, dir: DVec3) -> f64 {
+        let len = dir.length();
+        if !(len.is_finite() && len > 0.0 && origin.is_finite()) {
+            return f64::INFINITY;
+        }
+        let d = dir / len;
+        let mut best = f64::INFINITY;
+        for object in &self.objects {
+            let m = object.transform.as_dmat4();
+            let (lo, hi) = world_bounds(m, object.mesh.bounds());
+            match ray_box(origin, d, lo, hi) {
+                Some(enter) if enter < best => {}
+                _ => continue,
+            }
+            // The ray in object space: an affine map keeps the ray parameter, so `t` is still
+            // the world distance along the unit `d`.
+            let inverse = m.inverse();
+            let (o_local, d_local) = (
+                inverse.transform_point3(origin),
+                inverse.transform_vector3(d),
+            );
+            let positions = object.mesh.positions();
+            let local = |i: u32| positions[i as usize].as_dvec3();
+            for tri in object.mesh.indices().chunks_exact(3) {
+                let t = ray_triangle(
+                    o_local,
+                    d_local,
+                    [local(tri[0]), local(tri[1]), local(tri[2])],
+                );
+                if let Some(t) = t {
+                    if t > 0.0 && t < best {
+                        best = t;
+                    }
+                }
+            }
+        }
+        best
+    }
+
+    /// Every shadow-casting object as a world-space [`TriangleMesh`] occluder for
+    /// [`crate::reference`].
+    pub fn reference_occluders(&self) -> Vec<Occluder> {
+        self.objects
+            .iter()
+            .filter(|o| o.casts_shadow)
+            .map(|o| {
+                Occluder::Mesh(TriangleMesh::from_indexed(
+                    o.mesh.positions(),
+                    o.mesh.indices(),
+                    o.transform.as_dmat4(),
+                ))
+            })
+            .collect()
+    }
+}
+
+/// World-space bounds of an object-space box, padded by a relative 1e-9 so that rounding in
+/// the transform cannot put a triangle outside them.
+fn world_bounds(m: DMat4, (lo, hi): (Vec3, Vec3)) -> (DVec3, DVec3) {
+    let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
+    let mut wlo = DVec3::splat(f64::INFINITY);
+    let mut whi = DVec3::splat(f64::NEG_INFINITY);
+    for k in 0..8 {
+        let corner = DVec3::new(
+            if k & 1 == 0 { lo.x } else { hi.x },
+            if k & 2 == 0 { lo.y } else { hi.y },
+            if k & 4 == 0 { lo.z } else { hi.z },
+        );
+        let w = m.transform_point3(corner);
+        wlo = wlo.min(w);
+        whi = whi.max(w);
+    }
+    let pad = 1e-9
+        * (whi - wlo)
+            .max_element()
+            .max(wlo.abs().max(whi.abs()).max_element())
+        + f64::MIN_POSITIVE;
+    (wlo - DVec3::splat(pad), whi + DVec3::splat(pad))
+}
+
+/// Slab test: the distance at which the ray enters the box (0 when it starts inside), or `None`
+/// when it misses it or the box is behind.
+fn ray_box(o: DVec3, d: DVec3, lo: DVec3, hi: DVec3) -> Option<f64> {
+    let (mut enter, mut exit) = (0.0f64, f64::INFINITY);
+    for axis in 0..3 {
+        if d[axis] == 0.0 {
+            if o[axis] < lo[axis] || o[axis] > hi[axis] {
+                return None;
+            }
+            continue;
+        }
+        let inv = 1.0 / d[axis];
+        let (t0, t1) = ((lo[axis] - o[axis]) * inv, (hi[axis] - o[axis]) * inv);
+        enter = enter.max(t0.min(t1));
+        exit = exit.min(t0.max(t1));
+    }
+    (enter <= exit).then_some(enter)
+}
+
+/// Möller–Trumbore, both sides, edges included: the ray parameter of the hit, if any.
+fn ray_triangle(o: DVec3, d: DVec3, [v0, v1, v2]: [DVec3; 3]) -> Option<f64> {
+    let (e1, e2) = (v1 - v0, v2 - v0);
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let s = o - v0;
+    let u = s.dot(p) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return None;
+    }
+    let q = s.cross(e1);
+    let v = d.dot(q) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return None;
+    }
+    Some(e2.dot(q) * inv)
+}

@@ -1,0 +1,493 @@
+//! The facade and its planner (issue 5): one test per rule that leaves a pass out, each showing
+//! the pass is not recorded (GPU timestamps are written only by recorded passes) and that the
+//! image is what it would be with the pass.
+
+mod common;
+
+use glam::{DVec3, Mat4, Vec3};
+use volshadow::plan::{Pass, Reason};
+use volshadow::scene::{shapes, LightTexture};
+use volshadow::{
+    reference, Cache, Camera, Frame, FrameLight, HeadlessGpu, Light, Medium, Occluder,
+    OccluderMesh, PhaseFunction, PointLight, Settings, SpotLight, VolumetricShadows,
+};
+
+const SIZE: u32 = 96;
+
+struct Rig {
+    gpu: HeadlessGpu,
+    cache: Cache,
+    camera: Camera,
+    color: wgpu::Texture,
+    depth: wgpu::Texture,
+    output: wgpu::Texture,
+}
+
+fn ground(o: DVec3, d: DVec3) -> f64 {
+    if d.y < 0.0 {
+        -o.y / d.y
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// A ground plane seen from above it, a constant scene colour of 0.5.
+fn rig() -> Rig {
+    let gpu = common::gpu_timed();
+    let cache = Cache::new(&gpu.device);
+    let camera = common::look_at(
+        Vec3::new(0.0, 1.5, 5.0),
+        Vec3::new(0.0, 1.0, 0.0),
+        60.0,
+        1.0,
+    );
+    let depths: Vec<f32> = (0..SIZE * SIZE)
+        .map(|i| {
+            let (o, d) = common::pixel_ray(&camera, SIZE, SIZE, i % SIZE, i / SIZE);
+            let ds = ground(o, d);
+            if ds.is_finite() {
+                common::ndc_depth(&camera, o + ds * d)
+            } else {
+                camera.far_depth()
+            }
+        })
+        .collect();
+    let depth = common::depth_texture(&gpu, SIZE, SIZE, &depths);
+    let tex = |format, usage| {
+        gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: None,
+            size: wgpu::Extent3d {
+                width: SIZE,
+                height: SIZE,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage,
+            view_formats: &[],
+        })
+    };
+    let color = tex(
+        wgpu::TextureFormat::Rgba32Float,
+        wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+    );
+    let texels = vec![[0.5f32, 0.5, 0.5, 1.0]; (SIZE * SIZE) as usize];
+    gpu.queue.write_texture(
+        color.as_image_copy(),
+        bytemuck::cast_slice(&texels),
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(SIZE * 16),
+            rows_per_image: Some(SIZE),
+        },
+        color.size(),
+    );
+    let output = tex(
+        wgpu::TextureFormat::Rgba32Float,
+        wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+    );
+    Rig {
+        gpu,
+        cache,
+        camera,
+        color,
+        depth,
+        output,
+    }
+}
+
+struct Rendered {
+    image: Vec<[f32; 4]>,
+    passes: Vec<String>,
+    plan: volshadow::Plan,
+}
+
+fn render(
+    rig: &Rig,
+    vs: &mut VolumetricShadows,
+    lights: &[FrameLight],
+    medium: &Medium,
+    occluders: &[Occluder],
+) -> Rendered {
+    let frame = Frame {
+        camera: &rig.camera,
+        lights,
+        medium,
+        occluders,
+        scene_color: &rig.color,
+        scene_depth: &rig.depth,
+    };
+    let plan = vs
+        .prepare(&rig.gpu.device, &rig.gpu.queue, &frame)
+        .unwrap()
+        .clone();
+    let mut encoder = rig.gpu.device.create_command_encoder(&Default::default());
+    vs.encode(&mut encoder, &rig.output.create_view(&Default::default()))
+        .unwrap();
+    rig.gpu.submit_and_wait(encoder).unwrap();
+    let passes = vs
+        .read_timings(&rig.gpu.device)
+        .unwrap()
+        .iter()
+        .map(|t| t.label.to_string())
+        .collect();
+    Rendered {
+        image: rig.gpu.read_rgba32f(&rig.output).unwrap(),
+        passes,
+        plan,
+    }
+}
+
+fn settings() -> Settings {
+    Settings {
+        output_format: wgpu::TextureFormat::Rgba32Float,
+        ..Settings::PREDICTABLE
+    }
+}
+
+fn medium() -> Medium {
+    Medium::new(
+        Vec3::splat(0.15),
+        Vec3::splat(0.03),
+        PhaseFunction::HenyeyGreenstein { g: 0.4 },
+    )
+    .unwrap()
+}
+
+fn light() -> Light {
+    PointLight::new(Vec3::new(0.4, 4.5, -0.5), Vec3::splat(30.0))
+        .unwrap()
+        .into()
+}
+
+/// Max relative difference of two images where `b` is above 1% of its maximum.
+fn max_rel(a: &[[f32; 4]], b: &[[f32; 4]]) -> f64 {
+    let max = b.iter().map(|t| t[0]).fold(0.0, f32::max);
+    a.iter()
+        .zip(b)
+        .flat_map(|(x, y)| (0..3).map(move |c| (x[c], y[c])))
+        .filter(|(_, y)| *y > 0.01 * max)
+        .map(|(x, y)| f64::from((x - y).abs() / y))
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn no_occluders_means_no_shadow_map_no_extents_and_the_analytic_image() {
+    let rig = rig();
+    let mut vs =
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
+    let r = render(&rig, &mut vs, &[light().into()], &medium(), &[]);
+    println!("{}", r.plan);
+    assert_eq!(
+        r.plan.skip_reason(Pass::ShadowMap, Some(0)),
+        Some(&Reason::NoOccluders)
+    );
+    assert_eq!(
+        r.plan.skip_reason(Pass::Extents, Some(0)),
+        Some(&Reason::NoOccluders)
+    );
+    assert!(
+        !r.passes
+            .iter()
+            .any(|p| p == "shadow map" || p == "extents" || p == "extrude"),
+        "{:?}",
+        r.passes
+    );
+    // The analytic airlight composited over the attenuated colour equals the reference.
+    let reference =
+        reference::inscatter_image(&rig.camera, SIZE, SIZE, ground, &medium(), &light(), &[]);
+    let expected: Vec<[f32; 4]> = (0..reference.len())
+        .map(|i| {
+            let (o, d) =
+                common::pixel_ray(&rig.camera, SIZE, SIZE, i as u32 % SIZE, i as u32 / SIZE);
+            let t = reference::transmittance(&medium(), ground(o, d));
+            let v = reference[i] + 0.5 * t;
+            [v.x as f32, v.y as f32, v.z as f32, 1.0]
+        })
+        .collect();
+    let err = max_rel(&r.image, &expected);
+    println!("no occluders: max relative error against the reference composite {err:.2e}");
+    assert!(err < 5e-3, "{err}");
+}
+
+#[test]
+fn non_scattering_medium_only_attenuates() {
+    let rig = rig();
+    let mut vs =
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
+    let clear = Medium::new(
+        Vec3::ZERO,
+        Vec3::new(0.1, 0.2, 0.3),
+        PhaseFunction::Isotropic,
+    )
+    .unwrap();
+    let sphere = OccluderMesh::new(
+        &rig.gpu.device,
+        &shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.5, 16, 8),
+    );
+    let r = render(
+        &rig,
+        &mut vs,
+        &[light().into()],
+        &clear,
+        &[Occluder {
+            mesh: &sphere,
+            transform: Mat4::IDENTITY,
+        }],
+    );
+    for pass in [
+        Pass::ShadowMap,
+        Pass::Extents,
+        Pass::AirlightTable,
+        Pass::March,
+    ] {
+        assert_eq!(
+            r.plan.skip_reason(pass, Some(0)),
+            Some(&Reason::NoScattering),
+            "{pass}"
+        );
+    }
+    assert_eq!(r.passes, vec!["composite".to_string()]);
+    let mut worst: f64 = 0.0;
+    for (i, px) in r.image.iter().enumerate() {
+        let (o, d) = common::pixel_ray(&rig.camera, SIZE, SIZE, i as u32 % SIZE, i as u32 / SIZE);
+        let t = reference::transmittance(&clear, ground(o, d));
+        for c in 0..3 {
+            worst = worst.max((f64::from(px[c]) - 0.5 * t[c]).abs());
+        }
+    }
+    println!("sigma_s = 0: max |output - colour x transmittance| = {worst:.2e}");
+    assert!(worst < 1e-5, "{worst}");
+}
+
+#[test]
+fn untextured_light_needs_no_light_texture_and_equals_a_white_texture() {
+    let rig = rig();
+    let spot = SpotLight::new(
+        Vec3::new(0.3, 3.5, -0.5),
+        Vec3::NEG_Y,
+        70f32.to_radians(),
+        Vec3::splat(30.0),
+    )
+    .unwrap();
+    let sphere = OccluderMesh::new(
+        &rig.gpu.device,
+        &shapes::uv_sphere(Vec3::new(0.0, 2.0, -0.3), 0.4, 16, 8),
+    );
+    let occluders = [Occluder {
+        mesh: &sphere,
+        transform: Mat4::IDENTITY,
+    }];
+    let mut vs =
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
+    let plain = render(
+        &rig,
+        &mut vs,
+        &[Light::from(spot).into()],
+        &medium(),
+        &occluders,
+    );
+    assert_eq!(
+        plain.plan.skip_reason(Pass::LightTexture, Some(0)),
+        Some(&Reason::Untextured)
+    );
+    assert!(!plain.passes.iter().any(|p| p == "light texture"));
+    let white = LightTexture::new(4, 4, vec![Vec3::ONE; 16])
+        .unwrap()
+        .upload(&rig.gpu.device, &rig.gpu.queue);
+    let mut vs =
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
+    let textured = render(
+        &rig,
+        &mut vs,
+        &[FrameLight {
+            light: spot.into(),
+            texture: Some(&white),
+        }],
+        &medium(),
+        &occluders,
+    );
+    assert!(textured.passes.iter().any(|p| p == "light texture"));
+    let err = max_rel(&plain.image, &textured.image);
+    println!("untextured vs white texture: max relative difference {err:.2e}");
+    // The textured path marches before and after the extents where the plain one is analytic;
+    // with a white texture its F′ differences telescope to the same values.
+    assert!(err < 1e-2, "{err}");
+}
+
+#[test]
+fn full_resolution_needs_no_upsample() {
+    let rig = rig();
+    let sphere = OccluderMesh::new(
+        &rig.gpu.device,
+        &shapes::uv_sphere(Vec3::new(0.0, 2.0, -0.3), 0.5, 16, 8),
+    );
+    let occluders = [Occluder {
+        mesh: &sphere,
+        transform: Mat4::IDENTITY,
+    }];
+    let mut vs =
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
+    let full = render(&rig, &mut vs, &[light().into()], &medium(), &occluders);
+    assert_eq!(
+        full.plan.skip_reason(Pass::Upsample, Some(0)),
+        Some(&Reason::FullResolution)
+    );
+    assert!(!full.passes.iter().any(|p| p == "upsample"));
+    let mut half_settings = settings();
+    half_settings.march.scale = volshadow::nodes::Scale::Half;
+    let mut vs =
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, half_settings).unwrap();
+    let half = render(&rig, &mut vs, &[light().into()], &medium(), &occluders);
+    assert!(half.plan.runs(Pass::Upsample, Some(0)) && half.passes.iter().any(|p| p == "upsample"));
+    let err = max_rel(&full.image, &half.image);
+    println!("full vs half resolution: max relative difference {err:.2e}");
+    assert!(err < 0.1, "{err}");
+}
+
+#[test]
+fn unchanged_frame_rebuilds_neither_table_nor_shadow_map_and_gives_the_same_image() {
+    let rig = rig();
+    let sphere = OccluderMesh::new(
+        &rig.gpu.device,
+        &shapes::uv_sphere(Vec3::new(0.0, 2.0, -0.3), 0.5, 16, 8),
+    );
+    let occluders = [Occluder {
+        mesh: &sphere,
+        transform: Mat4::IDENTITY,
+    }];
+    let mut vs =
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
+    let first = render(&rig, &mut vs, &[light().into()], &medium(), &occluders);
+    assert!(
+        first.passes.iter().any(|p| p == "shadow map")
+            && first.passes.iter().any(|p| p == "airlight table")
+    );
+    let second = render(&rig, &mut vs, &[light().into()], &medium(), &occluders);
+    println!("{}", second.plan);
+    assert_eq!(
+        second.plan.skip_reason(Pass::ShadowMap, Some(0)),
+        Some(&Reason::Unchanged)
+    );
+    assert_eq!(
+        second.plan.skip_reason(Pass::AirlightTable, Some(0)),
+        Some(&Reason::Unchanged)
+    );
+    assert!(
+        !second
+            .passes
+            .iter()
+            .any(|p| p == "shadow map" || p == "airlight table"),
+        "{:?}",
+        second.passes
+    );
+    assert_eq!(
+        first.image, second.image,
+        "reusing last frame's table and shadow map changed the image"
+    );
+    // Moving the light rebuilds both.
+    let moved: Light = PointLight::new(Vec3::new(0.5, 3.4, -0.5), Vec3::splat(30.0))
+        .unwrap()
+        .into();
+    let third = render(&rig, &mut vs, &[moved.into()], &medium(), &occluders);
+    assert!(
+        third.passes.iter().any(|p| p == "shadow map")
+            && third.passes.iter().any(|p| p == "airlight table")
+    );
+}
+
+#[test]
+fn optically_deep_occluder_is_culled_without_changing_the_image() {
+    let rig = rig();
+    // Dense fog; an occluder far behind the light, whose shadow region is 20+ optical depths
+    // from both the light and the eye.
+    let dense = Medium::new(
+        Vec3::splat(0.6),
+        Vec3::splat(0.2),
+        PhaseFunction::HenyeyGreenstein { g: 0.4 },
+    )
+    .unwrap();
+    let light: Light = PointLight::new(Vec3::new(0.0, 1.5, 2.0), Vec3::splat(30.0))
+        .unwrap()
+        .into();
+    let far = OccluderMesh::new(
+        &rig.gpu.device,
+        &shapes::uv_sphere(Vec3::new(0.0, 1.5, -40.0), 1.0, 16, 8),
+    );
+    let occluders = [Occluder {
+        mesh: &far,
+        transform: Mat4::IDENTITY,
+    }];
+    let culling = Settings {
+        cull_threshold: 1e-3,
+        ..settings()
+    };
+    let mut vs =
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, culling).unwrap();
+    let culled = render(&rig, &mut vs, &[light.into()], &dense, &occluders);
+    println!("{}", culled.plan);
+    assert_eq!(culled.plan.culled.len(), 1);
+    assert!(culled.plan.culled[0].bound < 1e-3);
+    assert_eq!(
+        culled.plan.skip_reason(Pass::ShadowMap, Some(0)),
+        Some(&Reason::NoOccluders)
+    );
+    assert!(!culled.passes.iter().any(|p| p == "shadow map"));
+    let mut vs =
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
+    let kept = render(&rig, &mut vs, &[light.into()], &dense, &occluders);
+    assert!(kept.plan.culled.is_empty() && kept.passes.iter().any(|p| p == "shadow map"));
+    let err = max_rel(&culled.image, &kept.image);
+    println!("culled vs kept: max relative difference {err:.2e}");
+    // The bound promises < 1e-3 of the in-scatter; the composite adds the (unchanged)
+    // attenuated colour, so the image moves by less.
+    assert!(err < 1e-3, "{err}");
+    // A near occluder is not culled.
+    let near = OccluderMesh::new(
+        &rig.gpu.device,
+        &shapes::uv_sphere(Vec3::new(0.0, 1.5, 1.0), 0.3, 16, 8),
+    );
+    let mut vs =
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, culling).unwrap();
+    let r = render(
+        &rig,
+        &mut vs,
+        &[light.into()],
+        &dense,
+        &[Occluder {
+            mesh: &near,
+            transform: Mat4::IDENTITY,
+        }],
+    );
+    assert!(r.plan.culled.is_empty());
+}
+
+#[test]
+fn too_many_lights_and_bad_settings_are_errors() {
+    let rig = rig();
+    let mut vs =
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
+    let lights = vec![FrameLight::from(light()); 5];
+    let frame = Frame {
+        camera: &rig.camera,
+        lights: &lights,
+        medium: &medium(),
+        occluders: &[],
+        scene_color: &rig.color,
+        scene_depth: &rig.depth,
+    };
+    assert!(matches!(
+        vs.prepare(&rig.gpu.device, &rig.gpu.queue, &frame),
+        Err(volshadow::Error::InvalidSetting {
+            field: "lights",
+            ..
+        })
+    ));
+    let bad = Settings {
+        cull_threshold: -1.0,
+        ..settings()
+    };
+    assert!(VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, bad).is_err());
+}
