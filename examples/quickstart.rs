@@ -18,42 +18,55 @@ use volshadow::{
     PointLight, Settings, VolumetricShadows,
 };
 
-const WIDTH: u32 = 640;
-const HEIGHT: u32 = 400;
 /// The spheres of the scene (centre, radius): drawn by the app, and occluders for volshadow.
-const SPHERES: [(Vec3, f32); 2] = [
+pub const SPHERES: [(Vec3, f32); 2] = [
     (Vec3::new(-0.6, 2.2, -2.2), 0.5),
     (Vec3::new(0.8, 1.7, -1.4), 0.4),
 ];
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let output_path = std::env::args()
-        .nth(1)
-        .unwrap_or_else(|| "quickstart.png".into());
-    let gpu = HeadlessGpu::with_optional_features(wgpu::Features::TIMESTAMP_QUERY)?;
-    println!("adapter: {}", gpu.adapter_summary());
-
-    // The scene: camera, a point light behind two spheres, hazy air: the spheres cut dark
-    // shafts towards the camera.
+/// The scene: a camera, a point light behind two spheres, hazy air: the spheres cut dark shafts
+/// towards the camera.
+pub fn scene(width: u32, height: u32) -> volshadow::Result<(Camera, PointLight, Medium)> {
     let eye = Vec3::new(0.0, 1.6, 7.0);
     let camera = Camera::new(
         volshadow::glam::camera::rh::view::look_at_mat4(eye, Vec3::new(0.0, 1.3, 0.0), Vec3::Y),
         volshadow::glam::camera::rh::proj::directx::perspective(
             55f32.to_radians(),
-            WIDTH as f32 / HEIGHT as f32,
+            width as f32 / height as f32,
             0.05,
             200.0,
         ),
     )?;
-    let point = PointLight::new(Vec3::new(0.1, 2.9, -4.6), Vec3::new(90.0, 78.0, 60.0))?;
+    let light = PointLight::new(Vec3::new(0.1, 2.9, -4.6), Vec3::new(90.0, 78.0, 60.0))?;
     let medium = Medium::new(
         Vec3::new(0.10, 0.11, 0.13),
         Vec3::splat(0.01),
         PhaseFunction::HenyeyGreenstein { g: 0.7 },
     )?;
+    Ok((camera, light, medium))
+}
+
+/// What a run produced: the composited image and the in-scatter alone (linear, row-major).
+pub struct Rendered {
+    /// Composited radiance.
+    pub output: Vec<[f32; 4]>,
+    /// In-scattered radiance of the light (full resolution).
+    pub inscatter: Vec<[f32; 4]>,
+}
+
+/// Draws the app's frame, then renders `frames` frames through `VolumetricShadows`, printing
+/// each frame's plan and per-pass GPU times.
+pub fn run(
+    gpu: &HeadlessGpu,
+    width: u32,
+    height: u32,
+    settings: Settings,
+    frames: usize,
+) -> Result<Rendered, Box<dyn std::error::Error>> {
+    let (camera, point, medium) = scene(width, height)?;
 
     // The application's own frame: colour (linear radiance) and depth.
-    let (color, depth) = draw_scene(&gpu, &camera, &point, &medium);
+    let (color, depth) = draw_scene(gpu, &camera, &point, &medium, width, height);
 
     // volshadow: a shared cache, the occluder meshes (uploaded once), the facade.
     let cache = Cache::new(&gpu.device);
@@ -70,13 +83,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .collect();
     let settings = Settings {
         output_format: wgpu::TextureFormat::Rgba32Float,
-        ..Settings::default()
+        ..settings
     };
     let mut volumetric = VolumetricShadows::new(&gpu.device, &gpu.queue, &cache, settings)?;
     let output = gpu.device.create_texture(&texture_desc(
         "output",
         wgpu::TextureFormat::Rgba32Float,
         wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        width,
+        height,
     ));
 
     // Every frame: prepare (validate, upload, plan), record into our encoder, submit.
@@ -89,7 +104,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         scene_color: &color,
         scene_depth: &depth,
     };
-    for frame_index in 0..2 {
+    for frame_index in 0..frames {
         let start = Instant::now();
         let plan = volumetric.prepare(&gpu.device, &gpu.queue, &frame)?;
         println!("frame {frame_index} plan:\n{plan}");
@@ -104,14 +119,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .map(|t| format!("{} {:.2} ms", t.label, t.ms))
             .collect();
         println!(
-            "frame {frame_index}: GPU {gpu_ms:.2} ms ({}); wall clock {wall:.1} ms at {WIDTH}x{HEIGHT}",
+            "frame {frame_index}: GPU {gpu_ms:.2} ms ({}); wall clock {wall:.1} ms at {width}x{height}",
             per_pass.join(", ")
         );
     }
+    Ok(Rendered {
+        output: gpu.read_rgba32f(&output)?,
+        inscatter: gpu.read_rgba32f(volumetric.inscatter(0).expect("rendered"))?,
+    })
+}
 
-    let pixels = gpu.read_rgba32f(&output)?;
-    let image = tone_map(&pixels);
-    image.save(&output_path)?;
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let output_path = std::env::args()
+        .nth(1)
+        .unwrap_or_else(|| "quickstart.png".into());
+    let gpu = HeadlessGpu::with_optional_features(wgpu::Features::TIMESTAMP_QUERY)?;
+    println!("adapter: {}", gpu.adapter_summary());
+    let (width, height) = (640, 400);
+    // Two frames: the second shows what the planner skips when nothing changed.
+    let rendered = run(&gpu, width, height, Settings::default(), 2)?;
+    tone_map(&rendered.output, width, height).save(&output_path)?;
     println!("wrote {output_path}");
     Ok(())
 }
@@ -120,12 +147,14 @@ fn texture_desc(
     label: &'static str,
     format: wgpu::TextureFormat,
     usage: wgpu::TextureUsages,
+    width: u32,
+    height: u32,
 ) -> wgpu::TextureDescriptor<'static> {
     wgpu::TextureDescriptor {
         label: Some(label),
         size: wgpu::Extent3d {
-            width: WIDTH,
-            height: HEIGHT,
+            width,
+            height,
             depth_or_array_layers: 1,
         },
         mip_level_count: 1,
@@ -138,7 +167,7 @@ fn texture_desc(
 }
 
 /// Exposure, Reinhard and sRGB encoding for the PNG.
-fn tone_map(pixels: &[[f32; 4]]) -> image::RgbImage {
+fn tone_map(pixels: &[[f32; 4]], width: u32, height: u32) -> image::RgbImage {
     let encode = |v: f32| {
         let v = 1.6 * v;
         let v = v / (1.0 + v);
@@ -149,8 +178,8 @@ fn tone_map(pixels: &[[f32; 4]]) -> image::RgbImage {
         };
         (s.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
     };
-    image::RgbImage::from_fn(WIDTH, HEIGHT, |x, y| {
-        let p = pixels[(y * WIDTH + x) as usize];
+    image::RgbImage::from_fn(width, height, |x, y| {
+        let p = pixels[(y * width + x) as usize];
         image::Rgb([encode(p[0]), encode(p[1]), encode(p[2])])
     })
 }
@@ -163,17 +192,23 @@ fn draw_scene(
     camera: &Camera,
     light: &PointLight,
     medium: &Medium,
+    width: u32,
+    height: u32,
 ) -> (wgpu::Texture, wgpu::Texture) {
     let device = &gpu.device;
     let color = device.create_texture(&texture_desc(
         "scene colour",
         wgpu::TextureFormat::Rgba16Float,
         wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+        width,
+        height,
     ));
     let depth = device.create_texture(&texture_desc(
         "scene depth",
         wgpu::TextureFormat::Depth32Float,
         wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+        width,
+        height,
     ));
     #[repr(C)]
     #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -194,7 +229,7 @@ fn draw_scene(
         light: light.position().extend(0.0).to_array(),
         intensity: light.intensity().extend(0.0).to_array(),
         sigma_t: medium.sigma_t().extend(0.0).to_array(),
-        size: [WIDTH as f32, HEIGHT as f32, 0.0, 0.0],
+        size: [width as f32, height as f32, 0.0, 0.0],
     };
     let buffer = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("scene uniform"),

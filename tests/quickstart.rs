@@ -1,0 +1,69 @@
+//! The quickstart example as a test: its in-scatter, small, against the f64 reference, and its
+//! dark shafts are really there.
+
+#[path = "../examples/quickstart.rs"]
+#[allow(dead_code)]
+mod quickstart;
+
+mod common;
+
+use glam::DVec3;
+use volshadow::reference::{self, Occluder, Sphere};
+use volshadow::{HeadlessGpu, Settings};
+
+const W: u32 = 128;
+const H: u32 = 80;
+
+#[test]
+fn quickstart_matches_the_reference() {
+    let gpu = HeadlessGpu::new().expect("GPU tests need a wgpu adapter (lavapipe works)");
+    let rendered = quickstart::run(&gpu, W, H, Settings::PREDICTABLE, 1).unwrap();
+    assert!(rendered.output.iter().all(|p| p.iter().all(|v| v.is_finite())));
+    let (camera, light, medium) = quickstart::scene(W, H).unwrap();
+    let spheres: Vec<Occluder> = quickstart::SPHERES
+        .iter()
+        .map(|&(c, r)| Occluder::Sphere(Sphere::new(c.as_dvec3(), f64::from(r))))
+        .collect();
+    // The app's depth: ground plane and the analytic spheres it ray-casts.
+    let distance = |o: DVec3, d: DVec3| {
+        let mut t = if d.y < 0.0 { -o.y / d.y } else { f64::INFINITY };
+        for &(c, r) in &quickstart::SPHERES {
+            let oc = o - c.as_dvec3();
+            let b = oc.dot(d);
+            let disc = b * b - (oc.length_squared() - f64::from(r * r));
+            if disc >= 0.0 && -b - disc.sqrt() > 0.0 {
+                t = t.min(-b - disc.sqrt());
+            }
+        }
+        t
+    };
+    let shadowed = reference::inscatter_image(&camera, W, H, distance, &medium, &light, &spheres);
+    let open = reference::inscatter_image(&camera, W, H, distance, &medium, &light, &[]);
+    // The light's own pixels: there the GPU clamps the singular 1/h by the pixel footprint on
+    // purpose (DESIGN §2) while the reference integrates the one ray through the centre.
+    let pixel_angle = 2.0 * f64::from(camera.pixel_angular_radius(H));
+    let near_light = |i: usize| {
+        let (o, d) = common::pixel_ray(&camera, W, H, i as u32 % W, i as u32 / W);
+        d.angle_between(light.position().as_dvec3() - o) < 1.5 * pixel_angle
+    };
+    let rmse = |a: &dyn Fn(usize) -> DVec3| {
+        let (mut sq, mut sum) = (0.0, 0.0);
+        for (i, r) in shadowed.iter().enumerate().filter(|(i, _)| !near_light(*i)) {
+            let d = a(i) - *r;
+            sq += d.length_squared();
+            sum += r.x + r.y + r.z;
+        }
+        let n = 3.0 * (0..shadowed.len()).filter(|&i| !near_light(i)).count() as f64;
+        (sq / n).sqrt() / (sum / n)
+    };
+    let gpu_rmse = rmse(&|i| {
+        let p = rendered.inscatter[i];
+        DVec3::new(p[0].into(), p[1].into(), p[2].into())
+    });
+    let no_shadow_rmse = rmse(&|i| open[i]);
+    println!("quickstart at {W}x{H}: in-scatter RMSE {gpu_rmse:.4} of mean; without shadows it would be {no_shadow_rmse:.4}");
+    // The spheres are tessellated (48×24) on the GPU and exact in the reference: the difference
+    // lives on shadow edges. 2% is issue 5's bound for the standard scenes.
+    assert!(gpu_rmse <= 0.02, "RMSE {gpu_rmse:.4}");
+    assert!(no_shadow_rmse > 0.05, "the dark shafts should matter: {no_shadow_rmse:.4}");
+}
