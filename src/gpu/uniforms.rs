@@ -4,7 +4,7 @@
 use bytemuck::{Pod, Zeroable};
 use glam::{Vec3, Vec4};
 
-use crate::scene::{Camera, Medium, PhaseFunction, PointLight};
+use crate::scene::{Camera, Light, Medium, PhaseFunction};
 
 /// WGSL `Airlight`.
 #[repr(C)]
@@ -48,7 +48,7 @@ const MIN_EYE_LIGHT_DISTANCE: f32 = 1e-6;
 impl AirlightUniform {
     pub fn new(
         eye: Vec3,
-        light: &PointLight,
+        light: &Light,
         medium: &Medium,
         pixel_angular_radius: f32,
         table_size: [u32; 2],

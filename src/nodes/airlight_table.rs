@@ -31,7 +31,7 @@
 use crate::error::{Error, Result};
 use crate::gpu::uniforms::AirlightUniform;
 use crate::gpu::{Cache, UniformBuffer};
-use crate::scene::{Light, Medium, PointLight};
+use crate::scene::{Light, Medium};
 
 /// Size of the F′ table: entries along each ray (s) and rows across rays (γ).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -137,9 +137,8 @@ impl AirlightTableNode {
         light: &Light,
         medium: &Medium,
     ) -> bool {
-        // The table depends on the light only through D = |P − E|.
-        let point = PointLight::new(light.position(), glam::Vec3::ONE).expect("unit intensity");
-        let key = AirlightUniform::new(eye, &point, medium, 0.0, self.table_dims()).table_key();
+        // The table depends on the light only through D = |P − E| (the key drops the rest).
+        let key = AirlightUniform::new(eye, light, medium, 0.0, self.table_dims()).table_key();
         let changed = self.uniform.write(queue, key);
         self.pending |= changed;
         changed

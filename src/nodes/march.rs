@@ -415,15 +415,11 @@ impl MarchNode {
         }
 
         let camera = inputs.camera;
-        let point = match inputs.light {
-            Light::Point(p) => *p,
-            Light::Spot(s) => crate::scene::PointLight::new(s.position(), s.intensity())?,
-        };
         self.airlight.write(
             queue,
             AirlightUniform::new(
                 camera.eye(),
-                &point,
+                inputs.light,
                 inputs.medium,
                 camera.pixel_angular_radius(height),
                 table.table_dims(),

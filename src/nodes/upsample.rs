@@ -316,13 +316,11 @@ impl UpsampleNode {
         self.view
             .write(queue, ViewUniform::new(inputs.camera, w, h));
         let camera = inputs.camera;
-        let point =
-            crate::scene::PointLight::new(inputs.light.position(), inputs.light.intensity())?;
         self.airlight.write(
             queue,
             crate::gpu::uniforms::AirlightUniform::new(
                 camera.eye(),
-                &point,
+                inputs.light,
                 inputs.medium,
                 camera.pixel_angular_radius(h),
                 inputs.table.table_dims(),

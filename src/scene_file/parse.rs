@@ -366,6 +366,10 @@ fn image_file(file: &Path, field: &str) -> P<LightTexture> {
 
 fn medium(v: &Value, path: &str) -> P<Medium> {
     let o = Obj::new(v, path, &["sigma_s", "sigma_a", "phase"])?;
+    let sigma_s = o
+        .value("sigma_s")
+        .map(|v| non_negative(v, &o.field("sigma_s")))
+        .transpose()?;
     let sigma_a = match o.value("sigma_a") {
         None => Vec3::ZERO,
         Some(v) => non_negative(v, &o.field("sigma_a"))?,
@@ -375,14 +379,19 @@ fn medium(v: &Value, path: &str) -> P<Medium> {
         Some(v) => phase(v, &o.field("phase"))?,
     };
     if let PhaseFunction::HoffmanPreetham { rayleigh, mie, g } = phase {
-        ensure(!o.has("sigma_s"), &o.field("sigma_s"), || {
+        ensure(sigma_s.is_none(), &o.field("sigma_s"), || {
             "must not be given with the hoffman_preetham phase, which sets sigma_s = rayleigh + mie"
                 .to_owned()
         })?;
         return Medium::hoffman_preetham(rayleigh, mie, g, sigma_a)
             .map_err(from_error(&o.field("phase")));
     }
-    let sigma_s = non_negative(o.req_value("sigma_s")?, &o.field("sigma_s"))?;
+    let sigma_s = sigma_s.ok_or_else(|| {
+        problem(
+            &o.field("sigma_s"),
+            "missing required field (unless the phase is hoffman_preetham)",
+        )
+    })?;
     Medium::new(sigma_s, sigma_a, phase).map_err(from_error(path))
 }
 
