@@ -53,6 +53,8 @@ pub enum Reason {
     FullResolution,
     /// Nothing it depends on changed since the last frame; last frame's result is reused.
     Unchanged,
+    /// Brute force marches the whole ray and needs no shadow-volume extents.
+    BruteForce,
 }
 
 impl fmt::Display for Reason {
@@ -63,6 +65,7 @@ impl fmt::Display for Reason {
             Reason::Untextured => "the light is not textured",
             Reason::FullResolution => "scattering already at output resolution",
             Reason::Unchanged => "unchanged since last frame",
+            Reason::BruteForce => "brute force marches the whole ray",
         })
     }
 }
@@ -250,6 +253,8 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
             }
             if facts.method == MarchMethod::Hybrid {
                 run(Pass::Extents, light, format!("at 1/{}", scale.divisor()));
+            } else {
+                skip(Pass::Extents, light, Reason::BruteForce);
             }
         }
         if l.table_changed {

@@ -18,7 +18,10 @@ const H: u32 = 80;
 fn quickstart_matches_the_reference() {
     let gpu = HeadlessGpu::new().expect("GPU tests need a wgpu adapter (lavapipe works)");
     let rendered = quickstart::run(&gpu, W, H, Settings::PREDICTABLE, 1).unwrap();
-    assert!(rendered.output.iter().all(|p| p.iter().all(|v| v.is_finite())));
+    assert!(rendered
+        .output
+        .iter()
+        .all(|p| p.iter().all(|v| v.is_finite())));
     let (camera, light, medium) = quickstart::scene(W, H).unwrap();
     let spheres: Vec<Occluder> = quickstart::SPHERES
         .iter()
@@ -65,5 +68,8 @@ fn quickstart_matches_the_reference() {
     // The spheres are tessellated (48×24) on the GPU and exact in the reference: the difference
     // lives on shadow edges. 2% is issue 5's bound for the standard scenes.
     assert!(gpu_rmse <= 0.02, "RMSE {gpu_rmse:.4}");
-    assert!(no_shadow_rmse > 0.05, "the dark shafts should matter: {no_shadow_rmse:.4}");
+    assert!(
+        no_shadow_rmse > 0.05,
+        "the dark shafts should matter: {no_shadow_rmse:.4}"
+    );
 }

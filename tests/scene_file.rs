@@ -291,7 +291,8 @@ fn methods_and_phases() {
                 sigma_spatial: 1.0,
                 sigma_depth: 0.1
             },
-            bisections: 0
+            bisections: 0,
+            texture_steps: 32
         }
     );
     let medium = |json: &str| {

@@ -90,7 +90,8 @@
 //!   triangles' winding).
 //! * `method` (default hybrid): `"reference"`, `"hybrid"`, `"brute_force"` (each with default
 //!   settings), or an object with `"type"` and, for `"brute_force"`, `steps` (1..=4096, default
-//!   64), `bisections` (0..=16, default 0), `scale` (the divisor of the output size for the
+//!   64), `bisections` (0..=16, default 0), `texture_steps` (hybrid, textured spots: steps
+//!   before and after the extents, 1..=4096, default 32), `scale` (the divisor of the output size for the
 //!   scattering passes: 1, 2 or 4, default 1); for `"hybrid"` the same plus `upsample`:
 //!   `"bilinear"`, `"depth_aware_3x3"` (default) or `{"separable": {"taps" (odd, 3..=31),
 //!   "sigma_spatial" (> 0), "sigma_depth" (> 0)}}`.
@@ -182,17 +183,21 @@ pub enum Method {
         upsample: UpsampleFilter,
         /// Bisection steps per lit/shadow transition (0..=16).
         bisections: u32,
+        /// Textured spot lights: steps before and after the extents (1..=4096, default 32).
+        texture_steps: u32,
     },
 }
 
 impl Default for Method {
-    /// `Hybrid { steps: 64, scale: Full, upsample: DepthAware3x3, bisections: 0 }`.
+    /// `Hybrid { steps: 64, scale: Full, upsample: DepthAware3x3, bisections: 0,
+    /// texture_steps: 32 }`.
     fn default() -> Self {
         Method::Hybrid {
             steps: 64,
             scale: Scale::Full,
             upsample: UpsampleFilter::DepthAware3x3,
             bisections: 0,
+            texture_steps: 32,
         }
     }
 }
@@ -218,13 +223,14 @@ impl Method {
                 steps,
                 bisections,
                 scale,
+                texture_steps,
                 ..
             } => Some(MarchSettings {
                 method: MarchMethod::Hybrid,
                 steps,
                 bisections,
                 scale,
-                ..MarchSettings::default()
+                texture_steps,
             }),
         }
     }

@@ -849,7 +849,14 @@ fn method(v: &Value, path: &str) -> P<Method> {
         _ => Obj::new(
             v,
             path,
-            &["type", "steps", "bisections", "scale", "upsample"],
+            &[
+                "type",
+                "steps",
+                "bisections",
+                "scale",
+                "upsample",
+                "texture_steps",
+            ],
         )?,
     };
     let steps = count(&o, "steps", 64, 1, 4096)?;
@@ -877,6 +884,7 @@ fn method(v: &Value, path: &str) -> P<Method> {
         scale,
         upsample,
         bisections,
+        texture_steps: count(&o, "texture_steps", 32, 1, 4096)?,
     })
 }
 

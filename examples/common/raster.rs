@@ -1,0 +1,444 @@
+//! The application's own frame: a plain forward rasteriser of triangle meshes.
+//!
+//! This is the "app" side of the examples, not part of volshadow: it writes what any renderer
+//! would hand to [`volshadow::VolumetricShadows`] — linear radiance in an `Rgba32Float` colour
+//! texture and a `Depth32Float` depth buffer, both the output's size.
+//!
+//! Shading, per surface point `x` with flat normal `n` (two-sided) and albedo `ρ`:
+//!
+//! ```text
+//! Ls = ρ/π · Σ_lights I0(ω) · max(n·l, 0) / d² · exp(−σt·d)  +  ρ · ambient
+//! ```
+//!
+//! with `d` the distance to the light, `exp(−σt·d)` the fog between light and surface (the
+//! fog between surface and eye is volshadow's composite's job), `I0(ω)` zero outside a spot
+//! light's cone and multiplied by its projected texture when it has one. There are **no
+//! surface shadows**: the examples are about the shadows *in the fog*, and an app would bring
+//! its own shadow maps for surfaces.
+
+use volshadow::glam::{Mat4, Vec3};
+use volshadow::scene::Mesh;
+use volshadow::{Camera, HeadlessGpu, Light, Medium};
+
+/// The most lights the raster shades (the facade's limit too).
+pub const MAX_LIGHTS: usize = 4;
+
+/// One mesh to draw: object-space triangles placed by `transform`.
+pub struct DrawObject<'a> {
+    /// The triangles, in object space.
+    pub mesh: &'a Mesh,
+    /// Object → world.
+    pub transform: Mat4,
+    /// Diffuse reflectance, linear RGB.
+    pub albedo: Vec3,
+}
+
+/// One light to shade with, and its projected texture (as uploaded for volshadow, e.g. by
+/// `LightTexture::upload`; only used for spot lights).
+#[derive(Clone, Copy)]
+pub struct DrawLight<'a> {
+    /// The light.
+    pub light: Light,
+    /// A filterable float texture, or `None` for white.
+    pub texture: Option<&'a wgpu::Texture>,
+}
+
+/// The app's frame: colour (`Rgba32Float`, linear radiance, alpha 1) and depth
+/// (`Depth32Float`, cleared to `camera.far_depth()` where nothing was drawn). Both have usage
+/// `RENDER_ATTACHMENT | TEXTURE_BINDING | COPY_SRC`.
+pub struct AppFrame {
+    /// Shaded colour.
+    pub color: wgpu::Texture,
+    /// Depth buffer.
+    pub depth: wgpu::Texture,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Vertex {
+    position: [f32; 3],
+    normal: [f32; 3],
+    albedo: [f32; 3],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct LightUniform {
+    /// xyz position, w: 0 point, 1 spot.
+    position: [f32; 4],
+    /// rgb intensity, w: 1 when textured.
+    intensity: [f32; 4],
+    /// xyz cone axis, w: cos(half angle).
+    direction: [f32; 4],
+    /// World → the spot's texture frame.
+    frame: [f32; 16],
+    /// x: tan(half angle).
+    params: [f32; 4],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct SceneUniform {
+    clip_from_world: [f32; 16],
+    eye: [f32; 4],
+    sigma_t: [f32; 4],
+    ambient: [f32; 4],
+    light_count: [u32; 4],
+    lights: [LightUniform; MAX_LIGHTS],
+}
+
+/// A small ambient radiance per unit albedo for a scene: 3% of what a white surface facing
+/// each light at the eye's distance from it would reflect, so it scales with the scene.
+pub fn default_ambient(camera: &Camera, lights: &[DrawLight], medium: &Medium) -> Vec3 {
+    lights
+        .iter()
+        .map(|l| {
+            let d = l.light.position().distance(camera.eye()).max(1e-6);
+            l.light.intensity() * (-medium.sigma_t() * d).exp() / (d * d)
+        })
+        .sum::<Vec3>()
+        * (0.03 / std::f32::consts::PI)
+}
+
+/// Draws `objects` seen by `camera` into a new `width × height` colour and depth texture (see
+/// the [module docs](self) for the shading). Standard and reversed Z both work: depth is
+/// cleared to `camera.far_depth()` and compared towards the near end.
+pub fn draw_app_frame(
+    gpu: &HeadlessGpu,
+    camera: &Camera,
+    (width, height): (u32, u32),
+    objects: &[DrawObject],
+    lights: &[DrawLight],
+    medium: &Medium,
+    ambient: Vec3,
+) -> Result<AppFrame, Box<dyn std::error::Error>> {
+    if lights.len() > MAX_LIGHTS {
+        return Err(format!(
+            "{} lights, the example draws at most {MAX_LIGHTS}",
+            lights.len()
+        )
+        .into());
+    }
+    let device = &gpu.device;
+    let usage = wgpu::TextureUsages::RENDER_ATTACHMENT
+        | wgpu::TextureUsages::TEXTURE_BINDING
+        | wgpu::TextureUsages::COPY_SRC;
+    let color = device.create_texture(&texture_desc(
+        "app colour",
+        (width, height),
+        wgpu::TextureFormat::Rgba32Float,
+        usage,
+    ));
+    let depth = device.create_texture(&texture_desc(
+        "app depth",
+        (width, height),
+        wgpu::TextureFormat::Depth32Float,
+        usage,
+    ));
+
+    // World-space triangles with flat normals, one vertex buffer for the whole scene.
+    let mut vertices: Vec<Vertex> = Vec::new();
+    for object in objects {
+        let positions = object.mesh.positions();
+        for tri in object.mesh.indices().chunks_exact(3) {
+            let p = [tri[0], tri[1], tri[2]]
+                .map(|i| object.transform.transform_point3(positions[i as usize]));
+            let normal = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
+            for q in p {
+                vertices.push(Vertex {
+                    position: q.to_array(),
+                    normal: normal.to_array(),
+                    albedo: object.albedo.to_array(),
+                });
+            }
+        }
+    }
+    let vertex_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("app vertices"),
+        size: (std::mem::size_of_val(vertices.as_slice()) as u64).max(64),
+        usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    gpu.queue
+        .write_buffer(&vertex_buffer, 0, bytemuck::cast_slice(&vertices));
+
+    let mut uniform = SceneUniform {
+        clip_from_world: (camera.projection() * camera.view()).to_cols_array(),
+        eye: camera.eye().extend(1.0).to_array(),
+        sigma_t: medium.sigma_t().extend(0.0).to_array(),
+        ambient: ambient.extend(0.0).to_array(),
+        light_count: [lights.len() as u32, 0, 0, 0],
+        lights: [bytemuck::Zeroable::zeroed(); MAX_LIGHTS],
+    };
+    for (slot, l) in uniform.lights.iter_mut().zip(lights) {
+        let textured = if l.texture.is_some() { 1.0 } else { 0.0 };
+        *slot = match l.light {
+            Light::Spot(spot) => LightUniform {
+                position: spot.position().extend(1.0).to_array(),
+                intensity: spot.intensity().extend(textured).to_array(),
+                direction: spot.direction().extend(spot.cos_half_angle()).to_array(),
+                frame: spot.texture_frame().to_cols_array(),
+                params: [(0.5 * spot.cone_angle()).tan(), 0.0, 0.0, 0.0],
+            },
+            other => LightUniform {
+                position: other.position().extend(0.0).to_array(),
+                intensity: other.intensity().extend(0.0).to_array(),
+                direction: [0.0, -1.0, 0.0, -1.0],
+                frame: Mat4::IDENTITY.to_cols_array(),
+                params: [1.0, 0.0, 0.0, 0.0],
+            },
+        };
+    }
+    let uniform_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("app scene"),
+        size: std::mem::size_of::<SceneUniform>() as u64,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    gpu.queue
+        .write_buffer(&uniform_buffer, 0, bytemuck::bytes_of(&uniform));
+
+    // Untextured slots read a 1×1 white texture.
+    let white = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("app white"),
+        size: wgpu::Extent3d {
+            width: 1,
+            height: 1,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba16Float,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    let one = half::f16::from_f32(1.0);
+    gpu.queue.write_texture(
+        white.as_image_copy(),
+        bytemuck::cast_slice(&[one; 4]),
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(8),
+            rows_per_image: Some(1),
+        },
+        wgpu::Extent3d {
+            width: 1,
+            height: 1,
+            depth_or_array_layers: 1,
+        },
+    );
+    let views: Vec<wgpu::TextureView> = (0..MAX_LIGHTS)
+        .map(|i| {
+            lights
+                .get(i)
+                .and_then(|l| l.texture)
+                .unwrap_or(&white)
+                .create_view(&Default::default())
+        })
+        .collect();
+    let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+        label: Some("app light texture"),
+        mag_filter: wgpu::FilterMode::Linear,
+        min_filter: wgpu::FilterMode::Linear,
+        ..Default::default()
+    });
+
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("app raster"),
+        source: wgpu::ShaderSource::Wgsl(RASTER_WGSL.into()),
+    });
+    // Nearer is smaller with standard Z, larger with reversed Z.
+    let compare = if camera.far_depth() == 1.0 {
+        wgpu::CompareFunction::Less
+    } else {
+        wgpu::CompareFunction::Greater
+    };
+    let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("app raster"),
+        layout: None,
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some("vs"),
+            compilation_options: Default::default(),
+            buffers: &[Some(wgpu::VertexBufferLayout {
+                array_stride: std::mem::size_of::<Vertex>() as u64,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3],
+            })],
+        },
+        primitive: wgpu::PrimitiveState { cull_mode: None, ..Default::default() },
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: wgpu::TextureFormat::Depth32Float,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(compare),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: &module,
+            entry_point: Some("fs"),
+            compilation_options: Default::default(),
+            targets: &[Some(wgpu::TextureFormat::Rgba32Float.into())],
+        }),
+        multiview_mask: None,
+        cache: None,
+    });
+    let mut entries = vec![wgpu::BindGroupEntry {
+        binding: 0,
+        resource: uniform_buffer.as_entire_binding(),
+    }];
+    for (i, view) in views.iter().enumerate() {
+        entries.push(wgpu::BindGroupEntry {
+            binding: 1 + i as u32,
+            resource: wgpu::BindingResource::TextureView(view),
+        });
+    }
+    entries.push(wgpu::BindGroupEntry {
+        binding: 1 + MAX_LIGHTS as u32,
+        resource: wgpu::BindingResource::Sampler(&sampler),
+    });
+    let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("app raster"),
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &entries,
+    });
+
+    let mut encoder = device.create_command_encoder(&Default::default());
+    {
+        let color_view = color.create_view(&Default::default());
+        let depth_view = depth.create_view(&Default::default());
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("app raster"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &color_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color {
+                        r: 0.0,
+                        g: 0.0,
+                        b: 0.0,
+                        a: 1.0,
+                    }),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &depth_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(camera.far_depth()),
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        if !vertices.is_empty() {
+            pass.set_pipeline(&pipeline);
+            pass.set_bind_group(0, &bind_group, &[]);
+            pass.set_vertex_buffer(0, vertex_buffer.slice(..));
+            pass.draw(0..vertices.len() as u32, 0..1);
+        }
+    }
+    gpu.submit_and_wait(encoder)?;
+    Ok(AppFrame { color, depth })
+}
+
+/// A 2D, single-mip texture descriptor.
+pub fn texture_desc(
+    label: &'static str,
+    (width, height): (u32, u32),
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::TextureDescriptor<'static> {
+    wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    }
+}
+
+const RASTER_WGSL: &str = r#"
+struct Light {
+    position: vec4<f32>,
+    intensity: vec4<f32>,
+    direction: vec4<f32>,
+    frame: mat4x4<f32>,
+    params: vec4<f32>,
+}
+struct Scene {
+    clip_from_world: mat4x4<f32>,
+    eye: vec4<f32>,
+    sigma_t: vec4<f32>,
+    ambient: vec4<f32>,
+    light_count: vec4<u32>,
+    lights: array<Light, 4>,
+}
+@group(0) @binding(0) var<uniform> scene: Scene;
+@group(0) @binding(1) var texture0: texture_2d<f32>;
+@group(0) @binding(2) var texture1: texture_2d<f32>;
+@group(0) @binding(3) var texture2: texture_2d<f32>;
+@group(0) @binding(4) var texture3: texture_2d<f32>;
+@group(0) @binding(5) var linear: sampler;
+
+struct Varyings {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) albedo: vec3<f32>,
+}
+
+@vertex fn vs(@location(0) position: vec3<f32>, @location(1) normal: vec3<f32>,
+              @location(2) albedo: vec3<f32>) -> Varyings {
+    var out: Varyings;
+    out.clip = scene.clip_from_world * vec4<f32>(position, 1.0);
+    out.world = position;
+    out.normal = normal;
+    out.albedo = albedo;
+    return out;
+}
+
+fn light_texel(i: u32, uv: vec2<f32>) -> vec3<f32> {
+    if (i == 0u) { return textureSampleLevel(texture0, linear, uv, 0.0).rgb; }
+    if (i == 1u) { return textureSampleLevel(texture1, linear, uv, 0.0).rgb; }
+    if (i == 2u) { return textureSampleLevel(texture2, linear, uv, 0.0).rgb; }
+    return textureSampleLevel(texture3, linear, uv, 0.0).rgb;
+}
+
+@fragment fn fs(in: Varyings) -> @location(0) vec4<f32> {
+    var n = in.normal;
+    if (dot(n, scene.eye.xyz - in.world) < 0.0) { n = -n; }
+    var irradiance = vec3<f32>(0.0);
+    for (var i = 0u; i < scene.light_count.x; i++) {
+        let light = scene.lights[i];
+        let to_light = light.position.xyz - in.world;
+        let d = max(length(to_light), 1e-6);
+        let l = to_light / d;
+        var emitted = light.intensity.rgb;
+        if (light.position.w > 0.5) {
+            if (dot(-l, light.direction.xyz) < light.direction.w) { continue; }
+            if (light.intensity.w > 0.5) {
+                let v = light.frame * vec4<f32>(in.world, 1.0);
+                let s = 0.5 / (-v.z * light.params.x);
+                emitted *= light_texel(i, vec2<f32>(0.5 + v.x * s, 0.5 - v.y * s));
+            }
+        }
+        irradiance += emitted * max(dot(n, l), 0.0) / (d * d) * exp(-scene.sigma_t.xyz * d);
+    }
+    let radiance = in.albedo / 3.14159265 * irradiance + in.albedo * scene.ambient.xyz;
+    return vec4<f32>(radiance, 1.0);
+}
+"#;

@@ -1,0 +1,528 @@
+//! The `render` example: a JSON scene file rendered headless to EXR, PNG and a JSON report.
+//!
+//! ```text
+//! render SCENE.json [-o OUT] [--method METHOD] [--size WxH] [--exposure E]
+//! ```
+//!
+//! Writes `OUT.exr` (linear RGB radiance: attenuated surfaces plus in-scatter), `OUT.png`
+//! (tone-mapped: exposure, Reinhard, sRGB), `OUT.inscatter.exr` (the in-scattered radiance
+//! alone, summed over the lights, before the composite), `OUT.depth.exr` (eye distance per
+//! pixel in R, G and B; [`SKY_DISTANCE`] where nothing was drawn) and `OUT.json` (scene, size,
+//! method, adapter, the plan, GPU time per pass in ms for the last of three frames, their sum,
+//! and the wall-clock time of that frame). `OUT` defaults to the scene file's stem; a trailing
+//! `.png`, `.exr` or `.json` is dropped.
+//!
+//! `METHOD` (default: the scene file's own `method`):
+//! * `reference`: the f64 CPU integrator ([`volshadow::reference::inscatter_image`]) with
+//!   exact visibility, composited on the CPU onto the same app-drawn frame;
+//! * `analytic`: the GPU with no occluders passed — unshadowed airlight, the cost floor;
+//! * `brute[:STEPS[:SCALE[:BISECTIONS]]]`: the GPU brute-force march;
+//! * `hybrid[:STEPS[:SCALE[:FILTER[:BISECTIONS]]]]`: the GPU hybrid, FILTER one of
+//!   `bilinear`, `3x3` (depth-aware 3×3, the default) or
+//!   `separable[,TAPS,SIGMA_SPATIAL,SIGMA_DEPTH]` (default `separable,7,1.5,0.05`).
+//!
+//! Defaults: 64 steps, SCALE 1 (full resolution; 2 or 4 divide the output size), 0 bisections.
+//! Everything else is `Settings::default()`'s (256² F′ table, 1024² shadow maps, occluders
+//! culled below 1e-3 of the in-scatter; `march_settings()`' 32 texture steps outside the extents).
+//! `--size` overrides the file's size (the camera keeps its vertical field of view);
+//! `--exposure` replaces the automatic exposure ([`auto_exposure`]) of the PNG.
+//!
+//! The app's own frame is drawn by [`draw_app_frame`]: every object of the scene, receivers
+//! included, lit without surface shadows.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use volshadow::glam::DVec3;
+use volshadow::nodes::{Scale, UpsampleFilter};
+use volshadow::reference::{self, TexturedSpot};
+use volshadow::scene_file::{Method, SceneDescription};
+use volshadow::{
+    Cache, Frame, FrameLight, HeadlessGpu, Light, Occluder, OccluderMesh, Settings,
+    VolumetricShadows,
+};
+
+use super::raster::{default_ambient, draw_app_frame, texture_desc, DrawLight, DrawObject};
+use super::{
+    auto_exposure, eye_distances, parse_size, read_depth, read_inscatter, render_frames, rgb,
+    timings_json, tone_map, with_aspect, write_exr, write_png, BoxError, FRAMES, SKY_DISTANCE,
+};
+
+/// The command line, for error messages.
+pub const USAGE: &str = "usage: render SCENE.json [-o OUT] \
+[--method reference|analytic|brute[:STEPS[:SCALE[:BISECTIONS]]]|hybrid[:STEPS[:SCALE[:FILTER[:BISECTIONS]]]]] \
+[--size WxH] [--exposure E]";
+
+/// How to compute the in-scatter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RenderMethod {
+    /// The f64 reference on the CPU.
+    Reference,
+    /// The GPU without occluders.
+    Analytic,
+    /// A GPU method of the scene format (never [`Method::Reference`]).
+    Gpu(Method),
+}
+
+impl RenderMethod {
+    /// The scene file's method.
+    pub fn from_scene(method: Method) -> Self {
+        match method {
+            Method::Reference => RenderMethod::Reference,
+            other => RenderMethod::Gpu(other),
+        }
+    }
+
+    /// Parses the `--method` syntax (see the [module docs](self)).
+    pub fn parse(text: &str) -> Result<Self, BoxError> {
+        let mut parts = text.split(':');
+        let kind = parts.next().unwrap_or_default();
+        let rest: Vec<&str> = parts.collect();
+        let bad = |what: &str| -> BoxError { format!("--method {text:?}: {what}").into() };
+        let number = |i: usize, name: &str, default: u32| -> Result<u32, BoxError> {
+            rest.get(i).map_or(Ok(default), |s| {
+                s.parse()
+                    .map_err(|_| bad(&format!("{name} must be a whole number, got {s:?}")))
+            })
+        };
+        let scale = |i: usize| -> Result<Scale, BoxError> {
+            Scale::from_divisor(number(i, "SCALE", 1)?).map_err(|e| bad(&e.to_string()))
+        };
+        let too_many = |max: usize| -> Result<(), BoxError> {
+            if rest.len() > max {
+                Err(bad(&format!("at most {max} ':'-separated parameters")))
+            } else {
+                Ok(())
+            }
+        };
+        match kind {
+            "reference" | "analytic" => {
+                too_many(0)?;
+                Ok(if kind == "reference" {
+                    RenderMethod::Reference
+                } else {
+                    RenderMethod::Analytic
+                })
+            }
+            "brute" | "brute_force" => {
+                too_many(3)?;
+                Ok(RenderMethod::Gpu(Method::BruteForce {
+                    steps: number(0, "STEPS", 64)?,
+                    scale: scale(1)?,
+                    bisections: number(2, "BISECTIONS", 0)?,
+                }))
+            }
+            "hybrid" => {
+                too_many(4)?;
+                let upsample = match rest.get(2) {
+                    None => UpsampleFilter::DepthAware3x3,
+                    Some(f) => parse_filter(f).map_err(|e| bad(&e.to_string()))?,
+                };
+                Ok(RenderMethod::Gpu(Method::Hybrid {
+                    steps: number(0, "STEPS", 64)?,
+                    scale: scale(1)?,
+                    upsample,
+                    bisections: number(3, "BISECTIONS", 0)?,
+                    texture_steps: 32,
+                }))
+            }
+            _ => Err(bad(
+                "expected reference, analytic, brute[:..] or hybrid[:..]",
+            )),
+        }
+    }
+
+    /// The method in the `--method` syntax, every parameter spelt out.
+    pub fn describe(&self) -> String {
+        match *self {
+            RenderMethod::Reference => "reference".into(),
+            RenderMethod::Analytic => "analytic".into(),
+            RenderMethod::Gpu(Method::BruteForce {
+                steps,
+                scale,
+                bisections,
+            }) => {
+                format!("brute:{steps}:{}:{bisections}", scale.divisor())
+            }
+            RenderMethod::Gpu(Method::Hybrid {
+                steps,
+                scale,
+                upsample,
+                bisections,
+                ..
+            }) => {
+                let filter = match upsample {
+                    UpsampleFilter::Bilinear => "bilinear".to_string(),
+                    UpsampleFilter::DepthAware3x3 => "3x3".to_string(),
+                    UpsampleFilter::Separable {
+                        taps,
+                        sigma_spatial,
+                        sigma_depth,
+                    } => {
+                        format!("separable,{taps},{sigma_spatial},{sigma_depth}")
+                    }
+                    other => format!("{other:?}"),
+                };
+                format!("hybrid:{steps}:{}:{filter}:{bisections}", scale.divisor())
+            }
+            RenderMethod::Gpu(other) => format!("{other:?}"),
+        }
+    }
+}
+
+/// `bilinear`, `3x3` / `depth_aware_3x3`, or `separable[,TAPS,SIGMA_SPATIAL,SIGMA_DEPTH]`.
+fn parse_filter(text: &str) -> Result<UpsampleFilter, BoxError> {
+    let mut parts = text.split(',');
+    match parts.next().unwrap_or_default() {
+        "bilinear" => Ok(UpsampleFilter::Bilinear),
+        "3x3" | "depth_aware_3x3" => Ok(UpsampleFilter::DepthAware3x3),
+        "separable" => {
+            let rest: Vec<&str> = parts.collect();
+            let filter = match rest.as_slice() {
+                [] => UpsampleFilter::Separable {
+                    taps: 7,
+                    sigma_spatial: 1.5,
+                    sigma_depth: 0.05,
+                },
+                [taps, spatial, depth] => UpsampleFilter::Separable {
+                    taps: taps
+                        .parse()
+                        .map_err(|_| format!("TAPS {taps:?} is not a number"))?,
+                    sigma_spatial: spatial
+                        .parse()
+                        .map_err(|_| format!("SIGMA_SPATIAL {spatial:?} is not a number"))?,
+                    sigma_depth: depth
+                        .parse()
+                        .map_err(|_| format!("SIGMA_DEPTH {depth:?} is not a number"))?,
+                },
+                _ => return Err("separable takes no or three ','-separated parameters".into()),
+            };
+            filter.validate()?;
+            Ok(filter)
+        }
+        other => Err(format!("unknown FILTER {other:?} (bilinear, 3x3, separable)").into()),
+    }
+}
+
+/// The parsed command line.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Options {
+    /// The scene file.
+    pub scene: PathBuf,
+    /// Output paths without extension.
+    pub out: PathBuf,
+    /// `None`: the scene's own method.
+    pub method: Option<RenderMethod>,
+    /// `None`: the scene's own size.
+    pub size: Option<(u32, u32)>,
+    /// `None`: [`auto_exposure`].
+    pub exposure: Option<f64>,
+}
+
+impl Options {
+    /// Parses the arguments after the program name.
+    pub fn parse(args: &[String]) -> Result<Self, BoxError> {
+        let mut scene = None;
+        let (mut out, mut method, mut size, mut exposure) = (None, None, None, None);
+        let mut it = args.iter();
+        while let Some(arg) = it.next() {
+            let mut value = |flag: &str| {
+                it.next()
+                    .ok_or_else(|| -> BoxError { format!("{flag} needs a value\n{USAGE}").into() })
+            };
+            match arg.as_str() {
+                "-o" | "--output" => out = Some(PathBuf::from(value(arg)?)),
+                "--method" => method = Some(RenderMethod::parse(value(arg)?)?),
+                "--size" => size = Some(parse_size(value(arg)?)?),
+                "--exposure" => {
+                    let text = value(arg)?;
+                    let e: f64 = text
+                        .parse()
+                        .map_err(|_| format!("--exposure {text:?} is not a number"))?;
+                    if !(e.is_finite() && e > 0.0) {
+                        return Err(format!("--exposure must be positive, got {e}").into());
+                    }
+                    exposure = Some(e);
+                }
+                "-h" | "--help" => return Err(USAGE.into()),
+                flag if flag.starts_with('-') => {
+                    return Err(format!("unknown option {flag:?}\n{USAGE}").into())
+                }
+                path if scene.is_none() => scene = Some(PathBuf::from(path)),
+                extra => return Err(format!("unexpected argument {extra:?}\n{USAGE}").into()),
+            }
+        }
+        let scene: PathBuf = scene.ok_or_else(|| format!("no scene file given\n{USAGE}"))?;
+        let mut out =
+            out.unwrap_or_else(|| PathBuf::from(scene.file_stem().unwrap_or("render".as_ref())));
+        if matches!(
+            out.extension().and_then(|e| e.to_str()),
+            Some("png" | "exr" | "json")
+        ) {
+            out.set_extension("");
+        }
+        Ok(Options {
+            scene,
+            out,
+            method,
+            size,
+            exposure,
+        })
+    }
+
+    /// `OUT` followed by `suffix` (e.g. `".inscatter.exr"`).
+    pub fn path(&self, suffix: &str) -> PathBuf {
+        let mut s = self.out.as_os_str().to_owned();
+        s.push(suffix);
+        s.into()
+    }
+}
+
+/// What [`render`] produced.
+pub struct Rendered {
+    /// The five files, in the order exr, png, inscatter exr, depth exr, json.
+    pub files: [PathBuf; 5],
+    /// The JSON report, as written.
+    pub report: serde_json::Value,
+}
+
+/// Parses `args` (after the program name) and renders: the whole example.
+pub fn run(args: &[String]) -> Result<Rendered, BoxError> {
+    render(&Options::parse(args)?)
+}
+
+/// Renders a scene file as `options` say and writes the five files.
+pub fn render(options: &Options) -> Result<Rendered, BoxError> {
+    let scene = SceneDescription::load(&options.scene)?;
+    let size = options.size.unwrap_or(scene.size);
+    let (width, height) = size;
+    let camera = if options
+        .size
+        .is_some_and(|s| s.0 * scene.size.1 != s.1 * scene.size.0)
+    {
+        with_aspect(&scene.camera, width as f32 / height as f32)?
+    } else {
+        scene.camera
+    };
+    let method = options
+        .method
+        .unwrap_or_else(|| RenderMethod::from_scene(scene.method));
+    let gpu = HeadlessGpu::with_optional_features(wgpu::Features::TIMESTAMP_QUERY)?;
+    println!(
+        "scene {:?} at {width}x{height}, method {}",
+        scene.name,
+        method.describe()
+    );
+    println!("adapter: {}", gpu.adapter_summary());
+
+    // The app: light textures, then its own frame.
+    let textures: Vec<Option<wgpu::Texture>> = scene
+        .lights
+        .iter()
+        .map(|l| {
+            l.texture
+                .as_ref()
+                .map(|t| t.upload(&gpu.device, &gpu.queue))
+        })
+        .collect();
+    let draw_lights: Vec<DrawLight> = scene
+        .lights
+        .iter()
+        .zip(&textures)
+        .map(|(l, t)| DrawLight {
+            light: l.light,
+            texture: t.as_ref(),
+        })
+        .collect();
+    let objects: Vec<DrawObject> = scene
+        .objects
+        .iter()
+        .map(|o| DrawObject {
+            mesh: &o.mesh,
+            transform: o.transform,
+            albedo: o.albedo,
+        })
+        .collect();
+    let ambient = default_ambient(&camera, &draw_lights, &scene.medium);
+    let app = draw_app_frame(
+        &gpu,
+        &camera,
+        size,
+        &objects,
+        &draw_lights,
+        &scene.medium,
+        ambient,
+    )?;
+    let distances = eye_distances(&camera, size, &read_depth(&gpu, &app.depth)?);
+
+    let (radiance, inscatter, plan, timings, wall_ms) = match method {
+        RenderMethod::Reference => {
+            let start = Instant::now();
+            let occluders = scene.reference_occluders();
+            let mut inscatter = vec![DVec3::ZERO; (width * height) as usize];
+            let ds = |o: DVec3, d: DVec3| scene.ray_distance(o, d);
+            for l in &scene.lights {
+                let image = match (l.light, &l.texture) {
+                    (Light::Spot(spot), Some(texture)) => {
+                        let textured = TexturedSpot { spot, texture };
+                        reference::inscatter_image(
+                            &camera,
+                            width,
+                            height,
+                            ds,
+                            &scene.medium,
+                            &textured,
+                            &occluders,
+                        )
+                    }
+                    (light, _) => reference::inscatter_image(
+                        &camera,
+                        width,
+                        height,
+                        ds,
+                        &scene.medium,
+                        &light,
+                        &occluders,
+                    ),
+                };
+                inscatter
+                    .iter_mut()
+                    .zip(image)
+                    .for_each(|(sum, v)| *sum += v);
+            }
+            let wall_ms = start.elapsed().as_secs_f64() * 1e3;
+            // The composite of the GPU path, on the CPU: Ls·exp(−σt·ds) + in-scatter, with the
+            // surface distance of the app's depth buffer.
+            let color = gpu.read_rgba32f(&app.color)?;
+            let radiance: Vec<DVec3> = color
+                .iter()
+                .zip(&distances)
+                .zip(&inscatter)
+                .map(|((c, &ds), s)| rgb(c) * reference::transmittance(&scene.medium, ds) + *s)
+                .collect();
+            let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+            let plan = vec![format!(
+                "  run   frame    reference      f64 CPU integrator, exact visibility, {} light(s), {threads} thread(s)",
+                scene.lights.len()
+            )];
+            (radiance, inscatter, plan, Vec::new(), wall_ms)
+        }
+        RenderMethod::Analytic | RenderMethod::Gpu(_) => {
+            let gpu_method = match method {
+                RenderMethod::Gpu(m) => m,
+                _ => Method::default(),
+            };
+            let march = gpu_method
+                .march_settings()
+                .ok_or("a GPU method has march settings")?;
+            let settings = Settings {
+                march,
+                upsample: gpu_method.upsample(),
+                output_format: wgpu::TextureFormat::Rgba32Float,
+                ..Settings::default()
+            };
+            let cache = Cache::new(&gpu.device);
+            let mut volumetric = VolumetricShadows::new(&gpu.device, &gpu.queue, &cache, settings)?;
+            // Occluder meshes are uploaded once; "analytic" passes none.
+            let shadow_casters: Vec<_> = scene
+                .objects
+                .iter()
+                .filter(|o| o.casts_shadow && method != RenderMethod::Analytic)
+                .collect();
+            let meshes: Vec<OccluderMesh> = shadow_casters
+                .iter()
+                .map(|o| OccluderMesh::new(&gpu.device, &o.mesh))
+                .collect();
+            let occluders: Vec<Occluder> = meshes
+                .iter()
+                .zip(&shadow_casters)
+                .map(|(mesh, o)| Occluder {
+                    mesh,
+                    transform: o.transform,
+                })
+                .collect();
+            let lights: Vec<FrameLight> = scene
+                .lights
+                .iter()
+                .zip(&textures)
+                .map(|(l, t)| FrameLight {
+                    light: l.light,
+                    texture: t.as_ref(),
+                })
+                .collect();
+            let output = gpu.device.create_texture(&texture_desc(
+                "output",
+                size,
+                wgpu::TextureFormat::Rgba32Float,
+                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            ));
+            let frame = Frame {
+                camera: &camera,
+                lights: &lights,
+                medium: &scene.medium,
+                occluders: &occluders,
+                scene_color: &app.color,
+                scene_depth: &app.depth,
+            };
+            let stats = render_frames(&gpu, &mut volumetric, &frame, &output)?;
+            let radiance: Vec<DVec3> = gpu.read_rgba32f(&output)?.iter().map(rgb).collect();
+            let inscatter = read_inscatter(&gpu, &volumetric, &frame)?;
+            (
+                radiance,
+                inscatter,
+                stats.plan,
+                stats.timings,
+                stats.wall_ms,
+            )
+        }
+    };
+
+    // Files.
+    let files = [".exr", ".png", ".inscatter.exr", ".depth.exr", ".json"].map(|s| options.path(s));
+    if let Some(dir) = files[0].parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    }
+    let exposure = options.exposure.unwrap_or_else(|| auto_exposure(&radiance));
+    write_exr(&files[0], size, &radiance)?;
+    write_png(&files[1], &tone_map(size, &radiance, exposure))?;
+    write_exr(&files[2], size, &inscatter)?;
+    let depth: Vec<DVec3> = distances
+        .iter()
+        .map(|&d| {
+            DVec3::splat(if d.is_finite() {
+                d
+            } else {
+                f64::from(SKY_DISTANCE)
+            })
+        })
+        .collect();
+    write_exr(&files[3], size, &depth)?;
+    let (passes, gpu_ms) = timings_json(&timings);
+    let name = |p: &Path| p.display().to_string();
+    let report = serde_json::json!({
+        "scene": scene.name,
+        "scene_file": name(&options.scene),
+        "size": [width, height],
+        "method": method.describe(),
+        "adapter": gpu.adapter_summary(),
+        "frames": if method == RenderMethod::Reference { 1 } else { FRAMES },
+        "plan": plan,
+        "passes": passes,
+        "gpu_ms": gpu_ms,
+        "wall_ms": wall_ms,
+        "exposure": exposure,
+        "sky_distance": SKY_DISTANCE,
+        "files": files[..4].iter().map(|p| name(p)).collect::<Vec<_>>(),
+    });
+    let text = serde_json::to_string_pretty(&report)?;
+    std::fs::write(&files[4], text + "\n")
+        .map_err(|e| format!("cannot write {}: {e}", files[4].display()))?;
+    println!(
+        "{}: {} ms wall clock; wrote {}.{{exr,png,inscatter.exr,depth.exr,json}}",
+        method.describe(),
+        format_args!("{wall_ms:.1}"),
+        options.out.display()
+    );
+    Ok(Rendered { files, report })
+}

@@ -1,0 +1,829 @@
+//! Interactive: the quickstart scene in a window, with volumetric shadows every frame.
+//!
+//! The application draws its own frame (a ground plane and two spheres, ray-cast in a fragment
+//! shader writing colour and depth) into offscreen targets; `VolumetricShadows` adds the light
+//! scattered in the fog into an `Rgba16Float` target; a small blit pass tone-maps that to the
+//! window (exposure, Reinhard, sRGB).
+//!
+//! ```text
+//! cargo run --release --example interactive
+//! ```
+//!
+//! Controls: the mouse moves the light (in a plane behind the spheres); M switches the march
+//! method (hybrid / brute force); Up / Down double / halve the steps (4 ..= 512); R cycles the
+//! scattering resolution (full, 1/2, 1/4); S toggles shadows (no occluders: the planner skips
+//! the shadow map and extents); Escape quits. The title shows the settings, the plan's passes
+//! run / skipped and the GPU time of volshadow's passes (timestamp queries, when the device has
+//! them; else the wall-clock frame time). It is printed to stdout once a second too.
+
+use std::error::Error;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use volshadow::glam::{Mat4, Vec3};
+use volshadow::nodes::{MarchMethod, Scale};
+use volshadow::scene::shapes;
+use volshadow::{
+    Cache, Camera, Frame, FrameLight, Light, Medium, Occluder, OccluderMesh, PhaseFunction,
+    PointLight, Settings, VolumetricShadows,
+};
+use winit::application::ApplicationHandler;
+use winit::dpi::{PhysicalPosition, PhysicalSize};
+use winit::event::{ElementState, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop, OwnedDisplayHandle};
+use winit::keyboard::{Key, NamedKey};
+use winit::window::{Window, WindowId};
+
+/// The spheres of the scene (centre, radius): drawn by the app, and occluders for volshadow.
+/// `SCENE_WGSL` repeats them.
+const SPHERES: [(Vec3, f32); 2] = [
+    (Vec3::new(-0.6, 2.2, -2.2), 0.5),
+    (Vec3::new(0.8, 1.7, -1.4), 0.4),
+];
+/// The light moves in the plane z = `LIGHT_PLANE_Z`, behind the spheres.
+const LIGHT_PLANE_Z: f32 = -4.6;
+const LIGHT_INTENSITY: Vec3 = Vec3::new(90.0, 78.0, 60.0);
+const EYE: Vec3 = Vec3::new(0.0, 1.6, 7.0);
+/// Offscreen colour format: the app's frame, and volshadow's output.
+const HDR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
+const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// How often the title is refreshed, and how often it is printed.
+const TITLE_EVERY: Duration = Duration::from_millis(250);
+const PRINT_EVERY: Duration = Duration::from_secs(1);
+
+fn main() {
+    if let Err(e) = run() {
+        eprintln!("interactive: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn run() -> Result<(), Box<dyn Error>> {
+    let event_loop = EventLoop::new()?;
+    // Redraws are requested after every frame; nothing spins while minimised.
+    event_loop.set_control_flow(ControlFlow::Wait);
+    let mut app = App {
+        display: event_loop.owned_display_handle(),
+        state: None,
+        error: None,
+    };
+    event_loop.run_app(&mut app)?;
+    app.error.map_or(Ok(()), Err)
+}
+
+/// The winit application: the window and renderer exist once the event loop has resumed.
+struct App {
+    display: OwnedDisplayHandle,
+    state: Option<State>,
+    error: Option<Box<dyn Error>>,
+}
+
+impl ApplicationHandler for App {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.state.is_some() {
+            return;
+        }
+        match State::new(event_loop, self.display.clone()) {
+            Ok(state) => self.state = Some(state),
+            Err(e) => {
+                self.error = Some(e);
+                event_loop.exit();
+            }
+        }
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _: WindowId, event: WindowEvent) {
+        let Some(state) = self.state.as_mut() else {
+            return;
+        };
+        match event {
+            WindowEvent::CloseRequested => event_loop.exit(),
+            WindowEvent::Resized(size) => state.resize(size),
+            WindowEvent::CursorMoved { position, .. } => state.move_light(position),
+            WindowEvent::KeyboardInput { event, .. } if event.state == ElementState::Pressed => {
+                match event.logical_key.as_ref() {
+                    Key::Named(NamedKey::Escape) => event_loop.exit(),
+                    Key::Named(NamedKey::ArrowUp) => state.change_steps(2.0),
+                    Key::Named(NamedKey::ArrowDown) => state.change_steps(0.5),
+                    Key::Character(c) if !event.repeat => match c.to_ascii_lowercase().as_str() {
+                        "m" => state.toggle_method(),
+                        "r" => state.cycle_scale(),
+                        "s" => state.shadows = !state.shadows,
+                        _ => {}
+                    },
+                    _ => {}
+                }
+            }
+            WindowEvent::RedrawRequested => {
+                state.render();
+                // Keep drawing, unless minimised (a resize to a non-zero size asks again).
+                if state.targets.is_some() {
+                    state.window.request_redraw();
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+/// The window, the device and everything drawn every frame.
+struct State {
+    window: Arc<Window>,
+    surface: wgpu::Surface<'static>,
+    config: wgpu::SurfaceConfiguration,
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    /// Whether volshadow's passes are timed on the GPU.
+    timestamps: bool,
+    scene: ScenePass,
+    blit: wgpu::RenderPipeline,
+    /// `None` while minimised.
+    targets: Option<Targets>,
+    meshes: Vec<OccluderMesh>,
+    volumetric: VolumetricShadows,
+    medium: Medium,
+    light_position: Vec3,
+    shadows: bool,
+    stats: Stats,
+}
+
+/// The per-size part: camera, offscreen targets, the blit's bind group.
+struct Targets {
+    camera: Camera,
+    color: wgpu::Texture,
+    depth: wgpu::Texture,
+    output: wgpu::Texture,
+    blit_bind_group: wgpu::BindGroup,
+}
+
+/// What the title shows, and when it was last refreshed / printed.
+struct Stats {
+    passes_run: usize,
+    passes_skipped: usize,
+    /// Sum of volshadow's pass times (None: no timestamp queries).
+    gpu_ms: Option<f64>,
+    last_frame: Instant,
+    frame_ms: f64,
+    last_title: Instant,
+    last_print: Instant,
+    /// The last error printed, so a persistent one is printed once.
+    last_error: Option<String>,
+}
+
+impl State {
+    fn new(
+        event_loop: &ActiveEventLoop,
+        display: OwnedDisplayHandle,
+    ) -> Result<Self, Box<dyn Error>> {
+        let window = Arc::new(
+            event_loop.create_window(
+                Window::default_attributes()
+                    .with_title("volshadow interactive")
+                    .with_inner_size(PhysicalSize::new(960, 600)),
+            )?,
+        );
+        // WGPU_BACKEND etc. are honoured; the display handle is winit's, as wgpu asks.
+        let instance = wgpu::Instance::new(
+            wgpu::InstanceDescriptor::new_with_display_handle_from_env(Box::new(display)),
+        );
+        let surface = instance.create_surface(window.clone())?;
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            compatible_surface: Some(&surface),
+            ..Default::default()
+        }))?;
+        let info = adapter.get_info();
+        println!(
+            "adapter: {} ({:?}, {:?})",
+            info.name, info.backend, info.device_type
+        );
+        // Timestamp queries are optional: without them the title shows the wall clock.
+        let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
+        let (device, queue) =
+            pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+                label: Some("interactive"),
+                required_features: features,
+                ..Default::default()
+            }))?;
+        // wgpu validation errors are printed instead of panicking.
+        device.on_uncaptured_error(Arc::new(|e| eprintln!("wgpu error: {e}")));
+
+        // The swapchain: an sRGB format if there is one (the blit encodes otherwise).
+        let size = window.inner_size();
+        let caps = surface.get_capabilities(&adapter);
+        let format = caps
+            .formats
+            .iter()
+            .copied()
+            .find(|f| f.is_srgb())
+            .or(caps.formats.first().copied())
+            .ok_or("the surface is not supported by the adapter")?;
+        let config = wgpu::SurfaceConfiguration {
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            format,
+            color_space: wgpu::SurfaceColorSpace::Auto,
+            width: size.width.max(1),
+            height: size.height.max(1),
+            desired_maximum_frame_latency: 2,
+            present_mode: wgpu::PresentMode::AutoVsync,
+            alpha_mode: wgpu::CompositeAlphaMode::Auto,
+            view_formats: vec![],
+        };
+        println!("surface: {format:?}");
+
+        // volshadow: the occluder meshes (uploaded once) and the facade.
+        let cache = Cache::new(&device);
+        let meshes = SPHERES
+            .iter()
+            .map(|&(c, r)| OccluderMesh::new(&device, &shapes::uv_sphere(c, r, 48, 24)))
+            .collect();
+        let settings = Settings {
+            output_format: HDR,
+            ..Settings::default()
+        };
+        let volumetric = VolumetricShadows::new(&device, &queue, &cache, settings)?;
+        let medium = Medium::new(
+            Vec3::new(0.10, 0.11, 0.13),
+            Vec3::splat(0.01),
+            PhaseFunction::HenyeyGreenstein { g: 0.7 },
+        )?;
+
+        let now = Instant::now();
+        let mut state = Self {
+            scene: ScenePass::new(&device),
+            blit: blit_pipeline(&device, format),
+            window,
+            surface,
+            config,
+            timestamps: device.features().contains(wgpu::Features::TIMESTAMP_QUERY),
+            device,
+            queue,
+            targets: None,
+            meshes,
+            volumetric,
+            medium,
+            light_position: Vec3::new(0.1, 2.9, LIGHT_PLANE_Z),
+            shadows: true,
+            stats: Stats {
+                passes_run: 0,
+                passes_skipped: 0,
+                gpu_ms: None,
+                last_frame: now,
+                frame_ms: 0.0,
+                last_title: now,
+                last_print: now,
+                last_error: None,
+            },
+        };
+        state.resize(size);
+        state.window.request_redraw();
+        Ok(state)
+    }
+
+    /// Reconfigures the swapchain and recreates the offscreen targets; size 0 (minimised)
+    /// drops them and stops drawing.
+    fn resize(&mut self, size: PhysicalSize<u32>) {
+        if size.width == 0 || size.height == 0 {
+            self.targets = None;
+            return;
+        }
+        self.config.width = size.width;
+        self.config.height = size.height;
+        self.surface.configure(&self.device, &self.config);
+        let camera = match camera(size.width, size.height) {
+            Ok(c) => c,
+            Err(e) => return self.report(&e),
+        };
+        let texture = |label, format| {
+            self.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width: size.width,
+                    height: size.height,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            })
+        };
+        let output = texture("volshadow output", HDR);
+        let blit_bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("blit"),
+            layout: &self.blit.get_bind_group_layout(0),
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::TextureView(
+                    &output.create_view(&Default::default()),
+                ),
+            }],
+        });
+        self.targets = Some(Targets {
+            camera,
+            color: texture("scene colour", HDR),
+            depth: texture("scene depth", DEPTH),
+            output,
+            blit_bind_group,
+        });
+        self.window.request_redraw();
+    }
+
+    /// Puts the light where the cursor's ray meets the plane behind the spheres.
+    fn move_light(&mut self, cursor: PhysicalPosition<f64>) {
+        let Some(targets) = &self.targets else {
+            return;
+        };
+        let ndc_x = (2.0 * cursor.x / f64::from(self.config.width) - 1.0) as f32;
+        let ndc_y = (1.0 - 2.0 * cursor.y / f64::from(self.config.height)) as f32;
+        let d = targets.camera.ray_direction(ndc_x, ndc_y);
+        if d.z < -1e-3 {
+            let p = EYE + d * ((LIGHT_PLANE_Z - EYE.z) / d.z);
+            // Keep it above the ground and not absurdly far to the side.
+            self.light_position = Vec3::new(p.x.clamp(-8.0, 8.0), p.y.clamp(0.1, 8.0), p.z);
+        }
+    }
+
+    fn update_settings(&mut self, change: impl FnOnce(&mut Settings)) {
+        let mut settings = self.volumetric.settings();
+        change(&mut settings);
+        if let Err(e) = self.volumetric.set_settings(settings) {
+            self.report(&e);
+        }
+    }
+
+    fn toggle_method(&mut self) {
+        self.update_settings(|s| {
+            s.march.method = match s.march.method {
+                MarchMethod::Hybrid => MarchMethod::BruteForce,
+                MarchMethod::BruteForce => MarchMethod::Hybrid,
+            }
+        });
+    }
+
+    fn change_steps(&mut self, factor: f32) {
+        self.update_settings(|s| {
+            s.march.steps = ((s.march.steps as f32 * factor) as u32).clamp(4, 512);
+        });
+    }
+
+    fn cycle_scale(&mut self) {
+        self.update_settings(|s| {
+            s.march.scale = match s.march.scale {
+                Scale::Full => Scale::Half,
+                Scale::Half => Scale::Quarter,
+                Scale::Quarter => Scale::Full,
+            }
+        });
+    }
+
+    /// Prints an error to stderr (once while it repeats).
+    fn report(&mut self, e: &dyn std::fmt::Display) {
+        let message = e.to_string();
+        if self.stats.last_error.as_ref() != Some(&message) {
+            eprintln!("volshadow: {message}");
+            self.stats.last_error = Some(message);
+        }
+    }
+
+    fn render(&mut self) {
+        let Some(targets) = &self.targets else {
+            return;
+        };
+        let (surface_texture, suboptimal) = match self.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(t) => (t, false),
+            wgpu::CurrentSurfaceTexture::Suboptimal(t) => (t, true),
+            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => return,
+            wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
+                self.surface.configure(&self.device, &self.config);
+                return;
+            }
+            wgpu::CurrentSurfaceTexture::Validation => {
+                eprintln!("surface: validation error acquiring the frame");
+                return;
+            }
+        };
+        let light = match PointLight::new(self.light_position, LIGHT_INTENSITY) {
+            Ok(l) => l,
+            Err(e) => return self.report(&e),
+        };
+
+        // The application's frame: colour and depth.
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        self.scene.encode(
+            &self.queue,
+            &mut encoder,
+            targets,
+            &light,
+            &self.medium,
+            self.shadows,
+        );
+
+        // volshadow: prepare (validate, upload, plan), then record into our encoder.
+        let occluders: Vec<Occluder> = if self.shadows {
+            self.meshes
+                .iter()
+                .map(|mesh| Occluder {
+                    mesh,
+                    transform: Mat4::IDENTITY,
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let lights = [FrameLight::from(Light::from(light))];
+        let frame = Frame {
+            camera: &targets.camera,
+            lights: &lights,
+            medium: &self.medium,
+            occluders: &occluders,
+            scene_color: &targets.color,
+            scene_depth: &targets.depth,
+        };
+        let result = self
+            .volumetric
+            .prepare(&self.device, &self.queue, &frame)
+            .map(|plan| (plan.steps.len(), plan.skipped.len()))
+            .and_then(|counts| {
+                let output = targets.output.create_view(&Default::default());
+                self.volumetric.encode(&mut encoder, &output)?;
+                Ok(counts)
+            });
+        match result {
+            Ok((run, skipped)) => {
+                self.stats.passes_run = run;
+                self.stats.passes_skipped = skipped;
+                self.stats.last_error = None;
+            }
+            Err(e) => return self.report(&e),
+        }
+
+        // Tone map volshadow's output to the window.
+        {
+            let view = surface_texture.texture.create_view(&Default::default());
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("blit"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.blit);
+            pass.set_bind_group(0, &targets.blit_bind_group, &[]);
+            pass.draw(0..3, 0..1);
+        }
+        self.queue.submit([encoder.finish()]);
+        self.window.pre_present_notify();
+        self.queue.present(surface_texture);
+        if suboptimal {
+            self.surface.configure(&self.device, &self.config);
+        }
+
+        // Timings: volshadow's passes on the GPU (blocks until this frame is done), and the
+        // wall-clock time between frames.
+        if self.timestamps {
+            match self.volumetric.read_timings(&self.device) {
+                Ok(t) => self.stats.gpu_ms = Some(t.iter().map(|p| p.ms).sum()),
+                Err(e) => self.report(&e),
+            }
+        }
+        let now = Instant::now();
+        self.stats.frame_ms = (now - self.stats.last_frame).as_secs_f64() * 1e3;
+        self.stats.last_frame = now;
+        self.update_title(now);
+    }
+
+    fn update_title(&mut self, now: Instant) {
+        if now - self.stats.last_title < TITLE_EVERY {
+            return;
+        }
+        self.stats.last_title = now;
+        let s = self.volumetric.settings();
+        let time = match self.stats.gpu_ms {
+            Some(ms) => format!("GPU {ms:.2} ms, frame {:.1} ms", self.stats.frame_ms),
+            None => format!("frame {:.1} ms (wall clock)", self.stats.frame_ms),
+        };
+        let title = format!(
+            "volshadow: {}, {} steps, 1/{} res, shadows {} | {} passes run, {} skipped | {time}",
+            match s.march.method {
+                MarchMethod::Hybrid => "hybrid",
+                MarchMethod::BruteForce => "brute force",
+            },
+            s.march.steps,
+            s.march.scale.divisor(),
+            if self.shadows { "on" } else { "off" },
+            self.stats.passes_run,
+            self.stats.passes_skipped,
+        );
+        self.window.set_title(&title);
+        if now - self.stats.last_print >= PRINT_EVERY {
+            self.stats.last_print = now;
+            println!("{title}");
+        }
+    }
+}
+
+/// The quickstart camera for a window of this size.
+fn camera(width: u32, height: u32) -> volshadow::Result<Camera> {
+    Camera::new(
+        volshadow::glam::camera::rh::view::look_at_mat4(EYE, Vec3::new(0.0, 1.3, 0.0), Vec3::Y),
+        volshadow::glam::camera::rh::proj::directx::perspective(
+            55f32.to_radians(),
+            width as f32 / height as f32,
+            0.05,
+            200.0,
+        ),
+    )
+}
+
+/// The application's own frame: ray-casts the ground and the spheres, shades them with the
+/// point light (inverse square, attenuated through the medium, optionally shadowed by the
+/// spheres), writes colour and depth.
+struct ScenePass {
+    pipeline: wgpu::RenderPipeline,
+    uniform: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct SceneUniform {
+    clip_from_world: [f32; 16],
+    world_from_clip: [f32; 16],
+    eye: [f32; 4],
+    light: [f32; 4],
+    intensity: [f32; 4],
+    sigma_t: [f32; 4],
+    /// Width, height, shadows (0 or 1), unused.
+    size: [f32; 4],
+}
+
+impl ScenePass {
+    fn new(device: &wgpu::Device) -> Self {
+        let uniform = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("scene uniform"),
+            size: std::mem::size_of::<SceneUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("interactive scene"),
+            source: wgpu::ShaderSource::Wgsl(SCENE_WGSL.into()),
+        });
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("interactive scene"),
+            layout: None,
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: Default::default(),
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Always),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs"),
+                compilation_options: Default::default(),
+                targets: &[Some(HDR.into())],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("scene"),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: uniform.as_entire_binding(),
+            }],
+        });
+        Self {
+            pipeline,
+            uniform,
+            bind_group,
+        }
+    }
+
+    fn encode(
+        &self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        targets: &Targets,
+        light: &PointLight,
+        medium: &Medium,
+        shadows: bool,
+    ) {
+        let camera = &targets.camera;
+        let uniform = SceneUniform {
+            clip_from_world: (camera.projection() * camera.view()).to_cols_array(),
+            world_from_clip: camera.world_from_clip().to_cols_array(),
+            eye: camera.eye().extend(0.0).to_array(),
+            light: light.position().extend(0.0).to_array(),
+            intensity: light.intensity().extend(0.0).to_array(),
+            sigma_t: medium.sigma_t().extend(0.0).to_array(),
+            size: [
+                targets.color.width() as f32,
+                targets.color.height() as f32,
+                if shadows { 1.0 } else { 0.0 },
+                0.0,
+            ],
+        };
+        queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&uniform));
+        let color_view = targets.color.create_view(&Default::default());
+        let depth_view = targets.depth.create_view(&Default::default());
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("scene"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &color_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &depth_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(camera.far_depth()),
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        pass.draw(0..3, 0..1);
+    }
+}
+
+/// The tone-mapping blit: exposure and Reinhard; sRGB-encoded in the shader only when the
+/// swapchain format does not do it (a non-sRGB 8-bit format; a float format takes linear).
+fn blit_pipeline(device: &wgpu::Device, format: wgpu::TextureFormat) -> wgpu::RenderPipeline {
+    let encode = !format.is_srgb()
+        && !matches!(
+            format,
+            wgpu::TextureFormat::Rgba16Float | wgpu::TextureFormat::Rgba32Float
+        );
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("blit"),
+        source: wgpu::ShaderSource::Wgsl(BLIT_WGSL.into()),
+    });
+    let constants = [("ENCODE_SRGB", if encode { 1.0 } else { 0.0 })];
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("blit"),
+        layout: None,
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some("vs"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: Default::default(),
+        depth_stencil: None,
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: &module,
+            entry_point: Some("fs"),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants: &constants,
+                ..Default::default()
+            },
+            targets: &[Some(format.into())],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+const BLIT_WGSL: &str = r#"
+override ENCODE_SRGB: bool = false;
+const EXPOSURE: f32 = 1.6;
+
+@group(0) @binding(0) var hdr: texture_2d<f32>;
+
+@vertex fn vs(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
+    let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
+    return vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
+}
+
+fn srgb(v: vec3<f32>) -> vec3<f32> {
+    return select(1.055 * pow(v, vec3<f32>(1.0 / 2.4)) - 0.055, 12.92 * v, v <= vec3<f32>(0.0031308));
+}
+
+@fragment fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
+    let c = EXPOSURE * max(textureLoad(hdr, vec2<i32>(p.xy), 0).rgb, vec3<f32>(0.0));
+    var v = c / (1.0 + c);
+    if (ENCODE_SRGB) {
+        v = srgb(v);
+    }
+    return vec4<f32>(v, 1.0);
+}
+"#;
+
+/// The quickstart's scene shader; `scene.size.z` switches the spheres' shadows on the surfaces.
+const SCENE_WGSL: &str = r#"
+struct Scene {
+    clip_from_world: mat4x4<f32>,
+    world_from_clip: mat4x4<f32>,
+    eye: vec4<f32>,
+    light: vec4<f32>,
+    intensity: vec4<f32>,
+    sigma_t: vec4<f32>,
+    size: vec4<f32>,
+}
+@group(0) @binding(0) var<uniform> scene: Scene;
+
+struct Out {
+    @location(0) color: vec4<f32>,
+    @builtin(frag_depth) depth: f32,
+}
+
+@vertex fn vs(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
+    let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
+    return vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
+}
+
+const SPHERES = array<vec4<f32>, 2>(vec4<f32>(-0.6, 2.2, -2.2, 0.5), vec4<f32>(0.8, 1.7, -1.4, 0.4));
+
+fn hit_sphere(o: vec3<f32>, d: vec3<f32>, s: vec4<f32>) -> f32 {
+    let oc = o - s.xyz;
+    let b = dot(oc, d);
+    let c = dot(oc, oc) - s.w * s.w;
+    let disc = b * b - c;
+    if (disc < 0.0) { return -1.0; }
+    let t = -b - sqrt(disc);
+    return select(-1.0, t, t > 1e-4);
+}
+
+@fragment fn fs(@builtin(position) p: vec4<f32>) -> Out {
+    let ndc = vec2<f32>(p.x / scene.size.x * 2.0 - 1.0, 1.0 - p.y / scene.size.y * 2.0);
+    let a = scene.world_from_clip * vec4<f32>(ndc, 0.0, 1.0);
+    let b = scene.world_from_clip * vec4<f32>(ndc, 0.5, 1.0);
+    let o = scene.eye.xyz;
+    let d = normalize(b.xyz / b.w - a.xyz / a.w);
+    var t = 1e30;
+    var n = vec3<f32>(0.0);
+    var albedo = vec3<f32>(0.0);
+    if (d.y < 0.0) {
+        t = -o.y / d.y;
+        n = vec3<f32>(0.0, 1.0, 0.0);
+        let hit = o + t * d;
+        let checker = (i32(floor(hit.x)) + i32(floor(hit.z))) & 1;
+        albedo = select(vec3<f32>(0.55), vec3<f32>(0.35), checker == 1);
+    }
+    for (var k = 0; k < 2; k++) {
+        let ts = hit_sphere(o, d, SPHERES[k]);
+        if (ts > 0.0 && ts < t) {
+            t = ts;
+            n = normalize(o + t * d - SPHERES[k].xyz);
+            albedo = vec3<f32>(0.7, 0.45, 0.3);
+        }
+    }
+    var out: Out;
+    if (t >= 1e30) {
+        out.color = vec4<f32>(0.0, 0.0, 0.0, 1.0);
+        out.depth = 1.0;
+        return out;
+    }
+    let x = o + t * d;
+    let to_light = scene.light.xyz - x;
+    let dist = length(to_light);
+    let l = to_light / dist;
+    var lit = 1.0;
+    if (scene.size.z > 0.5) {
+        for (var k = 0; k < 2; k++) {
+            let ts = hit_sphere(x + n * 1e-3, l, SPHERES[k]);
+            if (ts > 0.0 && ts < dist) { lit = 0.0; }
+        }
+    }
+    let e = scene.intensity.xyz * exp(-scene.sigma_t.xyz * dist) / (dist * dist);
+    out.color = vec4<f32>(albedo / 3.14159265 * e * max(dot(n, l), 0.0) * lit + 0.01 * albedo, 1.0);
+    let clip = scene.clip_from_world * vec4<f32>(x, 1.0);
+    out.depth = clip.z / clip.w;
+    return out;
+}
+"#;
