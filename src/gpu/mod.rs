@@ -154,3 +154,27 @@ pub(crate) fn check_target_size(
     }
     Ok(())
 }
+
+/// A single-mip, single-sampled 2D texture (`size` = width, height, layers).
+pub(crate) fn texture_2d(
+    device: &wgpu::Device,
+    label: &str,
+    size: (u32, u32, u32),
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width: size.0,
+            height: size.1,
+            depth_or_array_layers: size.2,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    })
+}

@@ -138,23 +138,16 @@ impl ExtentsNode {
             .is_some_and(|t| t[0].width() == width && t[0].height() == height)
         {
             let make = |label| {
-                device.create_texture(&wgpu::TextureDescriptor {
-                    label: Some(label),
-                    size: wgpu::Extent3d {
-                        width,
-                        height,
-                        depth_or_array_layers: 1,
-                    },
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format: wgpu::TextureFormat::Depth32Float,
+                crate::gpu::texture_2d(
+                    device,
+                    label,
+                    (width, height, 1),
+                    wgpu::TextureFormat::Depth32Float,
                     // COPY_SRC so tests and debug views can read the extents back.
-                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                    wgpu::TextureUsages::RENDER_ATTACHMENT
                         | wgpu::TextureUsages::TEXTURE_BINDING
                         | wgpu::TextureUsages::COPY_SRC,
-                    view_formats: &[],
-                })
+                )
             };
             self.targets = Some([
                 make("volshadow extents front"),

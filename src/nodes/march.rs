@@ -31,8 +31,8 @@
 use crate::error::{Error, Result};
 use crate::gpu::uniforms::{AirlightUniform, ViewUniform};
 use crate::gpu::{
-    check_depth_layers, check_depth_texture, check_size, check_target_size, depth_view, Cache,
-    GpuTimer, UniformBuffer,
+    check_depth_layers, check_depth_texture, check_size, check_target_size, depth_view, texture_2d,
+    Cache, GpuTimer, UniformBuffer,
 };
 use crate::nodes::shadow_map::ShadowMap;
 use crate::nodes::AirlightTableNode;
@@ -172,29 +172,6 @@ struct Bound {
     textures: Vec<wgpu::Texture>,
     bind_group: wgpu::BindGroup,
     size: (u32, u32),
-}
-
-fn texture_2d(
-    device: &wgpu::Device,
-    label: &str,
-    size: (u32, u32, u32),
-    format: wgpu::TextureFormat,
-    usage: wgpu::TextureUsages,
-) -> wgpu::Texture {
-    device.create_texture(&wgpu::TextureDescriptor {
-        label: Some(label),
-        size: wgpu::Extent3d {
-            width: size.0,
-            height: size.1,
-            depth_or_array_layers: size.2,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage,
-        view_formats: &[],
-    })
 }
 
 impl MarchNode {
