@@ -73,6 +73,7 @@
 // `!(x > 0.0)` is used on purpose throughout: it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+mod bvh;
 mod cone;
 mod occluder;
 mod phase;

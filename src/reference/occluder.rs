@@ -6,7 +6,12 @@
 //! inside it: a light inside a sphere lights the inside of the sphere and nothing outside, as a
 //! shadow map rendered from inside would.
 
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+
 use glam::{DMat4, DQuat, DVec3, Vec3};
+
+use super::bvh::{Bvh, Triangle};
 
 /// A sphere, `|X − center| = radius` (the radius' sign is ignored).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -251,50 +256,183 @@ impl Cuboid {
     }
 }
 
+/// The plane through the light `p` and an edge `[vi, vj]`, with what
+/// [`candidate`](Self::candidate) needs of it computed once (for a mesh, once per light
+/// position and silhouette edge).
+#[derive(Debug, Clone, Copy)]
+struct Wedge {
+    /// `vi − p`.
+    a: DVec3,
+    /// `vj − p`.
+    b: DVec3,
+    /// `a × b`, the plane's normal.
+    n: DVec3,
+    aa: f64,
+    ab: f64,
+    bb: f64,
+    /// `aa·bb − ab²`.
+    det: f64,
+}
+
+impl Wedge {
+    fn new(p: DVec3, vi: DVec3, vj: DVec3) -> Self {
+        let (a, b) = (vi - p, vj - p);
+        let (aa, ab, bb) = (a.dot(a), a.dot(b), b.dot(b));
+        Self {
+            a,
+            b,
+            n: a.cross(b),
+            aa,
+            ab,
+            bb,
+            det: aa * bb - ab * ab,
+        }
+    }
+
+    /// The ray's crossing of the plane, kept if the segment from the light `p` to the crossing
+    /// point can touch the edge there.
+    fn candidate(&self, e: DVec3, v: DVec3, p: DVec3, out: &mut Vec<f64>) {
+        let Self {
+            a,
+            b,
+            n,
+            aa,
+            ab,
+            bb,
+            det,
+        } = *self;
+        let nv = n.dot(v);
+        if nv == 0.0 {
+            return;
+        }
+        let x = n.dot(p - e) / nv;
+        if !x.is_finite() {
+            return;
+        }
+        // y = X − p = α a + β b; the segment p → X meets the edge iff α, β ≥ 0 and α + β ≥ 1.
+        let y = e + v * x - p;
+        if det > 1e-20 * aa * bb {
+            let (ay, by) = (a.dot(y), b.dot(y));
+            let alpha = (bb * ay - ab * by) / det;
+            let beta = (aa * by - ab * ay) / det;
+            const SLACK: f64 = 1e-6;
+            if alpha < -SLACK || beta < -SLACK || alpha + beta < 1.0 - SLACK {
+                return;
+            }
+        }
+        out.push(x);
+    }
+}
+
 /// The ray's crossing of the plane through the light `p` and the edge `[vi, vj]`, kept if the
 /// segment from the light to the crossing point can touch the edge there.
 fn edge_candidate(e: DVec3, v: DVec3, p: DVec3, vi: DVec3, vj: DVec3, out: &mut Vec<f64>) {
-    let (a, b) = (vi - p, vj - p);
-    let n = a.cross(b);
-    let nv = n.dot(v);
-    if nv == 0.0 {
-        return;
+    Wedge::new(p, vi, vj).candidate(e, v, p, out);
+}
+
+/// An edge of a [`TriangleMesh`] after welding: its end points (in the order of one of its
+/// triangles) and, for an edge of exactly two triangles, their third vertices.
+#[derive(Debug, Clone, Copy)]
+struct Edge {
+    vi: DVec3,
+    vj: DVec3,
+    /// The third vertices of the edge's two triangles; `None` for an edge whose wedge is always
+    /// a candidate: a boundary edge, a non-manifold one (three or more triangles) or an edge
+    /// of a degenerate triangle.
+    sides: Option<[DVec3; 2]>,
+}
+
+/// The wedges of a mesh's silhouette edges as seen from one light position.
+#[derive(Debug)]
+struct Silhouette {
+    /// The light position, as bits (an exact match decides a cache hit).
+    light: [u64; 3],
+    wedges: Vec<Wedge>,
+}
+
+/// The last [`Silhouette`] computed (a whole image uses one light position); shared by the
+/// threads of [`inscatter_image`](super::inscatter_image). A clone starts empty.
+#[derive(Debug, Default)]
+struct SilhouetteCache(Mutex<Option<Arc<Silhouette>>>);
+
+impl Clone for SilhouetteCache {
+    fn clone(&self) -> Self {
+        Self::default()
     }
-    let x = n.dot(p - e) / nv;
-    if !x.is_finite() {
-        return;
-    }
-    // y = X − p = α a + β b; the segment p → X meets the edge iff α, β ≥ 0 and α + β ≥ 1.
-    let y = e + v * x - p;
-    let (aa, ab, bb) = (a.dot(a), a.dot(b), b.dot(b));
-    let det = aa * bb - ab * ab;
-    if det > 1e-20 * aa * bb {
-        let (ay, by) = (a.dot(y), b.dot(y));
-        let alpha = (bb * ay - ab * by) / det;
-        let beta = (aa * by - ab * ay) / det;
-        const SLACK: f64 = 1e-6;
-        if alpha < -SLACK || beta < -SLACK || alpha + beta < 1.0 - SLACK {
-            return;
-        }
-    }
-    out.push(x);
+}
+
+/// The vertices of triangle `t`, `None` if an index is out of range.
+fn vertices(positions: &[DVec3], t: &[u32; 3]) -> Option<[DVec3; 3]> {
+    Some([
+        *positions.get(t[0] as usize)?,
+        *positions.get(t[1] as usize)?,
+        *positions.get(t[2] as usize)?,
+    ])
 }
 
 /// A triangle mesh (an open or closed surface).
-#[derive(Debug, Clone, PartialEq, Default)]
+///
+/// # Acceleration
+///
+/// The constructors build, once, a bounding volume hierarchy over the triangles and the
+/// mesh's edge adjacency (vertices welded where their positions are exactly equal, so that
+/// seams with duplicated vertices are no boundaries). With them:
+///
+/// * [`segment_blocked`](Self::segment_blocked) tests only the triangles whose (padded) boxes
+///   the segment meets: `O(log T)`, with the same Möller–Trumbore test on the same values, so
+///   the same answer as testing every triangle.
+/// * The candidates of a ray are its crossings of the triangles it can reach (the same ray–box
+///   culling), where the eye-side point crosses the surface, and the crossings of the wedges
+///   (planes through the light and an edge) of the *silhouette* edges only: an edge whose two
+///   triangles lie on opposite sides of its wedge cannot change visibility, since the segment
+///   to the light just passes from one triangle to the other as it sweeps across the edge.
+///   Boundary edges, non-manifold edges and edges of degenerate (zero-area) triangles always
+///   count; the side test has a relative margin (`1e-9`) far above its rounding, and a doubtful
+///   edge counts. The silhouette is computed per light position (`O(E)`) and cached for the
+///   last position.
+///
+/// The lit intervals are thus those of the brute-force test of every edge and triangle (an
+/// interval end is the same floating-point crossing), at a cost per ray of about the
+/// silhouette's length plus `O(log T)` per piece, instead of `O(T)` per piece.
+#[derive(Clone, Default)]
 pub struct TriangleMesh {
     /// Vertex positions, world space.
-    pub positions: Vec<DVec3>,
+    positions: Vec<DVec3>,
     /// Triangles as indices into `positions`; triangles with an out-of-range index are ignored.
-    pub triangles: Vec<[u32; 3]>,
+    triangles: Vec<[u32; 3]>,
+    bvh: Bvh,
+    edges: Vec<Edge>,
+    silhouette: SilhouetteCache,
+}
+
+impl std::fmt::Debug for TriangleMesh {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TriangleMesh")
+            .field("positions", &self.positions)
+            .field("triangles", &self.triangles)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Equal geometry: the same positions and triangles (the acceleration follows from them).
+impl PartialEq for TriangleMesh {
+    fn eq(&self, other: &Self) -> bool {
+        self.positions == other.positions && self.triangles == other.triangles
+    }
 }
 
 impl TriangleMesh {
-    /// A mesh from world-space positions and index triples.
+    /// A mesh from world-space positions and index triples (triangles with an out-of-range
+    /// index are ignored).
     pub fn new(positions: Vec<DVec3>, triangles: Vec<[u32; 3]>) -> Self {
+        let bvh = Bvh::new(triangles.iter().filter_map(|t| vertices(&positions, t)));
+        let edges = mesh_edges(&positions, &triangles);
         Self {
             positions,
             triangles,
+            bvh,
+            edges,
+            silhouette: SilhouetteCache::default(),
         }
     }
 
@@ -324,38 +462,84 @@ impl TriangleMesh {
         )
     }
 
+    /// Vertex positions, world space.
+    pub fn positions(&self) -> &[DVec3] {
+        &self.positions
+    }
+
+    /// Triangles as indices into [`positions`](Self::positions) (triangles with an
+    /// out-of-range index are ignored).
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+
     /// The triangles' vertices, skipping triangles with an out-of-range index.
     pub fn triangle_vertices(&self) -> impl Iterator<Item = [DVec3; 3]> + '_ {
-        self.triangles.iter().filter_map(|t| {
-            Some([
-                *self.positions.get(t[0] as usize)?,
-                *self.positions.get(t[1] as usize)?,
-                *self.positions.get(t[2] as usize)?,
-            ])
-        })
+        self.triangles
+            .iter()
+            .filter_map(|t| vertices(&self.positions, t))
     }
 
     /// Whether the closed segment `[a, b]` meets any triangle.
     pub fn segment_blocked(&self, a: DVec3, b: DVec3) -> bool {
-        self.triangle_vertices()
-            .any(|t| segment_hits_triangle(a, b, t))
+        self.bvh
+            .any_on_segment(a, b, |t| segment_hits_triangle(a, b, t))
+    }
+
+    /// The wedges of the silhouette edges seen from `p` (cached for the last `p`).
+    fn silhouette(&self, p: DVec3) -> Arc<Silhouette> {
+        let light = p.to_array().map(f64::to_bits);
+        let mut cache = self
+            .silhouette
+            .0
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        if let Some(s) = cache.as_ref().filter(|s| s.light == light) {
+            return s.clone();
+        }
+        let wedges = self
+            .edges
+            .iter()
+            .filter_map(|edge| {
+                let w = Wedge::new(p, edge.vi, edge.vj);
+                // A zero or non-finite normal never gives a crossing (`Wedge::candidate`).
+                if w.n == DVec3::ZERO || !w.n.is_finite() {
+                    return None;
+                }
+                if let Some([c1, c2]) = edge.sides {
+                    // orient3d(p, vi, vj, c) by a float determinant: its error is a small
+                    // multiple of ε·|a|·|b|·|c − p| (each difference is exact to ε), far below
+                    // this margin.
+                    let margin = 1e-9 * (w.aa * w.bb).sqrt();
+                    let (q1, q2) = (c1 - p, c2 - p);
+                    let (s1, s2) = (w.n.dot(q1), w.n.dot(q2));
+                    let (m1, m2) = (margin * q1.length(), margin * q2.length());
+                    if (s1 > m1 && s2 < -m2) || (s1 < -m1 && s2 > m2) {
+                        return None; // opposite sides: not on the silhouette
+                    }
+                }
+                Some(w)
+            })
+            .collect();
+        let s = Arc::new(Silhouette { light, wedges });
+        *cache = Some(s.clone());
+        s
     }
 
     fn candidates(&self, e: DVec3, v: DVec3, p: DVec3, out: &mut Vec<f64>) {
-        for [v0, v1, v2] in self.triangle_vertices() {
-            edge_candidate(e, v, p, v0, v1, out);
-            edge_candidate(e, v, p, v1, v2, out);
-            edge_candidate(e, v, p, v2, v0, out);
-            // The triangle's own plane, where the crossing lies in the triangle.
-            let (e1, e2) = (v1 - v0, v2 - v0);
+        for wedge in &self.silhouette(p).wedges {
+            wedge.candidate(e, v, p, out);
+        }
+        // The triangles' own planes, where the crossing lies in the triangle.
+        self.bvh.each_on_ray(e, v, |&Triangle { v0, e1, e2 }| {
             let n = e1.cross(e2);
             let nv = n.dot(v);
             if nv == 0.0 {
-                continue;
+                return;
             }
             let x = n.dot(v0 - e) / nv;
             if !x.is_finite() {
-                continue;
+                return;
             }
             let y = e + v * x - v0;
             let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
@@ -366,18 +550,77 @@ impl TriangleMesh {
                 let t = (d11 * y2 - d12 * y1) / det;
                 const SLACK: f64 = 1e-6;
                 if s < -SLACK || t < -SLACK || s + t > 1.0 + SLACK {
-                    continue;
+                    return;
                 }
             }
             out.push(x);
-        }
+        });
     }
 }
 
+/// The welded edges of a mesh (see [`Edge`]).
+///
+/// Vertices are welded where their positions are exactly equal (`-0.0` as `0.0`). A triangle
+/// with two vertices at one position is a segment or a point: it blocks a set of segments of
+/// measure zero (the exact Möller–Trumbore test never; the floating-point one at most along
+/// the line of its edge, which its neighbours' triangles block too) and takes no part. A
+/// triangle with a non-finite vertex is never hit and takes no part either. Any other triangle
+/// with a zero normal (three distinct collinear vertices) is degenerate: its edges always
+/// count, and it is left out of its neighbours' adjacency, so that their edges there count as
+/// boundary edges (conservative: such a sliver can join a T-junction).
+fn mesh_edges(positions: &[DVec3], triangles: &[[u32; 3]]) -> Vec<Edge> {
+    let mut ids = HashMap::with_capacity(positions.len());
+    let welded: Vec<u32> = positions
+        .iter()
+        .map(|&p| {
+            let key = (p + DVec3::ZERO).to_array().map(f64::to_bits);
+            let next = ids.len() as u32;
+            *ids.entry(key).or_insert(next)
+        })
+        .collect();
+    // (welded ends, low first; the ends in the triangle's order; the third vertex).
+    let mut halves: Vec<([u32; 2], [DVec3; 2], DVec3)> = Vec::with_capacity(3 * triangles.len());
+    let mut edges = Vec::new();
+    for t in triangles {
+        let Some(p) = vertices(positions, t) else {
+            continue;
+        };
+        let w = t.map(|i| welded[i as usize]);
+        if w[0] == w[1] || w[1] == w[2] || w[2] == w[0] || !p.iter().all(|q| q.is_finite()) {
+            continue;
+        }
+        let degenerate = (p[1] - p[0]).cross(p[2] - p[0]) == DVec3::ZERO;
+        for k in 0..3 {
+            let (i, j, o) = (k, (k + 1) % 3, (k + 2) % 3);
+            if degenerate {
+                edges.push(Edge {
+                    vi: p[i],
+                    vj: p[j],
+                    sides: None,
+                });
+            } else {
+                halves.push(([w[i].min(w[j]), w[i].max(w[j])], [p[i], p[j]], p[o]));
+            }
+        }
+    }
+    halves.sort_unstable_by_key(|h| h.0);
+    for group in halves.chunk_by(|a, b| a.0 == b.0) {
+        let [vi, vj] = group[0].1;
+        edges.push(Edge {
+            vi,
+            vj,
+            sides: match group {
+                [a, b] => Some([a.2, b.2]),
+                _ => None,
+            },
+        });
+    }
+    edges
+}
+
 /// Möller–Trumbore for the closed segment `[a, b]` against a triangle (either side).
-fn segment_hits_triangle(a: DVec3, b: DVec3, [v0, v1, v2]: [DVec3; 3]) -> bool {
+fn segment_hits_triangle(a: DVec3, b: DVec3, &Triangle { v0, e1, e2 }: &Triangle) -> bool {
     let d = b - a;
-    let (e1, e2) = (v1 - v0, v2 - v0);
     let pv = d.cross(e2);
     let det = e1.dot(pv);
     if det == 0.0 || !det.is_finite() {

@@ -13,8 +13,10 @@ use crate::scene::Light;
 /// distance). The last end is `ds`, which may be `f64::INFINITY` (sky).
 ///
 /// Exact from the geometry, with no sampling: every `x` where visibility can change is found
-/// in closed form — for each triangle (and each box face) the ray's crossings of the planes
-/// through the light and each edge and of the face's own plane; for each sphere the ray's
+/// in closed form — for a triangle mesh the ray's crossings of the planes through the light and
+/// each edge that can change visibility (silhouette edges seen from the light, boundary and
+/// non-manifold edges) and of each triangle's own plane; for each box face the planes through
+/// the light and its edges and the face's plane; for each sphere the ray's
 /// crossings of the sphere and of its tangent cone from the light. Between consecutive
 /// candidates visibility is constant, so it is decided by [`Occluder::segment_blocked`] at the
 /// midpoint, and adjacent lit pieces are merged.
