@@ -9,8 +9,19 @@
 //   brute force: `steps` steps over the whole support.
 // Lit support: [0, ds] for a point light; its intersection with the cone for a spot light.
 
+// Pipeline constants, one pipeline per combination (the march node picks it): code a variant
+// does not need is not compiled into it. That matters most on CPU rasterisers such as
+// lavapipe, which execute both sides of every branch under a mask.
+override MODE: u32 = 0u;           // 0 analytic, 1 hybrid, 2 brute force (and the prelude's SPOT)
+override TEXTURED: bool = false;   // textured spot
+override BISECTIONS: u32 = 0u;     // bisection steps per lit/shadow transition
+
+// Most transitions a marched interval records before it evaluates T at them (more just take
+// another round of the step loop).
+const MAX_EDGES: u32 = 8u;
+
 struct MarchParams {
-    mode: vec4<u32>,      // x: 0 analytic, 1 hybrid, 2 brute force; y: steps; z: bisections; w: 1 = spot
+    mode: vec4<u32>,      // y: steps (x, z, w unused: see the pipeline constants)
     spot: vec4<f32>,      // xyz cone axis (unit), w = cos(half apex angle)
     shadow: vec4<f32>,    // x: shadow-map layers (1 spot, 6 cube), y: relative depth bias, z: extents near plane, w: 1 = write the lit fraction (reduced resolution)
     faces: array<mat4x4<f32>, 6>,  // shadow-map face clip_from_world
@@ -40,10 +51,8 @@ struct MarchParams {
 fn x_of_s(r: AirRay, s: f32) -> f32 {
     let sc = min(s, 1.0 - 1.0e-6);
     let beta = (1.0 - sc) * r.w;
-    var sin_beta = sin(beta);
-    if (beta > 0.5 * PI) {
-        sin_beta = sin(r.gamma + sc * r.w);
-    }
+    // sin β = sin(γ + δ): the same angle's supplement, taken where it is the smaller one.
+    let sin_beta = sin(select(beta, r.gamma + sc * r.w, beta > 0.5 * PI));
     return air.light_pos.w * sin(sc * r.w) / max(sin_beta, 1.0e-30);
 }
 
@@ -51,7 +60,7 @@ fn x_of_s(r: AirRay, s: f32) -> f32 {
 fn visibility(p: vec3<f32>) -> f32 {
     let rel = p - air.light_pos.xyz;
     var face = 0u;
-    if (mp.shadow.x > 1.5) {
+    if (!SPOT) {
         let m = abs(rel);
         if (m.x >= m.y && m.x >= m.z) {
             face = select(1u, 0u, rel.x > 0.0);
@@ -96,12 +105,9 @@ fn light_texture(p: vec3<f32>, step_angle: f32) -> vec3<f32> {
     return textureSampleLevel(light_tex, light_sampler, uv, lod).xyz;
 }
 
-// ∫ V·tex dT over [s0, s1] in n uniform steps, each weighted at its midpoint (so the ends of
-// a hybrid interval, which sit on shadow-volume faces, are never half-lit). `shadowed` samples
-// the shadow map; `textured` the spot's texture. With bisection on, where two neighbouring
-// midpoints disagree about visibility the transition between them is located to
-// 2^-bisections of a step and the midpoint rule's assumed edge is corrected.
-fn march_interval(ray: PixelRay, r: AirRay, s0: f32, s1: f32, n: u32, shadowed: bool, textured: bool) -> Marched {
+// ∫ tex dT over [s0, s1] in n uniform steps, each weighted at its two Gauss–Legendre points
+// (a textured spot outside the extents, where nothing is shadowed).
+fn march_textured(ray: PixelRay, r: AirRay, s0: f32, s1: f32, n: u32) -> Marched {
     var out: Marched;
     out.t = vec3<f32>(0.0);
     out.steps = 0u;
@@ -109,6 +115,99 @@ fn march_interval(ray: PixelRay, r: AirRay, s0: f32, s1: f32, n: u32, shadowed: 
         return out;
     }
     let ds = (s1 - s0) / f32(n);
+    let footprint = 0.5 * ds * r.w;
+    var t_a = table_t(table, air, r, s0);
+    for (var i = 0u; i < n; i++) {
+        let a = s0 + ds * f32(i);
+        let b = select(s0 + ds * f32(i + 1u), s1, i + 1u == n);
+        let mid = 0.5 * (a + b);
+        let t_b = table_t(table, air, r, b);
+        // Two samples per step: the texture is only piecewise smooth, and its edges dominate
+        // the error of a one-sample step.
+        let h = 0.2886751 * (b - a);
+        let w = 0.5 * (light_texture(air.eye.xyz + x_of_s(r, mid - h) * ray.dir, footprint)
+                     + light_texture(air.eye.xyz + x_of_s(r, mid + h) * ray.dir, footprint));
+        out.t += (t_b - t_a) * w;
+        t_a = t_b;
+    }
+    out.steps = n;
+    return out;
+}
+
+// ∫ V dT over [s0, s1] (T known at both ends: t0, t1) in n uniform steps, each sampled at its
+// midpoint (so the ends of a hybrid interval, which sit on shadow-volume faces, are never
+// half-lit). The sum Σ Vᵢ (T(bᵢ) − T(aᵢ)) telescopes over each run of steps with equal
+// visibility, so a step costs one shadow-map lookup and T is evaluated only where the
+// visibility changes. The step loop only records those transitions; T (and, with bisection
+// on, the located edge between the two midpoints that disagree) is computed for them
+// afterwards, outside the loop every step executes.
+fn march_shadowed(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: vec3<f32>, t1: vec3<f32>, n: u32) -> Marched {
+    var out: Marched;
+    out.t = vec3<f32>(0.0);
+    out.steps = 0u;
+    if (!(s1 > s0)) {
+        return out;
+    }
+    let ds = (s1 - s0) / f32(n);
+    var t_run = t0;  // T where the current run of equal visibility began
+    var v_run = vis_at(ray, r, s0 + 0.5 * ds);
+    var v_prev = v_run;
+    var i = 1u;
+    var edges: array<vec2<f32>, MAX_EDGES>;  // (step index, its visibility) where a run begins
+    loop {
+        var count = 0u;
+        for (; i < n && count < MAX_EDGES; i++) {
+            let v = vis_at(ray, r, s0 + (f32(i) + 0.5) * ds);
+            if (v != v_prev) {
+                edges[count] = vec2<f32>(f32(i), v);
+                count++;
+            }
+            v_prev = v;
+        }
+        for (var k = 0u; k < count; k++) {
+            let j = edges[k].x;
+            let v = edges[k].y;
+            var edge = s0 + j * ds;
+            if (BISECTIONS > 0u && (v >= 0.5) != (v_run >= 0.5)) {
+                // The transition lies between the two midpoints.
+                var lo = edge - 0.5 * ds;
+                var hi = edge + 0.5 * ds;
+                for (var b = 0u; b < BISECTIONS; b++) {
+                    let m = 0.5 * (lo + hi);
+                    if ((vis_at(ray, r, m) >= 0.5) == (v_run >= 0.5)) {
+                        lo = m;
+                    } else {
+                        hi = m;
+                    }
+                }
+                edge = 0.5 * (lo + hi);
+                out.steps += BISECTIONS;
+            }
+            let t_edge = table_t(table, air, r, edge);
+            out.t += (t_edge - t_run) * v_run;
+            t_run = t_edge;
+            v_run = v;
+        }
+        if (i >= n) {
+            break;
+        }
+    }
+    out.t += (t1 - t_run) * v_run;
+    out.steps += n;
+    return out;
+}
+
+// The same for a textured spot: the texture weight changes at nearly every step, so T is
+// evaluated at every step boundary; two texture samples per step, and the bisection inline.
+fn march_shadowed_textured(ray: PixelRay, r: AirRay, s0: f32, s1: f32, n: u32) -> Marched {
+    var out: Marched;
+    out.t = vec3<f32>(0.0);
+    out.steps = 0u;
+    if (!(s1 > s0)) {
+        return out;
+    }
+    let ds = (s1 - s0) / f32(n);
+    let footprint = 0.5 * ds * r.w;
     var t_a = table_t(table, air, r, s0);
     var v_prev = 1.0;
     var w_prev = vec3<f32>(1.0);
@@ -117,25 +216,15 @@ fn march_interval(ray: PixelRay, r: AirRay, s0: f32, s1: f32, n: u32, shadowed: 
         let b = select(s0 + ds * f32(i + 1u), s1, i + 1u == n);
         let mid = 0.5 * (a + b);
         let t_b = table_t(table, air, r, b);
-        var v = 1.0;
-        if (shadowed) {
-            v = vis_at(ray, r, mid);
-        }
-        var w = vec3<f32>(1.0);
-        if (textured) {
-            // Two samples per step (Gauss–Legendre points): the texture is only piecewise
-            // smooth, and its edges dominate the error of a one-sample step.
-            let h = 0.2886751 * (b - a);
-            let footprint = 0.5 * ds * r.w;
-            w = 0.5 * (light_texture(air.eye.xyz + x_of_s(r, mid - h) * ray.dir, footprint)
+        let v = vis_at(ray, r, mid);
+        let h = 0.2886751 * (b - a);
+        let w = 0.5 * (light_texture(air.eye.xyz + x_of_s(r, mid - h) * ray.dir, footprint)
                      + light_texture(air.eye.xyz + x_of_s(r, mid + h) * ray.dir, footprint));
-        }
         out.t += (t_b - t_a) * (v * w);
-        if (shadowed && mp.mode.z > 0u && i > 0u && (v >= 0.5) != (v_prev >= 0.5)) {
-            // The transition lies between the previous midpoint and this one.
+        if (BISECTIONS > 0u && i > 0u && (v >= 0.5) != (v_prev >= 0.5)) {
             var lo = a - 0.5 * ds;
             var hi = mid;
-            for (var k = 0u; k < mp.mode.z; k++) {
+            for (var k = 0u; k < BISECTIONS; k++) {
                 let m = 0.5 * (lo + hi);
                 if ((vis_at(ray, r, m) >= 0.5) == (v_prev >= 0.5)) {
                     lo = m;
@@ -143,9 +232,10 @@ fn march_interval(ray: PixelRay, r: AirRay, s0: f32, s1: f32, n: u32, shadowed: 
                     hi = m;
                 }
             }
+            // Move the edge the midpoint rule assumed (at a) to the located transition.
             let t_edge = table_t(table, air, r, 0.5 * (lo + hi));
             out.t += (t_edge - t_a) * (v_prev * w_prev - v * w);
-            out.steps += mp.mode.z;
+            out.steps += BISECTIONS;
         }
         t_a = t_b;
         v_prev = v;
@@ -170,13 +260,13 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
     let r = air_ray(air, ray.dir);
     let x_end = select(3.4e38, ray.distance, ray.distance >= 0.0);
 
-    let sup = support_s(air, r, mp.mode.w == 1u, mp.spot, ray.dir, x_end);
+    let sup = support_s(air, r, mp.spot, ray.dir, x_end);
 
     // Shadow-volume extents in s (hybrid): start at 0 when the nearest face is a back face
     // (eye inside a volume, or its front cut away by the near plane), else at the nearest front
     // face; end at the farthest back face (0 depth = at infinity).
     var ext = vec2<f32>(1.0, 0.0); // empty
-    if (mp.mode.x == 1u) {
+    if (MODE == 1u) {
         let front = textureLoad(extent_front, gid.xy, 0);
         let back_near = textureLoad(extent_back_near, gid.xy, 0);
         let back_far = textureLoad(extent_back_far, gid.xy, 0);
@@ -196,35 +286,65 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
             // and depth rounding.
             ext = vec2<f32>(s_of_x(air, r, x0 * 0.999), s_of_x(air, r, min(x1 * 1.001, 3.4e38)));
         }
-    } else if (mp.mode.x == 2u) {
+    } else if (MODE == 2u) {
         ext = vec2<f32>(0.0, 1.0);
     }
 
     var total = vec3<f32>(0.0);
+    var open = vec3<f32>(0.0);  // the unshadowed T over the support
     var steps = 0u;
-    let textured = mp.tex.x > 0.5;
     for (var i = 0u; i < sup.count; i++) {
         let u0 = sup.s[i].x;
         let u1 = sup.s[i].y;
-        var m0 = max(u0, ext.x);
-        var m1 = min(u1, ext.y);
-        if (!(m0 < m1)) {
-            m0 = u1;
-            m1 = u1;
+        // A point light's support starts at the eye, where T = 0.
+        var t_u0 = vec3<f32>(0.0);
+        if (SPOT) {
+            t_u0 = table_t(table, air, r, u0);
+        }
+        let t_u1 = table_t(table, air, r, u1);
+        open += t_u1 - t_u0;
+        let m0 = max(u0, ext.x);
+        let m1 = min(u1, ext.y);
+        if (MODE == 0u || !(m0 < m1)) {
+            // No extents on this piece: all of it is lit. (MODE == 0 lets the compiler drop
+            // the marching code from the analytic pipeline, which has no extents at all.)
+            if (TEXTURED) {
+                let all = march_textured(ray, r, u0, u1, mp.budget.x);
+                total += all.t;
+                steps += all.steps;
+            } else {
+                total += t_u1 - t_u0;
+            }
+            continue;
         }
         // Before, between and after the extents: analytic for a plain light; for a textured
         // spot marched with its own step budget, only inside the cone.
-        let inside = march_interval(ray, r, m0, m1, mp.mode.y, true, textured);
+        var t_m0 = t_u0;
+        if (m0 != u0) {
+            t_m0 = table_t(table, air, r, m0);
+        }
+        var t_m1 = t_u1;
+        if (m1 != u1) {
+            t_m1 = table_t(table, air, r, m1);
+        }
+        var inside: Marched;
+        if (TEXTURED) {
+            // The hybrid gives the texture its own resolution inside the extents too; brute
+            // force marches everything with its `steps`, texture included.
+            let n = select(mp.mode.y, max(mp.mode.y, mp.budget.x), MODE == 1u);
+            inside = march_shadowed_textured(ray, r, m0, m1, n);
+        } else {
+            inside = march_shadowed(ray, r, m0, m1, t_m0, t_m1, mp.mode.y);
+        }
         total += inside.t;
         steps += inside.steps;
-        if (textured) {
-            let before = march_interval(ray, r, u0, m0, mp.budget.x, false, true);
-            let after = march_interval(ray, r, m1, u1, mp.budget.x, false, true);
+        if (TEXTURED) {
+            let before = march_textured(ray, r, u0, m0, mp.budget.x);
+            let after = march_textured(ray, r, m1, u1, mp.budget.x);
             total += before.t + after.t;
             steps += before.steps + after.steps;
         } else {
-            total += (table_t(table, air, r, m0) - table_t(table, air, r, u0))
-                   + (table_t(table, air, r, u1) - table_t(table, air, r, m1));
+            total += (t_m0 - t_u0) + (t_u1 - t_m1);
         }
     }
     total = max(total, vec3<f32>(0.0));
@@ -233,7 +353,6 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
         // Reduced resolution: the fraction of the unshadowed airlight that arrives, which the
         // upsample multiplies into a full-resolution analytic airlight. It is smooth where the
         // airlight itself is peaked (around the light) and keeps hard edges only at shadows.
-        let open = unshadowed_t(table, air, r, sup);
         value = select(vec3<f32>(1.0), min(total / open, vec3<f32>(1.0)), open > vec3<f32>(0.0));
     }
     textureStore(inscatter_out, gid.xy, vec4<f32>(value, ray.distance));

@@ -1,6 +1,11 @@
 // volshadow prelude: the maths shared by every node (phase functions, the bounded airlight
 // integrand of DESIGN §2, the F′ table lookup). Each node's WGSL file is appended to this one.
 
+// Pipeline constant of every per-pixel node: the light is a spot (a cone support that may
+// start away from the eye) rather than a point light (support from the eye, where T = 0).
+// Set per pipeline so that a point light's pixels do not pay for the cone.
+override SPOT: bool = false;
+
 const PI: f32 = 3.14159265358979;
 const INV_4PI: f32 = 0.0795774715459477;
 // Larger than any radiance we produce; outputs are clamped to it so nothing reaches Inf.
@@ -227,17 +232,17 @@ fn s_of_x(a: Airlight, r: AirRay, x: f32) -> f32 {
 }
 
 // The lit support of a ray in s: [0, s(ds)] for a point light, its intersection with the cone
-// for a spot light (spot.w = cos half angle; spot_on = false for a point light).
+// for a spot light (spot.w = cos half angle; unused for a point light).
 struct SupportS {
     s: array<vec2<f32>, 2>,
     count: u32,
 }
 
-fn support_s(a: Airlight, r: AirRay, spot_on: bool, spot: vec4<f32>, dir: vec3<f32>, x_end: f32) -> SupportS {
+fn support_s(a: Airlight, r: AirRay, spot: vec4<f32>, dir: vec3<f32>, x_end: f32) -> SupportS {
     var out: SupportS;
     out.count = 1u;
     out.s[0] = vec2<f32>(0.0, s_of_x(a, r, x_end));
-    if (spot_on) {
+    if (SPOT) {
         let cone = cone_support(a, spot, dir, x_end);
         out.count = cone.count;
         for (var i = 0u; i < cone.count; i++) {
@@ -251,7 +256,10 @@ fn support_s(a: Airlight, r: AirRay, spot_on: bool, spot: vec4<f32>, dir: vec3<f
 fn unshadowed_t(table: texture_2d<f32>, a: Airlight, r: AirRay, sup: SupportS) -> vec3<f32> {
     var t = vec3<f32>(0.0);
     for (var i = 0u; i < sup.count; i++) {
-        t += table_t(table, a, r, sup.s[i].y) - table_t(table, a, r, sup.s[i].x);
+        t += table_t(table, a, r, sup.s[i].y);
+        if (SPOT) {
+            t -= table_t(table, a, r, sup.s[i].x);
+        }
     }
     return t;
 }

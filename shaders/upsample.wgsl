@@ -19,14 +19,13 @@ struct Upsample {
 @group(0) @binding(6) var table: texture_2d<f32>;
 @group(0) @binding(7) var<uniform> air: Airlight;
 @group(0) @binding(8) var<uniform> spot: vec4<f32>;     // spot axis, cos half angle (0 = point light)
-@group(0) @binding(9) var<uniform> spot_on: vec4<u32>;  // x = 1 for a spot light
 
 // Unshadowed airlight of an output pixel, analytic at full resolution.
 fn airlight_full(p: vec2<u32>) -> vec4<f32> {
     let ray = pixel_ray(view, vec2<f32>(p) + 0.5, textureLoad(scene_depth, p, 0));
     let r = air_ray(air, ray.dir);
     let x_end = select(3.4e38, ray.distance, ray.distance >= 0.0);
-    let sup = support_s(air, r, spot_on.x == 1u, spot, ray.dir, x_end);
+    let sup = support_s(air, r, spot, ray.dir, x_end);
     return vec4<f32>(r.prefactor * unshadowed_t(table, air, r, sup), ray.distance);
 }
 

@@ -369,6 +369,49 @@ fn hybrid_is_cheaper_and_at_least_as_accurate_as_brute_force_at_equal_steps() {
 }
 
 #[test]
+fn bisection_locates_shadow_edges_between_steps() {
+    // Brute force at 16 steps puts a shadow edge anywhere within a step; 4 bisections place it
+    // to 1/16 of a step. The visibility error should shrink accordingly (measured 2026-11-22,
+    // 128x128, lavapipe: RMSE 0.57% without, 0.14% with): we ask for at least a third less,
+    // and for the steps the bisections executed to be counted.
+    let gpu = common::gpu();
+    let cache = Cache::new(&gpu.device);
+    let camera = look_at(Vec3::new(0.0, 1.2, 5.0), Vec3::new(0.0, 0.9, 0.0));
+    let light = point_light(Vec3::new(0.4, 4.2, -0.3));
+    let scene = sphere_scene();
+    let run = |bisections| {
+        render(
+            &gpu,
+            &cache,
+            &camera,
+            &light,
+            &medium(),
+            &scene,
+            MarchSettings {
+                bisections,
+                ..brute(16)
+            },
+        )
+    };
+    let (plain, refined) = (run(0), run(4));
+    let steps = |m: &Metrics| -> u64 { m.frame.steps.iter().map(|&s| u64::from(s)).sum() };
+    println!(
+        "brute force 16: RMSE {:.4} ({} steps) without bisection, {:.4} ({} steps) with 4",
+        plain.rmse_rel,
+        steps(&plain),
+        refined.rmse_rel,
+        steps(&refined)
+    );
+    assert!(
+        refined.rmse_rel < 0.67 * plain.rmse_rel,
+        "bisection: RMSE {:.4} vs {:.4} without",
+        refined.rmse_rel,
+        plain.rmse_rel
+    );
+    assert!(steps(&refined) > steps(&plain));
+}
+
+#[test]
 fn pixels_without_extents_execute_no_steps() {
     let gpu = common::gpu();
     let cache = Cache::new(&gpu.device);

@@ -13,15 +13,17 @@ pub struct Cache {
     pub(crate) table_layout: wgpu::BindGroupLayout,
     pub(crate) table_pipeline: wgpu::ComputePipeline,
     pub(crate) march_layout: wgpu::BindGroupLayout,
-    pub(crate) march_pipeline: wgpu::ComputePipeline,
+    march_pipeline_layout: wgpu::PipelineLayout,
+    march_module: wgpu::ShaderModule,
+    march_pipelines: Arc<Mutex<HashMap<MarchVariant, wgpu::ComputePipeline>>>,
     pub(crate) composite_layout: wgpu::BindGroupLayout,
     pub(crate) light_texture_layout: wgpu::BindGroupLayout,
     pub(crate) light_copy_pipeline: wgpu::RenderPipeline,
     pub(crate) light_down_pipeline: wgpu::RenderPipeline,
     pub(crate) upsample_layout: wgpu::BindGroupLayout,
-    pub(crate) upsample_pipeline: wgpu::ComputePipeline,
-    pub(crate) upsample_h_pipeline: wgpu::ComputePipeline,
-    pub(crate) upsample_v_pipeline: wgpu::ComputePipeline,
+    upsample_pipeline_layout: wgpu::PipelineLayout,
+    upsample_module: wgpu::ShaderModule,
+    upsample_pipelines: Arc<Mutex<HashMap<bool, UpsamplePipelines>>>,
     pub(crate) shadow_layout: wgpu::BindGroupLayout,
     pub(crate) shadow_pipeline: wgpu::RenderPipeline,
     pub(crate) extents_extrude_layout: wgpu::BindGroupLayout,
@@ -34,6 +36,26 @@ pub struct Cache {
     composite_pipeline_layout: wgpu::PipelineLayout,
     composite_module: wgpu::ShaderModule,
     composite_pipelines: Arc<Mutex<HashMap<wgpu::TextureFormat, wgpu::RenderPipeline>>>,
+}
+
+/// The march shader's pipeline constants (see `shaders/march.wgsl`): one pipeline each.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub(crate) struct MarchVariant {
+    /// 0 analytic, 1 hybrid, 2 brute force.
+    pub mode: u32,
+    pub spot: bool,
+    pub textured: bool,
+    pub bisections: u32,
+}
+
+/// The upsample's entry points for one kind of light.
+#[derive(Clone)]
+pub(crate) struct UpsamplePipelines {
+    /// Bilinear and 3×3 (one pass).
+    pub single: wgpu::ComputePipeline,
+    /// The separable filter's horizontal and vertical passes.
+    pub horizontal: wgpu::ComputePipeline,
+    pub vertical: wgpu::ComputePipeline,
 }
 
 /// Creates a shader module from the prelude followed by one node's WGSL.
@@ -252,13 +274,12 @@ impl Cache {
             "volshadow march.wgsl",
             include_str!("../../shaders/march.wgsl"),
         );
-        let march_pipeline = compute_pipeline(
-            device,
-            "volshadow march",
-            &march_layout,
-            &march_module,
-            "march",
-        );
+        let march_pipeline_layout =
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("volshadow march"),
+                bind_group_layouts: &[Some(&march_layout)],
+                immediate_size: 0,
+            });
 
         let fragment = wgpu::ShaderStages::FRAGMENT;
         let composite_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -403,7 +424,6 @@ impl Cache {
                 texture_entry(6, compute, UNFILTERED),
                 uniform_entry(7, compute),
                 uniform_entry(8, compute),
-                uniform_entry(9, compute),
             ],
         });
         let upsample_module = module(
@@ -411,20 +431,12 @@ impl Cache {
             "volshadow upsample.wgsl",
             include_str!("../../shaders/upsample.wgsl"),
         );
-        let upsample = |entry| {
-            compute_pipeline(
-                device,
-                "volshadow upsample",
-                &upsample_layout,
-                &upsample_module,
-                entry,
-            )
-        };
-        let (upsample_pipeline, upsample_h_pipeline, upsample_v_pipeline) = (
-            upsample("upsample"),
-            upsample("separable_h"),
-            upsample("separable_v"),
-        );
+        let upsample_pipeline_layout =
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("volshadow upsample"),
+                bind_group_layouts: &[Some(&upsample_layout)],
+                immediate_size: 0,
+            });
 
         let light_texture_layout =
             device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -485,9 +497,9 @@ impl Cache {
             light_copy_pipeline,
             light_down_pipeline,
             upsample_layout,
-            upsample_pipeline,
-            upsample_h_pipeline,
-            upsample_v_pipeline,
+            upsample_pipeline_layout,
+            upsample_module,
+            upsample_pipelines: Arc::new(Mutex::new(HashMap::new())),
             shadow_layout,
             shadow_pipeline,
             extents_extrude_layout,
@@ -500,7 +512,9 @@ impl Cache {
             table_layout,
             table_pipeline,
             march_layout,
-            march_pipeline,
+            march_pipeline_layout,
+            march_module,
+            march_pipelines: Arc::new(Mutex::new(HashMap::new())),
             composite_layout,
             composite_pipeline_layout,
             composite_module,
@@ -546,6 +560,77 @@ impl Cache {
                     multiview_mask: None,
                     cache: None,
                 })
+            })
+            .clone()
+    }
+
+    /// The march pipeline for `variant`, built on first use.
+    pub(crate) fn march_pipeline(
+        &self,
+        device: &wgpu::Device,
+        variant: MarchVariant,
+    ) -> wgpu::ComputePipeline {
+        let mut pipelines = self
+            .march_pipelines
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        pipelines
+            .entry(variant)
+            .or_insert_with(|| {
+                let flag = |b: bool| if b { 1.0 } else { 0.0 };
+                let constants = [
+                    ("MODE", f64::from(variant.mode)),
+                    ("SPOT", flag(variant.spot)),
+                    ("TEXTURED", flag(variant.textured)),
+                    ("BISECTIONS", f64::from(variant.bisections)),
+                ];
+                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some("volshadow march"),
+                    layout: Some(&self.march_pipeline_layout),
+                    module: &self.march_module,
+                    entry_point: Some("march"),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants: &constants,
+                        ..Default::default()
+                    },
+                    cache: None,
+                })
+            })
+            .clone()
+    }
+
+    /// The upsample pipelines for a spot (`true`) or point light, built on first use.
+    pub(crate) fn upsample_pipelines(
+        &self,
+        device: &wgpu::Device,
+        spot: bool,
+    ) -> UpsamplePipelines {
+        let mut pipelines = self
+            .upsample_pipelines
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        pipelines
+            .entry(spot)
+            .or_insert_with(|| {
+                let constants = [("SPOT", if spot { 1.0 } else { 0.0 })];
+                let pipeline = |entry| {
+                    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                        label: Some("volshadow upsample"),
+                        layout: Some(&self.upsample_pipeline_layout),
+                        module: &self.upsample_module,
+                        entry_point: Some(entry),
+                        compilation_options: wgpu::PipelineCompilationOptions {
+                            constants: &constants,
+                            ..Default::default()
+                        },
+                        cache: None,
+                    })
+                };
+                UpsamplePipelines {
+                    single: pipeline("upsample"),
+                    horizontal: pipeline("separable_h"),
+                    vertical: pipeline("separable_v"),
+                }
             })
             .clone()
     }

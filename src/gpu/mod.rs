@@ -1,7 +1,7 @@
 //! GPU plumbing shared by the nodes: the pipeline cache, uniform layouts, texture checks, and
 //! the headless helper used by tests, examples and offline tools.
 
-mod cache;
+pub(crate) mod cache;
 pub mod headless;
 mod mesh;
 mod timer;

@@ -29,6 +29,7 @@
 //! size: march steps (and bisections) each pixel executed.
 
 use crate::error::{Error, Result};
+use crate::gpu::cache::MarchVariant;
 use crate::gpu::uniforms::{AirlightUniform, ViewUniform};
 use crate::gpu::{
     check_depth_layers, check_depth_texture, check_size, check_target_size, depth_view, texture_2d,
@@ -61,7 +62,8 @@ pub struct MarchSettings {
     /// Resolution of the march relative to `scene_depth` (full, ½, ¼). Default full.
     pub scale: crate::nodes::Scale,
     /// Textured spot lights: steps before and after the shadow-volume extents (inside the
-    /// cone; 1 ..= 4096). Default 32.
+    /// cone), and for the hybrid at least as many between them (the texture's detail needs
+    /// them whether or not a shadow is there); 1 ..= 4096. Default 32.
     pub texture_steps: u32,
 }
 
@@ -153,7 +155,9 @@ struct MarchUniform {
 /// Computes in-scattered radiance per pixel into its own `Rgba32Float` texture.
 pub struct MarchNode {
     settings: MarchSettings,
-    pipeline: wgpu::ComputePipeline,
+    cache: Cache,
+    /// The pipeline of the last `prepare`'s variant.
+    pipeline: Option<wgpu::ComputePipeline>,
     layout: wgpu::BindGroupLayout,
     airlight: UniformBuffer<AirlightUniform>,
     view: UniformBuffer<ViewUniform>,
@@ -181,7 +185,8 @@ impl MarchNode {
         let sampled = wgpu::TextureUsages::TEXTURE_BINDING;
         Ok(Self {
             settings,
-            pipeline: cache.march_pipeline.clone(),
+            cache: cache.clone(),
+            pipeline: None,
             layout: cache.march_layout.clone(),
             airlight: UniformBuffer::new(device, "volshadow march airlight"),
             view: UniformBuffer::new(device, "volshadow march view"),
@@ -407,7 +412,7 @@ impl MarchNode {
 
         let mut faces = [[0.0; 16]; 6];
         let mut shadow = [0.0; 4];
-        let mode_x = match &inputs.shadows {
+        let mode = match &inputs.shadows {
             None => 0,
             Some(s) => {
                 for (slot, face) in faces.iter_mut().zip(s.shadow_map.faces) {
@@ -449,12 +454,7 @@ impl MarchNode {
         self.params.write(
             queue,
             MarchUniform {
-                mode: [
-                    mode_x,
-                    self.settings.steps,
-                    self.settings.bisections,
-                    u32::from(matches!(inputs.light, Light::Spot(_))),
-                ],
+                mode: [0, self.settings.steps, 0, 0],
                 spot,
                 shadow,
                 faces,
@@ -463,18 +463,33 @@ impl MarchNode {
                 budget: [self.settings.texture_steps, 0, 0, 0],
             },
         );
+        self.pipeline = Some(self.cache.march_pipeline(
+            device,
+            MarchVariant {
+                mode,
+                spot: matches!(inputs.light, Light::Spot(_)),
+                textured: inputs.light_texture.is_some(),
+                bisections: if mode == 0 {
+                    0
+                } else {
+                    self.settings.bisections
+                },
+            },
+        ));
         Ok(())
     }
 
     /// Records the march. Records nothing before the first successful `prepare`.
     pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, timer: Option<&mut GpuTimer>) {
-        let Some(bound) = &self.bound else { return };
+        let (Some(bound), Some(pipeline)) = (&self.bound, &self.pipeline) else {
+            return;
+        };
         let timestamp_writes = timer.and_then(|t| t.compute_pass("march"));
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("volshadow march"),
             timestamp_writes,
         });
-        pass.set_pipeline(&self.pipeline);
+        pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &bound.bind_group, &[]);
         pass.dispatch_workgroups(bound.size.0.div_ceil(8), bound.size.1.div_ceil(8), 1);
     }

@@ -96,6 +96,7 @@ impl UpsampleFilter {
     }
 }
 
+use crate::gpu::cache::UpsamplePipelines;
 use crate::gpu::uniforms::ViewUniform;
 use crate::gpu::{check_depth_texture, check_float_texture, Cache, GpuTimer, UniformBuffer};
 use crate::scene::Camera;
@@ -134,14 +135,13 @@ struct UpsampleUniform {
 pub struct UpsampleNode {
     filter: UpsampleFilter,
     layout: wgpu::BindGroupLayout,
-    single: wgpu::ComputePipeline,
-    horizontal: wgpu::ComputePipeline,
-    vertical: wgpu::ComputePipeline,
+    cache: Cache,
+    /// The pipelines for the last `prepare`'s kind of light.
+    pipelines: Option<UpsamplePipelines>,
     uniform: UniformBuffer<UpsampleUniform>,
     view: UniformBuffer<ViewUniform>,
     airlight: UniformBuffer<crate::gpu::uniforms::AirlightUniform>,
     spot: UniformBuffer<[f32; 4]>,
-    spot_on: UniformBuffer<[u32; 4]>,
     dummy: wgpu::Texture,
     output: Option<wgpu::Texture>,
     intermediate: Option<wgpu::Texture>,
@@ -157,14 +157,12 @@ impl UpsampleNode {
         Ok(Self {
             filter,
             layout: cache.upsample_layout.clone(),
-            single: cache.upsample_pipeline.clone(),
-            horizontal: cache.upsample_h_pipeline.clone(),
-            vertical: cache.upsample_v_pipeline.clone(),
+            cache: cache.clone(),
+            pipelines: None,
             uniform: UniformBuffer::new(device, "volshadow upsample"),
             view: UniformBuffer::new(device, "volshadow upsample view"),
             airlight: UniformBuffer::new(device, "volshadow upsample airlight"),
             spot: UniformBuffer::new(device, "volshadow upsample spot"),
-            spot_on: UniformBuffer::new(device, "volshadow upsample spot flag"),
             dummy: storage_texture(device, "volshadow upsample dummy", 1, 1),
             output: None,
             intermediate: None,
@@ -177,6 +175,13 @@ impl UpsampleNode {
     /// The filter.
     pub fn filter(&self) -> UpsampleFilter {
         self.filter
+    }
+
+    /// Changes the filter (validated); takes effect at the next `prepare`.
+    pub fn set_filter(&mut self, filter: UpsampleFilter) -> Result<()> {
+        filter.validate()?;
+        self.filter = filter;
+        Ok(())
     }
 
     /// Validates the inputs, (re)creates textures when sizes change, uploads what changed.
@@ -282,10 +287,6 @@ impl UpsampleNode {
                             binding: 8,
                             resource: self.spot.binding(),
                         },
-                        wgpu::BindGroupEntry {
-                            binding: 9,
-                            resource: self.spot_on.binding(),
-                        },
                     ],
                 })
             };
@@ -326,14 +327,14 @@ impl UpsampleNode {
                 inputs.table.table_dims(),
             ),
         );
-        let (spot, on) = match inputs.light {
+        let (spot, is_spot) = match inputs.light {
             crate::scene::Light::Spot(s) => {
-                (s.direction().extend(s.cos_half_angle()).to_array(), 1)
+                (s.direction().extend(s.cos_half_angle()).to_array(), true)
             }
-            crate::scene::Light::Point(_) => ([0.0; 4], 0),
+            crate::scene::Light::Point(_) => ([0.0; 4], false),
         };
         self.spot.write(queue, spot);
-        self.spot_on.write(queue, [on, 0, 0, 0]);
+        self.pipelines = Some(self.cache.upsample_pipelines(device, is_spot));
         self.size = (w, h);
         self.low_height = lh;
         Ok(())
@@ -341,7 +342,7 @@ impl UpsampleNode {
 
     /// Records the upsample (one pass, or two for the separable filter).
     pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, timer: Option<&mut GpuTimer>) {
-        let Some((_, groups)) = &self.bound else {
+        let (Some((_, groups)), Some(pipelines)) = (&self.bound, &self.pipelines) else {
             return;
         };
         let timestamp_writes = timer.and_then(|t| t.compute_pass("upsample"));
@@ -351,14 +352,14 @@ impl UpsampleNode {
         });
         let (w, h) = self.size;
         if let [horizontal, vertical] = groups.as_slice() {
-            pass.set_pipeline(&self.horizontal);
+            pass.set_pipeline(&pipelines.horizontal);
             pass.set_bind_group(0, horizontal, &[]);
             pass.dispatch_workgroups(w.div_ceil(8), self.low_height.div_ceil(8), 1);
-            pass.set_pipeline(&self.vertical);
+            pass.set_pipeline(&pipelines.vertical);
             pass.set_bind_group(0, vertical, &[]);
             pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
         } else {
-            pass.set_pipeline(&self.single);
+            pass.set_pipeline(&pipelines.single);
             pass.set_bind_group(0, &groups[0], &[]);
             pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
         }
