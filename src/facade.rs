@@ -27,6 +27,10 @@ pub struct Settings {
     /// An occluder whose effect on every pixel is provably below this fraction of the
     /// in-scatter is left out of the shadow map and extents (0 = never).
     pub cull_threshold: f32,
+    /// The p95 relative error these settings were chosen for by
+    /// [`Settings::for_error_target`] (`None`: chosen by hand). The planner reads it: under an
+    /// error target a textured spot's scattering runs at full resolution.
+    pub error_target: Option<f32>,
 }
 
 impl Settings {
@@ -51,7 +55,33 @@ impl Settings {
         },
         output_format: wgpu::TextureFormat::Rgba16Float,
         cull_threshold: 0.0,
+        error_target: None,
     };
+}
+
+impl Settings {
+    /// Settings whose 95th-percentile per-pixel relative error of the in-scatter stays within
+    /// `p95` (0.02 = 2%): the planner picks steps, scattering resolution, filter and bisections
+    /// from [`plan::ERROR_TABLE`], measured by the report on the standard scenes with untextured
+    /// lights, keeping headroom ([`plan::ERROR_TARGET_MARGIN`]); textured spots scatter at full
+    /// resolution with [`plan::ERROR_TARGET_TEXTURE_STEPS`]. Everything else is
+    /// [`Settings::default`]'s.
+    /// A tolerance tighter than any measured configuration reaches is an error.
+    pub fn for_error_target(p95: f32) -> Result<Settings> {
+        let picked = plan::for_error_target(p95)?;
+        Ok(Settings {
+            march: MarchSettings {
+                method: MarchMethod::Hybrid,
+                steps: picked.steps,
+                bisections: picked.bisections,
+                scale: picked.scale,
+                texture_steps: plan::ERROR_TARGET_TEXTURE_STEPS,
+            },
+            upsample: picked.upsample,
+            error_target: Some(p95),
+            ..Settings::default()
+        })
+    }
 }
 
 impl Default for Settings {
@@ -205,6 +235,7 @@ impl VolumetricShadows {
             scale: self.settings.march.scale,
             filter: self.settings.upsample,
             culled: Vec::new(),
+            error_target: self.settings.error_target,
         };
         for (i, (fl, slot)) in frame.lights.iter().zip(&mut self.slots).enumerate() {
             let light = &fl.light;
@@ -240,11 +271,12 @@ impl VolumetricShadows {
             }
             let shadowed = !kept.is_empty();
             let shadow_changed = shadowed && slot.shadow.prepare(device, queue, light, &kept)?;
-            let scale = if shadowed {
-                self.settings.march.scale
-            } else {
-                Scale::Full
-            };
+            let scale = plan::light_scale(
+                self.settings.march.scale,
+                shadowed,
+                fl.texture.is_some(),
+                self.settings.error_target,
+            );
             if shadowed && self.settings.march.method == MarchMethod::Hybrid {
                 let (w, h) = scale.apply(width, height);
                 slot.extents.prepare(
@@ -289,6 +321,7 @@ impl VolumetricShadows {
                 },
             )?;
             if scale != Scale::Full {
+                slot.upsample.set_filter(self.settings.upsample)?;
                 slot.upsample.prepare(
                     device,
                     queue,
@@ -353,36 +386,79 @@ impl VolumetricShadows {
         if let Some(t) = self.timer.as_mut() {
             t.clear();
         }
-        let steps = self.plan.steps.clone();
-        for step in &steps {
-            let timer = self.timer.as_mut();
-            match (step.pass, step.light) {
-                (Pass::Composite, _) => self.composite.encode(encoder, output, timer)?,
-                (pass, Some(i)) => {
-                    let slot = &mut self.slots[i];
-                    match pass {
-                        Pass::LightTexture => {
-                            slot.texture.encode(encoder, timer);
-                        }
-                        Pass::ShadowMap => {
-                            slot.shadow.encode(encoder, timer);
-                        }
-                        Pass::Extents => slot.extents.encode(encoder, timer),
-                        Pass::AirlightTable => {
-                            slot.table.encode(encoder, timer);
-                        }
-                        Pass::March => slot.march.encode(encoder, timer),
-                        Pass::Upsample => slot.upsample.encode(encoder, timer),
-                        Pass::Composite => unreachable!("handled above"),
-                    }
-                }
-                (_, None) => {}
-            }
+        for index in 0..self.plan.steps.len() {
+            self.record(encoder, output, index)?;
         }
         if let Some(t) = &self.timer {
             t.resolve(encoder);
         }
         Ok(())
+    }
+
+    /// Records only step `index` of the plan (`plan().steps[index]`), untimed: for profilers
+    /// that submit each pass on its own and time the submission — the way to time passes on
+    /// a CPU adapter such as lavapipe, whose timestamps do not bracket compute work. Steps
+    /// must be recorded in plan order within a frame; each reads what earlier steps wrote.
+    pub fn encode_step(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        output: &wgpu::TextureView,
+        index: usize,
+    ) -> Result<()> {
+        if index >= self.plan.steps.len() {
+            return Err(Error::InvalidSetting {
+                field: "index",
+                problem: format!(
+                    "the plan has {} steps, got index {index}",
+                    self.plan.steps.len()
+                ),
+            });
+        }
+        let timer = self.timer.take();
+        let result = self.record(encoder, output, index);
+        self.timer = timer;
+        result
+    }
+
+    fn record(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        output: &wgpu::TextureView,
+        index: usize,
+    ) -> Result<()> {
+        let step = &self.plan.steps[index];
+        let timer = self.timer.as_mut();
+        match (step.pass, step.light) {
+            (Pass::Composite, _) => self.composite.encode(encoder, output, timer)?,
+            (pass, Some(i)) => {
+                let slot = &mut self.slots[i];
+                match pass {
+                    Pass::LightTexture => {
+                        slot.texture.encode(encoder, timer);
+                    }
+                    Pass::ShadowMap => {
+                        slot.shadow.encode(encoder, timer);
+                    }
+                    Pass::Extents => slot.extents.encode(encoder, timer),
+                    Pass::AirlightTable => {
+                        slot.table.encode(encoder, timer);
+                    }
+                    Pass::March => slot.march.encode(encoder, timer),
+                    Pass::Upsample => slot.upsample.encode(encoder, timer),
+                    Pass::Composite => unreachable!("handled above"),
+                }
+            }
+            (_, None) => {}
+        }
+        Ok(())
+    }
+
+    /// Forgets every per-light resource, so the next frame rebuilds all of it (shadow maps,
+    /// tables, light textures) as a first frame does: to measure a frame in which everything
+    /// moved, or after changing a caller texture's contents in place, which `prepare` cannot
+    /// see.
+    pub fn invalidate(&mut self) {
+        self.slots.clear();
     }
 
     /// The plan of the last `prepare`.
@@ -419,6 +495,14 @@ impl VolumetricShadows {
 
 fn validate(settings: &Settings) -> Result<()> {
     settings.upsample.validate()?;
+    if let Some(p95) = settings.error_target {
+        if !(p95.is_finite() && p95 > 0.0) {
+            return Err(Error::InvalidSetting {
+                field: "error_target",
+                problem: format!("must be a positive relative error, got {p95}"),
+            });
+        }
+    }
     crate::error::finite("cull_threshold", &[settings.cull_threshold])?;
     if !(0.0..=1.0).contains(&settings.cull_threshold) {
         return Err(Error::InvalidSetting {

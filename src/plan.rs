@@ -3,6 +3,7 @@
 
 use std::fmt;
 
+use crate::error::{Error, Result};
 use crate::nodes::{MarchMethod, Scale, UpsampleFilter};
 
 /// A pass the facade can record.
@@ -55,6 +56,9 @@ pub enum Reason {
     Unchanged,
     /// Brute force marches the whole ray and needs no shadow-volume extents.
     BruteForce,
+    /// Under an error target a textured spot's scattering runs at full resolution: its
+    /// projected texture's detail does not survive reduced-resolution scattering.
+    TexturedUnderErrorTarget,
 }
 
 impl fmt::Display for Reason {
@@ -66,6 +70,9 @@ impl fmt::Display for Reason {
             Reason::FullResolution => "scattering already at output resolution",
             Reason::Unchanged => "unchanged since last frame",
             Reason::BruteForce => "brute force marches the whole ray",
+            Reason::TexturedUnderErrorTarget => {
+                "error target: a textured spot scatters at full resolution"
+            }
         })
     }
 }
@@ -191,6 +198,24 @@ pub(crate) struct FrameFacts {
     pub scale: Scale,
     pub filter: UpsampleFilter,
     pub culled: Vec<Culled>,
+    pub error_target: Option<f32>,
+}
+
+/// The resolution a light's scattering runs at. Without shadows the analytic airlight is
+/// exact and costs one lookup per pixel, so it runs at the output resolution; under an error
+/// target a textured spot does too (measured by the report on the stained-glass scene: p95
+/// 9–50% at ½ and ¼, where the lit fraction is upsampled and the texture's detail is lost).
+pub(crate) fn light_scale(
+    scale: Scale,
+    shadowed: bool,
+    textured: bool,
+    error_target: Option<f32>,
+) -> Scale {
+    if !shadowed || (textured && error_target.is_some()) {
+        Scale::Full
+    } else {
+        scale
+    }
 }
 
 /// Decides the passes of a frame.
@@ -235,9 +260,7 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
             (true, true) => run(Pass::LightTexture, light, "blurred mip chain".into()),
         }
         let shadowed = l.occluders > 0;
-        // Without shadows the analytic airlight is exact and costs one lookup per pixel, so
-        // it always runs at the output resolution.
-        let scale = if shadowed { facts.scale } else { Scale::Full };
+        let scale = light_scale(facts.scale, shadowed, l.textured, facts.error_target);
         if !shadowed {
             skip(Pass::ShadowMap, light, Reason::NoOccluders);
             skip(Pass::Extents, light, Reason::NoOccluders);
@@ -272,7 +295,9 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
             light,
             format!("{method}, at 1/{}", scale.divisor()),
         );
-        if scale == Scale::Full {
+        if scale == Scale::Full && facts.scale != Scale::Full && shadowed && l.textured {
+            skip(Pass::Upsample, light, Reason::TexturedUnderErrorTarget);
+        } else if scale == Scale::Full {
             skip(Pass::Upsample, light, Reason::FullResolution);
         } else {
             run(Pass::Upsample, light, format!("{:?}", facts.filter));
@@ -324,4 +349,96 @@ pub(crate) fn occluder_bound(
             log.exp()
         })
         .fold(0.0, f64::max)
+}
+
+/// A hybrid configuration the error target can pick, with what the report
+/// (`cargo run --release --example report`) measured for it on the standard scenes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MeasuredConfig {
+    /// Worst 95th-percentile relative error over the standard scenes.
+    pub p95: f32,
+    /// Mean frame time over the analytic floor's (unshadowed airlight) on the same scenes.
+    pub cost: f32,
+    /// Steps per marched interval.
+    pub steps: u32,
+    /// Scattering resolution.
+    pub scale: Scale,
+    /// Upsampling filter (ignored at full resolution).
+    pub upsample: UpsampleFilter,
+    /// Bisections per lit/shadow transition.
+    pub bisections: u32,
+}
+
+const fn measured(
+    p95: f32,
+    cost: f32,
+    steps: u32,
+    scale: Scale,
+    upsample: UpsampleFilter,
+    bisections: u32,
+) -> MeasuredConfig {
+    MeasuredConfig {
+        p95,
+        cost,
+        steps,
+        scale,
+        upsample,
+        bisections,
+    }
+}
+
+/// Steps a textured spot's lit stretches outside the shadow volumes get under an error target
+/// (the budget [`ERROR_TABLE`] was measured with; untextured lights never use it).
+pub const ERROR_TARGET_TEXTURE_STEPS: u32 = 256;
+
+/// The error target keeps this fraction of the tolerance as headroom for scenes unlike the
+/// standard ones: it picks configurations whose measured worst p95 is at most
+/// `ERROR_TARGET_MARGIN × tolerance`.
+pub const ERROR_TARGET_MARGIN: f32 = 0.8;
+
+/// The Pareto front of worst-scene p95 against cost, cheapest first, as written to
+/// `target/volshadow-report/error_table.rs` by the report (run of 2026-11-22, llvmpipe,
+/// 512×512, the five standard scenes with untextured lights). Only configurations measured on
+/// every such scene enter it; the report's sweeps stop early where the error is already small,
+/// so today's front holds 8-step configurations only.
+#[rustfmt::skip]
+pub const ERROR_TABLE: &[MeasuredConfig] = &[
+    // measured(p95, cost, steps, scale, upsample, bisections)
+    measured(0.0752, 1.806, 8, Scale::Quarter, UpsampleFilter::Bilinear, 2),
+    measured(0.0665, 1.851, 8, Scale::Quarter, UpsampleFilter::DepthAware3x3, 2),
+    measured(0.0280, 2.327, 8, Scale::Half, UpsampleFilter::DepthAware3x3, 0),
+    measured(0.0204, 3.387, 8, Scale::Full, UpsampleFilter::DepthAware3x3, 0),
+    measured(0.0073, 3.636, 8, Scale::Full, UpsampleFilter::DepthAware3x3, 2),
+];
+
+/// The cheapest configuration of [`ERROR_TABLE`] whose measured worst p95 is within
+/// [`ERROR_TARGET_MARGIN`] of `p95` (a relative error: 0.02 = 2%).
+pub fn for_error_target(p95: f32) -> Result<MeasuredConfig> {
+    if !(p95.is_finite() && p95 > 0.0) {
+        return Err(Error::InvalidSetting {
+            field: "error_target",
+            problem: format!("must be a positive relative error, got {p95}"),
+        });
+    }
+    let allowed = ERROR_TARGET_MARGIN * p95;
+    ERROR_TABLE
+        .iter()
+        .filter(|c| c.p95 <= allowed)
+        .min_by(|a, b| a.cost.total_cmp(&b.cost))
+        .copied()
+        .ok_or_else(|| {
+            let best = ERROR_TABLE
+                .iter()
+                .map(|c| c.p95)
+                .fold(f32::INFINITY, f32::min);
+            Error::InvalidSetting {
+                field: "error_target",
+                problem: format!(
+                    "p95 {:.3}% is below what any measured configuration reaches with headroom \
+                     (best {:.3}%, headroom {ERROR_TARGET_MARGIN})",
+                    100.0 * p95,
+                    100.0 * best
+                ),
+            }
+        })
 }

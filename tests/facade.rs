@@ -491,3 +491,213 @@ fn too_many_lights_and_bad_settings_are_errors() {
     };
     assert!(VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, bad).is_err());
 }
+
+/// A sphere occluder on the rig's device.
+fn sphere_mesh(rig: &Rig) -> OccluderMesh {
+    OccluderMesh::new(
+        &rig.gpu.device,
+        &shapes::uv_sphere(Vec3::new(0.0, 2.0, -0.3), 0.5, 16, 8),
+    )
+}
+
+#[test]
+fn changing_the_upsample_filter_takes_effect_on_the_next_frame() {
+    // `set_settings` keeps the per-light nodes; the new filter must still reach them: the
+    // image equals a fresh facade's with that filter, and differs from the old filter's.
+    let rig = rig();
+    let sphere = sphere_mesh(&rig);
+    let occluders = [Occluder {
+        mesh: &sphere,
+        transform: Mat4::IDENTITY,
+    }];
+    let with = |upsample| Settings {
+        march: volshadow::nodes::MarchSettings {
+            scale: volshadow::nodes::Scale::Quarter,
+            ..settings().march
+        },
+        upsample,
+        ..settings()
+    };
+    let separable = volshadow::nodes::UpsampleFilter::Separable {
+        taps: 7,
+        sigma_spatial: 1.5,
+        sigma_depth: 0.05,
+    };
+    let new = |s| VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, s).unwrap();
+    let mut vs = new(with(volshadow::nodes::UpsampleFilter::Bilinear));
+    let bilinear = render(&rig, &mut vs, &[light().into()], &medium(), &occluders);
+    vs.set_settings(with(separable)).unwrap();
+    let switched = render(&rig, &mut vs, &[light().into()], &medium(), &occluders);
+    let fresh = render(
+        &rig,
+        &mut new(with(separable)),
+        &[light().into()],
+        &medium(),
+        &occluders,
+    );
+    let (to_fresh, to_old) = (
+        max_rel(&switched.image, &fresh.image),
+        max_rel(&switched.image, &bilinear.image),
+    );
+    println!("after the switch: {to_fresh:.2e} from a fresh separable facade, {to_old:.2e} from bilinear");
+    assert_eq!(to_fresh, 0.0);
+    assert!(
+        to_old > 1e-3,
+        "the filters should differ somewhere: {to_old}"
+    );
+}
+
+#[test]
+fn passes_recorded_one_by_one_give_the_same_image_and_invalidate_rebuilds_everything() {
+    let rig = rig();
+    let sphere = sphere_mesh(&rig);
+    let occluders = [Occluder {
+        mesh: &sphere,
+        transform: Mat4::IDENTITY,
+    }];
+    let lights = [FrameLight::from(light())];
+    let medium = medium();
+    let mut vs =
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
+    let whole = render(&rig, &mut vs, &lights, &medium, &occluders);
+    vs.invalidate();
+    let frame = Frame {
+        camera: &rig.camera,
+        lights: &lights,
+        medium: &medium,
+        occluders: &occluders,
+        scene_color: &rig.color,
+        scene_depth: &rig.depth,
+    };
+    let plan = vs
+        .prepare(&rig.gpu.device, &rig.gpu.queue, &frame)
+        .unwrap()
+        .clone();
+    // After `invalidate` the table and the shadow map run again, as in a first frame.
+    assert!(plan.runs(Pass::AirlightTable, Some(0)) && plan.runs(Pass::ShadowMap, Some(0)));
+    let view = rig.output.create_view(&Default::default());
+    for index in 0..plan.steps.len() {
+        let mut encoder = rig.gpu.device.create_command_encoder(&Default::default());
+        vs.encode_step(&mut encoder, &view, index).unwrap();
+        rig.gpu.submit_and_wait(encoder).unwrap();
+    }
+    let stepped = rig.gpu.read_rgba32f(&rig.output).unwrap();
+    assert_eq!(max_rel(&stepped, &whole.image), 0.0);
+    let mut encoder = rig.gpu.device.create_command_encoder(&Default::default());
+    let err = vs.encode_step(&mut encoder, &view, plan.steps.len());
+    assert!(
+        matches!(
+            err,
+            Err(volshadow::Error::InvalidSetting { field: "index", .. })
+        ),
+        "{err:?}"
+    );
+}
+
+#[test]
+fn error_target_picks_from_the_measured_table_with_headroom() {
+    use volshadow::plan::{ERROR_TABLE, ERROR_TARGET_MARGIN};
+    for bad in [0.0, -0.01, f32::NAN, f32::INFINITY] {
+        assert!(
+            matches!(
+                Settings::for_error_target(bad),
+                Err(volshadow::Error::InvalidSetting {
+                    field: "error_target",
+                    ..
+                })
+            ),
+            "{bad}"
+        );
+    }
+    let tightest = ERROR_TABLE
+        .iter()
+        .map(|c| c.p95)
+        .fold(f32::INFINITY, f32::min);
+    assert!(Settings::for_error_target(0.5 * tightest).is_err());
+    let mut last_cost = f32::INFINITY;
+    for tolerance in [0.2, 0.1, 0.05, 0.02, 0.01] {
+        let Ok(settings) = Settings::for_error_target(tolerance) else {
+            continue;
+        };
+        let row = ERROR_TABLE
+            .iter()
+            .find(|c| {
+                c.steps == settings.march.steps
+                    && c.scale == settings.march.scale
+                    && c.upsample == settings.upsample
+                    && c.bisections == settings.march.bisections
+            })
+            .expect("the pick is a row of the table");
+        assert!(row.p95 <= ERROR_TARGET_MARGIN * tolerance);
+        // The cheapest such row.
+        assert!(ERROR_TABLE
+            .iter()
+            .filter(|c| c.p95 <= ERROR_TARGET_MARGIN * tolerance)
+            .all(|c| c.cost >= row.cost));
+        assert_eq!(settings.error_target, Some(tolerance));
+        last_cost = last_cost.min(row.cost);
+    }
+    assert!(
+        last_cost.is_finite(),
+        "no tolerance from 20% to 1% could be met"
+    );
+    // A bad error target set by hand is refused like any setting.
+    let rig = rig();
+    let bad = Settings {
+        error_target: Some(-1.0),
+        ..settings()
+    };
+    assert!(VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, bad).is_err());
+}
+
+#[test]
+fn under_an_error_target_a_textured_spot_scatters_at_full_resolution() {
+    let rig = rig();
+    let spot: Light = SpotLight::new(
+        Vec3::new(0.3, 3.5, -0.5),
+        Vec3::NEG_Y,
+        70f32.to_radians(),
+        Vec3::splat(30.0),
+    )
+    .unwrap()
+    .into();
+    let sphere = sphere_mesh(&rig);
+    let occluders = [Occluder {
+        mesh: &sphere,
+        transform: Mat4::IDENTITY,
+    }];
+    let texture = LightTexture::checkerboard(32, 4, Vec3::ONE, Vec3::splat(0.2))
+        .unwrap()
+        .upload(&rig.gpu.device, &rig.gpu.queue);
+    let reduced = Settings {
+        march: volshadow::nodes::MarchSettings {
+            scale: volshadow::nodes::Scale::Half,
+            ..settings().march
+        },
+        ..settings()
+    };
+    for (error_target, textured, full) in [
+        (None, true, false),
+        (Some(0.05), true, true),
+        (Some(0.05), false, false),
+    ] {
+        let s = Settings {
+            error_target,
+            ..reduced
+        };
+        let mut vs =
+            VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, s).unwrap();
+        let light = FrameLight {
+            light: spot,
+            texture: textured.then_some(&texture),
+        };
+        let r = render(&rig, &mut vs, &[light], &medium(), &occluders);
+        assert_eq!(
+            r.plan.skip_reason(Pass::Upsample, Some(0)),
+            full.then_some(&Reason::TexturedUnderErrorTarget),
+            "error target {error_target:?}, textured {textured}:\n{}",
+            r.plan
+        );
+        assert_eq!(r.plan.runs(Pass::Upsample, Some(0)), !full);
+    }
+}
