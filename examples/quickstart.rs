@@ -108,11 +108,15 @@ pub fn run(
         let start = Instant::now();
         let plan = volumetric.prepare(&gpu.device, &gpu.queue, &frame)?;
         println!("frame {frame_index} plan:\n{plan}");
-        let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        volumetric.encode(&mut encoder, &output.create_view(&Default::default()))?;
-        gpu.submit_and_wait(encoder)?;
+        // An app records into its own encoder and submits (`volumetric.encode`); this one
+        // also times each pass: by timestamp queries, or on a CPU adapter (lavapipe) by
+        // running each pass alone.
+        let timings = gpu.run_timed(
+            &mut volumetric,
+            &output.create_view(&Default::default()),
+            &[],
+        )?;
         let wall = start.elapsed().as_secs_f64() * 1e3;
-        let timings = volumetric.read_timings(&gpu.device)?;
         let gpu_ms: f64 = timings.iter().map(|t| t.ms).sum();
         let per_pass: Vec<String> = timings
             .iter()

@@ -26,9 +26,10 @@ pub enum Pass {
     Composite,
 }
 
-impl fmt::Display for Pass {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
+impl Pass {
+    /// The pass's name, as `Display` writes it.
+    pub fn name(self) -> &'static str {
+        match self {
             Pass::LightTexture => "light texture",
             Pass::ShadowMap => "shadow map",
             Pass::Extents => "extents",
@@ -36,7 +37,13 @@ impl fmt::Display for Pass {
             Pass::March => "march",
             Pass::Upsample => "upsample",
             Pass::Composite => "composite",
-        })
+        }
+    }
+}
+
+impl fmt::Display for Pass {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
     }
 }
 
@@ -204,7 +211,7 @@ pub(crate) struct FrameFacts {
 /// The resolution a light's scattering runs at. Without shadows the analytic airlight is
 /// exact and costs one lookup per pixel, so it runs at the output resolution; under an error
 /// target a textured spot does too (measured by the report on the stained-glass scene: p95
-/// 9–50% at ½ and ¼, where the lit fraction is upsampled and the texture's detail is lost).
+/// 9–49% at ½ and ¼, where the lit fraction is upsampled and the texture's detail is lost).
 pub(crate) fn light_scale(
     scale: Scale,
     shadowed: bool,

@@ -15,6 +15,7 @@
 pub mod gltf_scene;
 pub mod raster;
 pub mod render_scene;
+pub mod report;
 
 use std::path::Path;
 
@@ -65,11 +66,9 @@ pub fn render_frames(
         let plan = volumetric
             .prepare(&gpu.device, &gpu.queue, frame)?
             .to_string();
-        let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        volumetric.encode(&mut encoder, &view)?;
-        gpu.submit_and_wait(encoder)?;
+        // Per-pass times: timestamp queries, or on a CPU adapter each pass alone.
+        stats.timings = gpu.run_timed(volumetric, &view, &[])?;
         stats.wall_ms = start.elapsed().as_secs_f64() * 1e3;
-        stats.timings = volumetric.read_timings(&gpu.device)?;
         if index == 0 || index + 1 == FRAMES {
             println!("frame {index} plan:\n{plan}");
         }

@@ -38,11 +38,13 @@ use volshadow::nodes::{Scale, UpsampleFilter};
 use volshadow::reference::{self, TexturedSpot};
 use volshadow::scene_file::{Method, SceneDescription};
 use volshadow::{
-    Cache, Frame, FrameLight, HeadlessGpu, Light, Occluder, OccluderMesh, Settings,
+    Cache, Camera, Frame, FrameLight, HeadlessGpu, Light, Occluder, OccluderMesh, Settings,
     VolumetricShadows,
 };
 
-use super::raster::{default_ambient, draw_app_frame, texture_desc, DrawLight, DrawObject};
+use super::raster::{
+    default_ambient, draw_app_frame, texture_desc, AppFrame, DrawLight, DrawObject,
+};
 use super::{
     auto_exposure, eye_distances, parse_size, read_depth, read_inscatter, render_frames, rgb,
     timings_json, tone_map, with_aspect, write_exr, write_png, BoxError, FRAMES, SKY_DISTANCE,
@@ -278,6 +280,180 @@ impl Options {
     }
 }
 
+/// A scene file's frame on the GPU, as an application would have it: the light textures, the
+/// app's own colour and depth ([`draw_app_frame`]) and the shadow casters' meshes.
+pub struct GpuScene<'a> {
+    /// The scene.
+    pub scene: &'a SceneDescription,
+    /// The camera (the scene's, or its aspect-corrected copy).
+    pub camera: &'a Camera,
+    /// Output size.
+    pub size: (u32, u32),
+    /// Per light, its uploaded texture.
+    pub textures: Vec<Option<wgpu::Texture>>,
+    /// The app's frame.
+    pub app: AppFrame,
+    /// Shadow casters: GPU mesh and object → world (none for the analytic floor).
+    pub casters: Vec<(OccluderMesh, volshadow::glam::Mat4)>,
+}
+
+impl<'a> GpuScene<'a> {
+    /// Uploads the light textures and meshes and draws the app's frame; `shadows = false`
+    /// passes no occluders (the unshadowed, analytic floor).
+    pub fn new(
+        gpu: &HeadlessGpu,
+        scene: &'a SceneDescription,
+        camera: &'a Camera,
+        size: (u32, u32),
+        shadows: bool,
+    ) -> Result<Self, BoxError> {
+        let textures: Vec<Option<wgpu::Texture>> = scene
+            .lights
+            .iter()
+            .map(|l| {
+                l.texture
+                    .as_ref()
+                    .map(|t| t.upload(&gpu.device, &gpu.queue))
+            })
+            .collect();
+        let draw_lights: Vec<DrawLight> = scene
+            .lights
+            .iter()
+            .zip(&textures)
+            .map(|(l, t)| DrawLight {
+                light: l.light,
+                texture: t.as_ref(),
+            })
+            .collect();
+        let objects: Vec<DrawObject> = scene
+            .objects
+            .iter()
+            .map(|o| DrawObject {
+                mesh: &o.mesh,
+                transform: o.transform,
+                albedo: o.albedo,
+            })
+            .collect();
+        let ambient = default_ambient(camera, &draw_lights, &scene.medium);
+        let app = draw_app_frame(
+            gpu,
+            camera,
+            size,
+            &objects,
+            &draw_lights,
+            &scene.medium,
+            ambient,
+        )?;
+        let casters = scene
+            .objects
+            .iter()
+            .filter(|o| o.casts_shadow && shadows)
+            .map(|o| (OccluderMesh::new(&gpu.device, &o.mesh), o.transform))
+            .collect();
+        Ok(Self {
+            scene,
+            camera,
+            size,
+            textures,
+            app,
+            casters,
+        })
+    }
+
+    /// The frame's lights, with their textures.
+    pub fn lights(&self) -> Vec<FrameLight<'_>> {
+        self.scene
+            .lights
+            .iter()
+            .zip(&self.textures)
+            .map(|(l, t)| FrameLight {
+                light: l.light,
+                texture: t.as_ref(),
+            })
+            .collect()
+    }
+
+    /// The frame's occluders.
+    pub fn occluders(&self) -> Vec<Occluder<'_>> {
+        self.casters
+            .iter()
+            .map(|(mesh, transform)| Occluder {
+                mesh,
+                transform: *transform,
+            })
+            .collect()
+    }
+
+    /// A frame of the scene with `lights` and `occluders` (from [`lights`](Self::lights) and
+    /// [`occluders`](Self::occluders), or a subset).
+    pub fn frame<'f>(
+        &'f self,
+        lights: &'f [FrameLight<'f>],
+        occluders: &'f [Occluder<'f>],
+    ) -> Frame<'f> {
+        Frame {
+            camera: self.camera,
+            lights,
+            medium: &self.scene.medium,
+            occluders,
+            scene_color: &self.app.color,
+            scene_depth: &self.app.depth,
+        }
+    }
+
+    /// An `Rgba32Float` output target of the frame's size (`RENDER_ATTACHMENT | COPY_SRC`).
+    pub fn output(&self, gpu: &HeadlessGpu) -> wgpu::Texture {
+        gpu.device.create_texture(&texture_desc(
+            "output",
+            self.size,
+            wgpu::TextureFormat::Rgba32Float,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        ))
+    }
+}
+
+/// The f64 reference in-scatter of every pixel, summed over the scene's lights (textured spots
+/// with their textures), exact visibility against the shadow casters.
+pub fn reference_inscatter(
+    scene: &SceneDescription,
+    camera: &Camera,
+    (width, height): (u32, u32),
+) -> Vec<DVec3> {
+    let occluders = scene.reference_occluders();
+    let mut inscatter = vec![DVec3::ZERO; (width * height) as usize];
+    let ds = |o: DVec3, d: DVec3| scene.ray_distance(o, d);
+    for l in &scene.lights {
+        let image = match (l.light, &l.texture) {
+            (Light::Spot(spot), Some(texture)) => {
+                let textured = TexturedSpot { spot, texture };
+                reference::inscatter_image(
+                    camera,
+                    width,
+                    height,
+                    ds,
+                    &scene.medium,
+                    &textured,
+                    &occluders,
+                )
+            }
+            (light, _) => reference::inscatter_image(
+                camera,
+                width,
+                height,
+                ds,
+                &scene.medium,
+                &light,
+                &occluders,
+            ),
+        };
+        inscatter
+            .iter_mut()
+            .zip(image)
+            .for_each(|(sum, v)| *sum += v);
+    }
+    inscatter
+}
+
 /// What [`render`] produced.
 pub struct Rendered {
     /// The five files, in the order exr, png, inscatter exr, depth exr, json.
@@ -315,81 +491,20 @@ pub fn render(options: &Options) -> Result<Rendered, BoxError> {
     );
     println!("adapter: {}", gpu.adapter_summary());
 
-    // The app: light textures, then its own frame.
-    let textures: Vec<Option<wgpu::Texture>> = scene
-        .lights
-        .iter()
-        .map(|l| {
-            l.texture
-                .as_ref()
-                .map(|t| t.upload(&gpu.device, &gpu.queue))
-        })
-        .collect();
-    let draw_lights: Vec<DrawLight> = scene
-        .lights
-        .iter()
-        .zip(&textures)
-        .map(|(l, t)| DrawLight {
-            light: l.light,
-            texture: t.as_ref(),
-        })
-        .collect();
-    let objects: Vec<DrawObject> = scene
-        .objects
-        .iter()
-        .map(|o| DrawObject {
-            mesh: &o.mesh,
-            transform: o.transform,
-            albedo: o.albedo,
-        })
-        .collect();
-    let ambient = default_ambient(&camera, &draw_lights, &scene.medium);
-    let app = draw_app_frame(
+    let gpu_scene = GpuScene::new(
         &gpu,
+        &scene,
         &camera,
         size,
-        &objects,
-        &draw_lights,
-        &scene.medium,
-        ambient,
+        method != RenderMethod::Analytic,
     )?;
+    let app = &gpu_scene.app;
     let distances = eye_distances(&camera, size, &read_depth(&gpu, &app.depth)?);
 
     let (radiance, inscatter, plan, timings, wall_ms) = match method {
         RenderMethod::Reference => {
             let start = Instant::now();
-            let occluders = scene.reference_occluders();
-            let mut inscatter = vec![DVec3::ZERO; (width * height) as usize];
-            let ds = |o: DVec3, d: DVec3| scene.ray_distance(o, d);
-            for l in &scene.lights {
-                let image = match (l.light, &l.texture) {
-                    (Light::Spot(spot), Some(texture)) => {
-                        let textured = TexturedSpot { spot, texture };
-                        reference::inscatter_image(
-                            &camera,
-                            width,
-                            height,
-                            ds,
-                            &scene.medium,
-                            &textured,
-                            &occluders,
-                        )
-                    }
-                    (light, _) => reference::inscatter_image(
-                        &camera,
-                        width,
-                        height,
-                        ds,
-                        &scene.medium,
-                        &light,
-                        &occluders,
-                    ),
-                };
-                inscatter
-                    .iter_mut()
-                    .zip(image)
-                    .for_each(|(sum, v)| *sum += v);
-            }
+            let inscatter = reference_inscatter(&scene, &camera, size);
             let wall_ms = start.elapsed().as_secs_f64() * 1e3;
             // The composite of the GPU path, on the CPU: Ls·exp(−σt·ds) + in-scatter, with the
             // surface distance of the app's depth buffer.
@@ -423,47 +538,9 @@ pub fn render(options: &Options) -> Result<Rendered, BoxError> {
             };
             let cache = Cache::new(&gpu.device);
             let mut volumetric = VolumetricShadows::new(&gpu.device, &gpu.queue, &cache, settings)?;
-            // Occluder meshes are uploaded once; "analytic" passes none.
-            let shadow_casters: Vec<_> = scene
-                .objects
-                .iter()
-                .filter(|o| o.casts_shadow && method != RenderMethod::Analytic)
-                .collect();
-            let meshes: Vec<OccluderMesh> = shadow_casters
-                .iter()
-                .map(|o| OccluderMesh::new(&gpu.device, &o.mesh))
-                .collect();
-            let occluders: Vec<Occluder> = meshes
-                .iter()
-                .zip(&shadow_casters)
-                .map(|(mesh, o)| Occluder {
-                    mesh,
-                    transform: o.transform,
-                })
-                .collect();
-            let lights: Vec<FrameLight> = scene
-                .lights
-                .iter()
-                .zip(&textures)
-                .map(|(l, t)| FrameLight {
-                    light: l.light,
-                    texture: t.as_ref(),
-                })
-                .collect();
-            let output = gpu.device.create_texture(&texture_desc(
-                "output",
-                size,
-                wgpu::TextureFormat::Rgba32Float,
-                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-            ));
-            let frame = Frame {
-                camera: &camera,
-                lights: &lights,
-                medium: &scene.medium,
-                occluders: &occluders,
-                scene_color: &app.color,
-                scene_depth: &app.depth,
-            };
+            let (lights, occluders) = (gpu_scene.lights(), gpu_scene.occluders());
+            let output = gpu_scene.output(&gpu);
+            let frame = gpu_scene.frame(&lights, &occluders);
             let stats = render_frames(&gpu, &mut volumetric, &frame, &output)?;
             let radiance: Vec<DVec3> = gpu.read_rgba32f(&output)?.iter().map(rgb).collect();
             let inscatter = read_inscatter(&gpu, &volumetric, &frame)?;
