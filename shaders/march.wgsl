@@ -105,8 +105,18 @@ fn light_texture(p: vec3<f32>, step_angle: f32) -> vec3<f32> {
     return textureSampleLevel(light_tex, light_sampler, uv, lod).xyz;
 }
 
-// ∫ tex dT over [s0, s1] in n uniform steps, each weighted at its two Gauss–Legendre points
-// (a textured spot outside the extents, where nothing is shadowed).
+// The texture weight of the step [a, b]: the mean of two samples at its Gauss–Legendre
+// points. The texture is only piecewise smooth, and its edges dominate the error of a
+// one-sample step.
+fn step_texture(ray: PixelRay, r: AirRay, a: f32, b: f32, footprint: f32) -> vec3<f32> {
+    let mid = 0.5 * (a + b);
+    let h = 0.2886751 * (b - a);
+    return 0.5 * (light_texture(air.eye.xyz + x_of_s(r, mid - h) * ray.dir, footprint)
+                + light_texture(air.eye.xyz + x_of_s(r, mid + h) * ray.dir, footprint));
+}
+
+// ∫ tex dT over [s0, s1] in n uniform steps (a textured spot outside the extents, where
+// nothing is shadowed).
 fn march_textured(ray: PixelRay, r: AirRay, s0: f32, s1: f32, n: u32) -> Marched {
     var out: Marched;
     out.t = vec3<f32>(0.0);
@@ -120,14 +130,8 @@ fn march_textured(ray: PixelRay, r: AirRay, s0: f32, s1: f32, n: u32) -> Marched
     for (var i = 0u; i < n; i++) {
         let a = s0 + ds * f32(i);
         let b = select(s0 + ds * f32(i + 1u), s1, i + 1u == n);
-        let mid = 0.5 * (a + b);
         let t_b = table_t(table, air, r, b);
-        // Two samples per step: the texture is only piecewise smooth, and its edges dominate
-        // the error of a one-sample step.
-        let h = 0.2886751 * (b - a);
-        let w = 0.5 * (light_texture(air.eye.xyz + x_of_s(r, mid - h) * ray.dir, footprint)
-                     + light_texture(air.eye.xyz + x_of_s(r, mid + h) * ray.dir, footprint));
-        out.t += (t_b - t_a) * w;
+        out.t += (t_b - t_a) * step_texture(ray, r, a, b, footprint);
         t_a = t_b;
     }
     out.steps = n;
@@ -217,9 +221,7 @@ fn march_shadowed_textured(ray: PixelRay, r: AirRay, s0: f32, s1: f32, n: u32) -
         let mid = 0.5 * (a + b);
         let t_b = table_t(table, air, r, b);
         let v = vis_at(ray, r, mid);
-        let h = 0.2886751 * (b - a);
-        let w = 0.5 * (light_texture(air.eye.xyz + x_of_s(r, mid - h) * ray.dir, footprint)
-                     + light_texture(air.eye.xyz + x_of_s(r, mid + h) * ray.dir, footprint));
+        let w = step_texture(ray, r, a, b, footprint);
         out.t += (t_b - t_a) * (v * w);
         if (BISECTIONS > 0u && i > 0u && (v >= 0.5) != (v_prev >= 0.5)) {
             var lo = a - 0.5 * ds;

@@ -58,6 +58,19 @@ pub(crate) struct UpsamplePipelines {
     pub vertical: wgpu::ComputePipeline,
 }
 
+/// The value for `key` in a cache shared between clones, made on first use.
+fn cached<K: std::hash::Hash + Eq, V: Clone>(
+    map: &Mutex<HashMap<K, V>>,
+    key: K,
+    make: impl FnOnce() -> V,
+) -> V {
+    map.lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+        .entry(key)
+        .or_insert_with(make)
+        .clone()
+}
+
 /// Creates a shader module from the prelude followed by one node's WGSL.
 fn module(device: &wgpu::Device, label: &str, node_source: &str) -> wgpu::ShaderModule {
     let source = format!("{PRELUDE}\n{node_source}");
@@ -528,40 +541,33 @@ impl Cache {
         device: &wgpu::Device,
         format: wgpu::TextureFormat,
     ) -> wgpu::RenderPipeline {
-        let mut pipelines = self
-            .composite_pipelines
-            .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner());
-        pipelines
-            .entry(format)
-            .or_insert_with(|| {
-                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                    label: Some("volshadow composite"),
-                    layout: Some(&self.composite_pipeline_layout),
-                    vertex: wgpu::VertexState {
-                        module: &self.composite_module,
-                        entry_point: Some("vs_fullscreen"),
-                        compilation_options: Default::default(),
-                        buffers: &[],
-                    },
-                    primitive: wgpu::PrimitiveState::default(),
-                    depth_stencil: None,
-                    multisample: wgpu::MultisampleState::default(),
-                    fragment: Some(wgpu::FragmentState {
-                        module: &self.composite_module,
-                        entry_point: Some("fs_composite"),
-                        compilation_options: Default::default(),
-                        targets: &[Some(wgpu::ColorTargetState {
-                            format,
-                            blend: None,
-                            write_mask: wgpu::ColorWrites::ALL,
-                        })],
-                    }),
-                    multiview_mask: None,
-                    cache: None,
-                })
+        cached(&self.composite_pipelines, format, || {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("volshadow composite"),
+                layout: Some(&self.composite_pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: &self.composite_module,
+                    entry_point: Some("vs_fullscreen"),
+                    compilation_options: Default::default(),
+                    buffers: &[],
+                },
+                primitive: wgpu::PrimitiveState::default(),
+                depth_stencil: None,
+                multisample: wgpu::MultisampleState::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &self.composite_module,
+                    entry_point: Some("fs_composite"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
             })
-            .clone()
+        })
     }
 
     /// The march pipeline for `variant`, built on first use.
@@ -570,33 +576,26 @@ impl Cache {
         device: &wgpu::Device,
         variant: MarchVariant,
     ) -> wgpu::ComputePipeline {
-        let mut pipelines = self
-            .march_pipelines
-            .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner());
-        pipelines
-            .entry(variant)
-            .or_insert_with(|| {
-                let flag = |b: bool| if b { 1.0 } else { 0.0 };
-                let constants = [
-                    ("MODE", f64::from(variant.mode)),
-                    ("SPOT", flag(variant.spot)),
-                    ("TEXTURED", flag(variant.textured)),
-                    ("BISECTIONS", f64::from(variant.bisections)),
-                ];
-                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some("volshadow march"),
-                    layout: Some(&self.march_pipeline_layout),
-                    module: &self.march_module,
-                    entry_point: Some("march"),
-                    compilation_options: wgpu::PipelineCompilationOptions {
-                        constants: &constants,
-                        ..Default::default()
-                    },
-                    cache: None,
-                })
+        cached(&self.march_pipelines, variant, || {
+            let flag = |b: bool| if b { 1.0 } else { 0.0 };
+            let constants = [
+                ("MODE", f64::from(variant.mode)),
+                ("SPOT", flag(variant.spot)),
+                ("TEXTURED", flag(variant.textured)),
+                ("BISECTIONS", f64::from(variant.bisections)),
+            ];
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some("volshadow march"),
+                layout: Some(&self.march_pipeline_layout),
+                module: &self.march_module,
+                entry_point: Some("march"),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: &constants,
+                    ..Default::default()
+                },
+                cache: None,
             })
-            .clone()
+        })
     }
 
     /// The upsample pipelines for a spot (`true`) or point light, built on first use.
@@ -605,33 +604,26 @@ impl Cache {
         device: &wgpu::Device,
         spot: bool,
     ) -> UpsamplePipelines {
-        let mut pipelines = self
-            .upsample_pipelines
-            .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner());
-        pipelines
-            .entry(spot)
-            .or_insert_with(|| {
-                let constants = [("SPOT", if spot { 1.0 } else { 0.0 })];
-                let pipeline = |entry| {
-                    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                        label: Some("volshadow upsample"),
-                        layout: Some(&self.upsample_pipeline_layout),
-                        module: &self.upsample_module,
-                        entry_point: Some(entry),
-                        compilation_options: wgpu::PipelineCompilationOptions {
-                            constants: &constants,
-                            ..Default::default()
-                        },
-                        cache: None,
-                    })
-                };
-                UpsamplePipelines {
-                    single: pipeline("upsample"),
-                    horizontal: pipeline("separable_h"),
-                    vertical: pipeline("separable_v"),
-                }
-            })
-            .clone()
+        cached(&self.upsample_pipelines, spot, || {
+            let constants = [("SPOT", if spot { 1.0 } else { 0.0 })];
+            let pipeline = |entry| {
+                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some("volshadow upsample"),
+                    layout: Some(&self.upsample_pipeline_layout),
+                    module: &self.upsample_module,
+                    entry_point: Some(entry),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants: &constants,
+                        ..Default::default()
+                    },
+                    cache: None,
+                })
+            };
+            UpsamplePipelines {
+                single: pipeline("upsample"),
+                horizontal: pipeline("separable_h"),
+                vertical: pipeline("separable_v"),
+            }
+        })
     }
 }
