@@ -5,10 +5,13 @@
 //    to infinity (w = 0) as a quad; per triangle, light-facing ones form the front cap and the
 //    others, projected to infinity, the back cap. Vertices are appended to a buffer whose count
 //    is the vertex count of an indirect draw: no CPU readback.
-// 2. Three depth-only passes over those volumes, with the camera's view and a reversed-Z
+// 2. Either three depth-only passes over those volumes, with the camera's view and a reversed-Z
 //    infinite projection (depth = near / view depth): nearest front face, nearest back face,
 //    farthest back face. Faces of open or non-manifold meshes count as back faces, which makes
 //    their extents conservative (march from the eye, through the whole volume).
+// 3. Or (exact mode) one pass that appends every face crossing in front of the scene surface
+//    to a bounded per-pixel list (`fs_crossings`): between two consecutive crossings nothing
+//    can change visibility, so the march integrates each interval in closed form.
 
 struct DrawArgs {
     vertex_count: atomic<u32>,
@@ -156,5 +159,63 @@ fn fs_front(in: VolumeOut, @builtin(front_facing) front: bool) {
 fn fs_back(in: VolumeOut, @builtin(front_facing) front: bool) {
     if (front && in.conservative < 0.5) {
         discard;
+    }
+}
+
+// ---- exact mode: every face crossing in front of the surface, per pixel ----
+
+struct CrossingParams {
+    size: vec4<u32>,  // xy: pass size, z: list entries per pixel (K)
+    near: vec4<f32>,  // x: the volumes' projection near plane (depth = near / view depth)
+}
+
+@group(0) @binding(1) var<uniform> cross_view: View;
+@group(0) @binding(2) var<uniform> cp: CrossingParams;
+@group(0) @binding(3) var cross_scene_depth: texture_depth_2d;
+// Per pixel four u32: the crossing count in front of the surface (bit 31: a face of an open or
+// non-manifold mesh crossed the pixel, so counting volumes is not meaningful there); the
+// bitwise-not of the nearest crossing's bits and the farthest crossing's bits (positive f32
+// bits order as the values do; zero-cleared, so "not" makes max a min); and the net number of
+// volumes entered behind the surface (front faces +1, back faces −1, wrapping), which makes
+// the number of volumes around every interval in front of it known (counted from the far end,
+// as z-fail shadow volumes count, so faces cut by the near plane do not matter).
+@group(0) @binding(4) var<storage, read_write> heads: array<atomic<u32>>;
+// K signed view depths per pixel in arrival order (negative: a front face, entering a
+// volume); entries past K are only counted.
+@group(0) @binding(5) var<storage, read_write> crossings: array<f32>;
+
+@fragment
+fn fs_crossings(in: VolumeOut, @builtin(front_facing) front: bool) {
+    let size = cp.size.xy;
+    let pix = vec2<u32>(in.position.xy);
+    if (pix.x >= size.x || pix.y >= size.y) {
+        return;
+    }
+    let p = pix.y * size.x + pix.x;
+    if (in.conservative > 0.5) {
+        atomicOr(&heads[4u * p], 0x80000000u);
+    }
+    // Entering a volume (a front face) adds one; leaving subtracts one.
+    let step = select(0xffffffffu, 1u, front);
+    // Depth 0 is at infinity (the dark cap, the far ends of the sides): behind everything.
+    var behind = !(in.position.z > 0.0);
+    let z = cp.near.x / max(in.position.z, 1.0e-38);
+    if (!behind) {
+        let full = textureDimensions(cross_scene_depth);
+        let under = min(vec2<u32>((vec2<f32>(pix) + 0.5) * vec2<f32>(full) / vec2<f32>(size)), full - 1u);
+        let ray = pixel_ray(cross_view, vec2<f32>(pix) + 0.5, textureLoad(cross_scene_depth, under, 0));
+        behind = ray.distance >= 0.0 && z * ray.depth_to_distance >= ray.distance;
+    }
+    if (behind) {
+        // Cannot shadow this pixel's medium: only counted.
+        atomicAdd(&heads[4u * p + 3u], step);
+        return;
+    }
+    let bits = bitcast<u32>(z);
+    atomicMax(&heads[4u * p + 1u], ~bits);
+    atomicMax(&heads[4u * p + 2u], bits);
+    let i = atomicAdd(&heads[4u * p], 1u) & 0x7fffffffu;
+    if (i < cp.size.z) {
+        crossings[cp.size.z * p + i] = select(z, -z, front);
     }
 }

@@ -6,22 +6,31 @@
 // and the sky is just s = 1.
 //   analytic:    the whole lit support at once (no occluders);
 //   hybrid:      analytic outside the shadow-volume extents, `steps` steps inside them;
-//   brute force: `steps` steps over the whole support.
+//   brute force: `steps` steps over the whole support;
+//   exact:       the sorted shadow-volume crossings of the ray split it into intervals of
+//                constant visibility, each integrated analytically (Biri et al. 2006);
+//   textbook:    a Riemann sum of the integrand in distance (a baseline only).
 // Lit support: [0, ds] for a point light; its intersection with the cone for a spot light.
+// A piece of the support that crosses no shadow-volume face has one visibility, sampled once
+// in its middle: never assumed lit (the eye may stand in a shadow it never leaves).
 
 // Pipeline constants, one pipeline per combination (the march node picks it): code a variant
 // does not need is not compiled into it. That matters most on CPU rasterisers such as
 // lavapipe, which execute both sides of every branch under a mask.
-override MODE: u32 = 0u;           // 0 analytic, 1 hybrid, 2 brute force (and the prelude's SPOT)
+override MODE: u32 = 0u;           // 0 analytic, 1 hybrid, 2 brute force, 3 exact, 4 textbook (and the prelude's SPOT)
 override TEXTURED: bool = false;   // textured spot
 override BISECTIONS: u32 = 0u;     // bisection steps per lit/shadow transition
 
 // Most transitions a marched interval records before it evaluates T at them (more just take
 // another round of the step loop).
 const MAX_EDGES: u32 = 8u;
+// Longest crossing list (the extents node's MAX_CROSSINGS_PER_PIXEL).
+const MAX_CROSSINGS: u32 = 32u;
+// The textbook march stops where the transmittance from the eye is below 1e-4 (−ln 1e-4).
+const TEXTBOOK_DEPTH: f32 = 9.2103404;
 
 struct MarchParams {
-    mode: vec4<u32>,      // y: steps (x, z, w unused: see the pipeline constants)
+    mode: vec4<u32>,      // y: steps, z: crossing list entries per pixel (x, w unused: see the pipeline constants)
     spot: vec4<f32>,      // xyz cone axis (unit), w = cos(half apex angle)
     shadow: vec4<f32>,    // x: shadow-map layers (1 spot, 6 cube), y: relative depth bias, z: extents near plane, w: 1 = write the lit fraction (reduced resolution)
     faces: array<mat4x4<f32>, 6>,  // shadow-map face clip_from_world
@@ -44,6 +53,13 @@ struct MarchParams {
 @group(0) @binding(11) var steps_out: texture_storage_2d<r32uint, write>;
 @group(0) @binding(12) var light_tex: texture_2d<f32>;
 @group(0) @binding(13) var light_sampler: sampler;
+// Exact mode: the extents node's crossing lists (per pixel: count | open-mesh bit 31,
+// ~nearest bits, farthest bits, net volumes entered behind the surface; then K signed view
+// depths per pixel, negative where the ray enters a volume).
+@group(0) @binding(14) var<storage, read> heads: array<u32>;
+@group(0) @binding(15) var<storage, read> crossings: array<f32>;
+// Overflowed pixels, pixels with crossings, most crossings, total crossings.
+@group(0) @binding(16) var<storage, read_write> stats: array<atomic<u32>, 4>;
 
 // Distance along the ray of the point with normalised scattering angle s (law of sines in the
 // eye–point–light triangle: x = D sin δ / sin β, δ = s w, β = (1 − s) w). sin β is taken as
@@ -247,6 +263,54 @@ fn march_shadowed_textured(ray: PixelRay, r: AirRay, s0: f32, s1: f32, n: u32) -
     return out;
 }
 
+// The textbook march (MODE 4, a baseline): the midpoint rule on the integrand of the model,
+// σs·p(θ)·I0·V·e^{−σt(d + x)}/d², at `n` steps uniform in distance over each lit piece, up to the
+// surface or to where the transmittance from the eye is below 1e-4.
+struct Textbook {
+    lit: vec3<f32>,
+    open: vec3<f32>,
+}
+
+fn march_textbook(ray: PixelRay, r: AirRay, x_end: f32, n: u32) -> Textbook {
+    var out: Textbook;
+    out.lit = vec3<f32>(0.0);
+    out.open = vec3<f32>(0.0);
+    let d_light = air.light_pos.w;
+    let sigma_min = min(air.sigma_t.x, min(air.sigma_t.y, air.sigma_t.z));
+    let x_cap = min(x_end, select(100.0 * d_light, TEXTBOOK_DEPTH / sigma_min, sigma_min > 0.0));
+    var sup: Support;
+    sup.count = 1u;
+    sup.x[0] = vec2<f32>(0.0, x_cap);
+    if (SPOT) {
+        sup = cone_support(air, mp.spot, ray.dir, x_cap);
+    }
+    // The pixel footprint at the light bounds 1/d² as the closed form's prefactor is bounded.
+    let d_min = d_light * max(air.eye.w, 1.0e-6);
+    for (var i = 0u; i < sup.count; i++) {
+        let x0 = sup.x[i].x;
+        let x1 = min(sup.x[i].y, x_cap);
+        if (!(x1 > x0)) {
+            continue;
+        }
+        let dx = (x1 - x0) / f32(n);
+        for (var k = 0u; k < n; k++) {
+            let x = x0 + (f32(k) + 0.5) * dx;
+            let p = air.eye.xyz + x * ray.dir;
+            let to_p = p - air.light_pos.xyz;
+            let d = max(length(to_p), d_min);
+            let mu = dot(to_p, -ray.dir) / max(length(to_p), 1.0e-30);
+            var f = air.sigma_s.xyz * air.intensity.xyz * phase(air, 1.0 - mu, 1.0 + mu)
+                  * exp(-air.sigma_t.xyz * (d + x)) / (d * d) * dx;
+            if (TEXTURED) {
+                f *= light_texture(p, dx / d);
+            }
+            out.open += f;
+            out.lit += f * visibility(p);
+        }
+    }
+    return out;
+}
+
 @compute @workgroup_size(8, 8)
 fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
     let size = vec2<u32>(view.size.xy);
@@ -264,10 +328,28 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
 
     let sup = support_s(air, r, mp.spot, ray.dir, x_end);
 
+    if (MODE == 4u) {
+        let tb = march_textbook(ray, r, x_end, mp.mode.y);
+        var value = clamp_radiance(tb.lit);
+        if (mp.shadow.w > 0.5) {
+            value = select(vec3<f32>(1.0), min(tb.lit / tb.open, vec3<f32>(1.0)), tb.open > vec3<f32>(0.0));
+        }
+        textureStore(inscatter_out, gid.xy, vec4<f32>(value, ray.distance));
+        textureStore(steps_out, gid.xy, vec4<u32>(mp.mode.y, 0u, 0u, 0u));
+        return;
+    }
+
     // Shadow-volume extents in s (hybrid): start at 0 when the nearest face is a back face
     // (eye inside a volume, or its front cut away by the near plane), else at the nearest front
     // face; end at the farthest back face (0 depth = at infinity).
     var ext = vec2<f32>(1.0, 0.0); // empty
+    // Exact mode: the sorted crossings in s, when the pixel's list held them all.
+    var exact = false;
+    var n_cross = 0u;
+    var xs: array<f32, MAX_CROSSINGS>;
+    var entering: array<i32, MAX_CROSSINGS>;  // +1 entering a volume, −1 leaving
+    // Volumes around the eye, counted back from the far end; < 0: not known (open meshes).
+    var around_eye = -1;
     if (MODE == 1u) {
         let front = textureLoad(extent_front, gid.xy, 0);
         let back_near = textureLoad(extent_back_near, gid.xy, 0);
@@ -290,6 +372,47 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     } else if (MODE == 2u) {
         ext = vec2<f32>(0.0, 1.0);
+    } else if (MODE == 3u) {
+        let p = gid.y * size.x + gid.x;
+        let head = heads[4u * p];
+        let count = head & 0x7fffffffu;
+        let k = mp.mode.z;
+        if (count > 0u) {
+            atomicAdd(&stats[1], 1u);
+            atomicMax(&stats[2], count);
+            atomicAdd(&stats[3], count);
+        }
+        if (count > k) {
+            // The list overflowed: march, as the hybrid does, between the nearest and the
+            // farthest crossing (the pieces outside hold no crossing).
+            atomicAdd(&stats[0], 1u);
+            let z0 = bitcast<f32>(~heads[4u * p + 1u]);
+            let z1 = bitcast<f32>(heads[4u * p + 2u]);
+            ext = vec2<f32>(s_of_x(air, r, z0 * ray.depth_to_distance * 0.999),
+                            s_of_x(air, r, min(z1 * ray.depth_to_distance * 1.001, 3.4e38)));
+        } else {
+            exact = true;
+            n_cross = count;
+            var net = bitcast<i32>(heads[4u * p + 3u]);
+            for (var i = 0u; i < count; i++) {
+                let z = crossings[k * p + i];
+                let e = select(-1, 1, z < 0.0);
+                net += e;
+                let s_i = s_of_x(air, r, abs(z) * ray.depth_to_distance);
+                // Insertion sort: lists are short.
+                var j = i;
+                for (; j > 0u && xs[j - 1u] > s_i; j--) {
+                    xs[j] = xs[j - 1u];
+                    entering[j] = entering[j - 1u];
+                }
+                xs[j] = s_i;
+                entering[j] = e;
+            }
+            if ((head & 0x80000000u) == 0u) {
+                // Volumes around the eye: those around the far end, less those entered before.
+                around_eye = -net;
+            }
+        }
     }
 
     var total = vec3<f32>(0.0);
@@ -305,11 +428,9 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         let t_u1 = table_t(table, air, r, u1);
         open += t_u1 - t_u0;
-        let m0 = max(u0, ext.x);
-        let m1 = min(u1, ext.y);
-        if (MODE == 0u || !(m0 < m1)) {
-            // No extents on this piece: all of it is lit. (MODE == 0 lets the compiler drop
-            // the marching code from the analytic pipeline, which has no extents at all.)
+        if (MODE == 0u) {
+            // No occluders: all of it is lit. (MODE == 0 lets the compiler drop the shadow
+            // code from the analytic pipeline.)
             if (TEXTURED) {
                 let all = march_textured(ray, r, u0, u1, mp.budget.x);
                 total += all.t;
@@ -319,8 +440,69 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
             continue;
         }
-        // Before, between and after the extents: analytic for a plain light; for a textured
-        // spot marched with its own step budget, only inside the cone.
+        if (MODE == 3u && exact) {
+            // Consecutive crossings (and the piece's ends) bound intervals of constant
+            // visibility: closed form times one visibility sample inside each.
+            var a = u0;
+            var t_a = t_u0;
+            var j = 0u;
+            var around = around_eye;
+            loop {
+                for (; j < n_cross && !(xs[j] > a); j++) {
+                    around += entering[j];
+                }
+                var b = u1;
+                var t_b = t_u1;
+                if (j < n_cross && xs[j] < u1) {
+                    b = xs[j];
+                    t_b = table_t(table, air, r, b);
+                }
+                // The shadow map says which side of the faces the interval is on. Where it
+                // cannot tell (its filtered value is fractional: the interval runs within a
+                // texel of a face, as grazing rays do), the number of volumes around the
+                // interval decides, when it is known.
+                var v = vis_at(ray, r, 0.5 * (a + b));
+                if (v > 0.0 && v < 1.0 && around_eye >= 0 && around >= 0) {
+                    v = select(0.0, 1.0, around == 0);
+                }
+                if (TEXTURED) {
+                    // The texture still needs steps; this piece gets its share of the budget.
+                    let n = max(1u, u32(ceil(f32(mp.budget.x) * (b - a) / max(u1 - u0, 1.0e-30))));
+                    if (v > 0.0) {
+                        let m = march_textured(ray, r, a, b, n);
+                        total += v * m.t;
+                        steps += m.steps;
+                    }
+                } else {
+                    total += v * (t_b - t_a);
+                }
+                if (!(b < u1)) {
+                    break;
+                }
+                a = b;
+                t_a = t_b;
+            }
+            continue;
+        }
+        let m0 = max(u0, ext.x);
+        let m1 = min(u1, ext.y);
+        if (!(m0 < m1)) {
+            // No shadow-volume face on this piece: one visibility for all of it.
+            let v = vis_at(ray, r, 0.5 * (u0 + u1));
+            if (TEXTURED) {
+                if (v > 0.0) {
+                    let all = march_textured(ray, r, u0, u1, mp.budget.x);
+                    total += v * all.t;
+                    steps += all.steps;
+                }
+            } else {
+                total += v * (t_u1 - t_u0);
+            }
+            continue;
+        }
+        // Before, between and after the extents: one visibility sample each outside them
+        // (no face there); for a textured spot marched with its own step budget, only inside
+        // the cone.
         var t_m0 = t_u0;
         if (m0 != u0) {
             t_m0 = table_t(table, air, r, m0);
@@ -333,20 +515,34 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
         if (TEXTURED) {
             // The hybrid gives the texture its own resolution inside the extents too; brute
             // force marches everything with its `steps`, texture included.
-            let n = select(mp.mode.y, max(mp.mode.y, mp.budget.x), MODE == 1u);
+            let n = select(mp.mode.y, max(mp.mode.y, mp.budget.x), MODE != 2u);
             inside = march_shadowed_textured(ray, r, m0, m1, n);
         } else {
             inside = march_shadowed(ray, r, m0, m1, t_m0, t_m1, mp.mode.y);
         }
         total += inside.t;
         steps += inside.steps;
+        var v_before = 0.0;
+        if (m0 > u0) {
+            v_before = vis_at(ray, r, 0.5 * (u0 + m0));
+        }
+        var v_after = 0.0;
+        if (u1 > m1) {
+            v_after = vis_at(ray, r, 0.5 * (m1 + u1));
+        }
         if (TEXTURED) {
-            let before = march_textured(ray, r, u0, m0, mp.budget.x);
-            let after = march_textured(ray, r, m1, u1, mp.budget.x);
-            total += before.t + after.t;
-            steps += before.steps + after.steps;
+            if (v_before > 0.0) {
+                let before = march_textured(ray, r, u0, m0, mp.budget.x);
+                total += v_before * before.t;
+                steps += before.steps;
+            }
+            if (v_after > 0.0) {
+                let after = march_textured(ray, r, m1, u1, mp.budget.x);
+                total += v_after * after.t;
+                steps += after.steps;
+            }
         } else {
-            total += (t_m0 - t_u0) + (t_u1 - t_m1);
+            total += v_before * (t_m0 - t_u0) + v_after * (t_u1 - t_m1);
         }
     }
     total = max(total, vec3<f32>(0.0));

@@ -3,10 +3,10 @@
 use crate::error::{Error, Result};
 use crate::gpu::{Cache, GpuTimer, Occluder, PassTime};
 use crate::nodes::{
-    AirlightTableNode, CompositeInputs, CompositeNode, ExtentsInputs, ExtentsNode,
-    LightTextureNode, MarchInputs, MarchMethod, MarchNode, MarchSettings, Scale, ShadowMapNode,
-    ShadowMapSettings, Shadows, TableSize, UpsampleFilter, UpsampleInputs, UpsampleNode,
-    MAX_LIGHTS,
+    AirlightTableNode, CompositeInputs, CompositeNode, CrossingsRequest, ExtentsInputs,
+    ExtentsNode, LightTextureNode, MarchInputs, MarchMethod, MarchNode, MarchSettings, Scale,
+    ShadowMapNode, ShadowMapSettings, Shadows, TableSize, UpsampleFilter, UpsampleInputs,
+    UpsampleNode, MAX_LIGHTS,
 };
 use crate::plan::{self, Culled, FrameFacts, LightFacts, Pass, Plan};
 use crate::scene::{Camera, Light, Medium};
@@ -43,6 +43,7 @@ impl Settings {
             bisections: 0,
             scale: Scale::Full,
             texture_steps: 32,
+            crossings: crate::nodes::DEFAULT_CROSSINGS,
         },
         upsample: UpsampleFilter::DepthAware3x3,
         table: TableSize {
@@ -76,6 +77,7 @@ impl Settings {
                 bisections: picked.bisections,
                 scale: picked.scale,
                 texture_steps: plan::ERROR_TARGET_TEXTURE_STEPS,
+                ..MarchSettings::default()
             },
             upsample: picked.upsample,
             error_target: Some(p95),
@@ -232,6 +234,7 @@ impl VolumetricShadows {
             lights: Vec::new(),
             method: self.settings.march.method,
             steps: self.settings.march.steps,
+            crossings: self.settings.march.crossings,
             scale: self.settings.march.scale,
             filter: self.settings.upsample,
             culled: Vec::new(),
@@ -277,7 +280,9 @@ impl VolumetricShadows {
                 fl.texture.is_some(),
                 self.settings.error_target,
             );
-            if shadowed && self.settings.march.method == MarchMethod::Hybrid {
+            let method = self.settings.march.method;
+            let uses_extents = matches!(method, MarchMethod::Hybrid | MarchMethod::Exact);
+            if shadowed && uses_extents {
                 let (w, h) = scale.apply(width, height);
                 slot.extents.prepare(
                     device,
@@ -287,6 +292,10 @@ impl VolumetricShadows {
                         light,
                         occluders: &kept,
                         size: (w, h),
+                        crossings: (method == MarchMethod::Exact).then_some(CrossingsRequest {
+                            per_pixel: self.settings.march.crossings,
+                            scene_depth: frame.scene_depth,
+                        }),
                     },
                 )?;
             }
@@ -310,9 +319,10 @@ impl VolumetricShadows {
                         .then(|| {
                             Some(Shadows {
                                 shadow_map: slot.shadow.shadow_map()?,
-                                extents: match self.settings.march.method {
-                                    MarchMethod::Hybrid => slot.extents.extents(),
-                                    MarchMethod::BruteForce => None,
+                                extents: if uses_extents {
+                                    slot.extents.extents()
+                                } else {
+                                    None
                                 },
                             })
                         })

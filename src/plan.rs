@@ -61,7 +61,8 @@ pub enum Reason {
     FullResolution,
     /// Nothing it depends on changed since the last frame; last frame's result is reused.
     Unchanged,
-    /// Brute force marches the whole ray and needs no shadow-volume extents.
+    /// Brute force (and the textbook march) marches the whole ray and needs no shadow-volume
+    /// extents.
     BruteForce,
     /// Under an error target a textured spot's scattering runs at full resolution: its
     /// projected texture's detail does not survive reduced-resolution scattering.
@@ -76,7 +77,7 @@ impl fmt::Display for Reason {
             Reason::Untextured => "the light is not textured",
             Reason::FullResolution => "scattering already at output resolution",
             Reason::Unchanged => "unchanged since last frame",
-            Reason::BruteForce => "brute force marches the whole ray",
+            Reason::BruteForce => "this method marches the whole ray",
             Reason::TexturedUnderErrorTarget => {
                 "error target: a textured spot scatters at full resolution"
             }
@@ -202,6 +203,8 @@ pub(crate) struct FrameFacts {
     pub lights: Vec<LightFacts>,
     pub method: MarchMethod,
     pub steps: u32,
+    /// Crossing list entries per pixel (exact method).
+    pub crossings: u32,
     pub scale: Scale,
     pub filter: UpsampleFilter,
     pub culled: Vec<Culled>,
@@ -283,6 +286,16 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
             }
             if facts.method == MarchMethod::Hybrid {
                 run(Pass::Extents, light, format!("at 1/{}", scale.divisor()));
+            } else if facts.method == MarchMethod::Exact {
+                run(
+                    Pass::Extents,
+                    light,
+                    format!(
+                        "crossing lists of {} per pixel, at 1/{}",
+                        facts.crossings,
+                        scale.divisor()
+                    ),
+                );
             } else {
                 skip(Pass::Extents, light, Reason::BruteForce);
             }
@@ -296,6 +309,11 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
             (false, _) => "analytic".to_string(),
             (true, MarchMethod::Hybrid) => format!("hybrid, {} steps", facts.steps),
             (true, MarchMethod::BruteForce) => format!("brute force, {} steps", facts.steps),
+            (true, MarchMethod::Exact) => format!(
+                "exact between crossings, overflowing pixels marched with {} steps",
+                facts.steps
+            ),
+            (_, MarchMethod::Textbook) => format!("textbook march, {} steps", facts.steps),
         };
         run(
             Pass::March,

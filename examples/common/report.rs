@@ -483,6 +483,7 @@ fn run_scene(
             bisections,
             scale,
             texture_steps,
+            ..MarchSettings::default()
         },
         upsample: filter.upsample(),
         ..base

@@ -33,6 +33,8 @@ pub struct Cache {
     pub(crate) extents_front_pipeline: wgpu::RenderPipeline,
     pub(crate) extents_back_near_pipeline: wgpu::RenderPipeline,
     pub(crate) extents_back_far_pipeline: wgpu::RenderPipeline,
+    pub(crate) extents_crossings_layout: wgpu::BindGroupLayout,
+    pub(crate) extents_crossings_pipeline: wgpu::RenderPipeline,
     composite_pipeline_layout: wgpu::PipelineLayout,
     composite_module: wgpu::ShaderModule,
     composite_pipelines: Arc<Mutex<HashMap<wgpu::TextureFormat, wgpu::RenderPipeline>>>,
@@ -144,7 +146,8 @@ fn buffer_entry(
     }
 }
 
-/// A depth-only render pipeline (no colour target).
+/// A depth-only render pipeline (no colour target). `compare: None` tests and writes nothing
+/// (a pass whose fragments only write storage buffers).
 #[allow(clippy::too_many_arguments)]
 fn depth_pipeline(
     device: &wgpu::Device,
@@ -154,7 +157,7 @@ fn depth_pipeline(
     vertex_entry: &str,
     fragment_entry: Option<&str>,
     buffers: &[wgpu::VertexBufferLayout<'_>],
-    compare: wgpu::CompareFunction,
+    compare: Option<wgpu::CompareFunction>,
 ) -> wgpu::RenderPipeline {
     let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some(label),
@@ -177,8 +180,8 @@ fn depth_pipeline(
         },
         depth_stencil: Some(wgpu::DepthStencilState {
             format: wgpu::TextureFormat::Depth32Float,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(compare),
+            depth_write_enabled: Some(compare.is_some()),
+            depth_compare: Some(compare.unwrap_or(wgpu::CompareFunction::Always)),
             stencil: Default::default(),
             bias: Default::default(),
         }),
@@ -280,6 +283,21 @@ impl Cache {
                     ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
                     count: None,
                 },
+                buffer_entry(
+                    14,
+                    wgpu::BufferBindingType::Storage { read_only: true },
+                    false,
+                ),
+                buffer_entry(
+                    15,
+                    wgpu::BufferBindingType::Storage { read_only: true },
+                    false,
+                ),
+                buffer_entry(
+                    16,
+                    wgpu::BufferBindingType::Storage { read_only: false },
+                    false,
+                ),
             ],
         });
         let march_module = module(
@@ -351,7 +369,7 @@ impl Cache {
                 step_mode: wgpu::VertexStepMode::Vertex,
                 attributes: &wgpu::vertex_attr_array![0 => Float32x4],
             }],
-            wgpu::CompareFunction::Greater,
+            Some(wgpu::CompareFunction::Greater),
         );
 
         let storage = |read_only| wgpu::BufferBindingType::Storage { read_only };
@@ -405,7 +423,7 @@ impl Cache {
                 "vs_volume",
                 Some(entry),
                 &volume_vertices,
-                compare,
+                Some(compare),
             )
         };
         // Reversed Z: nearest = greatest depth.
@@ -423,6 +441,40 @@ impl Cache {
             "volshadow extents back far",
             "fs_back",
             wgpu::CompareFunction::Less,
+        );
+        // Exact mode: every crossing appended to per-pixel lists from the fragment stage
+        // (storage buffers and atomics there are core WebGPU).
+        let fragment_storage = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: fragment,
+            ty: wgpu::BindingType::Buffer {
+                ty: storage(false),
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let extents_crossings_layout =
+            device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("volshadow extents crossings"),
+                entries: &[
+                    uniform_entry(0, vertex),
+                    uniform_entry(1, fragment),
+                    uniform_entry(2, fragment),
+                    texture_entry(3, fragment, wgpu::TextureSampleType::Depth),
+                    fragment_storage(4),
+                    fragment_storage(5),
+                ],
+            });
+        let extents_crossings_pipeline = depth_pipeline(
+            device,
+            "volshadow extents crossings",
+            &extents_crossings_layout,
+            &extents_module,
+            "vs_volume",
+            Some("fs_crossings"),
+            &volume_vertices,
+            None,
         );
 
         let upsample_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -522,6 +574,8 @@ impl Cache {
             extents_front_pipeline,
             extents_back_near_pipeline,
             extents_back_far_pipeline,
+            extents_crossings_layout,
+            extents_crossings_pipeline,
             table_layout,
             table_pipeline,
             march_layout,

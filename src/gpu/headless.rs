@@ -222,6 +222,37 @@ impl HeadlessGpu {
         Ok(out)
     }
 
+    /// Reads a whole buffer (usage `COPY_SRC`, size a multiple of 4) back.
+    pub fn read_buffer_bytes(&self, source: &wgpu::Buffer) -> Result<Vec<u8>> {
+        let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("volshadow readback"),
+            size: source.size(),
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(source, 0, &buffer, 0, source.size());
+        self.submit_and_wait(encoder)?;
+        let slice = buffer.slice(..);
+        let (sender, receiver) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = sender.send(r);
+        });
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| Error::Readback(e.to_string()))?;
+        receiver
+            .recv()
+            .map_err(|e| Error::Readback(e.to_string()))?
+            .map_err(|e| Error::Readback(e.to_string()))?;
+        let out = slice
+            .get_mapped_range()
+            .map_err(|e| Error::Readback(format!("{e:?}")))?
+            .to_vec();
+        buffer.unmap();
+        Ok(out)
+    }
+
     /// Reads an `Rgba32Float` texture back, row-major from the top row.
     pub fn read_rgba32f(&self, texture: &wgpu::Texture) -> Result<Vec<[f32; 4]>> {
         if texture.format() != wgpu::TextureFormat::Rgba32Float {

@@ -39,14 +39,36 @@ use crate::nodes::shadow_map::ShadowMap;
 use crate::nodes::AirlightTableNode;
 use crate::scene::{Camera, Light, Medium};
 
+// The march shader's MODE pipeline constant.
+const MODE_ANALYTIC: u32 = 0;
+const MODE_HYBRID: u32 = 1;
+const MODE_BRUTE_FORCE: u32 = 2;
+const MODE_EXACT: u32 = 3;
+const MODE_TEXTBOOK: u32 = 4;
+
 /// How the shadowed part of each ray is integrated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[non_exhaustive]
 pub enum MarchMethod {
-    /// Analytic outside the shadow-volume extents, marched between them (seed paper 000).
+    /// Every shadow-volume face the ray crosses in front of the surface is recorded (up to
+    /// [`MarchSettings::crossings`] per pixel); between consecutive crossings visibility is
+    /// constant, so each interval is integrated in closed form (`T(s₁) − T(s₀)`) times the
+    /// visibility sampled once inside it (Biri, Arquès & Michelin 2006: exact integration
+    /// between sorted shadow planes). Boundaries come from geometry; the shadow map only says
+    /// which side is lit. A pixel whose list overflows is marched, as the hybrid does, between
+    /// its nearest and farthest crossing.
+    Exact,
+    /// Analytic outside the shadow-volume extents, marched between them (Wyman & Ramsey 2008).
     #[default]
     Hybrid,
-    /// Marched over the whole ray: the baseline.
+    /// Marched over the whole ray, adding the closed-form integral between steps and
+    /// sampling only the visibility: a strong baseline.
     BruteForce,
+    /// The textbook march: a Riemann sum of the in-scattering integrand
+    /// `σs·p·I·e^{−σt(d+x)}/d²·V·Δx` at steps uniform in distance, up to the surface or to
+    /// where the transmittance from the eye falls below 1e-4 (as most engines' volumetric fog
+    /// does). Only a baseline for the error-against-time report.
+    Textbook,
 }
 
 /// March settings.
@@ -65,7 +87,16 @@ pub struct MarchSettings {
     /// cone), and for the hybrid at least as many between them (the texture's detail needs
     /// them whether or not a shadow is there); 1 ..= 4096. Default 32.
     pub texture_steps: u32,
+    /// Exact method: shadow-volume crossings recorded per pixel
+    /// (1 ..= [`MAX_CROSSINGS_PER_PIXEL`](crate::nodes::MAX_CROSSINGS_PER_PIXEL)). Default
+    /// [`DEFAULT_CROSSINGS`].
+    pub crossings: u32,
 }
+
+/// The default list length of the exact method, chosen by measurement on the standard scenes
+/// (see the README's error-against-time section): long enough that no pixel of a smooth
+/// occluder's shadow overflows, short enough to keep the lists' memory small.
+pub const DEFAULT_CROSSINGS: u32 = 24;
 
 impl Default for MarchSettings {
     fn default() -> Self {
@@ -75,6 +106,7 @@ impl Default for MarchSettings {
             bisections: 0,
             scale: crate::nodes::Scale::Full,
             texture_steps: 32,
+            crossings: DEFAULT_CROSSINGS,
         }
     }
 }
@@ -91,6 +123,16 @@ impl MarchSettings {
             return Err(Error::InvalidSetting {
                 field: "march.texture_steps",
                 problem: format!("must be in 1..=4096, got {}", self.texture_steps),
+            });
+        }
+        if !(1..=crate::nodes::MAX_CROSSINGS_PER_PIXEL).contains(&self.crossings) {
+            return Err(Error::InvalidSetting {
+                field: "march.crossings",
+                problem: format!(
+                    "must be in 1..={}, got {}",
+                    crate::nodes::MAX_CROSSINGS_PER_PIXEL,
+                    self.crossings
+                ),
             });
         }
         if self.bisections > 16 {
@@ -110,6 +152,8 @@ pub struct Extents<'a> {
     pub textures: &'a [wgpu::Texture; 3],
     /// The extents projection's near plane.
     pub near: f32,
+    /// Per-pixel crossing lists (the exact method); `None`: the textures hold the extents.
+    pub crossings: Option<crate::nodes::Crossings<'a>>,
 }
 
 /// What shadows the march: the shadow map, and for the hybrid the extents.
@@ -117,7 +161,9 @@ pub struct Extents<'a> {
 pub struct Shadows<'a> {
     /// Visibility from the light.
     pub shadow_map: ShadowMap<'a>,
-    /// Where the shadow volumes are along each ray. `None` marches the whole ray, as brute force.
+    /// Where the shadow volumes are along each ray: the hybrid needs the depth textures, the
+    /// exact method the crossing lists. `None` (or extents without what the method needs)
+    /// marches the whole ray, as brute force.
     pub extents: Option<Extents<'a>>,
 }
 
@@ -152,6 +198,34 @@ struct MarchUniform {
     budget: [u32; 4],
 }
 
+/// What the exact method met in a frame, counted by the march (see
+/// [`MarchNode::stats_buffer`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct MarchStats {
+    /// Pixels whose crossing list overflowed (marched between their nearest and farthest
+    /// crossing instead).
+    pub overflowed: u32,
+    /// Pixels with at least one crossing in front of the surface.
+    pub crossed: u32,
+    /// The most crossings one pixel had.
+    pub max_crossings: u32,
+    /// Crossings in front of the surface, summed over the pixels.
+    pub total_crossings: u32,
+}
+
+impl MarchStats {
+    /// Decodes the bytes of [`MarchNode::stats_buffer`] (four little-endian `u32`).
+    pub fn from_bytes(bytes: &[u8]) -> Option<Self> {
+        let words: &[u32] = bytemuck::try_cast_slice(bytes.get(..16)?).ok()?;
+        Some(Self {
+            overflowed: words[0],
+            crossed: words[1],
+            max_crossings: words[2],
+            total_crossings: words[3],
+        })
+    }
+}
+
 /// Computes in-scattered radiance per pixel into its own `Rgba32Float` texture.
 pub struct MarchNode {
     settings: MarchSettings,
@@ -167,6 +241,8 @@ pub struct MarchNode {
     dummy_light: wgpu::Texture,
     dummy_shadow: wgpu::Texture,
     dummy_depth: wgpu::Texture,
+    dummy_buffer: wgpu::Buffer,
+    stats: wgpu::Buffer,
     outputs: Option<[wgpu::Texture; 2]>,
     bound: Option<Bound>,
 }
@@ -174,6 +250,7 @@ pub struct MarchNode {
 /// The bind group and the textures it was made for, so it is rebuilt only when they change.
 struct Bound {
     textures: Vec<wgpu::Texture>,
+    buffers: Vec<wgpu::Buffer>,
     bind_group: wgpu::BindGroup,
     size: (u32, u32),
 }
@@ -226,6 +303,20 @@ impl MarchNode {
                 wgpu::TextureFormat::Depth32Float,
                 sampled,
             ),
+            dummy_buffer: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("volshadow no crossings"),
+                size: 16,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            }),
+            stats: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("volshadow march stats"),
+                size: 16,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_DST
+                    | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
             outputs: None,
             bound: None,
         })
@@ -335,7 +426,16 @@ impl MarchNode {
         .into_iter()
         .cloned()
         .collect();
-        if self.bound.as_ref().is_none_or(|b| b.textures != textures) {
+        let crossings = extents.and_then(|e| e.crossings);
+        let buffers: Vec<wgpu::Buffer> = match &crossings {
+            Some(c) => vec![c.heads.clone(), c.list.clone()],
+            None => vec![self.dummy_buffer.clone(), self.dummy_buffer.clone()],
+        };
+        if self
+            .bound
+            .as_ref()
+            .is_none_or(|b| b.textures != textures || b.buffers != buffers)
+        {
             let views: Vec<wgpu::TextureView> = textures
                 .iter()
                 .enumerate()
@@ -387,10 +487,23 @@ impl MarchNode {
                         binding: 13,
                         resource: wgpu::BindingResource::Sampler(&self.linear),
                     },
+                    wgpu::BindGroupEntry {
+                        binding: 14,
+                        resource: buffers[0].as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 15,
+                        resource: buffers[1].as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 16,
+                        resource: self.stats.as_entire_binding(),
+                    },
                 ],
             });
             self.bound = Some(Bound {
                 textures,
+                buffers,
                 bind_group,
                 size: (width, height),
             });
@@ -413,7 +526,8 @@ impl MarchNode {
         let mut faces = [[0.0; 16]; 6];
         let mut shadow = [0.0; 4];
         let mode = match &inputs.shadows {
-            None => 0,
+            None if self.settings.method == MarchMethod::Textbook => MODE_TEXTBOOK,
+            None => MODE_ANALYTIC,
             Some(s) => {
                 for (slot, face) in faces.iter_mut().zip(s.shadow_map.faces) {
                     *slot = face.to_cols_array();
@@ -425,8 +539,10 @@ impl MarchNode {
                     0.0,
                 ];
                 match (self.settings.method, s.extents) {
-                    (MarchMethod::Hybrid, Some(_)) => 1,
-                    _ => 2,
+                    (MarchMethod::Hybrid, Some(e)) if e.crossings.is_none() => MODE_HYBRID,
+                    (MarchMethod::Exact, Some(e)) if e.crossings.is_some() => MODE_EXACT,
+                    (MarchMethod::Textbook, _) => MODE_TEXTBOOK,
+                    _ => MODE_BRUTE_FORCE,
                 }
             }
         };
@@ -454,7 +570,12 @@ impl MarchNode {
         self.params.write(
             queue,
             MarchUniform {
-                mode: [0, self.settings.steps, 0, 0],
+                mode: [
+                    0,
+                    self.settings.steps,
+                    crossings.map_or(0, |c| c.per_pixel),
+                    0,
+                ],
                 spot,
                 shadow,
                 faces,
@@ -469,7 +590,7 @@ impl MarchNode {
                 mode,
                 spot: matches!(inputs.light, Light::Spot(_)),
                 textured: inputs.light_texture.is_some(),
-                bisections: if mode == 0 {
+                bisections: if mode == MODE_ANALYTIC {
                     0
                 } else {
                     self.settings.bisections
@@ -484,6 +605,7 @@ impl MarchNode {
         let (Some(bound), Some(pipeline)) = (&self.bound, &self.pipeline) else {
             return;
         };
+        encoder.clear_buffer(&self.stats, 0, None);
         let timestamp_writes = timer.and_then(|t| t.compute_pass("march"));
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("volshadow march"),
@@ -497,6 +619,12 @@ impl MarchNode {
     /// The in-scatter texture (see the module docs); `None` before the first `prepare`.
     pub fn output(&self) -> Option<&wgpu::Texture> {
         self.outputs.as_ref().map(|o| &o[0])
+    }
+
+    /// What the last recorded march met: four `u32` ([`MarchStats::from_bytes`] decodes them),
+    /// cleared and written by every `encode` (`STORAGE | COPY_SRC`, 16 bytes).
+    pub fn stats_buffer(&self) -> &wgpu::Buffer {
+        &self.stats
     }
 
     /// Steps each pixel executed (`R32Uint`); `None` before the first `prepare`.

@@ -13,8 +13,13 @@ mod upsample;
 
 pub use airlight_table::{AirlightTableNode, TableSize};
 pub use composite::{CompositeInputs, CompositeNode, MAX_LIGHTS};
-pub use extents::{ExtentsInputs, ExtentsNode, EXTENTS_NEAR};
+pub use extents::{
+    Crossings, CrossingsRequest, ExtentsInputs, ExtentsNode, EXTENTS_NEAR, MAX_CROSSINGS_PER_PIXEL,
+};
 pub use light_texture::LightTextureNode;
-pub use march::{Extents, MarchInputs, MarchMethod, MarchNode, MarchSettings, Shadows};
+pub use march::{
+    Extents, MarchInputs, MarchMethod, MarchNode, MarchSettings, MarchStats, Shadows,
+    DEFAULT_CROSSINGS,
+};
 pub use shadow_map::{ShadowMap, ShadowMapNode, ShadowMapSettings};
 pub use upsample::{Scale, UpsampleFilter, UpsampleInputs, UpsampleNode};

@@ -186,6 +186,29 @@ pub enum Method {
         /// Textured spot lights: steps before and after the extents (1..=4096, default 32).
         texture_steps: u32,
     },
+    /// The GPU exact method: closed form between the sorted shadow-volume crossings of each
+    /// ray ([`MarchMethod::Exact`]).
+    Exact {
+        /// Steps per marched interval of a pixel whose crossing list overflowed (1..=4096).
+        steps: u32,
+        /// Resolution of the scattering passes.
+        scale: Scale,
+        /// How low-resolution scattering is upsampled (used when `scale` is not full).
+        upsample: UpsampleFilter,
+        /// Bisection steps per lit/shadow transition of an overflowed pixel (0..=16).
+        bisections: u32,
+        /// Textured spot lights: steps along the cone (1..=4096, default 32).
+        texture_steps: u32,
+        /// Crossing list entries per pixel.
+        crossings: u32,
+    },
+    /// The textbook march in distance ([`MarchMethod::Textbook`]): a baseline.
+    Textbook {
+        /// Steps per ray (1..=4096).
+        steps: u32,
+        /// Resolution of the scattering passes.
+        scale: Scale,
+    },
 }
 
 impl Default for Method {
@@ -203,6 +226,19 @@ impl Default for Method {
 }
 
 impl Method {
+    /// `Exact` with the defaults of [`MarchSettings`] at full resolution.
+    pub fn exact_default() -> Self {
+        let m = MarchSettings::default();
+        Method::Exact {
+            steps: m.steps,
+            scale: Scale::Full,
+            upsample: UpsampleFilter::DepthAware3x3,
+            bisections: m.bisections,
+            texture_steps: m.texture_steps,
+            crossings: m.crossings,
+        }
+    }
+
     /// The march settings of a GPU method; `None` for [`Method::Reference`].
     pub fn march_settings(&self) -> Option<MarchSettings> {
         match *self {
@@ -231,6 +267,28 @@ impl Method {
                 bisections,
                 scale,
                 texture_steps,
+                ..MarchSettings::default()
+            }),
+            Method::Exact {
+                steps,
+                bisections,
+                scale,
+                texture_steps,
+                crossings,
+                ..
+            } => Some(MarchSettings {
+                method: MarchMethod::Exact,
+                steps,
+                bisections,
+                scale,
+                texture_steps,
+                crossings,
+            }),
+            Method::Textbook { steps, scale } => Some(MarchSettings {
+                method: MarchMethod::Textbook,
+                steps,
+                scale,
+                ..MarchSettings::default()
             }),
         }
     }
@@ -239,14 +297,17 @@ impl Method {
     pub fn scale(&self) -> Scale {
         match *self {
             Method::Reference => Scale::Full,
-            Method::BruteForce { scale, .. } | Method::Hybrid { scale, .. } => scale,
+            Method::BruteForce { scale, .. }
+            | Method::Hybrid { scale, .. }
+            | Method::Exact { scale, .. }
+            | Method::Textbook { scale, .. } => scale,
         }
     }
 
     /// The upsample filter ([`UpsampleFilter::default`] where the method has none).
     pub fn upsample(&self) -> UpsampleFilter {
         match *self {
-            Method::Hybrid { upsample, .. } => upsample,
+            Method::Hybrid { upsample, .. } | Method::Exact { upsample, .. } => upsample,
             _ => UpsampleFilter::default(),
         }
     }

@@ -813,7 +813,7 @@ fn object(v: &Value, path: &str, i: usize, base_dir: &Path, out: &mut Vec<SceneO
 }
 
 fn method(v: &Value, path: &str) -> P<Method> {
-    const KINDS: [&str; 3] = ["reference", "hybrid", "brute_force"];
+    const KINDS: [&str; 5] = ["reference", "hybrid", "exact", "brute_force", "textbook"];
     let defaults = |kind: &str| match kind {
         "reference" => Method::Reference,
         "brute_force" => Method::BruteForce {
@@ -821,6 +821,11 @@ fn method(v: &Value, path: &str) -> P<Method> {
             bisections: 0,
             scale: Scale::Full,
         },
+        "textbook" => Method::Textbook {
+            steps: 64,
+            scale: Scale::Full,
+        },
+        "exact" => Method::exact_default(),
         _ => Method::default(),
     };
     if let Some(s) = v.as_str() {
@@ -835,7 +840,7 @@ fn method(v: &Value, path: &str) -> P<Method> {
     if !v.is_object() {
         return Err(expected(
             path,
-            "a method name (reference, hybrid, brute_force) or an object with \"type\"",
+            "a method name (reference, hybrid, exact, brute_force, textbook) or an object with \"type\"",
             v,
         ));
     }
@@ -846,6 +851,20 @@ fn method(v: &Value, path: &str) -> P<Method> {
             return Ok(Method::Reference);
         }
         "brute_force" => Obj::new(v, path, &["type", "steps", "bisections", "scale"])?,
+        "textbook" => Obj::new(v, path, &["type", "steps", "scale"])?,
+        "exact" => Obj::new(
+            v,
+            path,
+            &[
+                "type",
+                "steps",
+                "bisections",
+                "scale",
+                "upsample",
+                "texture_steps",
+                "crossings",
+            ],
+        )?,
         _ => Obj::new(
             v,
             path,
@@ -875,16 +894,36 @@ fn method(v: &Value, path: &str) -> P<Method> {
             scale,
         });
     }
+    if kind == "textbook" {
+        return Ok(Method::Textbook { steps, scale });
+    }
     let upsample = match o.value("upsample") {
         None => UpsampleFilter::default(),
         Some(u) => upsample(u, &o.field("upsample"))?,
     };
+    let texture_steps = count(&o, "texture_steps", 32, 1, 4096)?;
+    if kind == "exact" {
+        return Ok(Method::Exact {
+            steps,
+            scale,
+            upsample,
+            bisections,
+            texture_steps,
+            crossings: count(
+                &o,
+                "crossings",
+                crate::nodes::DEFAULT_CROSSINGS,
+                1,
+                crate::nodes::MAX_CROSSINGS_PER_PIXEL,
+            )?,
+        });
+    }
     Ok(Method::Hybrid {
         steps,
         scale,
         upsample,
         bisections,
-        texture_steps: count(&o, "texture_steps", 32, 1, 4096)?,
+        texture_steps,
     })
 }
 

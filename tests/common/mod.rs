@@ -2,6 +2,8 @@
 //! table → march → readback chain.
 #![allow(dead_code)]
 
+pub mod scene;
+
 use glam::{DMat4, DVec3, DVec4, Vec3};
 use volshadow::nodes::{AirlightTableNode, MarchInputs, MarchNode, MarchSettings, TableSize};
 use volshadow::{Cache, Camera, HeadlessGpu, Light, Medium, PointLight};
@@ -231,6 +233,8 @@ pub struct ShadowFrame {
     /// Front, back-near, back-far extents depths.
     pub extents: [Vec<f32>; 3],
     pub times: Vec<volshadow::gpu::PassTime>,
+    /// What the exact method met (zeros for the other methods).
+    pub stats: volshadow::nodes::MarchStats,
 }
 
 impl ShadowFrame {
@@ -352,6 +356,12 @@ pub fn shadow_frame_full(
                 light,
                 occluders,
                 size: (w, h),
+                crossings: (settings.method == volshadow::nodes::MarchMethod::Exact).then_some(
+                    volshadow::nodes::CrossingsRequest {
+                        per_pixel: settings.crossings,
+                        scene_depth: depth,
+                    },
+                ),
             },
         )
         .unwrap();
@@ -420,6 +430,10 @@ pub fn shadow_frame_full(
             })
             .unwrap(),
         steps: bytemuck::pod_collect_to_vec(&steps_bytes),
+        stats: volshadow::nodes::MarchStats::from_bytes(
+            &gpu.read_buffer_bytes(march.stats_buffer()).unwrap(),
+        )
+        .unwrap(),
         extents: [
             read_depth(&ext.textures[0]),
             read_depth(&ext.textures[1]),
