@@ -383,3 +383,239 @@ fn f_textured_spot_eye_in_its_occluders_shadow() {
     };
     check("textured spot", &gpu, &cache, &shot);
 }
+
+/// One scene chosen by the seed: 1–4 occluders (boxes turned any way, spheres, a torus) over
+/// an optional ground, a point or spot light, an eye that is often inside a shadow or looking
+/// at the light, a camera whose near plane may cut the volumes (standard or reversed infinite
+/// depth), optical depth σt·D from 1e-3 to 50, any phase, and the whole scene scaled by
+/// 1e-2 … 1e4.
+struct RandomScene {
+    scene: MeshScene,
+    camera: Camera,
+    light: Light,
+    medium: Medium,
+    size: u32,
+    summary: String,
+}
+
+fn random_scene(seed: u64) -> RandomScene {
+    let mut rng = fastrand::Rng::with_seed(seed);
+    let mut uniform = |a: f32, b: f32| a + (b - a) * rng.f32();
+    let scale = 10f32.powf(uniform(-2.0, 4.0));
+    let ground = uniform(0.0, 1.0) < 0.7;
+    let mut scene = MeshScene {
+        ground: ground.then_some(0.0),
+        ..Default::default()
+    };
+    let count = 1 + (uniform(0.0, 4.0) as usize).min(3);
+    let mut centers = Vec::new();
+    for k in 0..count {
+        let c = Vec3::new(uniform(-2.0, 2.0), uniform(0.6, 3.0), uniform(-2.0, 2.0));
+        let kind = (uniform(0.0, 3.0) as u32).min(2);
+        let (mesh, radius) = match kind {
+            0 => {
+                let h = Vec3::new(uniform(0.05, 1.0), uniform(0.03, 0.6), uniform(0.05, 1.0));
+                (shapes::cuboid(Vec3::ZERO, h), h.length())
+            }
+            1 => {
+                let r = uniform(0.15, 0.8);
+                (shapes::uv_sphere(Vec3::ZERO, r, 16, 8), r)
+            }
+            _ => {
+                let major = uniform(0.3, 0.8);
+                (
+                    shapes::torus(Vec3::ZERO, major, major * uniform(0.2, 0.5), 16, 8),
+                    major * 1.5,
+                )
+            }
+        };
+        let axis = Vec3::new(uniform(-1.0, 1.0), uniform(-1.0, 1.0), uniform(-1.0, 1.0))
+            .try_normalize()
+            .unwrap_or(Vec3::Y);
+        let rotation = glam::Quat::from_axis_angle(axis, uniform(0.0, 6.28));
+        scene.occluders.push(SceneMesh {
+            mesh,
+            transform: Mat4::from_scale_rotation_translation(
+                Vec3::splat(scale),
+                rotation,
+                c * scale,
+            ),
+            // Now and then an occluder the camera does not see (its shadow only).
+            visible: k > 0 || uniform(0.0, 1.0) < 0.85,
+        });
+        centers.push((c, radius));
+    }
+    let clear = |p: Vec3, margin: f32| centers.iter().all(|&(c, r)| p.distance(c) > r + margin);
+    let mut light_pos;
+    loop {
+        light_pos = Vec3::new(uniform(-3.5, 3.5), uniform(1.5, 6.0), uniform(-3.5, 3.5));
+        if clear(light_pos, 0.3) {
+            break;
+        }
+    }
+    // The eye: behind an occluder as seen from the light (in its shadow) half the time.
+    let mut eye;
+    loop {
+        eye = if uniform(0.0, 1.0) < 0.5 {
+            let (c, _) = centers[(uniform(0.0, count as f32) as usize).min(count - 1)];
+            light_pos
+                + (c - light_pos) * uniform(1.2, 2.5)
+                + Vec3::new(uniform(-0.3, 0.3), uniform(-0.3, 0.3), uniform(-0.3, 0.3))
+        } else {
+            Vec3::new(uniform(-4.0, 4.0), uniform(0.2, 3.5), uniform(-4.0, 4.0))
+        };
+        if (!ground || eye.y > 0.05) && clear(eye, 0.05) && eye.distance(light_pos) > 0.3 {
+            break;
+        }
+    }
+    let target = match (uniform(0.0, 3.0) as u32).min(2) {
+        0 => light_pos,
+        1 => centers[0].0,
+        _ => eye + Vec3::new(uniform(-1.0, 1.0), uniform(-0.7, 0.5), uniform(-1.0, 1.0)),
+    };
+    let target = if target.distance(eye) < 1e-3 {
+        eye + Vec3::X
+    } else {
+        target
+    };
+    let up = if (target - eye).normalize().y.abs() > 0.99 {
+        Vec3::X
+    } else {
+        Vec3::Y
+    };
+    let fov = uniform(40.0, 90.0).to_radians();
+    // The near plane may cut the volumes: up to a quarter of the way to the light.
+    let near = eye.distance(light_pos) * 10f32.powf(uniform(-3.0, -0.6)) * scale;
+    let view = glam::camera::rh::view::look_at_mat4(eye * scale, target * scale, up);
+    let reversed = uniform(0.0, 1.0) < 0.3;
+    let proj = if reversed {
+        glam::camera::rh::proj::directx::perspective_infinite_reverse(fov, 1.0, near)
+    } else {
+        glam::camera::rh::proj::directx::perspective(fov, 1.0, near, 1e3 * scale)
+    };
+    let camera = Camera::new(view, proj).unwrap();
+    let spot = uniform(0.0, 1.0) < 0.2;
+    let intensity =
+        Vec3::new(uniform(5.0, 40.0), uniform(5.0, 40.0), uniform(5.0, 40.0)) * scale * scale;
+    let light: Light = if spot {
+        let dir = (centers[0].0 - light_pos).normalize();
+        SpotLight::new(
+            light_pos * scale,
+            dir,
+            uniform(30.0, 120.0).to_radians(),
+            intensity,
+        )
+        .unwrap()
+        .into()
+    } else {
+        PointLight::new(light_pos * scale, intensity)
+            .unwrap()
+            .into()
+    };
+    let tau = 10f32.powf(uniform(-3.0, 50f32.log10()));
+    let sigma_t = tau / (eye.distance(light_pos) * scale);
+    let albedo = uniform(0.2, 1.0);
+    let phase = match (uniform(0.0, 3.0) as u32).min(2) {
+        0 => PhaseFunction::Isotropic,
+        1 => PhaseFunction::HenyeyGreenstein {
+            g: uniform(-0.9, 0.9),
+        },
+        _ => PhaseFunction::Rayleigh,
+    };
+    let medium = Medium::new(
+        Vec3::new(1.0, 0.9, 0.8) * albedo * sigma_t,
+        Vec3::new(0.0, 0.1, 0.2) * albedo * sigma_t + Vec3::splat((1.0 - albedo) * sigma_t),
+        phase,
+    )
+    .unwrap();
+    let size = 24 + 8 * (uniform(0.0, 2.0) as u32).min(1);
+    RandomScene {
+        summary: format!(
+            "{count} occluder(s), scale {scale:.1e}, σt·D {tau:.1e}, {phase:?}, {}, near {near:.1e}{}, {size}²",
+            if spot { "spot" } else { "point" },
+            if reversed { " (reversed, infinite)" } else { "" }
+        ),
+        scene,
+        camera,
+        light,
+        medium,
+        size,
+    }
+}
+
+/// The seeds run: all 200, or the one in `VOLSHADOW_SEED` (to reproduce a failure alone).
+fn seeds() -> Vec<u64> {
+    match std::env::var("VOLSHADOW_SEED") {
+        Ok(s) => vec![s.parse().expect("VOLSHADOW_SEED must be a number")],
+        Err(_) => (0..200).collect(),
+    }
+}
+
+/// Random scenes nobody chose, exact mode against the reference: every scene p95 ≤ 1% (the
+/// issue's bar for this test: half the hand-picked cases' margin, for scenes at 24² whose
+/// percentile rests on few pixels), and nothing non-finite. The depth buffer and the
+/// reference come from the same ray cast, so no pixel's first surface differs between them.
+#[test]
+fn g_random_scenes_against_the_reference() {
+    let gpu = common::gpu();
+    let cache = Cache::new(&gpu.device);
+    let mut results = Vec::new();
+    for seed in seeds() {
+        let s = random_scene(seed);
+        let shot = Shot::new(&s.scene, &s.camera, &s.light, &s.medium, s.size);
+        let reference = shot.reference();
+        let m = shot.measure(&gpu, &cache, exact(), &reference);
+        if std::env::var("VOLSHADOW_SEED").is_ok() {
+            println!(
+                "seed {seed}: {}\n  {}\n  {:?}",
+                s.summary, m.errors, m.frame.stats
+            );
+            let h = shot.measure(&gpu, &cache, hybrid(), &reference);
+            println!("  hybrid: {}", h.errors);
+            let bare = MeshScene {
+                occluders: Vec::new(),
+                ..s.scene.clone()
+            };
+            let lit = Shot::new(&bare, &s.camera, &s.light, &s.medium, s.size);
+            let lit_ref = lit.reference();
+            println!(
+                "  no occluders: {}",
+                lit.measure(&gpu, &cache, exact(), &lit_ref).errors
+            );
+            let w = m.errors.worst;
+            println!(
+                "  worst pixel {w}: gpu {:?} reference {:?}",
+                m.frame.inscatter[w], reference[w]
+            );
+        }
+        results.push((seed, m.errors, s.summary, m.frame.stats));
+    }
+    let mut p95: Vec<f64> = results.iter().map(|r| r.1.p95).collect();
+    p95.sort_by(f64::total_cmp);
+    let worst = results
+        .iter()
+        .max_by(|a, b| a.1.p95.total_cmp(&b.1.p95))
+        .unwrap();
+    let overflowed = results.iter().filter(|r| r.3.overflowed > 0).count();
+    println!(
+        "{} random scenes: median p95 {:.4}%, worst p95 {:.4}% at seed {} ({}: {}); {} scenes had overflowing pixels",
+        results.len(),
+        100.0 * p95[p95.len() / 2],
+        100.0 * worst.1.p95,
+        worst.0,
+        worst.2,
+        worst.1,
+        overflowed
+    );
+    let failed: Vec<String> = results
+        .iter()
+        .filter(|r| r.1.p95 > 0.01 || r.1.non_finite > 0)
+        .map(|r| format!("seed {} ({}): {}", r.0, r.2, r.1))
+        .collect();
+    assert!(
+        failed.is_empty(),
+        "{} scene(s) over p95 1% or non-finite; rerun one with VOLSHADOW_SEED=<seed>:\n{}",
+        failed.len(),
+        failed.join("\n")
+    );
+}

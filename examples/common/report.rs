@@ -165,6 +165,10 @@ pub enum Curve {
     Paper003,
     /// The hybrid: scale divisor, filter, bisections.
     Hybrid(u32, Filter, u32),
+    /// The exact method: scale divisor, filter.
+    Exact(u32, Filter),
+    /// The textbook march in distance (the baseline most engines ship).
+    Textbook,
     /// The error-target settings for this tolerance (in units of 0.1%).
     Target(u32),
 }
@@ -219,6 +223,9 @@ impl Curve {
             Curve::Paper003 => "paper 003 (brute 1/4 + separable)".into(),
             Curve::Hybrid(1, _, b) => format!("hybrid full{}", refine_suffix(b)),
             Curve::Hybrid(d, f, b) => format!("hybrid 1/{d} {}{}", f.name(), refine_suffix(b)),
+            Curve::Exact(1, _) => "exact full".into(),
+            Curve::Exact(d, f) => format!("exact 1/{d} {}", f.name()),
+            Curve::Textbook => "textbook march".into(),
             Curve::Target(t) => format!("error target {:.1}%", f64::from(t) / 10.0),
         }
     }
@@ -556,18 +563,56 @@ fn run_scene(
     } else {
         vec![16, 32, 64, 128, 256, 512, 1024]
     };
-    for (curve, scale, filter) in [
-        (Curve::Brute, Scale::Full, Filter::None),
-        (Curve::Paper003, Scale::Quarter, Filter::Separable),
+    for (curve, method, scale, filter) in [
+        (Curve::Brute, MarchMethod::BruteForce, Scale::Full, Filter::None),
+        (
+            Curve::Paper003,
+            MarchMethod::BruteForce,
+            Scale::Quarter,
+            Filter::Separable,
+        ),
+        (Curve::Textbook, MarchMethod::Textbook, Scale::Full, Filter::None),
     ] {
         let mut sweep_state = Sweep::default();
         for &steps in &sweep {
-            let s = settings(MarchMethod::BruteForce, steps, scale, filter, 0);
+            let s = settings(method, steps, scale, filter, 0);
             let (passes, image) = measure(s, &shadowed, false)?;
             let p95 = record(curve, &s, passes, &image, &fixed).errors.p95;
             if !options.full && sweep_state.stops(ctx, curve, steps, p95) {
                 break;
             }
+        }
+    }
+
+    // The exact method: no steps (they only march pixels whose crossing list overflowed).
+    for scale in [Scale::Full, Scale::Half, Scale::Quarter] {
+        let filters = if scale == Scale::Full {
+            vec![Filter::None]
+        } else {
+            vec![Filter::Box3, Filter::Separable]
+        };
+        let mut march_passes: Option<BTreeMap<&'static str, f64>> = None;
+        for filter in filters {
+            let s = settings(MarchMethod::Exact, 64, scale, filter, REFINE);
+            let (mut passes, image) = measure(s, &shadowed, march_passes.is_some())?;
+            if let Some(shared) = &march_passes {
+                passes.extend(shared.iter().map(|(k, v)| (*k, *v)));
+            } else {
+                march_passes = Some(
+                    passes
+                        .iter()
+                        .filter(|(k, _)| matches!(**k, "march" | "extents"))
+                        .map(|(k, v)| (*k, *v))
+                        .collect(),
+                );
+            }
+            record(
+                Curve::Exact(scale.divisor(), filter),
+                &s,
+                passes,
+                &image,
+                &fixed,
+            );
         }
     }
 
@@ -1018,6 +1063,75 @@ pub fn summary(rows: &[Row], checks: &[Check]) -> String {
         }
     }
     let _ = writeln!(out, "## Summary\n");
+    let is_exact = |r: &Row| matches!(r.curve, Curve::Exact(..));
+    let _ = writeln!(
+        out,
+        "| scene | textbook march at p95 ≤ 2% | brute force at p95 ≤ 2% | exact at p95 ≤ 2% | exact vs textbook | exact vs brute force | exact 1/2 3x3 (p95) / analytic floor |"
+    );
+    let _ = writeln!(out, "|---|---|---|---|---|---|---|");
+    for scene in &scenes {
+        let floor = rows
+            .iter()
+            .find(|r| r.scene == *scene && r.curve == Curve::Analytic);
+        let textbook = cheapest(rows, scene, 0.02, |r| r.curve == Curve::Textbook);
+        let brute = cheapest(rows, scene, 0.02, |r| r.curve == Curve::Brute);
+        let exact = cheapest(rows, scene, 0.02, is_exact);
+        let half = rows
+            .iter()
+            .find(|r| r.scene == *scene && r.curve == Curve::Exact(2, Filter::Box3));
+        let describe = |r: Option<&Row>| match r {
+            Some(r) if r.curve == Curve::Textbook || r.curve == Curve::Brute => format!(
+                "{} steps: {:.1} ms (p95 {:.2}%)",
+                r.steps,
+                r.total_ms,
+                100.0 * r.errors.p95
+            ),
+            Some(r) => format!(
+                "{}: {:.1} ms (p95 {:.2}%)",
+                r.curve.name(),
+                r.total_ms,
+                100.0 * r.errors.p95
+            ),
+            None => "not reached".into(),
+        };
+        // A baseline that never reached 2%: a lower bound from its most expensive point.
+        let speedup = |baseline: Option<&Row>, curve: Curve| match (baseline, exact) {
+            (Some(b), Some(e)) => format!("{:.1}x", b.total_ms / e.total_ms),
+            (None, Some(e)) => rows
+                .iter()
+                .filter(|r| r.scene == *scene && r.curve == curve)
+                .max_by(|a, b| a.total_ms.total_cmp(&b.total_ms))
+                .map_or("n/a".into(), |b| {
+                    format!(
+                        "> {:.1}x (at {} steps p95 {:.2}%)",
+                        b.total_ms / e.total_ms,
+                        b.steps,
+                        100.0 * b.errors.p95
+                    )
+                }),
+            _ => "n/a".into(),
+        };
+        let ratio = match (half, floor) {
+            (Some(h), Some(f)) => format!(
+                "{:.2}x ({:.1} / {:.1} ms, p95 {:.2}%)",
+                h.total_ms / f.total_ms,
+                h.total_ms,
+                f.total_ms,
+                100.0 * h.errors.p95
+            ),
+            _ => "n/a".into(),
+        };
+        let _ = writeln!(
+            out,
+            "| {scene} | {} | {} | {} | {} | {} | {ratio} |",
+            describe(textbook),
+            describe(brute),
+            describe(exact),
+            speedup(textbook, Curve::Textbook),
+            speedup(brute, Curve::Brute),
+        );
+    }
+    let _ = writeln!(out);
     let _ = writeln!(
         out,
         "| scene | brute force at p95 ≤ 2% | hybrid at p95 ≤ 2% | speedup | 1/4-res pipeline at p95 ≤ 2% | its cost / analytic floor |"
@@ -1290,7 +1404,7 @@ fn plot(options: &Options, rows: &[Row], adapter: &str, date: &str) -> Result<Pa
     let panels = body.split_evenly((panel_rows, columns));
     // The plotted curves: brute force, paper 003, and the hybrid with refinement on.
     let plotted = |c: Curve| match c {
-        Curve::Brute | Curve::Paper003 => true,
+        Curve::Brute | Curve::Paper003 | Curve::Textbook | Curve::Exact(..) => true,
         Curve::Hybrid(_, f, b) => b > 0 && f != Filter::Bilinear,
         _ => false,
     };

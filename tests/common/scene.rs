@@ -66,10 +66,29 @@ impl MeshScene {
     }
 }
 
-/// First hit of the ray `o + t d` (t > 0) with the triangles or the ground (Möller–Trumbore).
-fn first_hit(triangles: &[[DVec3; 3]], ground: Option<f64>, o: DVec3, d: DVec3) -> f64 {
+/// The camera's near plane as (view direction, view depth): what lies nearer is clipped, so
+/// the caller's depth buffer holds what is behind it.
+fn near_plane(camera: &Camera) -> (DVec3, f64) {
+    let view = camera.view().as_dmat4();
+    let inv_proj = camera.projection().as_dmat4().inverse();
+    let near_ndc = if camera.far_depth() == 1.0 { 0.0 } else { 1.0 };
+    let p = inv_proj * glam::DVec4::new(0.0, 0.0, near_ndc, 1.0);
+    let forward = -view.inverse().z_axis.truncate().normalize();
+    (forward, -p.z / p.w)
+}
+
+/// First hit of the ray `o + t d` (t > 0, beyond the camera's near plane `near`) with the
+/// triangles or the ground (Möller–Trumbore).
+fn first_hit(
+    triangles: &[[DVec3; 3]],
+    ground: Option<f64>,
+    (forward, near): (DVec3, f64),
+    o: DVec3,
+    d: DVec3,
+) -> f64 {
+    let t_min = near / d.dot(forward).max(1e-12);
     let mut best = match ground {
-        Some(y) if d.y < 0.0 && o.y > y => (y - o.y) / d.y,
+        Some(y) if d.y < 0.0 && o.y > y && (y - o.y) / d.y > t_min => (y - o.y) / d.y,
         _ => f64::INFINITY,
     };
     for [a, b, c] in triangles {
@@ -92,7 +111,7 @@ fn first_hit(triangles: &[[DVec3; 3]], ground: Option<f64>, o: DVec3, d: DVec3) 
             continue;
         }
         let t = e2.dot(q) * inv;
-        if t > 0.0 && t < best {
+        if t > t_min && t < best {
             best = t;
         }
     }
@@ -242,7 +261,8 @@ impl<'a> Shot<'a> {
         let ground = self.scene.ground;
         let occ = self.scene.reference_occluders();
         let (w, h) = self.size;
-        let distance = |o: DVec3, d: DVec3| first_hit(&tris, ground, o, d);
+        let near = near_plane(self.camera);
+        let distance = |o: DVec3, d: DVec3| first_hit(&tris, ground, near, o, d);
         match self.texture {
             Some((_, source)) => reference::inscatter_image(
                 self.camera,
@@ -278,7 +298,7 @@ impl<'a> Shot<'a> {
         let depths: Vec<f32> = (0..w * h)
             .map(|i| {
                 let (o, d) = super::pixel_ray(self.camera, w, h, i % w, i / w);
-                let ds = first_hit(&tris, self.scene.ground, o, d);
+                let ds = first_hit(&tris, self.scene.ground, near_plane(self.camera), o, d);
                 if ds.is_finite() {
                     super::ndc_depth(self.camera, o + ds * d)
                 } else {
