@@ -58,7 +58,8 @@ struct MarchParams {
 // depths per pixel, negative where the ray enters a volume).
 @group(0) @binding(14) var<storage, read> heads: array<u32>;
 @group(0) @binding(15) var<storage, read> crossings: array<f32>;
-// Overflowed pixels, pixels with crossings, most crossings, total crossings.
+// Overflowed pixels, pixels with more crossings than half the list holds, most crossings
+// among those, unused.
 @group(0) @binding(16) var<storage, read_write> stats: array<atomic<u32>, 4>;
 
 // Distance along the ray of the point with normalised scattering angle s (law of sines in the
@@ -377,10 +378,11 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
         let head = heads[4u * p];
         let count = head & 0x7fffffffu;
         let k = mp.mode.z;
-        if (count > 0u) {
+        // Statistics for sizing the lists, kept off the common path: one counter for every
+        // pixel would serialise the pass on its atomics.
+        if (2u * count > k) {
             atomicAdd(&stats[1], 1u);
             atomicMax(&stats[2], count);
-            atomicAdd(&stats[3], count);
         }
         if (count > k) {
             // The list overflowed: march, as the hybrid does, between the nearest and the

@@ -35,10 +35,11 @@ pub struct Settings {
 
 impl Settings {
     /// Reproducible settings for test images (as egui-wgpu's `PREDICTABLE`): full resolution,
-    /// hybrid with 64 steps, no bisection, no culling, `Rgba16Float` output.
+    /// the exact method (64 steps where a crossing list overflows), no bisection, no culling,
+    /// `Rgba16Float` output.
     pub const PREDICTABLE: Settings = Settings {
         march: MarchSettings {
-            method: MarchMethod::Hybrid,
+            method: MarchMethod::Exact,
             steps: 64,
             bisections: 0,
             scale: Scale::Full,
@@ -87,8 +88,9 @@ impl Settings {
 }
 
 impl Default for Settings {
-    /// Real-time defaults: hybrid, 64 steps and 2 bisections at half resolution with the 3×3
-    /// depth-aware upsample; occluders culled below 1e-3.
+    /// Real-time defaults: the exact method (64 steps and 2 bisections where a crossing list
+    /// overflows) at half resolution with the 3×3 depth-aware upsample; occluders culled below
+    /// 1e-3.
     fn default() -> Self {
         Settings {
             march: MarchSettings {

@@ -128,8 +128,31 @@ impl RenderMethod {
                     texture_steps: 32,
                 }))
             }
+            "exact" => {
+                too_many(3)?;
+                let upsample = match rest.get(1) {
+                    None => UpsampleFilter::DepthAware3x3,
+                    Some(f) => parse_filter(f).map_err(|e| bad(&e.to_string()))?,
+                };
+                let defaults = volshadow::nodes::MarchSettings::default();
+                Ok(RenderMethod::Gpu(Method::Exact {
+                    steps: defaults.steps,
+                    scale: scale(0)?,
+                    upsample,
+                    bisections: defaults.bisections,
+                    texture_steps: 32,
+                    crossings: number(2, "CROSSINGS", volshadow::nodes::DEFAULT_CROSSINGS)?,
+                }))
+            }
+            "textbook" => {
+                too_many(2)?;
+                Ok(RenderMethod::Gpu(Method::Textbook {
+                    steps: number(0, "STEPS", 64)?,
+                    scale: scale(1)?,
+                }))
+            }
             _ => Err(bad(
-                "expected reference, analytic, brute[:..] or hybrid[:..]",
+                "expected reference, analytic, exact[:..], brute[:..], hybrid[:..] or textbook[:..]",
             )),
         }
     }

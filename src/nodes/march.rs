@@ -56,10 +56,10 @@ pub enum MarchMethod {
     /// visibility sampled once inside it (Biri, Arquès & Michelin 2006: exact integration
     /// between sorted shadow planes). Boundaries come from geometry; the shadow map only says
     /// which side is lit. A pixel whose list overflows is marched, as the hybrid does, between
-    /// its nearest and farthest crossing.
+    /// its nearest and farthest crossing. The default.
+    #[default]
     Exact,
     /// Analytic outside the shadow-volume extents, marched between them (Wyman & Ramsey 2008).
-    #[default]
     Hybrid,
     /// Marched over the whole ray, adding the closed-form integral between steps and
     /// sampling only the visibility: a strong baseline.
@@ -74,9 +74,11 @@ pub enum MarchMethod {
 /// March settings.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct MarchSettings {
-    /// Hybrid or brute force.
+    /// How shadowed rays are integrated. Default [`MarchMethod::Exact`].
     pub method: MarchMethod,
-    /// Steps per marched interval (1 ..= 4096). Default 64.
+    /// Steps per marched interval (1 ..= 4096): the hybrid's between the extents, brute
+    /// force's and the textbook march's per ray, the exact method's only where a pixel's
+    /// crossing list overflowed. Default 64.
     pub steps: u32,
     /// Bisection steps locating each lit/shadow transition between two samples (0 = off,
     /// at most 16). Default 0.
@@ -101,7 +103,7 @@ pub const DEFAULT_CROSSINGS: u32 = 24;
 impl Default for MarchSettings {
     fn default() -> Self {
         Self {
-            method: MarchMethod::Hybrid,
+            method: MarchMethod::Exact,
             steps: 64,
             bisections: 0,
             scale: crate::nodes::Scale::Full,
@@ -205,23 +207,22 @@ pub struct MarchStats {
     /// Pixels whose crossing list overflowed (marched between their nearest and farthest
     /// crossing instead).
     pub overflowed: u32,
-    /// Pixels with at least one crossing in front of the surface.
-    pub crossed: u32,
-    /// The most crossings one pixel had.
+    /// Pixels whose list was more than half full (counted only for those, so that the common
+    /// case does not contend on one counter).
+    pub crowded: u32,
+    /// The most crossings one of those pixels had (0 when no list was more than half full).
     pub max_crossings: u32,
-    /// Crossings in front of the surface, summed over the pixels.
-    pub total_crossings: u32,
 }
 
 impl MarchStats {
-    /// Decodes the bytes of [`MarchNode::stats_buffer`] (four little-endian `u32`).
+    /// Decodes the bytes of [`MarchNode::stats_buffer`] (four `u32` in the platform's byte
+    /// order, the last unused).
     pub fn from_bytes(bytes: &[u8]) -> Option<Self> {
         let words: &[u32] = bytemuck::try_cast_slice(bytes.get(..16)?).ok()?;
         Some(Self {
             overflowed: words[0],
-            crossed: words[1],
+            crowded: words[1],
             max_crossings: words[2],
-            total_crossings: words[3],
         })
     }
 }
