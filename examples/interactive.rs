@@ -448,8 +448,7 @@ impl State {
             .prepare(&self.device, &self.queue, &frame)
             .map(|plan| (plan.steps.len(), plan.skipped.len()))
             .and_then(|counts| {
-                let output = targets.output.create_view(&Default::default());
-                self.volumetric.encode(&mut encoder, &output)?;
+                self.volumetric.encode(&mut encoder, &targets.output)?;
                 Ok(counts)
             });
         match result {

@@ -462,14 +462,14 @@ fn run_scene(
 
     let gpu_scene = GpuScene::new(ctx.gpu, scene, &camera, size, true)?;
     let output = gpu_scene.output(ctx.gpu);
-    let view = output.create_view(&Default::default());
+    let view = &output;
     let lights = gpu_scene.lights();
     let occluders = gpu_scene.occluders();
     let shadowed = gpu_scene.frame(&lights, &occluders);
     let unshadowed = gpu_scene.frame(&lights, &[]);
     let mut facade: Option<VolumetricShadows> = None;
     let mut measure = |settings: Settings, frame: &Frame, reuse: bool| {
-        measure(ctx, &mut facade, settings, frame, &view, reuse)
+        measure(ctx, &mut facade, settings, frame, view, reuse)
     };
     let base = Settings {
         output_format: wgpu::TextureFormat::Rgba32Float,
@@ -494,13 +494,13 @@ fn run_scene(
         ctx,
         settings(MarchMethod::Hybrid, 8, Scale::Full, Filter::None, 0),
         &shadowed,
-        &view,
+        view,
     )?;
     let floor_fixed = time_fixed(
         ctx,
         settings(MarchMethod::Hybrid, 8, Scale::Full, Filter::None, 0),
         &unshadowed,
-        &view,
+        view,
     )?;
 
     let rows = std::cell::RefCell::new(Vec::<Row>::new());
@@ -705,7 +705,7 @@ fn measure(
     facade: &mut Option<VolumetricShadows>,
     settings: Settings,
     frame: &Frame,
-    view: &wgpu::TextureView,
+    view: &wgpu::Texture,
     reuse_march: bool,
 ) -> Result<(BTreeMap<&'static str, f64>, Vec<DVec3>), BoxError> {
     let volumetric = match facade.as_mut() {
@@ -755,7 +755,7 @@ fn time_fixed(
     ctx: &Context,
     settings: Settings,
     frame: &Frame,
-    view: &wgpu::TextureView,
+    view: &wgpu::Texture,
 ) -> Result<BTreeMap<&'static str, f64>, BoxError> {
     let mut volumetric =
         VolumetricShadows::new(&ctx.gpu.device, &ctx.gpu.queue, &ctx.cache, settings)?;
@@ -792,7 +792,7 @@ fn run_frame(
     ctx: &Context,
     volumetric: &mut VolumetricShadows,
     frame: &Frame,
-    view: &wgpu::TextureView,
+    view: &wgpu::Texture,
     skip: &[Pass],
 ) -> Result<Vec<(&'static str, f64)>, BoxError> {
     volumetric.prepare(&ctx.gpu.device, &ctx.gpu.queue, frame)?;

@@ -126,6 +126,33 @@ pub(crate) fn check_size(
     Ok(())
 }
 
+/// Checks that a storage buffer of `bytes` can be created and bound whole on `device`: a typed
+/// error naming the exceeded limit, rather than a wgpu validation error behind `Ok`.
+pub(crate) fn check_buffer_size(
+    device: &wgpu::Device,
+    field: &'static str,
+    bytes: u64,
+) -> Result<()> {
+    let limits = device.limits();
+    for (limit, max) in [
+        (
+            "max_storage_buffer_binding_size",
+            limits.max_storage_buffer_binding_size,
+        ),
+        ("max_buffer_size", limits.max_buffer_size),
+    ] {
+        if bytes > max {
+            return Err(Error::LimitExceeded {
+                field,
+                limit,
+                needed: bytes,
+                max,
+            });
+        }
+    }
+    Ok(())
+}
+
 /// A view of the depth aspect alone (depth-stencil formats cannot be sampled otherwise).
 pub(crate) fn depth_view(texture: &wgpu::Texture) -> wgpu::TextureView {
     texture.create_view(&wgpu::TextureViewDescriptor {

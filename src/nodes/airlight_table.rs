@@ -128,8 +128,9 @@ impl AirlightTableNode {
         })
     }
 
-    /// Uploads the parameters for a frame seen from `eye`. Returns whether the table changed and
-    /// will be rebuilt by the next [`encode`](Self::encode).
+    /// Uploads the parameters for a frame seen from `eye`. Returns whether the next
+    /// [`encode`](Self::encode) rebuilds the table: it changed now, or it changed at an earlier
+    /// `prepare` that no `encode` followed.
     pub fn prepare(
         &mut self,
         queue: &wgpu::Queue,
@@ -141,7 +142,7 @@ impl AirlightTableNode {
         let key = AirlightUniform::new(eye, light, medium, 0.0, self.table_dims()).table_key();
         let changed = self.uniform.write(queue, key);
         self.pending |= changed;
-        changed
+        self.pending
     }
 
     /// Records the table build into `encoder` if [`prepare`](Self::prepare) found a change since

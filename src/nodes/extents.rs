@@ -177,6 +177,7 @@ impl ExtentsNode {
             .sum::<u64>()
             .max(6);
         let vertex_bytes = 32;
+        crate::gpu::check_buffer_size(device, "shadow volumes", capacity * vertex_bytes)?;
         if self
             .volume
             .as_ref()

@@ -193,7 +193,8 @@ impl ShadowMapNode {
             key.extend(bits(&o.transform.to_cols_array()));
         }
         if !recreate && key == self.key {
-            return Ok(false);
+            // Still pending when an earlier prepare's render was never encoded.
+            return Ok(self.pending);
         }
         self.key = key;
 
