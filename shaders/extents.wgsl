@@ -29,7 +29,7 @@ struct Extrude {
     flags: vec4<f32>,        // x = −1 if the transform mirrors (flips the winding), else 1
 }
 
-@group(0) @binding(0) var<uniform> ex: Extrude;
+@group(0) @binding(0) var<storage, read> ex: Extrude;
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> indices: array<u32>;
 @group(0) @binding(3) var<storage, read> edges: array<vec4<u32>>;
@@ -128,7 +128,7 @@ fn extrude(@builtin(global_invocation_id) gid: vec3<u32>) {
 struct VolumeView {
     clip_from_world: mat4x4<f32>,   // reversed-Z infinite projection × camera view
 }
-@group(0) @binding(0) var<uniform> vv: VolumeView;
+@group(0) @binding(0) var<storage, read> vv: VolumeView;
 
 struct VolumeOut {
     @builtin(position) position: vec4<f32>,

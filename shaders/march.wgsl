@@ -30,12 +30,12 @@ struct MarchParams {
     budget: vec4<u32>,       // x: steps before and after the extents (textured spot)
 }
 
-@group(0) @binding(0) var<uniform> air: Airlight;
-@group(0) @binding(1) var<uniform> view: View;
+@group(0) @binding(0) var<storage, read> air: Airlight;
+@group(0) @binding(1) var<storage, read> view: View;
 @group(0) @binding(2) var table: texture_2d<f32>;
 @group(0) @binding(3) var scene_depth: texture_depth_2d;
 @group(0) @binding(4) var inscatter_out: texture_storage_2d<rgba32float, write>;
-@group(0) @binding(5) var<uniform> mp: MarchParams;
+@group(0) @binding(5) var<storage, read> mp: MarchParams;
 @group(0) @binding(6) var shadow_map: texture_depth_2d_array;
 @group(0) @binding(7) var shadow_sampler: sampler_comparison;
 @group(0) @binding(8) var extent_front: texture_depth_2d;

@@ -13,7 +13,9 @@ pub use timer::{GpuTimer, PassTime};
 
 use crate::error::{Error, Result};
 
-/// A uniform buffer that skips the queue write when the contents did not change.
+/// A node's per-frame parameters ("uniforms" in the shaders' sense), in a read-only storage
+/// buffer (see `cache::uniform_entry` for why not a uniform buffer); skips the queue write
+/// when the contents did not change.
 pub(crate) struct UniformBuffer<T: bytemuck::Pod + PartialEq> {
     buffer: wgpu::Buffer,
     last: Option<T>,
@@ -24,7 +26,7 @@ impl<T: bytemuck::Pod + PartialEq> UniformBuffer<T> {
         let buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size: std::mem::size_of::<T>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         Self { buffer, last: None }

@@ -80,7 +80,7 @@ impl ExtentsNode {
         let view_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("volshadow extents view"),
             size: 64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let raster_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -199,7 +199,7 @@ impl ExtentsNode {
             self.extrude_buffer = Some(device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("volshadow extrude params"),
                 size: needed,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }));
         }

@@ -102,7 +102,7 @@ impl ShadowMapNode {
             face_buffer: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("volshadow shadow faces"),
                 size: 6 * SLOT,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }),
             instance_buffer: None,
@@ -228,7 +228,7 @@ impl ShadowMapNode {
             let buffer = device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("volshadow shadow instances"),
                 size: needed,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
             self.bind_group = Some(device.create_bind_group(&wgpu::BindGroupDescriptor {
