@@ -20,12 +20,23 @@ use crate::scene::Light;
 /// Shadow-map settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ShadowMapSettings {
-    /// Width and height of each face, in texels (1 ..= device limit). Default 1024.
+    /// Width and height of each face, in texels ([`ShadowMapSettings::MIN_RESOLUTION`] ..=
+    /// device limit). Default 1024.
     pub resolution: u32,
     /// Relative depth bias: a point counts as lit while its distance from the light is below
     /// `(1 + bias)`-ish times the occluder's (exactly: depth ≥ stored · (1 − bias)). It is
     /// relative so it works at any scene scale. Default 2e-3; must be in [0, 0.5).
     pub depth_bias: f32,
+}
+
+impl ShadowMapSettings {
+    /// The smallest resolution accepted. Set by measurement (`tests/shadows.rs`: a sphere's
+    /// shadow in fog under a point light, hybrid march, against the f64 reference): the p95
+    /// relative error of the in-scatter is 1.2% at 32², within the 2% the hybrid march is held
+    /// to, and 3.8% at 16², 7.8% at 8², 22% at 2² (0.67% at 64², 0.15% at 256², 0.11% at
+    /// 1024²). A floor against broken settings, not a recommendation: an occluder that covers
+    /// fewer texels needs more.
+    pub const MIN_RESOLUTION: u32 = 32;
 }
 
 impl Default for ShadowMapSettings {
@@ -77,12 +88,13 @@ impl ShadowMapNode {
     /// Creates the node. Errors on a zero or too large resolution or a bias outside [0, 0.5).
     pub fn new(device: &wgpu::Device, cache: &Cache, settings: ShadowMapSettings) -> Result<Self> {
         let max = device.limits().max_texture_dimension_2d;
-        if settings.resolution == 0 || settings.resolution > max {
+        let min = ShadowMapSettings::MIN_RESOLUTION;
+        if settings.resolution < min || settings.resolution > max {
             return Err(Error::InvalidSize {
                 field: "shadow map resolution",
                 width: settings.resolution,
                 height: settings.resolution,
-                min: 1,
+                min,
                 max,
             });
         }
