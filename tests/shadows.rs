@@ -832,3 +832,60 @@ fn shadow_map_minimum_resolution_is_where_the_p95_error_stays_within_two_percent
         );
     }
 }
+
+/// A small sphere right below the light, and a 20 km flat occluder out of sight below the
+/// ground: the shadow map's near plane must follow the sphere, not the size of the scene (it
+/// was floored at 1e-4 of the largest occluder, 2.8 m here, and the sphere's shadow vanished).
+#[test]
+fn a_terrain_sized_occluder_does_not_cost_a_small_one_its_shadow() {
+    let gpu = common::gpu_timed();
+    let cache = Cache::new(&gpu.device);
+    let camera = look_at(Vec3::new(0.0, 1.2, 5.0), Vec3::new(0.0, 1.5, 0.0));
+    let light_pos = Vec3::new(0.4, 4.2, -0.3);
+    let light = point_light(light_pos);
+    let small = light_pos - Vec3::new(0.0, 0.35, 0.0);
+    let sphere = (shapes::uv_sphere(small, 0.08, 24, 12), Mat4::IDENTITY);
+    let terrain = (
+        shapes::plane(Vec3::new(0.0, -0.5, 0.0), glam::Vec2::splat(10_000.0)),
+        Mat4::IDENTITY,
+    );
+    let scene = |occluders: Vec<(Mesh, Mat4)>| Scene {
+        spheres: vec![(small.as_dvec3(), 0.08)],
+        occluders,
+    };
+    let alone = render(
+        &gpu,
+        &cache,
+        &camera,
+        &light,
+        &medium(),
+        &scene(vec![sphere.clone()]),
+        hybrid(64),
+    );
+    let with_terrain = render(
+        &gpu,
+        &cache,
+        &camera,
+        &light,
+        &medium(),
+        &scene(vec![sphere, terrain]),
+        hybrid(64),
+    );
+    println!(
+        "small sphere near the light: RMSE {:.4} alone, {:.4} with a 20 km occluder below the \
+         ground; max outside the band {:.4} / {:.4}",
+        alone.rmse_rel,
+        with_terrain.rmse_rel,
+        alone.max_rel_outside_band,
+        with_terrain.max_rel_outside_band
+    );
+    // Issue 3's bounds for the hybrid at 64 steps, with or without the far-away occluder.
+    for m in [&alone, &with_terrain] {
+        assert!(m.rmse_rel <= 0.02, "RMSE {:.4}", m.rmse_rel);
+        assert!(
+            m.max_rel_outside_band <= 0.10,
+            "max {:.4}",
+            m.max_rel_outside_band
+        );
+    }
+}

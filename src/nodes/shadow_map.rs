@@ -210,21 +210,24 @@ impl ShadowMapNode {
         }
         self.key = key;
 
-        // Near plane: half the distance to the nearest occluder bound, so every occluder is
-        // in front of it; tiny when the light sits inside an occluder's bounds.
+        // Near plane: half the distance to the nearest occluder's bounds, so every occluder is
+        // in front of it. Depth is near / distance in f32 (reversed Z), whose relative
+        // precision is the same at every distance, so a tiny near plane costs nothing: no
+        // floor relative to the scene's size (a terrain-sized occluder elsewhere would push
+        // it past a small occluder next to the light). When the light is inside an occluder's
+        // bounds the distance is 0; then a floor of about one f32 step of the light's
+        // coordinates (nothing nearer can be placed) keeps the projection finite.
         let p = light.position();
         let mut near = f32::INFINITY;
-        let mut extent: f32 = 0.0;
         for o in occluders {
             let (lo, hi) = o.world_bounds();
-            let closest = p.clamp(lo, hi);
-            near = near.min(0.5 * closest.distance(p));
-            extent = extent.max((hi - lo).length());
+            near = near.min(0.5 * p.clamp(lo, hi).distance(p));
         }
-        let near = if near.is_finite() && near > 1e-4 * extent {
-            near
+        let floor = 1e-7 * p.abs().max_element().max(1e-3);
+        let near = if near.is_finite() {
+            near.max(floor)
         } else {
-            (1e-4 * extent).max(1e-6)
+            floor
         };
         self.faces = Self::face_matrices(light, near);
         for (i, face) in self.faces.iter().enumerate() {
