@@ -448,8 +448,7 @@ impl State {
             .prepare(&self.device, &self.queue, &frame)
             .map(|plan| (plan.steps.len(), plan.skipped.len()))
             .and_then(|counts| {
-                let output = targets.output.create_view(&Default::default());
-                self.volumetric.encode(&mut encoder, &output)?;
+                self.volumetric.encode(&mut encoder, &targets.output)?;
                 Ok(counts)
             });
         match result {
@@ -575,7 +574,9 @@ impl ScenePass {
         let uniform = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("scene uniform"),
             size: std::mem::size_of::<SceneUniform>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            // Storage, not uniform, as volshadow's own parameters: Mesa's lavapipe recompiles
+            // a shader for every new uniform-buffer value (and keeps each variant).
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -755,7 +756,7 @@ struct Scene {
     sigma_t: vec4<f32>,
     size: vec4<f32>,
 }
-@group(0) @binding(0) var<uniform> scene: Scene;
+@group(0) @binding(0) var<storage, read> scene: Scene;
 
 struct Out {
     @location(0) color: vec4<f32>,

@@ -2,7 +2,7 @@
 // Entry j holds T(γ_i, s_j) = ∫₀^{s_j} p exp(−σt (d + x − D)) ds, s_j = j / (n − 1), integrated
 // by 8-point Gauss–Legendre per cell and a compensated running sum along the row.
 
-@group(0) @binding(0) var<uniform> air: Airlight;
+@group(0) @binding(0) var<storage, read> air: Airlight;
 @group(0) @binding(1) var table_out: texture_storage_2d<rgba32float, write>;
 
 const GL8_X = array<f32, 4>(0.1834346424956498, 0.5255324099163290, 0.7966664774136267, 0.9602898564975363);

@@ -6,8 +6,8 @@ struct Composite {
     count: vec4<u32>,   // x: how many in-scatter inputs (one per light, 0 ..= 4) to add
 }
 
-@group(0) @binding(0) var<uniform> comp: Composite;
-@group(0) @binding(1) var<uniform> view: View;
+@group(0) @binding(0) var<storage, read> comp: Composite;
+@group(0) @binding(1) var<storage, read> view: View;
 @group(0) @binding(2) var scene_color: texture_2d<f32>;
 @group(0) @binding(3) var scene_depth: texture_depth_2d;
 @group(0) @binding(4) var inscatter0: texture_2d<f32>;

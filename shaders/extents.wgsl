@@ -32,7 +32,7 @@ struct Extrude {
     flags: vec4<f32>,        // x = −1 if the transform mirrors (flips the winding), else 1
 }
 
-@group(0) @binding(0) var<uniform> ex: Extrude;
+@group(0) @binding(0) var<storage, read> ex: Extrude;
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> indices: array<u32>;
 @group(0) @binding(3) var<storage, read> edges: array<vec4<u32>>;
@@ -131,7 +131,7 @@ fn extrude(@builtin(global_invocation_id) gid: vec3<u32>) {
 struct VolumeView {
     clip_from_world: mat4x4<f32>,   // reversed-Z infinite projection × camera view
 }
-@group(0) @binding(0) var<uniform> vv: VolumeView;
+@group(0) @binding(0) var<storage, read> vv: VolumeView;
 
 struct VolumeOut {
     @builtin(position) position: vec4<f32>,
@@ -169,8 +169,8 @@ struct CrossingParams {
     near: vec4<f32>,  // x: the volumes' projection near plane (depth = near / view depth)
 }
 
-@group(0) @binding(1) var<uniform> cross_view: View;
-@group(0) @binding(2) var<uniform> cp: CrossingParams;
+@group(0) @binding(1) var<storage, read> cross_view: View;
+@group(0) @binding(2) var<storage, read> cp: CrossingParams;
 @group(0) @binding(3) var cross_scene_depth: texture_depth_2d;
 // Per pixel four u32: the crossing count in front of the surface (bit 31: a face of an open or
 // non-manifold mesh crossed the pixel, so counting volumes is not meaningful there); the

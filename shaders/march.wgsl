@@ -24,8 +24,6 @@ override BISECTIONS: u32 = 0u;     // bisection steps per lit/shadow transition
 // Most transitions a marched interval records before it evaluates T at them (more just take
 // another round of the step loop).
 const MAX_EDGES: u32 = 8u;
-// Longest crossing list (the extents node's MAX_CROSSINGS_PER_PIXEL).
-const MAX_CROSSINGS: u32 = 32u;
 // The textbook march stops where the transmittance from the eye is below 1e-4 (−ln 1e-4).
 const TEXTBOOK_DEPTH: f32 = 9.2103404;
 
@@ -39,12 +37,12 @@ struct MarchParams {
     budget: vec4<u32>,       // x: steps before and after the extents (textured spot)
 }
 
-@group(0) @binding(0) var<uniform> air: Airlight;
-@group(0) @binding(1) var<uniform> view: View;
+@group(0) @binding(0) var<storage, read> air: Airlight;
+@group(0) @binding(1) var<storage, read> view: View;
 @group(0) @binding(2) var table: texture_2d<f32>;
 @group(0) @binding(3) var scene_depth: texture_depth_2d;
 @group(0) @binding(4) var inscatter_out: texture_storage_2d<rgba32float, write>;
-@group(0) @binding(5) var<uniform> mp: MarchParams;
+@group(0) @binding(5) var<storage, read> mp: MarchParams;
 @group(0) @binding(6) var shadow_map: texture_depth_2d_array;
 @group(0) @binding(7) var shadow_sampler: sampler_comparison;
 @group(0) @binding(8) var extent_front: texture_depth_2d;
@@ -344,11 +342,10 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
     // (eye inside a volume, or its front cut away by the near plane), else at the nearest front
     // face; end at the farthest back face (0 depth = at infinity).
     var ext = vec2<f32>(1.0, 0.0); // empty
-    // Exact mode: the sorted crossings in s, when the pixel's list held them all.
+    // Exact mode: the pixel's crossings (unsorted in the list), when it held them all.
     var exact = false;
     var n_cross = 0u;
-    var xs: array<f32, MAX_CROSSINGS>;
-    var entering: array<i32, MAX_CROSSINGS>;  // +1 entering a volume, −1 leaving
+    var list_base = 0u;
     // Volumes around the eye, counted back from the far end; < 0: not known (open meshes).
     var around_eye = -1;
     if (MODE == 1u) {
@@ -395,20 +392,10 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
         } else {
             exact = true;
             n_cross = count;
+            list_base = k * p;
             var net = bitcast<i32>(heads[4u * p + 3u]);
             for (var i = 0u; i < count; i++) {
-                let z = crossings[k * p + i];
-                let e = select(-1, 1, z < 0.0);
-                net += e;
-                let s_i = s_of_x(air, r, abs(z) * ray.depth_to_distance);
-                // Insertion sort: lists are short.
-                var j = i;
-                for (; j > 0u && xs[j - 1u] > s_i; j--) {
-                    xs[j] = xs[j - 1u];
-                    entering[j] = entering[j - 1u];
-                }
-                xs[j] = s_i;
-                entering[j] = e;
+                net += select(-1, 1, crossings[list_base + i] < 0.0);
             }
             if ((head & 0x80000000u) == 0u) {
                 // Volumes around the eye: those around the far end, less those entered before.
@@ -445,19 +432,43 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
         if (MODE == 3u && exact) {
             // Consecutive crossings (and the piece's ends) bound intervals of constant
             // visibility: closed form times one visibility sample inside each.
+            // The crossings are taken in order along the ray without sorting them into a
+            // private array (which every pixel would pay for): each step takes the nearest
+            // one beyond the last taken, ties broken by list position. Lists are short.
             var a = u0;
             var t_a = t_u0;
-            var j = 0u;
             var around = around_eye;
+            var last_z = -1.0;
+            var last_i = -1;
             loop {
-                for (; j < n_cross && !(xs[j] > a); j++) {
-                    around += entering[j];
+                var next_z = 3.4e38;
+                var next_i = -1;
+                var next_e = 0;
+                for (var i = 0u; i < n_cross; i++) {
+                    let c = crossings[list_base + i];
+                    let z = abs(c);
+                    let after = z > last_z || (z == last_z && i32(i) > last_i);
+                    if (after && (z < next_z || next_i < 0)) {
+                        next_z = z;
+                        next_i = i32(i);
+                        next_e = select(-1, 1, c < 0.0);
+                    }
                 }
                 var b = u1;
                 var t_b = t_u1;
-                if (j < n_cross && xs[j] < u1) {
-                    b = xs[j];
-                    t_b = table_t(table, air, r, b);
+                if (next_i >= 0) {
+                    let s_c = s_of_x(air, r, next_z * ray.depth_to_distance);
+                    if (!(s_c > a)) {
+                        // Before this piece of the support: it only changes the count.
+                        around += next_e;
+                        last_z = next_z;
+                        last_i = next_i;
+                        continue;
+                    }
+                    if (s_c < u1) {
+                        b = s_c;
+                        t_b = table_t(table, air, r, b);
+                    }
                 }
                 // The shadow map says which side of the faces the interval is on. Where it
                 // cannot tell (its filtered value is fractional: the interval runs within a
@@ -481,6 +492,9 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
                 if (!(b < u1)) {
                     break;
                 }
+                around += next_e;
+                last_z = next_z;
+                last_i = next_i;
                 a = b;
                 t_a = t_b;
             }

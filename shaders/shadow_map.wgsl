@@ -9,8 +9,8 @@ struct Instance {
     world_from_object: mat4x4<f32>,
 }
 
-@group(0) @binding(0) var<uniform> face: ShadowFace;
-@group(0) @binding(1) var<uniform> instance: Instance;
+@group(0) @binding(0) var<storage, read> face: ShadowFace;
+@group(0) @binding(1) var<storage, read> instance: Instance;
 
 @vertex
 fn vs_shadow(@location(0) position: vec4<f32>) -> @builtin(position) vec4<f32> {

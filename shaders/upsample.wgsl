@@ -10,15 +10,15 @@ struct Upsample {
     sizes: vec4<f32>,    // xy: low-res size, zw: output size
 }
 
-@group(0) @binding(0) var<uniform> up: Upsample;
-@group(0) @binding(1) var<uniform> view: View;          // output resolution
+@group(0) @binding(0) var<storage, read> up: Upsample;
+@group(0) @binding(1) var<storage, read> view: View;          // output resolution
 @group(0) @binding(2) var low: texture_2d<f32>;
 @group(0) @binding(3) var scene_depth: texture_depth_2d;
 @group(0) @binding(4) var mid: texture_2d<f32>;           // horizontal pass result (separable)
 @group(0) @binding(5) var out_tex: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(6) var table: texture_2d<f32>;
-@group(0) @binding(7) var<uniform> air: Airlight;
-@group(0) @binding(8) var<uniform> spot: vec4<f32>;     // spot axis, cos half angle (0 = point light)
+@group(0) @binding(7) var<storage, read> air: Airlight;
+@group(0) @binding(8) var<storage, read> spot: vec4<f32>;     // spot axis, cos half angle (0 = point light)
 
 // Unshadowed airlight of an output pixel, analytic at full resolution.
 fn airlight_full(p: vec2<u32>) -> vec4<f32> {

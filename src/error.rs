@@ -196,6 +196,30 @@ pub enum Error {
         /// What is wrong with it.
         problem: String,
     },
+    /// [`encode`](crate::VolumetricShadows::encode) without a successful
+    /// [`prepare`](crate::VolumetricShadows::prepare) of the current frame: before any
+    /// `prepare`, after a `prepare` that failed, or after `invalidate` or `set_settings`.
+    #[error("nothing to encode: {reason}; call `prepare` for this frame first")]
+    NotPrepared {
+        /// Why there is no prepared frame.
+        reason: &'static str,
+    },
+    /// A frame needs a GPU buffer larger than the device's limits allow.
+    #[error(
+        "`{field}` needs {needed} bytes, beyond the device limit `{limit}` = {max}; request a \
+         higher limit when creating the device (up to the adapter's), or use fewer or coarser \
+         occluders"
+    )]
+    LimitExceeded {
+        /// What needs the memory.
+        field: &'static str,
+        /// The name of the `wgpu::Limits` field that is exceeded.
+        limit: &'static str,
+        /// Bytes needed.
+        needed: u64,
+        /// The device's limit, bytes.
+        max: u64,
+    },
     /// No GPU adapter could be found (headless helper).
     #[error("no wgpu adapter found: {0}")]
     NoAdapter(String),

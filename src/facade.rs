@@ -4,9 +4,9 @@ use crate::error::{Error, Result};
 use crate::gpu::{Cache, GpuTimer, Occluder, PassTime};
 use crate::nodes::{
     AirlightTableNode, CompositeInputs, CompositeNode, CrossingsRequest, ExtentsInputs,
-    ExtentsNode, LightTextureNode, MarchInputs, MarchMethod, MarchNode, MarchSettings, Scale,
-    ShadowMapNode, ShadowMapSettings, Shadows, TableSize, UpsampleFilter, UpsampleInputs,
-    UpsampleNode, MAX_LIGHTS,
+    ExtentsNode, LightTextureNode, MarchInputs, MarchMethod, MarchNode, MarchSettings,
+    OutputTarget, Scale, ShadowMapNode, ShadowMapSettings, Shadows, TableSize, UpsampleFilter,
+    UpsampleInputs, UpsampleNode, MAX_LIGHTS,
 };
 use crate::plan::{self, Culled, FrameFacts, LightFacts, Pass, Plan};
 use crate::scene::{Camera, Light, Medium};
@@ -158,6 +158,9 @@ pub struct VolumetricShadows {
     composite: CompositeNode,
     plan: Plan,
     timer: Option<GpuTimer>,
+    /// `None` when the last `prepare` succeeded and nothing dropped its frame since; otherwise
+    /// why `encode` has nothing to record.
+    unprepared: Option<&'static str>,
 }
 
 impl VolumetricShadows {
@@ -181,6 +184,7 @@ impl VolumetricShadows {
             slots: Vec::new(),
             plan: Plan::default(),
             timer,
+            unprepared: Some("no frame has been prepared yet"),
         })
     }
 
@@ -189,7 +193,8 @@ impl VolumetricShadows {
         self.settings
     }
 
-    /// Changes the settings (validated; the output format must stay the same).
+    /// Changes the settings (validated; the output format must stay the same). The next
+    /// `encode` needs a `prepare` with the new settings first.
     pub fn set_settings(&mut self, settings: Settings) -> Result<()> {
         validate(&settings)?;
         if settings.output_format != self.settings.output_format {
@@ -203,16 +208,31 @@ impl VolumetricShadows {
             self.slots.clear();
         }
         self.settings = settings;
+        self.unprepared = Some("set_settings changed the settings after the last prepare");
         Ok(())
     }
 
-    /// Validates the frame, uploads what changed, and plans the passes. Records nothing.
+    /// Validates the frame, uploads what changed, and plans the passes. Records nothing. After
+    /// an error, `encode` refuses to record until a `prepare` succeeds (it never records a frame
+    /// mixing this one's uploads with the last one's).
     pub fn prepare(
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         frame: &Frame<'_>,
     ) -> Result<&Plan> {
+        self.unprepared = Some("the last prepare failed");
+        self.prepare_frame(device, queue, frame)?;
+        self.unprepared = None;
+        Ok(&self.plan)
+    }
+
+    fn prepare_frame(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        frame: &Frame<'_>,
+    ) -> Result<()> {
         if frame.lights.len() > MAX_LIGHTS {
             return Err(Error::InvalidSetting {
                 field: "lights",
@@ -384,22 +404,33 @@ impl VolumetricShadows {
                 inscatter: &inscatter,
             },
         )?;
-        Ok(&self.plan)
+        Ok(())
     }
 
-    /// Records the planned passes into `encoder` and the composite into `output` (a view of a
-    /// `RENDER_ATTACHMENT` texture of the settings' output format, the frame's size, not one of
-    /// its inputs). Never submits.
-    pub fn encode(
+    /// Records the planned passes into `encoder` and the composite into `output`: a texture
+    /// (mip 0, layer 0) or an [`OutputTarget`] naming a mip level and array layer of one.
+    /// It must be a single-sampled 2D `RENDER_ATTACHMENT` texture of the settings' output format
+    /// (or its sRGB twin), whose size at that mip level is the frame's, and not one of the
+    /// frame's inputs. The facade takes the texture rather than a `wgpu::TextureView` because
+    /// a view does not tell its size, mip level or layer, so it could not be checked. Never
+    /// submits.
+    ///
+    /// Errors, recording nothing, without a successful [`prepare`](Self::prepare) of the
+    /// current frame ([`Error::NotPrepared`]: before the first, after a failed one, after
+    /// [`invalidate`](Self::invalidate) or [`set_settings`](Self::set_settings)).
+    pub fn encode<'o>(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
-        output: &wgpu::TextureView,
+        output: impl Into<OutputTarget<'o>>,
     ) -> Result<()> {
+        let output = output.into();
+        self.check_prepared()?;
+        self.composite.check_output(&output)?;
         if let Some(t) = self.timer.as_mut() {
             t.clear();
         }
         for index in 0..self.plan.steps.len() {
-            self.record(encoder, output, index)?;
+            self.record(encoder, &output, index)?;
         }
         if let Some(t) = &self.timer {
             t.resolve(encoder);
@@ -411,12 +442,14 @@ impl VolumetricShadows {
     /// that submit each pass on its own and time the submission — the way to time passes on
     /// a CPU adapter such as lavapipe, whose timestamps do not bracket compute work. Steps
     /// must be recorded in plan order within a frame; each reads what earlier steps wrote.
-    pub fn encode_step(
+    pub fn encode_step<'o>(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
-        output: &wgpu::TextureView,
+        output: impl Into<OutputTarget<'o>>,
         index: usize,
     ) -> Result<()> {
+        let output = output.into();
+        self.check_prepared()?;
         if index >= self.plan.steps.len() {
             return Err(Error::InvalidSetting {
                 field: "index",
@@ -427,15 +460,22 @@ impl VolumetricShadows {
             });
         }
         let timer = self.timer.take();
-        let result = self.record(encoder, output, index);
+        let result = self.record(encoder, &output, index);
         self.timer = timer;
         result
+    }
+
+    fn check_prepared(&self) -> Result<()> {
+        match self.unprepared {
+            Some(reason) => Err(Error::NotPrepared { reason }),
+            None => Ok(()),
+        }
     }
 
     fn record(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
-        output: &wgpu::TextureView,
+        output: &OutputTarget<'_>,
         index: usize,
     ) -> Result<()> {
         let step = &self.plan.steps[index];
@@ -443,7 +483,13 @@ impl VolumetricShadows {
         match (step.pass, step.light) {
             (Pass::Composite, _) => self.composite.encode(encoder, output, timer)?,
             (pass, Some(i)) => {
-                let slot = &mut self.slots[i];
+                // Slots and plan are built together by a successful prepare; a stale plan is
+                // refused by `check_prepared`, never indexed.
+                let Some(slot) = self.slots.get_mut(i) else {
+                    return Err(Error::NotPrepared {
+                        reason: "the plan names a light that has no resources",
+                    });
+                };
                 match pass {
                     Pass::LightTexture => {
                         slot.texture.encode(encoder, timer);
@@ -468,9 +514,10 @@ impl VolumetricShadows {
     /// Forgets every per-light resource, so the next frame rebuilds all of it (shadow maps,
     /// tables, light textures) as a first frame does: to measure a frame in which everything
     /// moved, or after changing a caller texture's contents in place, which `prepare` cannot
-    /// see.
+    /// see. The next `encode` needs a `prepare` first.
     pub fn invalidate(&mut self) {
         self.slots.clear();
+        self.unprepared = Some("invalidate() dropped the prepared frame");
     }
 
     /// The plan of the last `prepare`.

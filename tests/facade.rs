@@ -124,8 +124,7 @@ fn render(
         .unwrap()
         .clone();
     let mut encoder = rig.gpu.device.create_command_encoder(&Default::default());
-    vs.encode(&mut encoder, &rig.output.create_view(&Default::default()))
-        .unwrap();
+    vs.encode(&mut encoder, &rig.output).unwrap();
     rig.gpu.submit_and_wait(encoder).unwrap();
     let passes = vs
         .read_timings(&rig.gpu.device)
@@ -575,16 +574,16 @@ fn passes_recorded_one_by_one_give_the_same_image_and_invalidate_rebuilds_everyt
         .clone();
     // After `invalidate` the table and the shadow map run again, as in a first frame.
     assert!(plan.runs(Pass::AirlightTable, Some(0)) && plan.runs(Pass::ShadowMap, Some(0)));
-    let view = rig.output.create_view(&Default::default());
+    let view = &rig.output;
     for index in 0..plan.steps.len() {
         let mut encoder = rig.gpu.device.create_command_encoder(&Default::default());
-        vs.encode_step(&mut encoder, &view, index).unwrap();
+        vs.encode_step(&mut encoder, view, index).unwrap();
         rig.gpu.submit_and_wait(encoder).unwrap();
     }
     let stepped = rig.gpu.read_rgba32f(&rig.output).unwrap();
     assert_eq!(max_rel(&stepped, &whole.image), 0.0);
     let mut encoder = rig.gpu.device.create_command_encoder(&Default::default());
-    let err = vs.encode_step(&mut encoder, &view, plan.steps.len());
+    let err = vs.encode_step(&mut encoder, view, plan.steps.len());
     assert!(
         matches!(
             err,

@@ -369,7 +369,7 @@ fn bad_textures_are_typed_errors_not_validation_errors() {
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
     let target = tex(wgpu::TextureFormat::Rgba8Unorm, sampled, 16, 16);
     let err = composite
-        .encode(&mut encoder, &target.create_view(&Default::default()), None)
+        .encode(&mut encoder, &(&target).into(), None)
         .err();
     assert!(
         matches!(

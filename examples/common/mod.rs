@@ -60,14 +60,13 @@ pub fn render_frames(
         timings: Vec::new(),
         wall_ms: 0.0,
     };
-    let view = output.create_view(&Default::default());
     for index in 0..FRAMES {
         let start = Instant::now();
         let plan = volumetric
             .prepare(&gpu.device, &gpu.queue, frame)?
             .to_string();
         // Per-pass times: timestamp queries, or on a CPU adapter each pass alone.
-        stats.timings = gpu.run_timed(volumetric, &view, &[])?;
+        stats.timings = gpu.run_timed(volumetric, output, &[])?;
         stats.wall_ms = start.elapsed().as_secs_f64() * 1e3;
         if index == 0 || index + 1 == FRAMES {
             println!("frame {index} plan:\n{plan}");

@@ -469,14 +469,14 @@ fn run_scene(
 
     let gpu_scene = GpuScene::new(ctx.gpu, scene, &camera, size, true)?;
     let output = gpu_scene.output(ctx.gpu);
-    let view = output.create_view(&Default::default());
+    let view = &output;
     let lights = gpu_scene.lights();
     let occluders = gpu_scene.occluders();
     let shadowed = gpu_scene.frame(&lights, &occluders);
     let unshadowed = gpu_scene.frame(&lights, &[]);
     let mut facade: Option<VolumetricShadows> = None;
     let mut measure = |settings: Settings, frame: &Frame, reuse: bool| {
-        measure(ctx, &mut facade, settings, frame, &view, reuse)
+        measure(ctx, &mut facade, settings, frame, view, reuse)
     };
     let base = Settings {
         output_format: wgpu::TextureFormat::Rgba32Float,
@@ -502,13 +502,13 @@ fn run_scene(
         ctx,
         settings(MarchMethod::Hybrid, 8, Scale::Full, Filter::None, 0),
         &shadowed,
-        &view,
+        view,
     )?;
     let floor_fixed = time_fixed(
         ctx,
         settings(MarchMethod::Hybrid, 8, Scale::Full, Filter::None, 0),
         &unshadowed,
-        &view,
+        view,
     )?;
 
     let rows = std::cell::RefCell::new(Vec::<Row>::new());
@@ -564,14 +564,24 @@ fn run_scene(
         vec![16, 32, 64, 128, 256, 512, 1024]
     };
     for (curve, method, scale, filter) in [
-        (Curve::Brute, MarchMethod::BruteForce, Scale::Full, Filter::None),
+        (
+            Curve::Brute,
+            MarchMethod::BruteForce,
+            Scale::Full,
+            Filter::None,
+        ),
         (
             Curve::Paper003,
             MarchMethod::BruteForce,
             Scale::Quarter,
             Filter::Separable,
         ),
-        (Curve::Textbook, MarchMethod::Textbook, Scale::Full, Filter::None),
+        (
+            Curve::Textbook,
+            MarchMethod::Textbook,
+            Scale::Full,
+            Filter::None,
+        ),
     ] {
         let mut sweep_state = Sweep::default();
         for &steps in &sweep {
@@ -751,7 +761,7 @@ fn measure(
     facade: &mut Option<VolumetricShadows>,
     settings: Settings,
     frame: &Frame,
-    view: &wgpu::TextureView,
+    view: &wgpu::Texture,
     reuse_march: bool,
 ) -> Result<(BTreeMap<&'static str, f64>, Vec<DVec3>), BoxError> {
     let volumetric = match facade.as_mut() {
@@ -801,7 +811,7 @@ fn time_fixed(
     ctx: &Context,
     settings: Settings,
     frame: &Frame,
-    view: &wgpu::TextureView,
+    view: &wgpu::Texture,
 ) -> Result<BTreeMap<&'static str, f64>, BoxError> {
     let mut volumetric =
         VolumetricShadows::new(&ctx.gpu.device, &ctx.gpu.queue, &ctx.cache, settings)?;
@@ -838,7 +848,7 @@ fn run_frame(
     ctx: &Context,
     volumetric: &mut VolumetricShadows,
     frame: &Frame,
-    view: &wgpu::TextureView,
+    view: &wgpu::Texture,
     skip: &[Pass],
 ) -> Result<Vec<(&'static str, f64)>, BoxError> {
     volumetric.prepare(&ctx.gpu.device, &ctx.gpu.queue, frame)?;

@@ -82,12 +82,17 @@ fn module(device: &wgpu::Device, label: &str, node_source: &str) -> wgpu::Shader
     })
 }
 
+/// A node's per-frame parameters. They are read-only *storage* buffers, not uniform buffers:
+/// Mesa's lavapipe (22.x) specialises a shader on the contents of its uniform buffers
+/// ("inlinable uniforms") at every submission, compiling a new variant with LLVM for every new
+/// value and never freeing it (≈ 0.5–1 MB and up to hundreds of ms per frame and shader).
+/// Storage buffers are never inlined.
 fn uniform_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility,
         ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Uniform,
+            ty: wgpu::BufferBindingType::Storage { read_only: true },
             has_dynamic_offset: false,
             min_binding_size: None,
         },
@@ -338,11 +343,12 @@ impl Cache {
             include_str!("../../shaders/composite.wgsl"),
         );
         let vertex = wgpu::ShaderStages::VERTEX;
+        // Storage, not uniform: see `uniform_entry`.
         let dynamic_uniform = |binding| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: vertex,
             ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Uniform,
+                ty: wgpu::BufferBindingType::Storage { read_only: true },
                 has_dynamic_offset: true,
                 min_binding_size: wgpu::BufferSize::new(64),
             },
@@ -377,7 +383,7 @@ impl Cache {
             device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("volshadow extrude"),
                 entries: &[
-                    buffer_entry(0, wgpu::BufferBindingType::Uniform, false),
+                    buffer_entry(0, storage(true), false),
                     buffer_entry(1, storage(true), false),
                     buffer_entry(2, storage(true), false),
                     buffer_entry(3, storage(true), false),

@@ -121,12 +121,13 @@ impl HeadlessGpu {
     /// ignored), and the result is empty without `TIMESTAMP_QUERY`. Labels: the pass names of
     /// [`Pass`](crate::plan::Pass)'s `Display` on a CPU adapter, the nodes' timer labels
     /// otherwise.
-    pub fn run_timed(
+    pub fn run_timed<'o>(
         &self,
         volumetric: &mut crate::VolumetricShadows,
-        output: &wgpu::TextureView,
+        output: impl Into<crate::nodes::OutputTarget<'o>>,
         skip: &[crate::plan::Pass],
     ) -> Result<Vec<crate::gpu::PassTime>> {
+        let output = output.into();
         if self.adapter.get_info().device_type != wgpu::DeviceType::Cpu {
             let mut encoder = self.device.create_command_encoder(&Default::default());
             volumetric.encode(&mut encoder, output)?;

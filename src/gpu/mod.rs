@@ -13,7 +13,9 @@ pub use timer::{GpuTimer, PassTime};
 
 use crate::error::{Error, Result};
 
-/// A uniform buffer that skips the queue write when the contents did not change.
+/// A node's per-frame parameters ("uniforms" in the shaders' sense), in a read-only storage
+/// buffer (see `cache::uniform_entry` for why not a uniform buffer); skips the queue write
+/// when the contents did not change.
 pub(crate) struct UniformBuffer<T: bytemuck::Pod + PartialEq> {
     buffer: wgpu::Buffer,
     last: Option<T>,
@@ -24,7 +26,7 @@ impl<T: bytemuck::Pod + PartialEq> UniformBuffer<T> {
         let buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size: std::mem::size_of::<T>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         Self { buffer, last: None }
@@ -122,6 +124,33 @@ pub(crate) fn check_size(
                 texture.height()
             ),
         });
+    }
+    Ok(())
+}
+
+/// Checks that a storage buffer of `bytes` can be created and bound whole on `device`: a typed
+/// error naming the exceeded limit, rather than a wgpu validation error behind `Ok`.
+pub(crate) fn check_buffer_size(
+    device: &wgpu::Device,
+    field: &'static str,
+    bytes: u64,
+) -> Result<()> {
+    let limits = device.limits();
+    for (limit, max) in [
+        (
+            "max_storage_buffer_binding_size",
+            limits.max_storage_buffer_binding_size,
+        ),
+        ("max_buffer_size", limits.max_buffer_size),
+    ] {
+        if bytes > max {
+            return Err(Error::LimitExceeded {
+                field,
+                limit,
+                needed: bytes,
+                max,
+            });
+        }
     }
     Ok(())
 }

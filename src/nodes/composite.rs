@@ -11,9 +11,13 @@
 //!   does not scatter (attenuation only).
 //!
 //! # Output
-//! A view of a texture with usage `RENDER_ATTACHMENT`, of the format given to
-//! [`CompositeNode::new`] (or its sRGB twin), the same size, and not one of the inputs. Every
-//! pixel is written (linear radiance; tone mapping is the caller's).
+//! An [`OutputTarget`]: one mip level and array layer of a single-sampled 2D texture with usage
+//! `RENDER_ATTACHMENT`, of the format given to [`CompositeNode::new`] (or its sRGB twin), whose
+//! size *at that mip level* is the inputs' size, and not one of the inputs. Every pixel is
+//! written (linear radiance; tone mapping is the caller's). The node takes the texture and the
+//! subresource rather than a `wgpu::TextureView`, because a view does not tell its size, mip
+//! level or layer: checking the texture behind a view would accept a view of the wrong mip
+//! level (and write a crop) and reject a correct one.
 
 use crate::error::{Error, Result};
 use crate::gpu::uniforms::{CompositeUniform, ViewUniform};
@@ -40,6 +44,72 @@ pub struct CompositeInputs<'a> {
 /// The most lights one composite adds.
 pub const MAX_LIGHTS: usize = 4;
 
+/// Where the composite writes: mip level `mip_level` and array layer `array_layer` of
+/// `texture`, viewed in the texture's own format. `From<&wgpu::Texture>` gives mip 0, layer 0.
+#[derive(Debug, Clone, Copy)]
+pub struct OutputTarget<'a> {
+    /// A single-sampled 2D texture with usage `RENDER_ATTACHMENT`.
+    pub texture: &'a wgpu::Texture,
+    /// The mip level written.
+    pub mip_level: u32,
+    /// The array layer written.
+    pub array_layer: u32,
+}
+
+impl<'a> OutputTarget<'a> {
+    /// Mip 0, layer 0 of `texture`.
+    pub fn new(texture: &'a wgpu::Texture) -> Self {
+        Self {
+            texture,
+            mip_level: 0,
+            array_layer: 0,
+        }
+    }
+
+    /// The size of the written mip level (`None` if the level does not exist).
+    pub fn size(&self) -> Option<(u32, u32)> {
+        (self.mip_level < self.texture.mip_level_count()).then(|| {
+            (
+                (self.texture.width() >> self.mip_level).max(1),
+                (self.texture.height() >> self.mip_level).max(1),
+            )
+        })
+    }
+}
+
+impl<'a> From<&'a wgpu::Texture> for OutputTarget<'a> {
+    fn from(texture: &'a wgpu::Texture) -> Self {
+        Self::new(texture)
+    }
+}
+
+/// Checks that the composite can write `format`: a colour format with a float sample type
+/// (float, unorm or snorm; the shader writes `vec4<f32>`), usable as a render attachment on
+/// every device with the device's features.
+pub(crate) fn check_output_format(
+    device: &wgpu::Device,
+    format: wgpu::TextureFormat,
+) -> Result<()> {
+    let features = format.guaranteed_format_features(device.features());
+    let renderable = features
+        .allowed_usages
+        .contains(wgpu::TextureUsages::RENDER_ATTACHMENT);
+    let float = matches!(
+        format.sample_type(None, Some(device.features())),
+        Some(wgpu::TextureSampleType::Float { .. })
+    );
+    if format.is_depth_stencil_format() || format.is_compressed() || !renderable || !float {
+        return Err(Error::InvalidTexture {
+            field: "output_format",
+            problem: format!(
+                "{format:?} is not a renderable float, unorm or snorm colour format (the \
+                 composite writes floating-point radiance)"
+            ),
+        });
+    }
+    Ok(())
+}
+
 /// Writes the attenuated scene plus in-scattered light into the caller's target.
 pub struct CompositeNode {
     format: wgpu::TextureFormat,
@@ -57,23 +127,15 @@ struct Bound {
 }
 
 impl CompositeNode {
-    /// A composite writing `output_format`, which must be a colour format usable as a render
-    /// attachment on every device (e.g. `Rgba16Float`, `Rgba8UnormSrgb`).
+    /// A composite writing `output_format`, which must be a float, unorm or snorm colour format
+    /// usable as a render attachment on every device (e.g. `Rgba16Float`, `Rgba8UnormSrgb`; not
+    /// an integer or depth format).
     pub fn new(
         device: &wgpu::Device,
         cache: &Cache,
         output_format: wgpu::TextureFormat,
     ) -> Result<Self> {
-        let features = output_format.guaranteed_format_features(device.features());
-        let renderable = features
-            .allowed_usages
-            .contains(wgpu::TextureUsages::RENDER_ATTACHMENT);
-        if output_format.is_depth_stencil_format() || !renderable {
-            return Err(Error::InvalidTexture {
-                field: "output_format",
-                problem: format!("{output_format:?} is not a renderable colour format"),
-            });
-        }
+        check_output_format(device, output_format)?;
         Ok(Self {
             format: output_format,
             pipeline: cache.composite_pipeline(device, output_format),
@@ -184,14 +246,9 @@ impl CompositeNode {
         Ok(())
     }
 
-    /// Records the composite into `output` (see the module docs for what it must be).
-    /// Errors, recording nothing, if `output` does not fit or `prepare` has not succeeded.
-    pub fn encode(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        output: &wgpu::TextureView,
-        timer: Option<&mut crate::gpu::GpuTimer>,
-    ) -> Result<()> {
+    /// Checks that the composite can write `output` (see the module docs for what it must be)
+    /// and that `prepare` has succeeded.
+    pub fn check_output(&self, output: &OutputTarget<'_>) -> Result<()> {
         let problem = |p: String| Error::InvalidTexture {
             field: "output",
             problem: p,
@@ -201,7 +258,7 @@ impl CompositeNode {
                 "CompositeNode::prepare has not succeeded yet".into(),
             ));
         };
-        let target = output.texture();
+        let target = output.texture;
         if target.format().remove_srgb_suffix() != self.format.remove_srgb_suffix() {
             return Err(problem(format!(
                 "format {:?}, the node was made for {:?}",
@@ -215,19 +272,73 @@ impl CompositeNode {
         {
             return Err(problem("needs TextureUsages::RENDER_ATTACHMENT".into()));
         }
-        check_size(
-            "output",
-            target,
-            bound.textures[0].width(),
-            bound.textures[0].height(),
-        )?;
+        if target.dimension() != wgpu::TextureDimension::D2 {
+            return Err(problem("must be a 2D texture".into()));
+        }
+        if target.sample_count() != 1 {
+            return Err(problem(format!(
+                "must be single-sampled, has {} samples",
+                target.sample_count()
+            )));
+        }
+        if output.array_layer >= target.depth_or_array_layers() {
+            return Err(problem(format!(
+                "array layer {} of a texture with {} layers",
+                output.array_layer,
+                target.depth_or_array_layers()
+            )));
+        }
+        let Some((width, height)) = output.size() else {
+            return Err(problem(format!(
+                "mip level {} of a texture with {} levels",
+                output.mip_level,
+                target.mip_level_count()
+            )));
+        };
+        let expected = (bound.textures[0].width(), bound.textures[0].height());
+        if (width, height) != expected {
+            return Err(problem(format!(
+                "mip level {} is {width}x{height}, expected {}x{}",
+                output.mip_level, expected.0, expected.1
+            )));
+        }
         if bound.textures.contains(target) {
             return Err(problem("must not be one of the composite's inputs".into()));
         }
+        Ok(())
+    }
+
+    /// Records the composite into `output` (see the module docs for what it must be).
+    /// Errors, recording nothing, if `output` does not fit or `prepare` has not succeeded.
+    pub fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        output: &OutputTarget<'_>,
+        timer: Option<&mut crate::gpu::GpuTimer>,
+    ) -> Result<()> {
+        self.check_output(output)?;
+        let Some(bound) = &self.bound else {
+            return Err(Error::InvalidTexture {
+                field: "output",
+                problem: "CompositeNode::prepare has not succeeded yet".into(),
+            });
+        };
+        let target = output.texture;
+        // A fresh view each frame: keeping one would keep the caller's texture (a swapchain
+        // image, say) alive past its frame.
+        let view = target.create_view(&wgpu::TextureViewDescriptor {
+            label: Some("volshadow composite output"),
+            dimension: Some(wgpu::TextureViewDimension::D2),
+            base_mip_level: output.mip_level,
+            mip_level_count: Some(1),
+            base_array_layer: output.array_layer,
+            array_layer_count: Some(1),
+            ..Default::default()
+        });
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("volshadow composite"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: output,
+                view: &view,
                 depth_slice: None,
                 resolve_target: None,
                 ops: wgpu::Operations {

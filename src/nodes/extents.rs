@@ -153,7 +153,7 @@ impl ExtentsNode {
         let view_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("volshadow extents view"),
             size: 64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let raster_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -259,6 +259,7 @@ impl ExtentsNode {
             .sum::<u64>()
             .max(6);
         let vertex_bytes = 32;
+        crate::gpu::check_buffer_size(device, "shadow volumes", capacity * vertex_bytes)?;
         if self
             .volume
             .as_ref()
@@ -280,7 +281,7 @@ impl ExtentsNode {
             self.extrude_buffer = Some(device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("volshadow extrude params"),
                 size: needed,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }));
         }

@@ -2,7 +2,7 @@
 //!
 //! # Input
 //! The caller's texture (e.g. from [`LightTexture::upload`](crate::scene::LightTexture::upload)):
-//! 2D, single-sampled, usage `TEXTURE_BINDING`, a format that can be filtered on this device
+//! 2D, one array layer, single-sampled, usage `TEXTURE_BINDING`, a format that can be filtered on this device
 //! (`Rgba8Unorm[Srgb]`, `Rgba16Float`, …; `Rgba32Float` only with `FLOAT32_FILTERABLE`), linear
 //! RGB radiance multipliers, row 0 at the top of the spot's frame.
 //!
@@ -70,6 +70,12 @@ impl LightTextureNode {
         if texture.dimension() != wgpu::TextureDimension::D2 || texture.sample_count() != 1 {
             return problem("must be a single-sampled 2D texture".into());
         }
+        if texture.depth_or_array_layers() != 1 {
+            return problem(format!(
+                "has {} array layers, expected 1",
+                texture.depth_or_array_layers()
+            ));
+        }
         if !texture
             .usage()
             .contains(wgpu::TextureUsages::TEXTURE_BINDING)
@@ -99,7 +105,12 @@ impl LightTextureNode {
         self.levels = (0..levels)
             .map(|level| {
                 let input = if level == 0 {
-                    texture.create_view(&Default::default())
+                    // Mip 0 alone: the caller's texture may have a mip chain of its own.
+                    texture.create_view(&wgpu::TextureViewDescriptor {
+                        dimension: Some(wgpu::TextureViewDimension::D2),
+                        mip_level_count: Some(1),
+                        ..Default::default()
+                    })
                 } else {
                     mips.create_view(&wgpu::TextureViewDescriptor {
                         base_mip_level: level - 1,

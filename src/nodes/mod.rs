@@ -12,7 +12,7 @@ mod shadow_map;
 mod upsample;
 
 pub use airlight_table::{AirlightTableNode, TableSize};
-pub use composite::{CompositeInputs, CompositeNode, MAX_LIGHTS};
+pub use composite::{CompositeInputs, CompositeNode, OutputTarget, MAX_LIGHTS};
 pub use extents::{
     Crossings, CrossingsRequest, ExtentsInputs, ExtentsNode, EXTENTS_NEAR, MAX_CROSSINGS_PER_PIXEL,
 };
