@@ -51,7 +51,9 @@ pub struct LoadOptions {
     pub max_file_bytes: u64,
     /// Most bytes read from all files of one load together (default 512 MiB).
     pub max_total_bytes: u64,
-    /// Most triangles over all meshes of one load, each placement counted (default 4 Mi).
+    /// Most triangles over all meshes of one load, each placement counted (default 4 Mi). A
+    /// glTF primitive is checked from its accessor counts before it is read, and may have at
+    /// most 3 positions per triangle still allowed.
     pub max_triangles: u64,
     /// Most lights in a scene file (default 16).
     pub max_lights: u64,

@@ -37,6 +37,9 @@
 //!
 //! Unknown keys are errors everywhere; `null` counts as absent.
 //!
+//! Loading is bounded by [`LoadOptions`] (lights, texels, triangles, placed meshes, bytes), and
+//! files the scene names must lie in its folder unless [`LoadOptions::allow_outside`] is set.
+//!
 //! * `name` (required string), `description` (optional string).
 //! * `size`: `[width, height]`, each 1..=8192; default `[512, 512]`.
 //! * `camera` (required): `eye`, `target` (required points), `up` (default `[0, 1, 0]`, not
@@ -53,7 +56,7 @@
 //!     `{"checkerboard": {"size", "cells", "a", "b"}}` (size 1..=4096, cells 1..=size, colours
 //!     RGB >= 0), `{"stained_glass": {"size", "cells", "seed"}}` (see [`stained_glass`]; size
 //!     1..=4096, cells 1..=size) or `{"file": "window.png"}` (feature `image`; relative to the
-//!     scene file's folder).
+//!     scene file's folder, and inside it: see [`crate::load`]).
 //! * `medium` (required): `sigma_s` (RGB or one number, >= 0; required unless the phase is
 //!   `hoffman_preetham`, which sets it and forbids it), `sigma_a` (default 0), `phase` (default
 //!   `"isotropic"`): `"isotropic"`, `"rayleigh"`, `"mie_hazy"`, `"mie_murky"`,
@@ -77,7 +80,8 @@
 //!     `center` (default origin; the centre of the row of posts), `rail` (default `false`: two
 //!     horizontal rails at 30% and 75% of the post height, slightly narrower than the posts);
 //!     all boxes merged into one mesh.
-//!   * `"gltf"`: `path` (relative to the scene file's folder; feature `gltf`): every mesh of the
+//!   * `"gltf"`: `path` (relative to the scene file's folder and inside it, see
+//!     [`crate::load`]; feature `gltf`): every mesh of the
 //!     file (each triangle primitive of each node that places a mesh, as `volshadow::gltf::load` gives them) becomes
 //!     one object named `"<name>/<mesh name>"` (`"<name>/<index>:<mesh name>"` when several
 //!     primitives share the mesh name, `"<name>/<index>"` without one), with transform
