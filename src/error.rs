@@ -210,7 +210,7 @@ pub enum Error {
          higher limit when creating the device (up to the adapter's), or use fewer or coarser \
          occluders"
     )]
-    LimitExceeded {
+    DeviceLimitExceeded {
         /// What needs the memory.
         field: &'static str,
         /// The name of the `wgpu::Limits` field that is exceeded.
@@ -219,6 +219,66 @@ pub enum Error {
         needed: u64,
         /// The device's limit, bytes.
         max: u64,
+    },
+    /// A path named inside a scene file or glTF file (a glTF `path`, a light-texture `file`, a
+    /// buffer `uri`) leads outside the folder of the file that names it (see
+    /// [`crate::load`]). The message is the same whether the target exists or not.
+    #[error(
+        "{file}: `{field}`: the path {target:?} leads outside the folder of the file that names it \
+         (LoadOptions::allow_outside permits it)"
+    )]
+    PathOutsideFolder {
+        /// The file that names the path.
+        file: String,
+        /// Where in that file, such as `objects[0].shape.path` or `buffers[0].uri`.
+        field: String,
+        /// The path as written (percent-escapes decoded).
+        target: String,
+    },
+    /// A path that is not a regular file: a directory, device, FIFO or socket. Only regular
+    /// files are read.
+    #[error("{path}: not a regular file (a directory, device, FIFO or socket); only regular files are read")]
+    NotRegularFile {
+        /// The path.
+        path: String,
+    },
+    /// A file that could not be opened or read.
+    #[error("cannot read {path}: {problem}")]
+    FileRead {
+        /// The path.
+        path: String,
+        /// What went wrong.
+        problem: String,
+    },
+    /// A load went over one of the bounds of [`crate::load::LoadOptions`].
+    #[error("{file}: {count} is more than {limit} = {max} (raise it in LoadOptions to load this)")]
+    LimitExceeded {
+        /// The file being read when the bound was passed.
+        file: String,
+        /// Which bound.
+        limit: crate::load::Limit,
+        /// The total it would have reached (at least).
+        count: u64,
+        /// The bound.
+        max: u64,
+    },
+    /// A light-texture texel component above the largest `f16` (65504): it would upload as
+    /// infinity.
+    #[error("light texture texel {texel} has a component {value}, above the f16 maximum 65504")]
+    TexelOutOfRange {
+        /// Index of the texel (row-major from the top row).
+        texel: usize,
+        /// The component value.
+        value: f32,
+    },
+    /// An object transform that is not affine (last row other than 0, 0, 0, 1) or mirrors
+    /// (negative determinant, which flips the triangles' winding).
+    #[error("`{field}`: {problem}")]
+    InvalidTransform {
+        /// Which transform.
+        field: &'static str,
+        /// What is wrong with it.
+        problem: String,
     },
     /// No GPU adapter could be found (headless helper).
     #[error("no wgpu adapter found: {0}")]

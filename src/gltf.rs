@@ -19,9 +19,13 @@
 //! files that require `KHR_draco_mesh_compression` or `EXT_meshopt_compression` are rejected
 //! as [`ErrorKind::Unsupported`].
 //!
-//! Nothing in the input can make the loader panic: every problem is an [`Error::Gltf`] naming
-//! the file, an [`ErrorKind`] and what is wrong, or an [`Error::GltfPrimitive`] wrapping the
-//! error [`Mesh::new`] gave for one primitive.
+//! Nothing in the input can make the loader panic or abort: every problem is an
+//! [`Error::Gltf`] naming the file, an [`ErrorKind`] and what is wrong, an
+//! [`Error::GltfPrimitive`] wrapping the error [`Mesh::new`] gave for one primitive, or one of
+//! the errors of [`crate::load`]: external buffers must lie inside the file's folder
+//! ([`Error::PathOutsideFolder`]) and be regular files ([`Error::NotRegularFile`]), and bytes,
+//! nodes, placed meshes and triangles are bounded by [`LoadOptions`]
+//! ([`Error::LimitExceeded`]), checked before anything is allocated for them.
 
 use std::borrow::Cow;
 use std::collections::HashMap;
@@ -34,6 +38,7 @@ use json::mesh::{Mode, Semantic};
 use json::validation::Checked;
 
 use crate::error::{Error, Result};
+use crate::load::{Budget, Limit, LoadOptions};
 use crate::scene::Mesh;
 
 /// One triangle primitive of a glTF mesh, placed by one node.
@@ -98,15 +103,31 @@ pub enum ErrorKind {
 /// triangles degenerate, too large, ...). A file whose scene has no triangle primitive is an
 /// error of kind [`ErrorKind::NoTriangleMeshes`].
 pub fn load(path: impl AsRef<Path>) -> Result<Vec<GltfMesh>> {
-    let path = path.as_ref();
+    load_with(path, &LoadOptions::default())
+}
+
+/// [`load`] with the bounds and the folder rule of `options` (see [`crate::load`]).
+///
+/// The file at `path` may be anywhere; external buffers must resolve inside its folder unless
+/// [`LoadOptions::allow_outside`] is set.
+pub fn load_with(path: impl AsRef<Path>, options: &LoadOptions) -> Result<Vec<GltfMesh>> {
+    load_budgeted(path.as_ref(), &mut Budget::new(options))
+}
+
+/// [`load_with`], counting into a budget shared with the caller (a scene file).
+pub(crate) fn load_budgeted(path: &Path, budget: &mut Budget) -> Result<Vec<GltfMesh>> {
     let label = path.display().to_string();
-    let bytes = std::fs::read(path)
-        .map_err(|e| gltf_error(&label, ErrorKind::Io, format!("cannot read the file: {e}")))?;
-    let base = match path.parent() {
-        Some(dir) if !dir.as_os_str().is_empty() => dir.to_path_buf(),
-        _ => PathBuf::from("."),
+    let io = |e: Error| match e {
+        Error::FileRead { problem, .. } => gltf_error(
+            &label,
+            ErrorKind::Io,
+            format!("cannot read the file: {problem}"),
+        ),
+        e => e,
     };
-    load_bytes(&bytes, &label, Some(&base))
+    let bytes = budget.read(path).map_err(io)?;
+    let folder = crate::load::folder_of(path).map_err(io)?;
+    load_bytes(&bytes, &label, Some(&folder), budget)
 }
 
 /// Loads every triangle mesh placed by the scene of a `.glb` or a self-contained `.gltf`
@@ -115,7 +136,13 @@ pub fn load(path: impl AsRef<Path>) -> Result<Vec<GltfMesh>> {
 /// Same as [`load`], except that errors name the file `<memory>` and a buffer in an external
 /// file is an error of kind [`ErrorKind::MissingBuffer`].
 pub fn load_slice(bytes: &[u8]) -> Result<Vec<GltfMesh>> {
-    load_bytes(bytes, MEMORY, None)
+    load_slice_with(bytes, &LoadOptions::default())
+}
+
+/// [`load_slice`] with the bounds of `options` (see [`crate::load`]); `bytes` itself counts
+/// against neither [`LoadOptions::max_file_bytes`] nor [`LoadOptions::max_total_bytes`].
+pub fn load_slice_with(bytes: &[u8], options: &LoadOptions) -> Result<Vec<GltfMesh>> {
+    load_bytes(bytes, MEMORY, None, &mut Budget::new(options))
 }
 
 /// The file name errors from [`load_slice`] carry.
@@ -132,7 +159,12 @@ fn gltf_error(path: &str, kind: ErrorKind, problem: String) -> Error {
     }
 }
 
-fn load_bytes(bytes: &[u8], label: &str, base: Option<&Path>) -> Result<Vec<GltfMesh>> {
+fn load_bytes(
+    bytes: &[u8],
+    label: &str,
+    base: Option<&Path>,
+    budget: &mut Budget,
+) -> Result<Vec<GltfMesh>> {
     let fail = |kind, problem: String| gltf_error(label, kind, problem);
     let (json_bytes, bin) = if bytes.starts_with(b"glTF") {
         split_glb(bytes).map_err(|(kind, problem)| fail(kind, problem))?
@@ -159,6 +191,7 @@ fn load_bytes(bytes: &[u8], label: &str, base: Option<&Path>) -> Result<Vec<Gltf
         ));
     }
 
+    budget.add(Limit::Nodes, root.nodes.len() as u64, label)?;
     let mut loader = Loader {
         root: &root,
         label,
@@ -166,14 +199,32 @@ fn load_bytes(bytes: &[u8], label: &str, base: Option<&Path>) -> Result<Vec<Gltf
         bin,
         buffers: vec![None; root.buffers.len()],
         meshes: HashMap::new(),
+        budget,
     };
     let placements = loader.placements()?;
     let mut out = Vec::new();
     for (mesh_index, node, transform) in placements {
-        let primitives = loader.mesh(mesh_index)?;
+        loader.mesh(mesh_index)?;
+        let primitives = loader
+            .meshes
+            .get(&mesh_index)
+            .map_or(&[][..], Vec::as_slice);
         if primitives.is_empty() {
             continue;
         }
+        // Each placement is a copy: count it before making it.
+        for mesh in primitives {
+            loader
+                .budget
+                .add(Limit::Triangles, mesh.triangle_count() as u64, label)?;
+            loader.budget.add(Limit::Instances, 1, label)?;
+        }
+        out.try_reserve(primitives.len()).map_err(|e| {
+            fail(
+                ErrorKind::Malformed,
+                format!("cannot allocate the placed meshes: {e}"),
+            )
+        })?;
         if let Some(node) = node {
             check_transform(&transform).map_err(|problem| {
                 fail(
@@ -411,17 +462,20 @@ fn component_u32(component: ComponentType, b: &[u8]) -> u32 {
 }
 
 /// The walk over one document: buffers are loaded when first needed and meshes built once.
-struct Loader<'a> {
+struct Loader<'a, 'b> {
     root: &'a json::Root,
     label: &'a str,
+    /// The canonical folder of the file, for external buffers (`None` in memory).
     base: Option<&'a Path>,
     bin: Option<&'a [u8]>,
     buffers: Vec<Option<Cow<'a, [u8]>>>,
     /// The triangle primitives of each mesh read so far.
     meshes: HashMap<usize, Vec<Mesh>>,
+    /// The load's running totals.
+    budget: &'b mut Budget,
 }
 
-impl<'a> Loader<'a> {
+impl<'a> Loader<'a, '_> {
     fn fail(&self, kind: ErrorKind, problem: String) -> Error {
         gltf_error(self.label, kind, problem)
     }
@@ -639,6 +693,24 @@ impl<'a> Loader<'a> {
                 max: Mesh::MAX_POSITIONS,
             }));
         }
+        // Before reading anything: the triangles this primitive can have must fit in what is
+        // left of the budget (a primitive without indices has a triangle per 3 vertices, and
+        // no mesh needs more than 3 positions per triangle).
+        let index_count = match primitive.indices {
+            None => vertex_count,
+            Some(i) => self
+                .root
+                .accessors
+                .get(i.value())
+                .map_or(0, |accessor| count(accessor)),
+        };
+        let triangle_bound = match mode {
+            Mode::Triangles => index_count / 3,
+            _ => index_count.saturating_sub(2),
+        };
+        self.budget.check(Limit::Triangles, triangle_bound, label)?;
+        self.budget
+            .check(Limit::Triangles, vertex_count.div_ceil(3), label)?;
         let raw = self.read(a, layout, &what)?;
         let size = layout.component_size();
         let positions: Vec<Vec3> = raw
@@ -957,7 +1029,7 @@ impl<'a> Loader<'a> {
     }
 
     /// Reads buffer `b`'s data from the GLB chunk, a data URI or a file.
-    fn fetch(&self, b: usize, buffer: &json::Buffer) -> Result<Cow<'a, [u8]>> {
+    fn fetch(&mut self, b: usize, buffer: &json::Buffer) -> Result<Cow<'a, [u8]>> {
         let Some(uri) = buffer.uri.as_deref() else {
             return match (b, self.bin) {
                 (0, Some(bin)) => Ok(Cow::Borrowed(bin)),
@@ -981,7 +1053,7 @@ impl<'a> Loader<'a> {
                 format!("buffer {b}'s uri {uri:?} is neither a relative path nor a data: URI"),
             ));
         }
-        let Some(base) = self.base else {
+        let Some(folder) = self.base else {
             return Err(self.fail(
                 ErrorKind::MissingBuffer,
                 format!(
@@ -990,13 +1062,18 @@ impl<'a> Loader<'a> {
                 ),
             ));
         };
-        let file = base.join(percent_decode(uri));
-        std::fs::read(&file).map(Cow::Owned).map_err(|e| {
-            self.fail(
+        let named = percent_decode(uri);
+        let field = format!("buffers[{b}].uri");
+        let label = self.label;
+        match crate::load::read_named(self.budget, folder, &named, label, &field) {
+            Ok((_, bytes)) => Ok(Cow::Owned(bytes)),
+            Err(Error::FileRead { path, problem }) => Err(gltf_error(
+                label,
                 ErrorKind::MissingBuffer,
-                format!("cannot read buffer {b} from {}: {e}", file.display()),
-            )
-        })
+                format!("cannot read buffer {b} from {path}: {problem}"),
+            )),
+            Err(e) => Err(e),
+        }
     }
 }
 
@@ -1027,38 +1104,18 @@ fn has_scheme(uri: &str) -> bool {
     }
 }
 
-/// The value of a hex digit.
-fn hex(b: u8) -> Option<u8> {
-    match b {
-        b'0'..=b'9' => Some(b - b'0'),
-        b'a'..=b'f' => Some(b - b'a' + 10),
-        b'A'..=b'F' => Some(b - b'A' + 10),
-        _ => None,
-    }
-}
-
 /// Decodes `%XX` escapes; malformed escapes are kept as they are.
 fn percent_decode_bytes(s: &str) -> Vec<u8> {
-    let b = s.as_bytes();
-    let mut out = Vec::with_capacity(b.len());
-    let mut i = 0;
-    while i < b.len() {
-        if b[i] == b'%' && i + 2 < b.len() {
-            if let (Some(h), Some(l)) = (hex(b[i + 1]), hex(b[i + 2])) {
-                out.push(h << 4 | l);
-                i += 3;
-                continue;
-            }
-        }
-        out.push(b[i]);
-        i += 1;
-    }
-    out
+    percent_encoding::percent_decode_str(s).collect()
 }
 
-/// A relative URI as a path (percent-escapes decoded).
+/// A relative URI as a path (percent-escapes decoded, so `..%2F` is `../`).
 fn percent_decode(uri: &str) -> PathBuf {
-    PathBuf::from(String::from_utf8_lossy(&percent_decode_bytes(uri)).into_owned())
+    PathBuf::from(
+        percent_encoding::percent_decode_str(uri)
+            .decode_utf8_lossy()
+            .into_owned(),
+    )
 }
 
 /// Decodes the part of a data URI after `data:`.

@@ -23,6 +23,7 @@ mod facade;
 #[cfg(feature = "gltf")]
 pub mod gltf;
 pub mod gpu;
+pub mod load;
 pub mod nodes;
 pub mod plan;
 pub mod reference;
@@ -34,6 +35,7 @@ pub use facade::{Frame, FrameLight, Settings, VolumetricShadows};
 pub use gpu::headless::HeadlessGpu;
 pub use gpu::Cache;
 pub use gpu::{Occluder, OccluderMesh};
+pub use load::{Limit, LoadOptions};
 pub use plan::Plan;
 pub use scene::{Camera, Light, Medium, PhaseFunction, PointLight, SpotLight};
 

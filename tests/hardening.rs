@@ -597,7 +597,7 @@ fn occluders_beyond_the_volume_buffer_limit_are_a_typed_error_and_the_next_frame
     });
     let (result, encoded) = result;
     match result {
-        Some(Error::LimitExceeded {
+        Some(Error::DeviceLimitExceeded {
             limit: "max_storage_buffer_binding_size",
             needed,
             max,
@@ -653,7 +653,7 @@ fn a_mesh_beyond_the_buffer_size_limit_is_a_typed_error() {
     assert!(
         matches!(
             result,
-            Some(Error::LimitExceeded {
+            Some(Error::DeviceLimitExceeded {
                 field: "shadow volumes",
                 ..
             })

@@ -3,7 +3,7 @@
 use glam::{Mat4, Vec3};
 use wgpu::util::DeviceExt;
 
-use crate::error::{finite, Error, Result};
+use crate::error::{Error, Result};
 use crate::scene::{Mesh, MeshSummary};
 
 /// GPU buffers of one occluder mesh: positions, triangle indices and the edge adjacency built
@@ -121,17 +121,29 @@ pub struct Occluder<'a> {
 }
 
 impl Occluder<'_> {
-    /// Checks the transform: finite and invertible.
+    /// Checks the transform as scene files do: finite, affine (last row 0, 0, 0, 1),
+    /// invertible, and not mirroring (a negative determinant flips the triangles' winding,
+    /// which turns the shadow volumes inside out).
     pub(crate) fn validate(&self) -> Result<()> {
-        finite("occluder.transform", &self.transform.to_cols_array())?;
-        let determinant = self.transform.determinant();
-        if !(determinant.is_finite() && determinant.abs() > f32::MIN_POSITIVE) {
-            return Err(Error::SingularMatrix {
+        use crate::scene::TransformProblem;
+        const FIELD: &str = "occluder.transform";
+        match crate::scene::check_object_transform(self.transform) {
+            Ok(()) => Ok(()),
+            Err(TransformProblem::NonFinite(value)) => Err(Error::NonFinite {
+                field: FIELD,
+                value,
+            }),
+            Err(TransformProblem::Singular(determinant)) => Err(Error::SingularMatrix {
                 matrix: "occluder transform",
-                determinant,
-            });
+                determinant: determinant as f32,
+            }),
+            Err(p @ (TransformProblem::NotAffine(_) | TransformProblem::Mirrored(_))) => {
+                Err(Error::InvalidTransform {
+                    field: FIELD,
+                    problem: p.to_string(),
+                })
+            }
         }
-        Ok(())
     }
 
     /// World-space bounding box of the transformed mesh.

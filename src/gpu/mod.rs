@@ -144,7 +144,7 @@ pub(crate) fn check_buffer_size(
         ("max_buffer_size", limits.max_buffer_size),
     ] {
         if bytes > max {
-            return Err(Error::LimitExceeded {
+            return Err(Error::DeviceLimitExceeded {
                 field,
                 limit,
                 needed: bytes,

@@ -28,7 +28,14 @@ impl LightTexture {
     /// Largest width or height accepted.
     pub const MAX_SIZE: u32 = 8192;
 
-    /// A texture of `width × height` texels (row-major, top row first; finite, ≥ 0).
+    /// Largest texel component: the largest finite `f16`, the format the texels upload in.
+    pub const MAX_TEXEL: f32 = 65504.0;
+
+    /// A texture of `width × height` texels (row-major, top row first; finite, ≥ 0, at most
+    /// [`MAX_TEXEL`](Self::MAX_TEXEL), which uploads as `f16` infinity beyond).
+    ///
+    /// Errors: [`Error::InvalidSize`], [`Error::InvalidTexture`] (texel count), and for a texel
+    /// [`Error::NonFinite`], [`Error::Negative`] or [`Error::TexelOutOfRange`].
     pub fn new(width: u32, height: u32, texels: Vec<Vec3>) -> Result<Self> {
         if width == 0 || height == 0 || width > Self::MAX_SIZE || height > Self::MAX_SIZE {
             return Err(Error::InvalidSize {
@@ -45,8 +52,14 @@ impl LightTexture {
                 problem: format!("{} texels for {width}x{height}", texels.len()),
             });
         }
-        for t in &texels {
+        for (i, t) in texels.iter().enumerate() {
             crate::error::non_negative("light texture texel", &t.to_array())?;
+            if t.max_element() > Self::MAX_TEXEL {
+                return Err(Error::TexelOutOfRange {
+                    texel: i,
+                    value: t.max_element(),
+                });
+            }
         }
         Ok(Self {
             width,
@@ -57,11 +70,26 @@ impl LightTexture {
 
     /// A `cells × cells` checkerboard of two colours, `size × size` texels.
     pub fn checkerboard(size: u32, cells: u32, a: Vec3, b: Vec3) -> Result<Self> {
+        if size == 0 || size > Self::MAX_SIZE {
+            return Err(Error::InvalidSize {
+                field: "light texture",
+                width: size,
+                height: size,
+                min: 1,
+                max: Self::MAX_SIZE,
+            });
+        }
         let cells = cells.max(1);
         let texels = (0..size * size)
             .map(|i| {
                 let (x, y) = (i % size, i / size);
-                if ((x * cells / size.max(1)) + (y * cells / size.max(1))).is_multiple_of(2) {
+                let (x, y, cells, size) = (
+                    u64::from(x),
+                    u64::from(y),
+                    u64::from(cells),
+                    u64::from(size),
+                );
+                if ((x * cells / size) + (y * cells / size)).is_multiple_of(2) {
                     a
                 } else {
                     b
@@ -71,15 +99,69 @@ impl LightTexture {
         Self::new(size, size, texels)
     }
 
-    /// Loads an image file (PNG) as sRGB-encoded colour and converts it to linear RGB.
+    /// Loads an image file (PNG) as sRGB-encoded colour and converts it to linear RGB, with
+    /// the default [`LoadOptions`](crate::load::LoadOptions).
     #[cfg(feature = "image")]
     pub fn from_image_file(path: impl AsRef<std::path::Path>) -> Result<Self> {
+        Self::from_image_file_with(path, &crate::load::LoadOptions::default())
+    }
+
+    /// [`from_image_file`](Self::from_image_file) with the bounds of `options`: the path must
+    /// be a regular file of at most [`max_file_bytes`](crate::load::LoadOptions::max_file_bytes),
+    /// and the image at most [`max_texels`](crate::load::LoadOptions::max_texels) texels and
+    /// [`MAX_SIZE`](Self::MAX_SIZE) on a side, checked from its header before decoding.
+    #[cfg(feature = "image")]
+    pub fn from_image_file_with(
+        path: impl AsRef<std::path::Path>,
+        options: &crate::load::LoadOptions,
+    ) -> Result<Self> {
         let path = path.as_ref();
-        let image = image::open(path)
+        let mut budget = crate::load::Budget::new(options);
+        let bytes = budget.read(path)?;
+        Self::from_image_bytes(&bytes, &path.display().to_string(), &mut budget)
+    }
+
+    /// Decodes an encoded image (`label` names it in errors), counting its texels into
+    /// `budget` before decoding.
+    #[cfg(feature = "image")]
+    pub(crate) fn from_image_bytes(
+        bytes: &[u8],
+        label: &str,
+        budget: &mut crate::load::Budget,
+    ) -> Result<Self> {
+        use image::ImageDecoder;
+        let invalid = |e: image::ImageError| Error::InvalidTexture {
+            field: "light texture file",
+            problem: format!("{label}: {e}"),
+        };
+        let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+            .with_guessed_format()
             .map_err(|e| Error::InvalidTexture {
                 field: "light texture file",
-                problem: format!("{}: {e}", path.display()),
-            })?
+                problem: format!("{label}: {e}"),
+            })?;
+        let mut limits = image::Limits::default();
+        limits.max_image_width = Some(Self::MAX_SIZE);
+        limits.max_image_height = Some(Self::MAX_SIZE);
+        reader.limits(limits);
+        let decoder = reader.into_decoder().map_err(invalid)?;
+        let (width, height) = decoder.dimensions();
+        if width == 0 || height == 0 || width > Self::MAX_SIZE || height > Self::MAX_SIZE {
+            return Err(Error::InvalidSize {
+                field: "light texture",
+                width,
+                height,
+                min: 1,
+                max: Self::MAX_SIZE,
+            });
+        }
+        budget.add(
+            crate::load::Limit::Texels,
+            u64::from(width) * u64::from(height),
+            label,
+        )?;
+        let image = image::DynamicImage::from_decoder(decoder)
+            .map_err(invalid)?
             .to_rgb8();
         let decode = |c: u8| {
             let c = f32::from(c) / 255.0;

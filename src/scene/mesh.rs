@@ -362,3 +362,61 @@ fn zero_area(positions: &[Vec3], tri: &[u32]) -> bool {
     let p = |k: usize| positions[tri[k] as usize].as_dvec3();
     (p(1) - p(0)).cross(p(2) - p(0)) == DVec3::ZERO
 }
+
+/// What is wrong with an object → world transform (see [`check_object_transform`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum TransformProblem {
+    /// An entry is NaN or infinite (the first such entry).
+    NonFinite(f32),
+    /// The last row is not (0, 0, 0, 1).
+    NotAffine(glam::Vec4),
+    /// The determinant is negative: the transform mirrors, flipping the triangles' winding.
+    Mirrored(f64),
+    /// The determinant is zero or negligible next to the columns' lengths, or the inverse is
+    /// not finite in f32.
+    Singular(f64),
+}
+
+impl fmt::Display for TransformProblem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            TransformProblem::NonFinite(_) => write!(f, "the transform is not finite"),
+            TransformProblem::NotAffine(row) => write!(
+                f,
+                "must be affine (column-major; the last row must be 0, 0, 0, 1), got last row {row}"
+            ),
+            TransformProblem::Mirrored(det) | TransformProblem::Singular(det) => write!(
+                f,
+                "the transform must be invertible with a positive determinant (no mirroring), \
+                 got determinant {det}"
+            ),
+        }
+    }
+}
+
+/// Checks an object → world transform, as scene files and [`crate::Occluder`] need it: finite,
+/// affine (last row 0, 0, 0, 1), a positive determinant above 1e-12 of the product of the
+/// columns' lengths (so scale does not matter, only how close to flat it is), and an inverse
+/// that is finite in f32 and f64.
+pub(crate) fn check_object_transform(m: glam::Mat4) -> std::result::Result<(), TransformProblem> {
+    if let Some(&v) = m.to_cols_array().iter().find(|v| !v.is_finite()) {
+        return Err(TransformProblem::NonFinite(v));
+    }
+    if m.row(3) != glam::Vec4::W {
+        return Err(TransformProblem::NotAffine(m.row(3)));
+    }
+    let d = m.as_dmat4();
+    let det = d.determinant();
+    let scale =
+        d.x_axis.truncate().length() * d.y_axis.truncate().length() * d.z_axis.truncate().length();
+    if det.is_finite() && det < -1e-12 * scale {
+        return Err(TransformProblem::Mirrored(det));
+    }
+    if !(det.is_finite() && det > 1e-12 * scale)
+        || !d.inverse().is_finite()
+        || !m.inverse().is_finite()
+    {
+        return Err(TransformProblem::Singular(det));
+    }
+    Ok(())
+}

@@ -12,4 +12,5 @@ pub use camera::Camera;
 pub use light::{Light, PointLight, SpotLight};
 pub use light_texture::LightTexture;
 pub use medium::{Medium, PhaseFunction};
+pub(crate) use mesh::{check_object_transform, TransformProblem};
 pub use mesh::{Edge, Mesh, MeshSummary};

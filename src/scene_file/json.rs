@@ -9,6 +9,9 @@ use serde_json::{Map, Value};
 pub(super) struct Problem {
     pub field: String,
     pub problem: String,
+    /// An error reported as it is rather than as an [`crate::Error::SceneFile`]: a path that
+    /// leads outside the folder, a file that is not regular, a bound of the load passed.
+    pub error: Option<Box<crate::Error>>,
 }
 
 /// Result of reading part of a scene file.
@@ -23,6 +26,7 @@ pub(super) fn problem(field: &str, problem: impl Into<String>) -> Problem {
             field.to_owned()
         },
         problem: problem.into(),
+        error: None,
     }
 }
 

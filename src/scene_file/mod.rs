@@ -37,6 +37,9 @@
 //!
 //! Unknown keys are errors everywhere; `null` counts as absent.
 //!
+//! Loading is bounded by [`LoadOptions`] (lights, texels, triangles, placed meshes, bytes), and
+//! files the scene names must lie in its folder unless [`LoadOptions::allow_outside`] is set.
+//!
 //! * `name` (required string), `description` (optional string).
 //! * `size`: `[width, height]`, each 1..=8192; default `[512, 512]`.
 //! * `camera` (required): `eye`, `target` (required points), `up` (default `[0, 1, 0]`, not
@@ -53,7 +56,7 @@
 //!     `{"checkerboard": {"size", "cells", "a", "b"}}` (size 1..=4096, cells 1..=size, colours
 //!     RGB >= 0), `{"stained_glass": {"size", "cells", "seed"}}` (see [`stained_glass`]; size
 //!     1..=4096, cells 1..=size) or `{"file": "window.png"}` (feature `image`; relative to the
-//!     scene file's folder).
+//!     scene file's folder, and inside it: see [`crate::load`]).
 //! * `medium` (required): `sigma_s` (RGB or one number, >= 0; required unless the phase is
 //!   `hoffman_preetham`, which sets it and forbids it), `sigma_a` (default 0), `phase` (default
 //!   `"isotropic"`): `"isotropic"`, `"rayleigh"`, `"mie_hazy"`, `"mie_murky"`,
@@ -77,7 +80,8 @@
 //!     `center` (default origin; the centre of the row of posts), `rail` (default `false`: two
 //!     horizontal rails at 30% and 75% of the post height, slightly narrower than the posts);
 //!     all boxes merged into one mesh.
-//!   * `"gltf"`: `path` (relative to the scene file's folder; feature `gltf`): every mesh of the
+//!   * `"gltf"`: `path` (relative to the scene file's folder and inside it, see
+//!     [`crate::load`]; feature `gltf`): every mesh of the
 //!     file (each triangle primitive of each node that places a mesh, as `volshadow::gltf::load` gives them) becomes
 //!     one object named `"<name>/<mesh name>"` (`"<name>/<index>:<mesh name>"` when several
 //!     primitives share the mesh name, `"<name>/<index>"` without one), with transform
@@ -105,6 +109,7 @@ use std::path::Path;
 use glam::{DMat4, DVec3, Mat4, Vec3};
 
 use crate::error::{Error, Result};
+use crate::load::{Budget, LoadOptions};
 use crate::nodes::{MarchMethod, MarchSettings, Scale, UpsampleFilter};
 use crate::reference::{Occluder, TriangleMesh};
 use crate::scene::{Camera, Light, LightTexture, Medium, Mesh};
@@ -314,37 +319,79 @@ impl Method {
 }
 
 impl SceneDescription {
-    /// Reads and validates a scene file. Relative paths inside it (light texture files, glTF
-    /// files) are resolved against the file's folder.
+    /// Reads and validates a scene file with the default [`LoadOptions`]. Relative paths
+    /// inside it (light texture files, glTF files) are resolved against the file's folder and
+    /// must stay inside it (see [`crate::load`]).
     pub fn load(path: impl AsRef<Path>) -> Result<Self> {
+        Self::load_with(path, &LoadOptions::default())
+    }
+
+    /// [`load`](Self::load) with the bounds and the folder rule of `options`. The scene file
+    /// and every file it names count into one set of totals.
+    ///
+    /// Errors: [`Error::SceneFile`] for what is wrong in the file; [`Error::PathOutsideFolder`],
+    /// [`Error::NotRegularFile`] and [`Error::LimitExceeded`] as they are.
+    pub fn load_with(path: impl AsRef<Path>, options: &LoadOptions) -> Result<Self> {
         let path = path.as_ref();
         let shown = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| Error::SceneFile {
+        let unreadable = |problem: String| Error::SceneFile {
             path: shown.clone(),
             field: "(file)".to_owned(),
-            problem: format!("cannot read the file: {e}"),
+            problem: format!("cannot read the file: {problem}"),
+        };
+        let mut budget = Budget::new(options);
+        let bytes = budget.read(path).map_err(|e| match e {
+            Error::FileRead { problem, .. } => unreadable(problem),
+            e => e,
         })?;
-        let base_dir = path.parent().unwrap_or_else(|| Path::new(""));
-        Self::parse(&text, base_dir, &shown)
+        let text = String::from_utf8(bytes).map_err(|e| unreadable(e.to_string()))?;
+        let folder = crate::load::folder_of(path).map_err(|e| e.to_string());
+        Self::parse(&text, folder, &shown, budget)
     }
 
-    /// Parses and validates a scene from JSON text; relative paths inside it resolve against
-    /// `base_dir`. Errors name the path `<string>`.
+    /// Parses and validates a scene from JSON text with the default [`LoadOptions`]; relative
+    /// paths inside it resolve against `base_dir` and must stay inside it. Errors name the path
+    /// `<string>`.
     pub fn from_json(text: &str, base_dir: &Path) -> Result<Self> {
-        Self::parse(text, base_dir, "<string>")
+        Self::from_json_with(text, base_dir, &LoadOptions::default())
     }
 
-    fn parse(text: &str, base_dir: &Path, shown: &str) -> Result<Self> {
+    /// [`from_json`](Self::from_json) with the bounds and the folder rule of `options` (the
+    /// text itself counts against no byte bound).
+    pub fn from_json_with(text: &str, base_dir: &Path, options: &LoadOptions) -> Result<Self> {
+        let folder = base_dir.canonicalize().map_err(|e| {
+            format!(
+                "the base folder {} cannot be resolved: {e}",
+                base_dir.display()
+            )
+        });
+        Self::parse(text, folder, "<string>", Budget::new(options))
+    }
+
+    fn parse(
+        text: &str,
+        folder: std::result::Result<std::path::PathBuf, String>,
+        shown: &str,
+        budget: Budget,
+    ) -> Result<Self> {
         let value: serde_json::Value =
             serde_json::from_str(text).map_err(|e| Error::SceneFile {
                 path: shown.to_owned(),
                 field: "(json)".to_owned(),
                 problem: format!("invalid JSON: {e}"),
             })?;
-        parse::scene(&value, base_dir).map_err(|p| Error::SceneFile {
-            path: shown.to_owned(),
-            field: p.field,
-            problem: p.problem,
+        let mut ctx = parse::Ctx {
+            folder,
+            file: shown,
+            budget,
+        };
+        parse::scene(&value, &mut ctx).map_err(|p| match p.error {
+            Some(e) => *e,
+            None => Error::SceneFile {
+                path: shown.to_owned(),
+                field: p.field,
+                problem: p.problem,
+            },
         })
     }
 

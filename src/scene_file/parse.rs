@@ -2,14 +2,15 @@
 //! error. Everything a constructor further down would panic on (the procedural shapes assert
 //! their parameters) is checked here first.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::camera::rh::{proj::directx, view::look_at_mat4};
-use glam::{DMat4, Mat4, Vec2, Vec3};
+use glam::{Mat4, Vec2, Vec3};
 use serde_json::Value;
 
 use super::json::{array, ensure, expected, problem, tag, FromJson, Obj, Rgb, Scale3, P};
 use super::{stained_glass, Method, SceneDescription, SceneLight, SceneObject};
+use crate::load::{Budget, Limit};
 use crate::nodes::{Scale, UpsampleFilter};
 use crate::scene::{
     shapes, Camera, Light, LightTexture, Medium, Mesh, PhaseFunction, PointLight, SpotLight,
@@ -29,6 +30,57 @@ const MAX_SEGMENTS: u32 = 1024;
 /// A crate error from a constructor, reported at `path`.
 fn from_error(path: &str) -> impl FnOnce(crate::Error) -> super::json::Problem + '_ {
     move |e| problem(path, e.to_string())
+}
+
+/// A crate error from loading a file or counting a total: the errors of [`crate::load`] are
+/// kept as they are, others are reported at `path`.
+fn from_load_error(path: &str) -> impl FnOnce(crate::Error) -> super::json::Problem + '_ {
+    move |e| match e {
+        crate::Error::PathOutsideFolder { .. }
+        | crate::Error::NotRegularFile { .. }
+        | crate::Error::LimitExceeded { .. } => super::json::Problem {
+            field: path.to_owned(),
+            problem: e.to_string(),
+            error: Some(Box::new(e)),
+        },
+        e => problem(path, e.to_string()),
+    }
+}
+
+/// What parsing a scene needs besides the JSON: where its files are and the load's totals.
+pub(super) struct Ctx<'a> {
+    /// The canonical folder of the scene file, or why it could not be found.
+    pub folder: std::result::Result<PathBuf, String>,
+    /// The scene file as errors name it.
+    pub file: &'a str,
+    /// The load's running totals.
+    pub budget: Budget,
+}
+
+impl Ctx<'_> {
+    /// Counts `n` more of `limit` (reported at `path` if it passes its bound).
+    fn add(&mut self, limit: Limit, n: u64, path: &str) -> P<()> {
+        self.budget
+            .add(limit, n, self.file)
+            .map_err(from_load_error(path))
+    }
+
+    /// Checks that `n` more of `limit` fit, before building them.
+    fn check(&self, limit: Limit, n: u64, path: &str) -> P<()> {
+        self.budget
+            .check(limit, n, self.file)
+            .map_err(from_load_error(path))
+    }
+
+    /// Reads the file named `named` at `path`: confined to the scene's folder unless allowed.
+    fn read(&mut self, named: &str, path: &str) -> P<(PathBuf, Vec<u8>)> {
+        let folder = self
+            .folder
+            .as_ref()
+            .map_err(|e| problem(path, format!("cannot resolve {named:?}: {e}")))?;
+        crate::load::read_named(&mut self.budget, folder, Path::new(named), self.file, path)
+            .map_err(from_load_error(path))
+    }
 }
 
 /// A point: finite, each coordinate within ±[`MAX_COORD`].
@@ -96,7 +148,7 @@ fn asymmetry(v: &Value, path: &str) -> P<f32> {
 }
 
 /// The whole file.
-pub(super) fn scene(root: &Value, base_dir: &Path) -> P<SceneDescription> {
+pub(super) fn scene(root: &Value, ctx: &mut Ctx) -> P<SceneDescription> {
     let o = Obj::new(
         root,
         "",
@@ -120,10 +172,12 @@ pub(super) fn scene(root: &Value, base_dir: &Path) -> P<SceneDescription> {
     let camera = camera(o.req_value("camera")?, &o.field("camera"), size)?;
 
     let lights_path = o.field("lights");
-    let lights = array(o.req_value("lights")?, &lights_path)?
-        .into_iter()
-        .map(|(v, path)| light(v, &path, base_dir))
-        .collect::<P<Vec<_>>>()?;
+    let items = array(o.req_value("lights")?, &lights_path)?;
+    ctx.add(Limit::Lights, items.len() as u64, &lights_path)?;
+    let mut lights = Vec::with_capacity(items.len());
+    for (v, path) in items {
+        lights.push(light(v, &path, ctx)?);
+    }
     ensure(!lights.is_empty(), &lights_path, || {
         "must contain at least one light".to_owned()
     })?;
@@ -133,7 +187,7 @@ pub(super) fn scene(root: &Value, base_dir: &Path) -> P<SceneDescription> {
     let mut objects = Vec::new();
     if let Some(v) = o.value("objects") {
         for (i, (v, path)) in array(v, &o.field("objects"))?.into_iter().enumerate() {
-            object(v, &path, i, base_dir, &mut objects)?;
+            object(v, &path, i, ctx, &mut objects)?;
         }
     }
 
@@ -242,7 +296,7 @@ fn intensity(o: &Obj) -> P<Vec3> {
     Ok(i)
 }
 
-fn light(v: &Value, path: &str, base_dir: &Path) -> P<SceneLight> {
+fn light(v: &Value, path: &str, ctx: &mut Ctx) -> P<SceneLight> {
     match tag(v, path, "light", &["point", "spot"])? {
         "point" => {
             let o = Obj::new(v, path, &["type", "position", "intensity"])?;
@@ -283,7 +337,7 @@ fn light(v: &Value, path: &str, base_dir: &Path) -> P<SceneLight> {
             let intensity = intensity(&o)?;
             let texture = o
                 .value("texture")
-                .map(|t| texture(t, &o.field("texture"), base_dir))
+                .map(|t| texture(t, &o.field("texture"), ctx))
                 .transpose()?;
             let light = SpotLight::new(position, direction, cone.to_radians(), intensity)
                 .map_err(from_error(path))?;
@@ -325,12 +379,17 @@ fn texture_size(o: &Obj) -> P<(u32, u32)> {
     Ok((size, cells))
 }
 
-fn texture(v: &Value, path: &str, base_dir: &Path) -> P<LightTexture> {
+fn texture(v: &Value, path: &str, ctx: &mut Ctx) -> P<LightTexture> {
     let (kind, value, field) = single_key(v, path, &["checkerboard", "stained_glass", "file"])?;
     match kind {
         "checkerboard" => {
             let o = Obj::new(value, &field, &["size", "cells", "a", "b"])?;
             let (size, cells) = texture_size(&o)?;
+            ctx.add(
+                Limit::Texels,
+                u64::from(size) * u64::from(size),
+                &o.field("size"),
+            )?;
             let a = non_negative(o.req_value("a")?, &o.field("a"))?;
             let b = non_negative(o.req_value("b")?, &o.field("b"))?;
             LightTexture::checkerboard(size, cells, a, b).map_err(from_error(&field))
@@ -338,29 +397,33 @@ fn texture(v: &Value, path: &str, base_dir: &Path) -> P<LightTexture> {
         "stained_glass" => {
             let o = Obj::new(value, &field, &["size", "cells", "seed"])?;
             let (size, cells) = texture_size(&o)?;
+            ctx.add(
+                Limit::Texels,
+                u64::from(size) * u64::from(size),
+                &o.field("size"),
+            )?;
             let seed: u64 = o.req("seed")?;
             stained_glass(size, cells, seed).map_err(from_error(&field))
         }
         _ => {
             let file = String::from_json(value, &field)?;
-            image_file(&base_dir.join(file), &field)
+            image_file(&file, &field, ctx)
         }
     }
 }
 
 #[cfg(feature = "image")]
-fn image_file(file: &Path, field: &str) -> P<LightTexture> {
-    LightTexture::from_image_file(file).map_err(from_error(field))
+fn image_file(file: &str, field: &str, ctx: &mut Ctx) -> P<LightTexture> {
+    let (path, bytes) = ctx.read(file, field)?;
+    LightTexture::from_image_bytes(&bytes, &path.display().to_string(), &mut ctx.budget)
+        .map_err(from_load_error(field))
 }
 
 #[cfg(not(feature = "image"))]
-fn image_file(file: &Path, field: &str) -> P<LightTexture> {
+fn image_file(file: &str, field: &str, _ctx: &mut Ctx) -> P<LightTexture> {
     Err(problem(
         field,
-        format!(
-            "cannot load {}: volshadow was built without the `image` feature",
-            file.display()
-        ),
+        format!("cannot load {file:?}: volshadow was built without the `image` feature"),
     ))
 }
 
@@ -496,25 +559,10 @@ fn transform(v: &Value, path: &str) -> P<Mat4> {
     Ok(m)
 }
 
-/// A usable object transform: finite, invertible, positive determinant.
+/// A usable object transform: finite, affine, invertible, positive determinant (the check
+/// [`crate::Occluder`] makes too).
 fn check_transform(m: Mat4, path: &str) -> P<()> {
-    ensure(m.is_finite(), path, || {
-        "the transform is not finite".to_owned()
-    })?;
-    let d: DMat4 = m.as_dmat4();
-    let det = d.determinant();
-    let scale =
-        d.x_axis.truncate().length() * d.y_axis.truncate().length() * d.z_axis.truncate().length();
-    ensure(det > 1e-12 * scale && det.is_finite(), path, || {
-        format!(
-            "the transform must be invertible with a positive determinant (no mirroring), got determinant {det}"
-        )
-    })?;
-    ensure(
-        d.inverse().is_finite() && m.inverse().is_finite(),
-        path,
-        || "the transform is not invertible in f32".to_owned(),
-    )
+    crate::scene::check_object_transform(m).map_err(|p| problem(path, p.to_string()))
 }
 
 /// Shapes built at the origin (where every parameter the checks allow gives a valid mesh), then
@@ -538,7 +586,7 @@ const SHAPES: [&str; 8] = [
     "sphere", "box", "plane", "torus", "spring", "cylinder", "fence", "gltf",
 ];
 
-fn shape(v: &Value, path: &str, base_dir: &Path) -> P<(&'static str, Shape)> {
+fn shape(v: &Value, path: &str, ctx: &mut Ctx) -> P<(&'static str, Shape)> {
     let kind = tag(v, path, "shape", &SHAPES)?;
     let kind = SHAPES.into_iter().find(|k| *k == kind).unwrap_or("shape");
     let mesh = match kind {
@@ -548,6 +596,11 @@ fn shape(v: &Value, path: &str, base_dir: &Path) -> P<(&'static str, Shape)> {
             let radius = length(&o, "radius")?;
             let segments = count(&o, "segments", 32, 3, MAX_SEGMENTS)?;
             let rings = count(&o, "rings", 16, 2, MAX_SEGMENTS)?;
+            ctx.check(
+                Limit::Triangles,
+                2 * u64::from(segments) * u64::from(rings - 1),
+                path,
+            )?;
             placed(
                 shapes::uv_sphere(Vec3::ZERO, radius, segments, rings),
                 center,
@@ -596,6 +649,7 @@ fn shape(v: &Value, path: &str, base_dir: &Path) -> P<(&'static str, Shape)> {
             )?;
             let m = count(&o, "major_segments", 48, 3, MAX_SEGMENTS)?;
             let n = count(&o, "minor_segments", 16, 3, MAX_SEGMENTS)?;
+            ctx.check(Limit::Triangles, 2 * u64::from(m) * u64::from(n), path)?;
             placed(shapes::torus(Vec3::ZERO, major, minor, m, n), center, path)?
         }
         "spring" => {
@@ -643,6 +697,13 @@ fn shape(v: &Value, path: &str, base_dir: &Path) -> P<(&'static str, Shape)> {
                     )
                 },
             )?;
+            // (steps + 1) wire rings of `wire_segments` quads, and two end caps.
+            let steps = ((turns * per_turn as f32).ceil() as u64).max(1);
+            ctx.check(
+                Limit::Triangles,
+                2 * (steps + 1) * u64::from(wire_segments),
+                path,
+            )?;
             placed(
                 shapes::helix_spring(
                     Vec3::ZERO,
@@ -667,19 +728,21 @@ fn shape(v: &Value, path: &str, base_dir: &Path) -> P<(&'static str, Shape)> {
             let radius = length(&o, "radius")?;
             let half_height = length(&o, "half_height")?;
             let segments = count(&o, "segments", 32, 3, MAX_SEGMENTS)?;
+            ctx.check(Limit::Triangles, 2 * u64::from(segments), path)?;
             placed(
                 shapes::cylinder_open(Vec3::ZERO, radius, half_height, segments),
                 center,
                 path,
             )?
         }
-        "fence" => fence(v, path)?,
-        _ => return gltf(v, path, base_dir).map(|m| ("gltf", Shape::Many(m))),
+        "fence" => fence(v, path, ctx)?,
+        _ => return gltf(v, path, ctx).map(|m| ("gltf", Shape::Many(m))),
     };
+    ctx.add(Limit::Triangles, mesh.triangle_count() as u64, path)?;
     Ok((kind, Shape::One(mesh)))
 }
 
-fn fence(v: &Value, path: &str) -> P<Mesh> {
+fn fence(v: &Value, path: &str, ctx: &Ctx) -> P<Mesh> {
     let o = Obj::new(
         v,
         path,
@@ -700,6 +763,8 @@ fn fence(v: &Value, path: &str) -> P<Mesh> {
     let spacing = length(&o, "spacing")?;
     let half = lengths(&o, "post_half_extents")?;
     let rail: bool = o.or("rail", false)?;
+    // 12 triangles per box: the posts and two rails.
+    ctx.check(Limit::Triangles, 12 * (u64::from(posts) + 2), path)?;
 
     let mut boxes: Vec<(Vec3, Vec3)> = (0..posts)
         .map(|k| {
@@ -727,10 +792,28 @@ fn fence(v: &Value, path: &str) -> P<Mesh> {
 }
 
 #[cfg(feature = "gltf")]
-fn gltf(v: &Value, path: &str, base_dir: &Path) -> P<Vec<(String, Mesh, Mat4)>> {
+fn gltf(v: &Value, path: &str, ctx: &mut Ctx) -> P<Vec<(String, Mesh, Mat4)>> {
     let o = Obj::new(v, path, &["type", "path"])?;
     let file: String = o.req("path")?;
-    let meshes = crate::gltf::load(base_dir.join(file)).map_err(from_error(&o.field("path")))?;
+    let field = o.field("path");
+    let folder = ctx
+        .folder
+        .as_ref()
+        .map_err(|e| problem(&field, format!("cannot resolve {file:?}: {e}")))?;
+    let file =
+        match crate::load::resolve(folder, Path::new(&file), ctx.budget.options.allow_outside) {
+            crate::load::Resolved::Path(p) => p,
+            crate::load::Resolved::Outside => {
+                return Err(from_load_error(&field)(crate::Error::PathOutsideFolder {
+                    file: ctx.file.to_owned(),
+                    field: field.clone(),
+                    target: file,
+                }))
+            }
+        };
+    // Its triangles and placed meshes count into the scene's totals.
+    let meshes =
+        crate::gltf::load_budgeted(&file, &mut ctx.budget).map_err(from_load_error(&field))?;
     ensure(!meshes.is_empty(), &o.field("path"), || {
         "the glTF file contains no meshes".to_owned()
     })?;
@@ -753,7 +836,7 @@ fn gltf(v: &Value, path: &str, base_dir: &Path) -> P<Vec<(String, Mesh, Mat4)>> 
 }
 
 #[cfg(not(feature = "gltf"))]
-fn gltf(v: &Value, path: &str, _base_dir: &Path) -> P<Vec<(String, Mesh, Mat4)>> {
+fn gltf(v: &Value, path: &str, _ctx: &mut Ctx) -> P<Vec<(String, Mesh, Mat4)>> {
     let o = Obj::new(v, path, &["type", "path"])?;
     let file: String = o.req("path")?;
     Err(problem(
@@ -762,7 +845,7 @@ fn gltf(v: &Value, path: &str, _base_dir: &Path) -> P<Vec<(String, Mesh, Mat4)>>
     ))
 }
 
-fn object(v: &Value, path: &str, i: usize, base_dir: &Path, out: &mut Vec<SceneObject>) -> P<()> {
+fn object(v: &Value, path: &str, i: usize, ctx: &mut Ctx, out: &mut Vec<SceneObject>) -> P<()> {
     let o = Obj::new(
         v,
         path,
@@ -785,15 +868,18 @@ fn object(v: &Value, path: &str, i: usize, base_dir: &Path, out: &mut Vec<SceneO
             a
         }
     };
-    let (kind, shape) = shape(o.req_value("shape")?, &o.field("shape"), base_dir)?;
+    let (kind, shape) = shape(o.req_value("shape")?, &o.field("shape"), ctx)?;
     let name = name.unwrap_or_else(|| format!("{kind}_{i}"));
     match shape {
-        Shape::One(mesh) => out.push(SceneObject {
-            name,
-            mesh,
-            transform,
-            casts_shadow,
-            albedo,
+        Shape::One(mesh) => out.push({
+            ctx.add(Limit::Instances, 1, path)?;
+            SceneObject {
+                name,
+                mesh,
+                transform,
+                casts_shadow,
+                albedo,
+            }
         }),
         Shape::Many(meshes) => {
             for (mesh_name, mesh, node) in meshes {

@@ -1,0 +1,400 @@
+//! Bounds on what loading a scene file or a glTF file may read and build.
+//!
+//! [`LoadOptions`] holds the bounds; [`crate::scene_file::SceneDescription::load_with`],
+//! [`crate::gltf::load_with`] and [`crate::scene::LightTexture::from_image_file_with`] take
+//! them, and the plain entry points use [`LoadOptions::default`].
+//!
+//! # Files
+//!
+//! * The file passed to a loader may be anywhere. Every path *inside* it (a scene file's glTF
+//!   `path` and light-texture `file`, a glTF buffer `uri`) must resolve inside the folder of
+//!   the file that names it, after `.`/`..`, percent-escapes (glTF URIs) and symbolic links are
+//!   resolved. A path that leads outside is an [`Error::PathOutsideFolder`] whose message is
+//!   the same whether the target exists or not; the resolution never looks at anything
+//!   outside the folder. [`LoadOptions::allow_outside`] lifts the rule.
+//! * Only regular files are read: a directory, device (`/dev/zero`), FIFO or socket is an
+//!   [`Error::NotRegularFile`], decided from the file's metadata before it is opened (and, on
+//!   Unix, opened non-blocking and checked again, so a FIFO swapped in meanwhile cannot block).
+//! * A file larger than [`LoadOptions::max_file_bytes`] is an [`Error::LimitExceeded`]; reads
+//!   stop one byte past the limit, so a file growing while it is read cannot exceed it either.
+//!
+//! # Totals
+//!
+//! One load (a scene file with everything it names, or one glTF file with its buffers) counts
+//! bytes read, triangles, lights, light-texture texels, glTF nodes and placed meshes, and
+//! stops with an [`Error::LimitExceeded`] naming the [`Limit`] as soon as one would pass its
+//! bound. The counts are checked *before* the memory is allocated, so no input can make the
+//! process abort on a failed allocation.
+
+use std::fmt;
+use std::io::Read;
+use std::path::{Component, Path, PathBuf};
+
+use crate::error::{Error, Result};
+
+/// Bounds on a load. The defaults suit interactive scenes; raise them for larger assets.
+///
+/// ```
+/// use volshadow::load::LoadOptions;
+/// let options = LoadOptions {
+///     allow_outside: true,
+///     max_triangles: 16 << 20,
+///     ..LoadOptions::default()
+/// };
+/// # let _ = options;
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LoadOptions {
+    /// Let paths named inside a file lead outside its folder (default `false`).
+    pub allow_outside: bool,
+    /// Largest single file, in bytes (default 256 MiB).
+    pub max_file_bytes: u64,
+    /// Most bytes read from all files of one load together (default 512 MiB).
+    pub max_total_bytes: u64,
+    /// Most triangles over all meshes of one load, each placement counted (default 4 Mi). A
+    /// glTF primitive is checked from its accessor counts before it is read, and may have at
+    /// most 3 positions per triangle still allowed.
+    pub max_triangles: u64,
+    /// Most lights in a scene file (default 16).
+    pub max_lights: u64,
+    /// Most light-texture texels over all lights of a scene file (default 16 Mi: one 4096²
+    /// texture).
+    pub max_texels: u64,
+    /// Most nodes in one glTF file (default 65,536).
+    pub max_nodes: u64,
+    /// Most placed meshes: scene-file objects plus glTF mesh placements (each primitive of each
+    /// node that places a mesh) (default 16,384).
+    pub max_instances: u64,
+}
+
+impl Default for LoadOptions {
+    fn default() -> Self {
+        Self {
+            allow_outside: false,
+            max_file_bytes: 256 << 20,
+            max_total_bytes: 512 << 20,
+            max_triangles: 4 << 20,
+            max_lights: 16,
+            max_texels: 16 << 20,
+            max_nodes: 1 << 16,
+            max_instances: 1 << 14,
+        }
+    }
+}
+
+/// Which bound of [`LoadOptions`] an [`Error::LimitExceeded`] is about; it displays as the
+/// field's name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum Limit {
+    /// [`LoadOptions::max_file_bytes`].
+    FileBytes,
+    /// [`LoadOptions::max_total_bytes`].
+    TotalBytes,
+    /// [`LoadOptions::max_triangles`].
+    Triangles,
+    /// [`LoadOptions::max_lights`].
+    Lights,
+    /// [`LoadOptions::max_texels`].
+    Texels,
+    /// [`LoadOptions::max_nodes`].
+    Nodes,
+    /// [`LoadOptions::max_instances`].
+    Instances,
+}
+
+impl fmt::Display for Limit {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Limit::FileBytes => "max_file_bytes",
+            Limit::TotalBytes => "max_total_bytes",
+            Limit::Triangles => "max_triangles",
+            Limit::Lights => "max_lights",
+            Limit::Texels => "max_texels",
+            Limit::Nodes => "max_nodes",
+            Limit::Instances => "max_instances",
+        })
+    }
+}
+
+/// The running totals of one load.
+#[derive(Debug, Clone)]
+pub(crate) struct Budget {
+    pub(crate) options: LoadOptions,
+    used: [u64; 7],
+}
+
+impl Budget {
+    pub(crate) fn new(options: &LoadOptions) -> Self {
+        Self {
+            options: *options,
+            used: [0; 7],
+        }
+    }
+
+    fn slot(limit: Limit) -> usize {
+        match limit {
+            Limit::FileBytes => 0,
+            Limit::TotalBytes => 1,
+            Limit::Triangles => 2,
+            Limit::Lights => 3,
+            Limit::Texels => 4,
+            Limit::Nodes => 5,
+            Limit::Instances => 6,
+        }
+    }
+
+    /// The bound of `limit`.
+    pub(crate) fn max(&self, limit: Limit) -> u64 {
+        let o = &self.options;
+        match limit {
+            Limit::FileBytes => o.max_file_bytes,
+            Limit::TotalBytes => o.max_total_bytes,
+            Limit::Triangles => o.max_triangles,
+            Limit::Lights => o.max_lights,
+            Limit::Texels => o.max_texels,
+            Limit::Nodes => o.max_nodes,
+            Limit::Instances => o.max_instances,
+        }
+    }
+
+    /// Checks that `n` more of `limit` fit, without counting them.
+    pub(crate) fn check(&self, limit: Limit, n: u64, file: &str) -> Result<()> {
+        let total = self.used[Self::slot(limit)].saturating_add(n);
+        let max = self.max(limit);
+        if total > max {
+            return Err(Error::LimitExceeded {
+                file: file.to_owned(),
+                limit,
+                count: total,
+                max,
+            });
+        }
+        Ok(())
+    }
+
+    /// Counts `n` more of `limit`, or fails if the total would pass its bound.
+    pub(crate) fn add(&mut self, limit: Limit, n: u64, file: &str) -> Result<()> {
+        self.check(limit, n, file)?;
+        let slot = Self::slot(limit);
+        self.used[slot] = self.used[slot].saturating_add(n);
+        Ok(())
+    }
+
+    /// Reads the regular file at `path` (see [`read_regular_file`]) and counts its bytes.
+    pub(crate) fn read(&mut self, path: &Path) -> Result<Vec<u8>> {
+        let remaining = self.max(Limit::TotalBytes).saturating_sub(self.used[1]);
+        let limit = self.options.max_file_bytes.min(remaining);
+        let which = if limit < self.options.max_file_bytes {
+            Limit::TotalBytes
+        } else {
+            Limit::FileBytes
+        };
+        let bytes = read_regular_file(path, limit).map_err(|e| match e {
+            Error::LimitExceeded { file, count, .. } if which == Limit::TotalBytes => {
+                Error::LimitExceeded {
+                    file,
+                    limit: which,
+                    count: self.used[1].saturating_add(count),
+                    max: self.max(Limit::TotalBytes),
+                }
+            }
+            e => e,
+        })?;
+        self.add(
+            Limit::TotalBytes,
+            bytes.len() as u64,
+            &path.display().to_string(),
+        )?;
+        Ok(bytes)
+    }
+}
+
+/// Why a file could not be read (other than a limit).
+fn io_error(path: &Path, e: &std::io::Error) -> Error {
+    Error::FileRead {
+        path: path.display().to_string(),
+        problem: e.to_string(),
+    }
+}
+
+/// Reads the regular file at `path`, at most `max_bytes` of it.
+///
+/// A path that is not a regular file (directory, device, FIFO, socket; symbolic links are
+/// followed) is an [`Error::NotRegularFile`], decided before opening it. A file longer than
+/// `max_bytes` is an [`Error::LimitExceeded`] for [`Limit::FileBytes`]: the read takes at most
+/// `max_bytes + 1` bytes, so a file that grows meanwhile cannot make it read more.
+pub(crate) fn read_regular_file(path: &Path, max_bytes: u64) -> Result<Vec<u8>> {
+    let shown = || path.display().to_string();
+    let not_regular = || Error::NotRegularFile { path: shown() };
+    let too_large = |count: u64| Error::LimitExceeded {
+        file: shown(),
+        limit: Limit::FileBytes,
+        count,
+        max: max_bytes,
+    };
+    let metadata = std::fs::metadata(path).map_err(|e| io_error(path, &e))?;
+    if !metadata.is_file() {
+        return Err(not_regular());
+    }
+    if metadata.len() > max_bytes {
+        return Err(too_large(metadata.len()));
+    }
+    let mut open = std::fs::OpenOptions::new();
+    open.read(true);
+    #[cfg(unix)]
+    {
+        // Non-blocking, so that a FIFO put in the file's place after the check above cannot
+        // block the open; reads from a regular file are unaffected.
+        use std::os::unix::fs::OpenOptionsExt;
+        open.custom_flags(libc::O_NONBLOCK);
+    }
+    let file = open.open(path).map_err(|e| io_error(path, &e))?;
+    let metadata = file.metadata().map_err(|e| io_error(path, &e))?;
+    if !metadata.is_file() {
+        return Err(not_regular());
+    }
+    let mut bytes = Vec::new();
+    // The size is bounded by `max_bytes` above; a failed reservation is an error, not an abort.
+    bytes
+        .try_reserve_exact(metadata.len() as usize)
+        .map_err(|e| Error::FileRead {
+            path: shown(),
+            problem: format!("cannot allocate {} bytes: {e}", metadata.len()),
+        })?;
+    file.take(max_bytes.saturating_add(1))
+        .read_to_end(&mut bytes)
+        .map_err(|e| io_error(path, &e))?;
+    if bytes.len() as u64 > max_bytes {
+        return Err(too_large(bytes.len() as u64));
+    }
+    Ok(bytes)
+}
+
+/// The canonical folder of the file at `file` (its parent, or `.`).
+pub(crate) fn folder_of(file: &Path) -> Result<PathBuf> {
+    let dir = match file.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    };
+    dir.canonicalize().map_err(|e| io_error(dir, &e))
+}
+
+/// Reads the file that `named` (a path written at `field` of the file `file`) names, relative
+/// to `folder` (the canonical folder of `file`) and confined to it unless the options allow
+/// otherwise, and counts its bytes. Returns the path read and its bytes.
+pub(crate) fn read_named(
+    budget: &mut Budget,
+    folder: &Path,
+    named: &Path,
+    file: &str,
+    field: &str,
+) -> Result<(PathBuf, Vec<u8>)> {
+    match resolve(folder, named, budget.options.allow_outside) {
+        Resolved::Path(path) => {
+            let bytes = budget.read(&path)?;
+            Ok((path, bytes))
+        }
+        Resolved::Outside => Err(Error::PathOutsideFolder {
+            file: file.to_owned(),
+            field: field.to_owned(),
+            target: named.display().to_string(),
+        }),
+    }
+}
+
+/// Where a path named inside a file leads.
+pub(crate) enum Resolved {
+    /// Inside the folder (or anywhere, when allowed): the path to read.
+    Path(PathBuf),
+    /// Outside the folder, whether or not the target exists.
+    Outside,
+}
+
+/// One step of a path being resolved.
+enum Part {
+    Parent,
+    Name(std::ffi::OsString),
+}
+
+/// `path`'s steps, or `None` if it is absolute and not under `folder` (or has a prefix).
+fn parts(path: &Path, folder: &Path) -> Option<Vec<Part>> {
+    let relative = if path.has_root() {
+        path.strip_prefix(folder).ok()?
+    } else {
+        path
+    };
+    let mut out = Vec::new();
+    for c in relative.components() {
+        match c {
+            Component::Prefix(_) | Component::RootDir => return None,
+            Component::CurDir => {}
+            Component::ParentDir => out.push(Part::Parent),
+            Component::Normal(name) => out.push(Part::Name(name.to_owned())),
+        }
+    }
+    Some(out)
+}
+
+/// Resolves `named` (a path written inside a file) against `folder` (that file's canonical
+/// folder).
+///
+/// With `allow_outside` it is `folder.join(named)`. Otherwise the path is walked one component
+/// at a time from `folder`, following symbolic links and `..`, and is [`Resolved::Outside`] as
+/// soon as it leaves the folder (an absolute path, or a link to one, counts as inside only when
+/// it starts with `folder`). Only paths inside the folder are ever looked at on disk, so the
+/// outcome cannot depend on what exists outside it: an outside target is `Outside` whether it
+/// exists or not. A component that does not exist ends the look-ups, and the rest is applied
+/// as written. More than 40 links (a loop) also count as `Outside`.
+pub(crate) fn resolve(folder: &Path, named: &Path, allow_outside: bool) -> Resolved {
+    if allow_outside {
+        return Resolved::Path(folder.join(named));
+    }
+    let Some(mut pending) = parts(named, folder) else {
+        return Resolved::Outside;
+    };
+    pending.reverse();
+    let mut current = folder.to_path_buf();
+    let mut missing = false;
+    let mut hops = 0;
+    while let Some(part) = pending.pop() {
+        match part {
+            Part::Parent => {
+                if current == folder {
+                    return Resolved::Outside;
+                }
+                current.pop();
+            }
+            Part::Name(name) => {
+                current.push(name);
+                if missing {
+                    continue;
+                }
+                match std::fs::symlink_metadata(&current) {
+                    Ok(m) if m.file_type().is_symlink() => {
+                        hops += 1;
+                        let target = match std::fs::read_link(&current) {
+                            Ok(target) if hops <= 40 => target,
+                            _ => return Resolved::Outside,
+                        };
+                        current.pop();
+                        if target.has_root() {
+                            current = folder.to_path_buf();
+                        }
+                        let Some(steps) = parts(&target, folder) else {
+                            return Resolved::Outside;
+                        };
+                        pending.extend(steps.into_iter().rev());
+                    }
+                    Ok(_) => {}
+                    Err(_) => missing = true,
+                }
+            }
+        }
+    }
+    if current.starts_with(folder) {
+        Resolved::Path(current)
+    } else {
+        Resolved::Outside
+    }
+}
