@@ -619,3 +619,53 @@ fn g_random_scenes_against_the_reference() {
         failed.join("\n")
     );
 }
+
+/// Exact mode at ½ and ¼ resolution with the existing upsample filters, eye in a shadow:
+/// the bound is the reduced-resolution one of the hybrid's tests (RMSE ≤ 3% of the mean),
+/// and at ½ the 3×3 filter must stay within 1% (measured 0.1–0.3%).
+#[test]
+fn reduced_resolution_with_the_upsample_filters() {
+    use volshadow::nodes::{Scale, UpsampleFilter};
+    let gpu = common::gpu();
+    let cache = Cache::new(&gpu.device);
+    let mut scene = MeshScene {
+        ground: Some(0.0),
+        ..Default::default()
+    };
+    scene.add(shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.6, 24, 12));
+    let light = point_light(Vec3::new(0.4, 4.2, -0.3));
+    let camera = look_at(Vec3::new(0.05, 0.9, 0.1), Vec3::new(2.0, 0.6, 3.0), 60.0);
+    assert!(eye_in_shadow(&scene, &camera, &light));
+    let medium = haze();
+    let base = Shot::new(&scene, &camera, &light, &medium, 128);
+    let reference = base.reference();
+    let separable = UpsampleFilter::Separable {
+        taps: 7,
+        sigma_spatial: 1.5,
+        sigma_depth: 0.05,
+    };
+    for (scale, filter, bound) in [
+        (Scale::Half, UpsampleFilter::DepthAware3x3, 0.01),
+        (Scale::Half, separable, 0.03),
+        (Scale::Quarter, UpsampleFilter::DepthAware3x3, 0.03),
+        (Scale::Quarter, separable, 0.03),
+    ] {
+        let shot = Shot {
+            filter,
+            ..Shot::new(&scene, &camera, &light, &medium, 128)
+        };
+        let m = shot.measure(&gpu, &cache, MarchSettings { scale, ..exact() }, &reference);
+        println!(
+            "exact at 1/{} with {filter:?}: {}",
+            scale.divisor(),
+            m.errors
+        );
+        assert_eq!(m.errors.non_finite, 0);
+        assert!(
+            m.errors.rmse <= bound,
+            "1/{}: {}",
+            scale.divisor(),
+            m.errors
+        );
+    }
+}

@@ -433,3 +433,33 @@ fn report_runs_every_kind_of_configuration_and_writes_its_files() {
     println!("sphere 48x48 p95: hybrid 8 {hybrid:.4}, brute force 16 {brute:.4}, floor {floor:.4}");
     assert!(hybrid < 0.02 && hybrid < brute && brute < floor);
 }
+
+/// The report's reference cache is keyed by every source the reference depends on: the files
+/// the old hand-written list missed (the BVH, the JSON layer, the scene types) are in it, and
+/// every listed file exists (a renamed file would otherwise silently drop out of the key).
+#[test]
+fn report_cache_key_covers_the_reference_sources() {
+    let sources = common_examples::report::reference_sources();
+    let names: Vec<String> = sources
+        .iter()
+        .map(|p| p.to_string_lossy().replace('\\', "/"))
+        .collect();
+    for needed in [
+        "src/reference/bvh.rs",
+        "src/scene_file/json.rs",
+        "src/scene/shapes.rs",
+        "src/scene/medium.rs",
+        "src/scene/light.rs",
+        "src/scene/camera.rs",
+        "src/scene/mesh.rs",
+        "examples/common/render_scene.rs",
+    ] {
+        assert!(
+            names.iter().any(|n| n.ends_with(needed)),
+            "{needed} is not in the reference cache key: {names:?}"
+        );
+    }
+    for p in &sources {
+        assert!(p.is_file(), "{} does not exist", p.display());
+    }
+}

@@ -1001,22 +1001,38 @@ fn cached_reference(
     Ok(image)
 }
 
-/// FNV-1a over the scene file, the size and the reference's own source (a change to the
-/// integrator or the scene loader invalidates the cache).
+/// The source files the reference images depend on: the integrator, the scene types, the
+/// scene-file and glTF loaders and the ray caster that finds each pixel's surface. Whole
+/// folders are listed at run time, so a file added to them cannot be forgotten.
+pub fn reference_sources() -> Vec<std::path::PathBuf> {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut files = Vec::new();
+    for dir in ["src/reference", "src/scene", "src/scene_file"] {
+        if let Ok(entries) = std::fs::read_dir(root.join(dir)) {
+            files.extend(
+                entries
+                    .filter_map(|e| e.ok().map(|e| e.path()))
+                    .filter(|p| p.extension().is_some_and(|x| x == "rs")),
+            );
+        }
+    }
+    for file in [
+        "src/gltf.rs",
+        "src/load.rs",
+        "src/error.rs",
+        "examples/common/render_scene.rs",
+        "examples/common/gltf_scene.rs",
+    ] {
+        files.push(root.join(file));
+    }
+    files.sort();
+    files
+}
+
+/// FNV-1a over the scene file, the size and every source the reference depends on
+/// ([`reference_sources`]): a change to the integrator or the scene loader invalidates the
+/// cache.
 fn reference_key(scene_file: &[u8], (w, h): (u32, u32)) -> u64 {
-    const SOURCES: [&str; 11] = [
-        include_str!("../../src/reference/mod.rs"),
-        include_str!("../../src/reference/cone.rs"),
-        include_str!("../../src/reference/occluder.rs"),
-        include_str!("../../src/reference/phase.rs"),
-        include_str!("../../src/reference/quadrature.rs"),
-        include_str!("../../src/reference/texture.rs"),
-        include_str!("../../src/reference/visibility.rs"),
-        include_str!("../../src/scene_file/mod.rs"),
-        include_str!("../../src/scene_file/parse.rs"),
-        include_str!("../../src/scene_file/glass.rs"),
-        include_str!("../../src/scene/shapes.rs"),
-    ];
     let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
     let mut eat = |bytes: &[u8]| {
         for &b in bytes {
@@ -1027,8 +1043,10 @@ fn reference_key(scene_file: &[u8], (w, h): (u32, u32)) -> u64 {
     eat(scene_file);
     eat(&w.to_le_bytes());
     eat(&h.to_le_bytes());
-    for source in SOURCES {
-        eat(source.as_bytes());
+    for source in reference_sources() {
+        eat(source.to_string_lossy().as_bytes());
+        // A missing file hashes as its name alone, which still differs from its contents.
+        eat(&std::fs::read(&source).unwrap_or_default());
     }
     hash
 }
