@@ -433,3 +433,60 @@ fn report_runs_every_kind_of_configuration_and_writes_its_files() {
     println!("sphere 48x48 p95: hybrid 8 {hybrid:.4}, brute force 16 {brute:.4}, floor {floor:.4}");
     assert!(hybrid < 0.02 && hybrid < brute && brute < floor);
 }
+
+/// The child of [`headless_runs_print_no_error_lines`]: what `render`'s `main` does, on the
+/// sphere scene at 32×32. Ignored in a normal run; the parent runs it in a fresh process.
+#[test]
+#[ignore = "run in a child process by headless_runs_print_no_error_lines"]
+fn headless_child_render() {
+    common_examples::headless_env::quiet_display_probe();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sphere.json");
+    let dir = TempDir::new("headless-child");
+    render_scene::run(&args(&[
+        scene.to_str().unwrap(),
+        "-o",
+        dir.0.join("sphere").to_str().unwrap(),
+        "--size",
+        "32x32",
+    ]))
+    .unwrap();
+}
+
+/// A run on a machine without a desktop session prints no line starting with `error:` unless
+/// something failed: Mesa's Vulkan device-selection layer used to make libwayland print
+/// `error: XDG_RUNTIME_DIR is invalid or not set in the environment.` twice per run
+/// (`examples/common/headless_env.rs`). The render runs in a child process, since the message
+/// is written by C code straight to the process's standard error.
+#[test]
+fn headless_runs_print_no_error_lines() {
+    let output = std::process::Command::new(std::env::current_exe().unwrap())
+        .args([
+            "headless_child_render",
+            "--exact",
+            "--ignored",
+            "--nocapture",
+            "--test-threads=1",
+        ])
+        // A headless machine: no session, no display, no device choice by the user.
+        .env_remove("XDG_RUNTIME_DIR")
+        .env_remove("WAYLAND_DISPLAY")
+        .env_remove("DISPLAY")
+        .env_remove("NODEVICE_SELECT")
+        .env_remove("MESA_VK_DEVICE_SELECT")
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    );
+    assert!(output.status.success(), "the child render failed:\n{text}");
+    assert!(
+        text.contains("1 passed"),
+        "the child ran no render:\n{text}"
+    );
+    let errors: Vec<&str> = text.lines().filter(|l| l.starts_with("error:")).collect();
+    println!("lines starting with \"error:\": {errors:?}");
+    // Nothing failed, so not one line may read as a failure.
+    assert!(errors.is_empty(), "{errors:?}\n{text}");
+}
