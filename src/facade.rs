@@ -67,6 +67,11 @@ impl Settings {
     /// resolution with [`plan::ERROR_TARGET_TEXTURE_STEPS`]. Everything else is
     /// [`Settings::default`]'s.
     /// A tolerance tighter than any measured configuration reaches is an error.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidSetting`] naming `error_target` for a tolerance that is not finite and
+    /// positive, or tighter than every measured configuration reaches.
     pub fn for_error_target(p95: f32) -> Result<Settings> {
         let picked = plan::for_error_target(p95)?;
         Ok(Settings {
@@ -159,6 +164,14 @@ pub struct VolumetricShadows {
 impl VolumetricShadows {
     /// Creates the composite for `settings.output_format` and validates the settings. Per-light
     /// nodes are created by the first frame that needs them.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidSetting`] or [`Error::NonFinite`] naming the field of `settings` that is out
+    /// of range (upsample taps and sigmas, error target, cull threshold), and
+    /// [`Error::InvalidTexture`] when `output_format` is not a renderable colour format. The
+    /// per-light settings are checked by the first [`prepare`](Self::prepare) that needs them.
+    /// See the [crate-level example](crate#example).
     pub fn new(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
@@ -186,6 +199,11 @@ impl VolumetricShadows {
     }
 
     /// Changes the settings (validated; the output format must stay the same).
+    ///
+    /// # Errors
+    ///
+    /// As [`VolumetricShadows::new`], and [`Error::InvalidSetting`] for a different
+    /// `output_format`.
     pub fn set_settings(&mut self, settings: Settings) -> Result<()> {
         validate(&settings)?;
         if settings.output_format != self.settings.output_format {
@@ -203,6 +221,21 @@ impl VolumetricShadows {
     }
 
     /// Validates the frame, uploads what changed, and plans the passes. Records nothing.
+    ///
+    /// # Errors
+    ///
+    /// Nothing is recorded and the previous plan is kept on any error:
+    ///
+    /// * [`Error::InvalidSetting`] naming `lights` for more than [`MAX_LIGHTS`](crate::nodes::MAX_LIGHTS) lights;
+    /// * [`Error::InvalidTexture`] naming `scene_color`, `scene_depth` or a light texture for a
+    ///   wrong format, usage, layer count or size (colour and depth must be the same size);
+    /// * [`Error::InvalidSize`] for a frame larger than the device's texture limits;
+    /// * [`Error::NonFinite`] or [`Error::SingularMatrix`] for an occluder's transform;
+    /// * on the first frame that creates a light's nodes, [`Error::InvalidSize`] for a shadow-map
+    ///   resolution or table size out of range and [`Error::InvalidSetting`] for march steps or
+    ///   bisections out of range (see [`Settings`]).
+    ///
+    /// See the [crate-level example](crate#example) for a frame that passes.
     pub fn prepare(
         &mut self,
         device: &wgpu::Device,
@@ -378,6 +411,12 @@ impl VolumetricShadows {
     /// Records the planned passes into `encoder` and the composite into `output` (a view of a
     /// `RENDER_ATTACHMENT` texture of the settings' output format, the frame's size, not one of
     /// its inputs). Never submits.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidTexture`] naming `output` when its texture is not a `RENDER_ATTACHMENT` of
+    /// the settings' output format and the prepared frame's size, or is one of the frame's inputs.
+    /// Call [`prepare`](Self::prepare) first; see the [crate-level example](crate#example).
     pub fn encode(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
@@ -399,6 +438,11 @@ impl VolumetricShadows {
     /// that submit each pass on its own and time the submission — the way to time passes on
     /// a CPU adapter such as lavapipe, whose timestamps do not bracket compute work. Steps
     /// must be recorded in plan order within a frame; each reads what earlier steps wrote.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidSetting`] naming `index` when it is not a step of the plan, and those of
+    /// [`encode`](Self::encode).
     pub fn encode_step(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
@@ -469,6 +513,10 @@ impl VolumetricShadows {
     /// GPU time per pass of the last submitted frame (timestamp queries; empty when the device
     /// lacks `TIMESTAMP_QUERY`: time the submission with the wall clock then). Blocks until
     /// the GPU is done.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::Readback`] when mapping the query buffer fails.
     pub fn read_timings(&self, device: &wgpu::Device) -> Result<Vec<PassTime>> {
         match &self.timer {
             Some(t) => t.read(device),

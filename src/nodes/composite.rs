@@ -59,6 +59,10 @@ struct Bound {
 impl CompositeNode {
     /// A composite writing `output_format`, which must be a colour format usable as a render
     /// attachment on every device (e.g. `Rgba16Float`, `Rgba8UnormSrgb`).
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidTexture`] when `output_format` is a depth format or not renderable.
     pub fn new(
         device: &wgpu::Device,
         cache: &Cache,
@@ -99,6 +103,12 @@ impl CompositeNode {
     }
 
     /// Validates the inputs and uploads what changed.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidTexture`] naming the input (`scene_color`, `scene_depth`, an in-scatter
+    /// texture) for a wrong format, usage, layer count or size, and [`Error::InvalidSetting`] for
+    /// more lights than the composite takes.
     pub fn prepare(
         &mut self,
         device: &wgpu::Device,
@@ -186,6 +196,11 @@ impl CompositeNode {
 
     /// Records the composite into `output` (see the module docs for what it must be).
     /// Errors, recording nothing, if `output` does not fit or `prepare` has not succeeded.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidTexture`] naming `output` when the view's texture has another format or size
+    /// than prepared, lacks `RENDER_ATTACHMENT`, or is one of the composite's inputs.
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,

@@ -116,6 +116,11 @@ impl ExtentsNode {
 
     /// Uploads the occluders' transforms, the light and the camera, and (re)creates the targets
     /// when `width × height` changed.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidSize`] for a size beyond the device's limits, and [`Error::NonFinite`] or
+    /// [`Error::SingularMatrix`] for an occluder's transform.
     pub fn prepare(
         &mut self,
         device: &wgpu::Device,

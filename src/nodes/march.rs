@@ -180,6 +180,11 @@ struct Bound {
 
 impl MarchNode {
     /// Creates the node; textures are allocated by the first [`prepare`](Self::prepare).
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidSetting`] naming the field for steps or texture steps outside `1..=4096`
+    /// or more than 16 bisections.
     pub fn new(device: &wgpu::Device, cache: &Cache, settings: MarchSettings) -> Result<Self> {
         settings.validate()?;
         let sampled = wgpu::TextureUsages::TEXTURE_BINDING;
@@ -237,6 +242,10 @@ impl MarchNode {
     }
 
     /// Changes the settings (validated); takes effect at the next `prepare`.
+    ///
+    /// # Errors
+    ///
+    /// As [`MarchNode::new`].
     pub fn set_settings(&mut self, settings: MarchSettings) -> Result<()> {
         settings.validate()?;
         self.settings = settings;
@@ -245,6 +254,12 @@ impl MarchNode {
 
     /// Validates the inputs, (re)creates the outputs when the size changed, and uploads the
     /// uniforms that changed.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidTexture`] naming the input (`scene_depth`, `shadow_map`, `extents`,
+    /// the light texture) for a wrong format, usage, layer count or size, or a texture on a light
+    /// that is not a spot; [`Error::InvalidSize`] for a size beyond the device's limits.
     pub fn prepare(
         &mut self,
         device: &wgpu::Device,

@@ -29,6 +29,12 @@ impl LightTexture {
     pub const MAX_SIZE: u32 = 8192;
 
     /// A texture of `width × height` texels (row-major, top row first; finite, ≥ 0).
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidSize`] unless both sides are in `1..=MAX_SIZE`, [`Error::InvalidTexture`] when
+    /// `texels.len()` is not `width × height`, [`Error::NonFinite`] or [`Error::Negative`] for a bad
+    /// texel.
     pub fn new(width: u32, height: u32, texels: Vec<Vec3>) -> Result<Self> {
         if width == 0 || height == 0 || width > Self::MAX_SIZE || height > Self::MAX_SIZE {
             return Err(Error::InvalidSize {
@@ -56,6 +62,11 @@ impl LightTexture {
     }
 
     /// A `cells × cells` checkerboard of two colours, `size × size` texels.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidSize`] unless `1 <= size <= MAX_SIZE`, or a non-finite or negative colour
+    /// (as [`LightTexture::new`]).
     pub fn checkerboard(size: u32, cells: u32, a: Vec3, b: Vec3) -> Result<Self> {
         let cells = cells.max(1);
         let texels = (0..size * size)
@@ -72,6 +83,11 @@ impl LightTexture {
     }
 
     /// Loads an image file (PNG) as sRGB-encoded colour and converts it to linear RGB.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidTexture`] naming the file when it cannot be read or decoded, and
+    /// [`Error::InvalidSize`] for an image larger than `MAX_SIZE`.
     #[cfg(feature = "image")]
     pub fn from_image_file(path: impl AsRef<std::path::Path>) -> Result<Self> {
         let path = path.as_ref();

@@ -255,6 +255,11 @@ impl Method {
 impl SceneDescription {
     /// Reads and validates a scene file. Relative paths inside it (light texture files, glTF
     /// files) are resolved against the file's folder.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::SceneFile`] naming the file, the JSON field and the problem (unreadable file, bad
+    /// JSON, unknown or missing field, a value out of range, an unreadable texture or glTF file).
     pub fn load(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
         let shown = path.display().to_string();
@@ -269,6 +274,10 @@ impl SceneDescription {
 
     /// Parses and validates a scene from JSON text; relative paths inside it resolve against
     /// `base_dir`. Errors name the path `<string>`.
+    ///
+    /// # Errors
+    ///
+    /// As [`SceneDescription::load`], with the path `<string>`.
     pub fn from_json(text: &str, base_dir: &Path) -> Result<Self> {
         Self::parse(text, base_dir, "<string>")
     }
