@@ -12,6 +12,8 @@ use crate::plan::{self, Culled, FrameFacts, LightFacts, Pass, Plan};
 use crate::scene::{Camera, Light, Medium};
 
 /// Everything that is fixed for a `VolumetricShadows` (change it with [`VolumetricShadows::set_settings`]).
+///
+/// Used in the [crate-level example](crate#example).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Settings {
     /// Method, steps, bisections and scattering resolution of the march.
@@ -107,6 +109,8 @@ impl Default for Settings {
 
 /// A light of the frame, with an optional texture for a spot light (any filterable format,
 /// `TEXTURE_BINDING`, e.g. from [`LightTexture::upload`](crate::scene::LightTexture::upload)).
+///
+/// Used in the [crate-level example](crate#example).
 #[derive(Clone, Copy)]
 pub struct FrameLight<'a> {
     /// The light.
@@ -125,6 +129,8 @@ impl From<Light> for FrameLight<'_> {
 }
 
 /// One frame's scene and the caller's rendered frame.
+///
+/// Used in the [crate-level example](crate#example).
 #[derive(Clone, Copy)]
 pub struct Frame<'a> {
     /// The camera the frame was rendered with.
@@ -152,6 +158,8 @@ struct LightSlot {
 }
 
 /// Volumetric shadows for a view: prepare a frame, then record it into the caller's encoder.
+///
+/// Used in the [crate-level example](crate#example).
 pub struct VolumetricShadows {
     cache: Cache,
     settings: Settings,

@@ -119,6 +119,8 @@ pub struct Culled {
 }
 
 /// What a frame records and why the rest is left out. `Display` prints it as a table.
+///
+/// Used in the [crate-level example](crate#example).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Plan {
     /// Passes that run, in recording order.

@@ -11,6 +11,8 @@ use crate::error::{finite, Error, Result};
 /// eye distances are recovered through the inverse projection. The depth value of the far end
 /// (what the caller clears its depth buffer to, `1.0` standard or `0.0` reversed) is detected
 /// from the matrix; pixels holding it are sky and integrate to infinity.
+///
+/// Used in the [crate-level example](crate#example).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Camera {
     view: Mat4,

@@ -5,6 +5,8 @@ use glam::Vec3;
 use crate::error::{finite, non_negative, Error, Result};
 
 /// An isotropic point light: radiant intensity `intensity` (RGB, per steradian) at `position`.
+///
+/// Used in the [crate-level example](crate#example).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PointLight {
     position: Vec3,
@@ -14,6 +16,8 @@ pub struct PointLight {
 impl PointLight {
     /// A point light. The position must be finite; the intensity finite, non-negative and
     /// non-zero in at least one channel.
+    ///
+    /// Used in the [crate-level example](crate#example).
     ///
     /// # Errors
     ///
@@ -115,6 +119,8 @@ impl SpotLight {
 }
 
 /// Any light the crate renders.
+///
+/// Used in the [crate-level example](crate#example).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[non_exhaustive]
 pub enum Light {

@@ -9,6 +9,8 @@ use crate::error::{finite, non_negative, Error, Result};
 /// integral over the sphere is 1 (isotropic = 1/(4π)).
 ///
 /// Validated by [`Medium::new`] (and [`PhaseFunction::validate`]).
+///
+/// Used in the [crate-level example](crate#example).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[non_exhaustive]
 pub enum PhaseFunction {
@@ -80,6 +82,8 @@ impl PhaseFunction {
 
 /// A homogeneous participating medium. σs (scattering) and σa (absorption) are per world unit
 /// and per RGB channel; the extinction σt = σs + σa attenuates, σs alone scatters.
+///
+/// Used in the [crate-level example](crate#example).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Medium {
     sigma_s: Vec3,
@@ -90,6 +94,8 @@ pub struct Medium {
 impl Medium {
     /// A medium with scattering `sigma_s`, absorption `sigma_a` (both ≥ 0 and finite, per
     /// channel) and a phase function.
+    ///
+    /// Used in the [crate-level example](crate#example).
     ///
     /// # Errors
     ///

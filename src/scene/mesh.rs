@@ -103,6 +103,8 @@ impl Mesh {
     /// A mesh from `positions` and a triangle list `indices` (three per triangle,
     /// counter-clockwise seen from outside). Both are copied; the caller's data is not touched.
     ///
+    /// Used in the [crate-level example](crate#example).
+    ///
     /// # Errors
     ///
     /// Checked in this order: [`Error::EmptyMesh`] (no positions or no indices),
