@@ -119,7 +119,8 @@ impl ExtentsNode {
     ///
     /// # Errors
     ///
-    /// [`Error::InvalidSize`](crate::Error::InvalidSize) for a size beyond the device's limits, and [`Error::NonFinite`](crate::Error::NonFinite) or
+    /// [`Error::InvalidSize`](crate::Error::InvalidSize) for a size beyond the device's
+    /// limits, and [`Error::NonFinite`](crate::Error::NonFinite) or
     /// [`Error::SingularMatrix`](crate::Error::SingularMatrix) for an occluder's transform.
     pub fn prepare(
         &mut self,
