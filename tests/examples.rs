@@ -383,7 +383,23 @@ fn gltf_renders_a_box() {
     .unwrap();
     let image = image::open(&png).unwrap();
     assert_eq!((image.width(), image.height()), (SIZE, SIZE));
+    assert_eq!(rendered.png, png);
     assert_eq!(rendered.inscatter.len(), (SIZE * SIZE) as usize);
+    // The in-scatter EXR beside the PNG holds what the run returned (f32 of the f64 sums).
+    assert_eq!(rendered.inscatter_exr, dir.0.join("box.inscatter.exr"));
+    let exr = read_exr(&rendered.inscatter_exr);
+    for (e, r) in exr.iter().zip(&rendered.inscatter) {
+        assert_eq!(*e, r.as_vec3().to_array());
+    }
+    // The box is closed: 12 triangles, no boundary or non-manifold edge, tight extents.
+    assert_eq!(rendered.summaries.len(), 1);
+    let summary = &rendered.summaries[0];
+    println!("{summary}");
+    assert!(
+        summary.contains("\"Box\": 12 triangles, closed, 0 boundary and 0 non-manifold edges")
+            && summary.contains("tight"),
+        "{summary}"
+    );
     assert!(rendered
         .inscatter
         .iter()
@@ -551,4 +567,47 @@ fn headless_runs_print_no_error_lines() {
     println!("lines starting with \"error:\": {errors:?}");
     // Nothing failed, so not one line may read as a failure.
     assert!(errors.is_empty(), "{errors:?}\n{text}");
+}
+
+/// An open mesh (a box without its top face) and one with a non-manifold edge are reported
+/// as such, with conservative extents.
+#[cfg(feature = "gltf")]
+#[test]
+fn gltf_mesh_report_says_open_and_non_manifold() {
+    use common_examples::gltf_scene::mesh_report;
+    use volshadow::glam::{Mat4, Vec3};
+    use volshadow::scene::Mesh;
+    let corners: Vec<Vec3> = (0..8)
+        .map(|i| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32))
+        .collect();
+    // The closed box of `box_glb` less its +y face (triangles 3 and 4 of 6 faces · 2).
+    const BOX: [u32; 36] = [
+        0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6,
+        1, 3, 5, 3, 7, 5,
+    ];
+    let open: Vec<u32> = BOX[..18].iter().chain(&BOX[24..]).copied().collect();
+    // Three triangles sharing the edge 0-1: non-manifold.
+    let fan = [0, 1, 2, 1, 0, 4, 0, 1, 6];
+    for (indices, expected) in [
+        (
+            &open[..],
+            "10 triangles, open, 4 boundary and 0 non-manifold edges",
+        ),
+        (
+            &fan[..],
+            "3 triangles, open, 6 boundary and 1 non-manifold edges",
+        ),
+    ] {
+        let mesh = volshadow::gltf::GltfMesh {
+            name: Some("m".into()),
+            mesh: Mesh::new(&corners, indices).unwrap(),
+            transform: Mat4::IDENTITY,
+        };
+        let line = mesh_report(0, &mesh);
+        println!("{line}");
+        assert!(
+            line.contains(expected) && line.contains("conservative"),
+            "{line}"
+        );
+    }
 }
