@@ -6,22 +6,32 @@
 //! window (exposure, Reinhard, sRGB).
 //!
 //! ```text
-//! cargo run --release --example interactive
+//! cargo run --release --features window --example interactive
 //! ```
 //!
 //! Controls: the mouse moves the light (in a plane behind the spheres); M switches the march
 //! method (hybrid / brute force); Up / Down double / halve the steps (4 ..= 512); R cycles the
 //! scattering resolution (full, 1/2, 1/4); S toggles shadows (no occluders: the planner skips
-//! the shadow map and extents); Escape quits. The title shows the settings, the plan's passes
-//! run / skipped and the GPU time of volshadow's passes (timestamp queries, when the device has
-//! them; else the wall-clock frame time). It is printed to stdout once a second too.
+//! the shadow map and extents); V cycles the view: the frame, a split screen (left: the current
+//! method; right: the f64 reference), and the difference (per-pixel relative error of the
+//! in-scatter against the reference: black 0, blue 2%, yellow 5%, red 10% or more); Escape
+//! quits. The reference (`volshadow::reference`, exact sphere visibility) is computed in a
+//! background thread at 1/8 of the window's resolution for the current light and shadows, and
+//! recomputed when they change; it is sampled bilinearly, so its own resolution shows along
+//! shadow edges. The title shows the settings, the view (and whether the reference is current),
+//! the plan's passes run / skipped and the GPU time of each of volshadow's passes: timestamp
+//! queries when the device has them; else (a CPU adapter such as lavapipe) each pass is
+//! submitted alone and timed by the wall clock. It is printed to stdout once a second too.
 
 use std::error::Error;
+use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use volshadow::glam::{Mat4, Vec3};
+use volshadow::glam::{DVec3, Mat4, Vec3};
+use volshadow::gpu::PassTime;
 use volshadow::nodes::{MarchMethod, Scale};
+use volshadow::reference::{self, Sphere};
 use volshadow::scene::shapes;
 use volshadow::{
     Cache, Camera, Frame, FrameLight, Light, Medium, Occluder, OccluderMesh, PhaseFunction,
@@ -50,6 +60,132 @@ const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// How often the title is refreshed, and how often it is printed.
 const TITLE_EVERY: Duration = Duration::from_millis(250);
 const PRINT_EVERY: Duration = Duration::from_secs(1);
+/// The reference is computed at the window's size divided by this.
+const REFERENCE_DIVISOR: u32 = 8;
+
+/// What the window shows.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum View {
+    /// volshadow's output.
+    Frame,
+    /// Left half: volshadow's output; right half: the app's frame with the reference's
+    /// in-scatter.
+    Split,
+    /// Relative error of volshadow's in-scatter against the reference, as a heat map.
+    Difference,
+}
+
+impl View {
+    fn next(self) -> Self {
+        match self {
+            View::Frame => View::Split,
+            View::Split => View::Difference,
+            View::Difference => View::Frame,
+        }
+    }
+    fn name(self) -> &'static str {
+        match self {
+            View::Frame => "frame",
+            View::Split => "split: method | f64 reference",
+            View::Difference => "difference to the f64 reference",
+        }
+    }
+    /// The blit shader's mode.
+    fn mode(self) -> f32 {
+        match self {
+            View::Frame => 0.0,
+            View::Split => 1.0,
+            View::Difference => 2.0,
+        }
+    }
+}
+
+/// What a reference image was computed for: light position, shadows, window size.
+type ReferenceKey = ([u32; 3], bool, (u32, u32));
+
+/// A reference computation for the background thread.
+struct ReferenceJob {
+    key: ReferenceKey,
+    camera: Camera,
+    light: PointLight,
+    medium: Medium,
+    shadows: bool,
+    size: (u32, u32),
+}
+
+/// The f64 reference, computed in a background thread and uploaded when it arrives.
+struct ReferenceState {
+    jobs: Sender<ReferenceJob>,
+    results: Receiver<(ReferenceKey, (u32, u32), Vec<DVec3>)>,
+    /// The key of the job in flight, if any.
+    in_flight: Option<ReferenceKey>,
+    /// The uploaded image (`Rgba32Float`, low resolution), its key and its largest luminance.
+    texture: Option<(ReferenceKey, wgpu::Texture, f32)>,
+}
+
+impl ReferenceState {
+    fn new() -> Self {
+        let (jobs, job_receiver) = channel::<ReferenceJob>();
+        let (result_sender, results) = channel();
+        std::thread::spawn(move || {
+            while let Ok(mut job) = job_receiver.recv() {
+                // Only the newest request matters.
+                while let Ok(newer) = job_receiver.try_recv() {
+                    job = newer;
+                }
+                let image = reference_inscatter(&job);
+                if result_sender.send((job.key, job.size, image)).is_err() {
+                    break;
+                }
+            }
+        });
+        Self {
+            jobs,
+            results,
+            in_flight: None,
+            texture: None,
+        }
+    }
+
+    /// Whether the uploaded reference is for `key`.
+    fn is_current(&self, key: ReferenceKey) -> bool {
+        self.texture.as_ref().is_some_and(|(k, _, _)| *k == key)
+    }
+}
+
+/// The reference's in-scatter for `job`: the spheres as exact occluders, the app's ground
+/// plane and spheres as the surfaces that end each ray.
+fn reference_inscatter(job: &ReferenceJob) -> Vec<DVec3> {
+    let occluders: Vec<reference::Occluder> = if job.shadows {
+        SPHERES
+            .iter()
+            .map(|&(c, r)| reference::Occluder::Sphere(Sphere::new(c.as_dvec3(), f64::from(r))))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let distance = |o: DVec3, d: DVec3| {
+        let mut t = if d.y < 0.0 { -o.y / d.y } else { f64::INFINITY };
+        for &(c, r) in &SPHERES {
+            let oc = o - c.as_dvec3();
+            let b = oc.dot(d);
+            let disc = b * b - (oc.length_squared() - f64::from(r * r));
+            if disc >= 0.0 && -b - disc.sqrt() > 0.0 {
+                t = t.min(-b - disc.sqrt());
+            }
+        }
+        t
+    };
+    reference::inscatter_image(
+        &job.camera,
+        job.size.0,
+        job.size.1,
+        distance,
+        &job.medium,
+        &job.light,
+        &occluders,
+    )
+}
 
 fn main() {
     if let Err(e) = run() {
@@ -109,6 +245,7 @@ impl ApplicationHandler for App {
                         "m" => state.toggle_method(),
                         "r" => state.cycle_scale(),
                         "s" => state.shadows = !state.shadows,
+                        "v" => state.view = state.view.next(),
                         _ => {}
                     },
                     _ => {}
@@ -136,7 +273,9 @@ struct State {
     /// Whether volshadow's passes are timed on the GPU.
     timestamps: bool,
     scene: ScenePass,
-    blit: wgpu::RenderPipeline,
+    blit: Blit,
+    view: View,
+    reference: ReferenceState,
     /// `None` while minimised.
     targets: Option<Targets>,
     meshes: Vec<OccluderMesh>,
@@ -147,27 +286,29 @@ struct State {
     stats: Stats,
 }
 
-/// The per-size part: camera, offscreen targets, the blit's bind group.
+/// The per-size part: camera and offscreen targets.
+#[derive(Clone)]
 struct Targets {
     camera: Camera,
     color: wgpu::Texture,
     depth: wgpu::Texture,
     output: wgpu::Texture,
-    blit_bind_group: wgpu::BindGroup,
 }
 
 /// What the title shows, and when it was last refreshed / printed.
 struct Stats {
     passes_run: usize,
     passes_skipped: usize,
-    /// Sum of volshadow's pass times (None: no timestamp queries).
-    gpu_ms: Option<f64>,
+    /// GPU time of each of volshadow's passes in the last frame.
+    passes: Vec<PassTime>,
     last_frame: Instant,
     frame_ms: f64,
     last_title: Instant,
     last_print: Instant,
     /// The last error printed, so a persistent one is printed once.
     last_error: Option<String>,
+    /// Whether the uploaded reference is for this frame's light, shadows and size.
+    reference_current: bool,
 }
 
 impl State {
@@ -251,7 +392,9 @@ impl State {
         let now = Instant::now();
         let mut state = Self {
             scene: ScenePass::new(&device),
-            blit: blit_pipeline(&device, format),
+            blit: Blit::new(&device, format),
+            view: View::Frame,
+            reference: ReferenceState::new(),
             window,
             surface,
             config,
@@ -267,12 +410,13 @@ impl State {
             stats: Stats {
                 passes_run: 0,
                 passes_skipped: 0,
-                gpu_ms: None,
+                passes: Vec::new(),
                 last_frame: now,
                 frame_ms: 0.0,
                 last_title: now,
                 last_print: now,
                 last_error: None,
+                reference_current: false,
             },
         };
         state.resize(size);
@@ -311,23 +455,11 @@ impl State {
                 view_formats: &[],
             })
         };
-        let output = texture("volshadow output", HDR);
-        let blit_bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("blit"),
-            layout: &self.blit.get_bind_group_layout(0),
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: wgpu::BindingResource::TextureView(
-                    &output.create_view(&Default::default()),
-                ),
-            }],
-        });
         self.targets = Some(Targets {
             camera,
             color: texture("scene colour", HDR),
             depth: texture("scene depth", DEPTH),
-            output,
-            blit_bind_group,
+            output: texture("volshadow output", HDR),
         });
         self.window.request_redraw();
     }
@@ -357,9 +489,12 @@ impl State {
 
     fn toggle_method(&mut self) {
         self.update_settings(|s| {
+            // The methods a user compares: exact → hybrid → brute force → textbook → exact.
             s.march.method = match s.march.method {
+                MarchMethod::Exact => MarchMethod::Hybrid,
                 MarchMethod::Hybrid => MarchMethod::BruteForce,
-                MarchMethod::BruteForce => MarchMethod::Hybrid,
+                MarchMethod::BruteForce => MarchMethod::Textbook,
+                _ => MarchMethod::Exact,
             }
         });
     }
@@ -390,7 +525,7 @@ impl State {
     }
 
     fn render(&mut self) {
-        let Some(targets) = &self.targets else {
+        let Some(targets) = self.targets.clone() else {
             return;
         };
         let (surface_texture, suboptimal) = match self.surface.get_current_texture() {
@@ -410,13 +545,14 @@ impl State {
             Ok(l) => l,
             Err(e) => return self.report(&e),
         };
+        self.update_reference(&targets.camera, light);
 
         // The application's frame: colour and depth.
         let mut encoder = self.device.create_command_encoder(&Default::default());
         self.scene.encode(
             &self.queue,
             &mut encoder,
-            targets,
+            &targets,
             &light,
             &self.medium,
             self.shadows,
@@ -443,24 +579,42 @@ impl State {
             scene_color: &targets.color,
             scene_depth: &targets.depth,
         };
-        let result = self
-            .volumetric
-            .prepare(&self.device, &self.queue, &frame)
-            .map(|plan| (plan.steps.len(), plan.skipped.len()))
-            .and_then(|counts| {
-                self.volumetric.encode(&mut encoder, &targets.output)?;
-                Ok(counts)
-            });
-        match result {
-            Ok((run, skipped)) => {
-                self.stats.passes_run = run;
-                self.stats.passes_skipped = skipped;
-                self.stats.last_error = None;
-            }
+        let output = &targets.output;
+        let counts = match self.volumetric.prepare(&self.device, &self.queue, &frame) {
+            Ok(plan) => (plan.steps.len(), plan.skipped.len()),
             Err(e) => return self.report(&e),
+        };
+        let recorded = if self.timestamps {
+            // One submission; the passes are timed by timestamp queries.
+            self.volumetric.encode(&mut encoder, output)
+        } else {
+            // A CPU adapter (lavapipe): each pass submitted alone and timed by the wall clock.
+            self.queue.submit([encoder.finish()]);
+            encoder = self.device.create_command_encoder(&Default::default());
+            self.encode_each_pass_timed(output)
+        };
+        if let Err(e) = recorded {
+            return self.report(&e);
         }
+        self.stats.passes_run = counts.0;
+        self.stats.passes_skipped = counts.1;
+        self.stats.last_error = None;
 
-        // Tone map volshadow's output to the window.
+        // Tone map volshadow's output (or the comparison with the reference) to the window.
+        let reference = self
+            .reference
+            .texture
+            .as_ref()
+            .map(|(_, texture, max)| (texture, *max));
+        let bind_group = self.blit.bind_group(
+            &self.device,
+            &self.queue,
+            &targets,
+            self.volumetric.inscatter(0),
+            reference,
+            self.view,
+            &self.medium,
+        );
         {
             let view = surface_texture.texture.create_view(&Default::default());
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -479,8 +633,8 @@ impl State {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            pass.set_pipeline(&self.blit);
-            pass.set_bind_group(0, &targets.blit_bind_group, &[]);
+            pass.set_pipeline(&self.blit.pipeline);
+            pass.set_bind_group(0, &bind_group, &[]);
             pass.draw(0..3, 0..1);
         }
         self.queue.submit([encoder.finish()]);
@@ -494,7 +648,7 @@ impl State {
         // wall-clock time between frames.
         if self.timestamps {
             match self.volumetric.read_timings(&self.device) {
-                Ok(t) => self.stats.gpu_ms = Some(t.iter().map(|p| p.ms).sum()),
+                Ok(t) => self.stats.passes = t,
                 Err(e) => self.report(&e),
             }
         }
@@ -504,22 +658,129 @@ impl State {
         self.update_title(now);
     }
 
+    /// Records and submits each planned pass alone, timing each submission by the wall clock
+    /// (how passes are timed on a CPU adapter, whose timestamps do not bracket compute work).
+    fn encode_each_pass_timed(&mut self, output: &wgpu::Texture) -> volshadow::Result<()> {
+        let steps = self.volumetric.plan().steps.clone();
+        let mut passes = Vec::with_capacity(steps.len());
+        for (index, step) in steps.iter().enumerate() {
+            let mut encoder = self.device.create_command_encoder(&Default::default());
+            self.volumetric.encode_step(&mut encoder, output, index)?;
+            let start = Instant::now();
+            self.queue.submit([encoder.finish()]);
+            self.device
+                .poll(wgpu::PollType::wait_indefinitely())
+                .map_err(|e| volshadow::Error::Readback(e.to_string()))?;
+            passes.push(PassTime {
+                label: step.pass.name(),
+                ms: start.elapsed().as_secs_f64() * 1e3,
+            });
+        }
+        self.stats.passes = passes;
+        Ok(())
+    }
+
+    /// Uploads a reference that arrived, and asks for one for the current light, shadows and
+    /// size when a comparison is shown and none is current or being computed.
+    fn update_reference(&mut self, camera: &Camera, light: PointLight) {
+        while let Ok((key, (width, height), image)) = self.reference.results.try_recv() {
+            if self.reference.in_flight == Some(key) {
+                self.reference.in_flight = None;
+            }
+            let texels: Vec<[f32; 4]> = image
+                .iter()
+                .map(|c| [c.x as f32, c.y as f32, c.z as f32, 1.0])
+                .collect();
+            let max = image
+                .iter()
+                .map(|c| c.dot(DVec3::new(0.2126, 0.7152, 0.0722)) as f32)
+                .fold(0.0, f32::max);
+            let size = wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            };
+            let texture = self.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("f64 reference in-scatter"),
+                size,
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::Rgba32Float,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                view_formats: &[],
+            });
+            self.queue.write_texture(
+                texture.as_image_copy(),
+                bytemuck::cast_slice(&texels),
+                wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(width * 16),
+                    rows_per_image: Some(height),
+                },
+                size,
+            );
+            self.reference.texture = Some((key, texture, max));
+        }
+        let window = (self.config.width, self.config.height);
+        let key = (
+            self.light_position.to_array().map(f32::to_bits),
+            self.shadows,
+            window,
+        );
+        self.stats.reference_current = self.reference.is_current(key);
+        if self.view == View::Frame
+            || self.stats.reference_current
+            || self.reference.in_flight.is_some()
+        {
+            return;
+        }
+        let job = ReferenceJob {
+            key,
+            camera: *camera,
+            light,
+            medium: self.medium,
+            shadows: self.shadows,
+            size: (
+                (window.0 / REFERENCE_DIVISOR).max(1),
+                (window.1 / REFERENCE_DIVISOR).max(1),
+            ),
+        };
+        if self.reference.jobs.send(job).is_ok() {
+            self.reference.in_flight = Some(key);
+        }
+    }
+
     fn update_title(&mut self, now: Instant) {
         if now - self.stats.last_title < TITLE_EVERY {
             return;
         }
         self.stats.last_title = now;
         let s = self.volumetric.settings();
-        let time = match self.stats.gpu_ms {
-            Some(ms) => format!("GPU {ms:.2} ms, frame {:.1} ms", self.stats.frame_ms),
-            None => format!("frame {:.1} ms (wall clock)", self.stats.frame_ms),
+        let time = if self.stats.passes.is_empty() {
+            format!("frame {:.1} ms (wall clock)", self.stats.frame_ms)
+        } else {
+            let total: f64 = self.stats.passes.iter().map(|p| p.ms).sum();
+            let passes: Vec<String> = self
+                .stats
+                .passes
+                .iter()
+                .map(|p| format!("{} {:.2}", p.label, p.ms))
+                .collect();
+            format!(
+                "GPU {total:.2} ms: {} | frame {:.1} ms",
+                passes.join(", "),
+                self.stats.frame_ms
+            )
+        };
+        let view = match (self.view, self.stats.reference_current) {
+            (View::Frame, _) => String::new(),
+            (view, true) => format!(" | view: {}", view.name()),
+            (view, false) => format!(" | view: {} (reference computing)", view.name()),
         };
         let title = format!(
-            "volshadow: {}, {} steps, 1/{} res, shadows {} | {} passes run, {} skipped | {time}",
-            match s.march.method {
-                MarchMethod::Hybrid => "hybrid",
-                MarchMethod::BruteForce => "brute force",
-            },
+            "volshadow: {}, {} steps, 1/{} res, shadows {}{view} | {} passes run, {} skipped | {time}",
+            s.march.method,
             s.march.steps,
             s.march.scale.divisor(),
             if self.shadows { "on" } else { "off" },
@@ -681,50 +942,212 @@ impl ScenePass {
     }
 }
 
-/// The tone-mapping blit: exposure and Reinhard; sRGB-encoded in the shader only when the
-/// swapchain format does not do it (a non-sRGB 8-bit format; a float format takes linear).
-fn blit_pipeline(device: &wgpu::Device, format: wgpu::TextureFormat) -> wgpu::RenderPipeline {
-    let encode = !format.is_srgb()
-        && !matches!(
-            format,
-            wgpu::TextureFormat::Rgba16Float | wgpu::TextureFormat::Rgba32Float
-        );
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("blit"),
-        source: wgpu::ShaderSource::Wgsl(BLIT_WGSL.into()),
-    });
-    let constants = [("ENCODE_SRGB", if encode { 1.0 } else { 0.0 })];
-    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some("blit"),
-        layout: None,
-        vertex: wgpu::VertexState {
-            module: &module,
-            entry_point: Some("vs"),
-            compilation_options: Default::default(),
-            buffers: &[],
-        },
-        primitive: Default::default(),
-        depth_stencil: None,
-        multisample: Default::default(),
-        fragment: Some(wgpu::FragmentState {
-            module: &module,
-            entry_point: Some("fs"),
-            compilation_options: wgpu::PipelineCompilationOptions {
-                constants: &constants,
-                ..Default::default()
+/// The tone-mapping blit (exposure and Reinhard; sRGB-encoded in the shader only when the
+/// swapchain format does not do it: a non-sRGB 8-bit format; a float format takes linear), and
+/// the comparison views against the f64 reference.
+struct Blit {
+    pipeline: wgpu::RenderPipeline,
+    layout: wgpu::BindGroupLayout,
+    uniform: wgpu::Buffer,
+    /// Bound in place of a missing in-scatter or reference texture.
+    dummy: wgpu::Texture,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct BlitUniform {
+    world_from_clip: [f32; 16],
+    eye: [f32; 4],
+    sigma_t: [f32; 4],
+    /// Mode (0 frame, 1 split, 2 difference), split x in pixels, reference present (0 or 1),
+    /// the reference's largest luminance.
+    params: [f32; 4],
+    /// Reference width and height, window width and height.
+    sizes: [f32; 4],
+}
+
+impl Blit {
+    fn new(device: &wgpu::Device, format: wgpu::TextureFormat) -> Self {
+        let encode = !format.is_srgb()
+            && !matches!(
+                format,
+                wgpu::TextureFormat::Rgba16Float | wgpu::TextureFormat::Rgba32Float
+            );
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("blit"),
+            source: wgpu::ShaderSource::Wgsl(BLIT_WGSL.into()),
+        });
+        let texture = |binding, sample_type| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Texture {
+                sample_type,
+                view_dimension: wgpu::TextureViewDimension::D2,
+                multisampled: false,
             },
-            targets: &[Some(format.into())],
-        }),
-        multiview_mask: None,
-        cache: None,
-    })
+            count: None,
+        };
+        // Loaded, never filtered: Rgba32Float needs no optional feature.
+        let float = wgpu::TextureSampleType::Float { filterable: false };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("blit"),
+            entries: &[
+                texture(0, float),
+                texture(1, float),
+                texture(2, wgpu::TextureSampleType::Depth),
+                texture(3, float),
+                texture(4, float),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 5,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("blit"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let constants = [("ENCODE_SRGB", if encode { 1.0 } else { 0.0 })];
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("blit"),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: Default::default(),
+            depth_stencil: None,
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs"),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: &constants,
+                    ..Default::default()
+                },
+                targets: &[Some(format.into())],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let uniform = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("blit uniform"),
+            size: std::mem::size_of::<BlitUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let dummy = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("blit placeholder"),
+            size: wgpu::Extent3d {
+                width: 1,
+                height: 1,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba32Float,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
+        Self {
+            pipeline,
+            layout,
+            uniform,
+            dummy,
+        }
+    }
+
+    /// This frame's bind group, after writing its uniform: volshadow's output, the app's colour
+    /// and depth, volshadow's in-scatter and the reference (with its largest luminance).
+    #[allow(clippy::too_many_arguments)]
+    fn bind_group(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        targets: &Targets,
+        inscatter: Option<&wgpu::Texture>,
+        reference: Option<(&wgpu::Texture, f32)>,
+        view: View,
+        medium: &Medium,
+    ) -> wgpu::BindGroup {
+        let camera = &targets.camera;
+        let (width, height) = (targets.output.width(), targets.output.height());
+        let (reference_size, reference_max) =
+            reference.map_or(((1, 1), 0.0), |(t, max)| ((t.width(), t.height()), max));
+        let uniform = BlitUniform {
+            world_from_clip: camera.world_from_clip().to_cols_array(),
+            eye: camera.eye().extend(0.0).to_array(),
+            sigma_t: medium.sigma_t().extend(0.0).to_array(),
+            params: [
+                view.mode(),
+                (width / 2) as f32,
+                if reference.is_some() { 1.0 } else { 0.0 },
+                reference_max,
+            ],
+            sizes: [
+                reference_size.0 as f32,
+                reference_size.1 as f32,
+                width as f32,
+                height as f32,
+            ],
+        };
+        queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&uniform));
+        let view_of = |t: &wgpu::Texture| t.create_view(&Default::default());
+        let views = [
+            view_of(&targets.output),
+            view_of(&targets.color),
+            view_of(&targets.depth),
+            view_of(inscatter.unwrap_or(&self.dummy)),
+            view_of(reference.map_or(&self.dummy, |(t, _)| t)),
+        ];
+        let mut entries: Vec<wgpu::BindGroupEntry> = views
+            .iter()
+            .enumerate()
+            .map(|(i, v)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: wgpu::BindingResource::TextureView(v),
+            })
+            .collect();
+        entries.push(wgpu::BindGroupEntry {
+            binding: 5,
+            resource: self.uniform.as_entire_binding(),
+        });
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("blit"),
+            layout: &self.layout,
+            entries: &entries,
+        })
+    }
 }
 
 const BLIT_WGSL: &str = r#"
 override ENCODE_SRGB: bool = false;
 const EXPOSURE: f32 = 1.6;
 
+struct Blit {
+    world_from_clip: mat4x4<f32>,
+    eye: vec4<f32>,
+    sigma_t: vec4<f32>,
+    params: vec4<f32>,
+    sizes: vec4<f32>,
+}
+
 @group(0) @binding(0) var hdr: texture_2d<f32>;
+@group(0) @binding(1) var scene_color: texture_2d<f32>;
+@group(0) @binding(2) var scene_depth: texture_depth_2d;
+@group(0) @binding(3) var inscatter: texture_2d<f32>;
+@group(0) @binding(4) var reference_image: texture_2d<f32>;
+@group(0) @binding(5) var<uniform> u: Blit;
 
 @vertex fn vs(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
     let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
@@ -735,13 +1158,78 @@ fn srgb(v: vec3<f32>) -> vec3<f32> {
     return select(1.055 * pow(v, vec3<f32>(1.0 / 2.4)) - 0.055, 12.92 * v, v <= vec3<f32>(0.0031308));
 }
 
-@fragment fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
-    let c = EXPOSURE * max(textureLoad(hdr, vec2<i32>(p.xy), 0).rgb, vec3<f32>(0.0));
-    var v = c / (1.0 + c);
+fn tone(c: vec3<f32>) -> vec4<f32> {
+    let e = EXPOSURE * max(c, vec3<f32>(0.0));
+    var v = e / (1.0 + e);
     if (ENCODE_SRGB) {
         v = srgb(v);
     }
     return vec4<f32>(v, 1.0);
+}
+
+fn luminance(c: vec3<f32>) -> f32 {
+    return dot(c, vec3<f32>(0.2126, 0.7152, 0.0722));
+}
+
+// The low-resolution reference at window pixel p, bilinear between its pixel centres.
+fn reference_at(p: vec2<f32>) -> vec3<f32> {
+    let size = u.sizes.xy;
+    let q = p / u.sizes.zw * size - 0.5;
+    let q0 = floor(q);
+    let f = q - q0;
+    let last = vec2<i32>(size) - 1;
+    let i0 = clamp(vec2<i32>(q0), vec2<i32>(0), last);
+    let i1 = clamp(vec2<i32>(q0) + 1, vec2<i32>(0), last);
+    let a = textureLoad(reference_image, vec2<i32>(i0.x, i0.y), 0).rgb;
+    let b = textureLoad(reference_image, vec2<i32>(i1.x, i0.y), 0).rgb;
+    let c = textureLoad(reference_image, vec2<i32>(i0.x, i1.y), 0).rgb;
+    let d = textureLoad(reference_image, vec2<i32>(i1.x, i1.y), 0).rgb;
+    return mix(mix(a, b, f.x), mix(c, d, f.x), f.y);
+}
+
+// Relative error: black 0, blue 2%, yellow 5%, red 10% or more.
+fn heat(e: f32) -> vec3<f32> {
+    let blue = vec3<f32>(0.1, 0.2, 1.0);
+    let yellow = vec3<f32>(1.0, 0.9, 0.1);
+    let red = vec3<f32>(1.0, 0.1, 0.05);
+    if (e < 0.02) {
+        return blue * (e / 0.02);
+    }
+    if (e < 0.05) {
+        return mix(blue, yellow, (e - 0.02) / 0.03);
+    }
+    return mix(yellow, red, clamp((e - 0.05) / 0.05, 0.0, 1.0));
+}
+
+@fragment fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
+    let pixel = vec2<i32>(p.xy);
+    let mode = u.params.x;
+    if (mode < 0.5 || u.params.z < 0.5) {
+        return tone(textureLoad(hdr, pixel, 0).rgb);
+    }
+    if (mode < 1.5) {
+        let split = u.params.y;
+        if (abs(p.x - split) < 1.0) {
+            return vec4<f32>(1.0);
+        }
+        if (p.x < split) {
+            return tone(textureLoad(hdr, pixel, 0).rgb);
+        }
+        // The app's colour attenuated to the eye, plus the reference's in-scatter.
+        let color = textureLoad(scene_color, pixel, 0).rgb;
+        let z = textureLoad(scene_depth, pixel, 0);
+        let ndc = vec2<f32>(p.x / u.sizes.z * 2.0 - 1.0, 1.0 - p.y / u.sizes.w * 2.0);
+        let w = u.world_from_clip * vec4<f32>(ndc, z, 1.0);
+        let d = length(w.xyz / w.w - u.eye.xyz);
+        var t = exp(-u.sigma_t.xyz * d);
+        if (!(d < 1e30)) {
+            t = vec3<f32>(0.0);
+        }
+        return tone(color * t + reference_at(p.xy));
+    }
+    let g = luminance(textureLoad(inscatter, pixel, 0).rgb);
+    let r = luminance(reference_at(p.xy));
+    return vec4<f32>(heat(abs(g - r) / max(r, 0.01 * u.params.w)), 1.0);
 }
 "#;
 

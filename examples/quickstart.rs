@@ -11,6 +11,9 @@
 
 use std::time::Instant;
 
+#[path = "common/headless_env.rs"]
+mod headless_env;
+
 use volshadow::glam::{Mat4, Vec3};
 use volshadow::scene::shapes;
 use volshadow::{
@@ -130,6 +133,8 @@ pub fn run(
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
+    // No false `error: XDG_RUNTIME_DIR ...` line from Mesa's Vulkan layer when headless.
+    headless_env::quiet_display_probe();
     let output_path = std::env::args()
         .nth(1)
         .unwrap_or_else(|| "quickstart.png".into());

@@ -15,6 +15,7 @@
 mod common;
 
 fn main() {
+    common::headless_env::quiet_display_probe();
     let args: Vec<String> = std::env::args().skip(1).collect();
     if let Err(e) = common::render_scene::run(&args) {
         eprintln!("error: {e}");

@@ -12,6 +12,8 @@ use crate::plan::{self, Culled, FrameFacts, LightFacts, Pass, Plan};
 use crate::scene::{Camera, Light, Medium};
 
 /// Everything that is fixed for a `VolumetricShadows` (change it with [`VolumetricShadows::set_settings`]).
+///
+/// Used in the [crate-level example](crate#example).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Settings {
     /// Method, steps, bisections and scattering resolution of the march.
@@ -69,6 +71,11 @@ impl Settings {
     /// resolution with [`plan::ERROR_TARGET_TEXTURE_STEPS`]. Everything else is
     /// [`Settings::default`]'s.
     /// A tolerance tighter than any measured configuration reaches is an error.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidSetting`] naming `error_target` for a tolerance that is not finite and
+    /// positive, or tighter than every measured configuration reaches.
     pub fn for_error_target(p95: f32) -> Result<Settings> {
         let picked = plan::for_error_target(p95)?;
         Ok(Settings {
@@ -106,6 +113,8 @@ impl Default for Settings {
 
 /// A light of the frame, with an optional texture for a spot light (any filterable format,
 /// `TEXTURE_BINDING`, e.g. from [`LightTexture::upload`](crate::scene::LightTexture::upload)).
+///
+/// Used in the [crate-level example](crate#example).
 #[derive(Clone, Copy)]
 pub struct FrameLight<'a> {
     /// The light.
@@ -124,6 +133,8 @@ impl From<Light> for FrameLight<'_> {
 }
 
 /// One frame's scene and the caller's rendered frame.
+///
+/// Used in the [crate-level example](crate#example).
 #[derive(Clone, Copy)]
 pub struct Frame<'a> {
     /// The camera the frame was rendered with.
@@ -151,6 +162,8 @@ struct LightSlot {
 }
 
 /// Volumetric shadows for a view: prepare a frame, then record it into the caller's encoder.
+///
+/// Used in the [crate-level example](crate#example).
 pub struct VolumetricShadows {
     cache: Cache,
     settings: Settings,
@@ -166,6 +179,14 @@ pub struct VolumetricShadows {
 impl VolumetricShadows {
     /// Creates the composite for `settings.output_format` and validates the settings. Per-light
     /// nodes are created by the first frame that needs them.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidSetting`] or [`Error::NonFinite`] naming the field of `settings` that is out
+    /// of range (upsample taps and sigmas, error target, cull threshold), and
+    /// [`Error::InvalidTexture`] when `output_format` is not a renderable colour format. The
+    /// per-light settings are checked by the first [`prepare`](Self::prepare) that needs them.
+    /// See the [crate-level example](crate#example).
     pub fn new(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
@@ -195,6 +216,11 @@ impl VolumetricShadows {
 
     /// Changes the settings (validated; the output format must stay the same). The next
     /// `encode` needs a `prepare` with the new settings first.
+    ///
+    /// # Errors
+    ///
+    /// As [`VolumetricShadows::new`], and [`Error::InvalidSetting`] for a different
+    /// `output_format`.
     pub fn set_settings(&mut self, settings: Settings) -> Result<()> {
         validate(&settings)?;
         if settings.output_format != self.settings.output_format {
@@ -215,6 +241,24 @@ impl VolumetricShadows {
     /// Validates the frame, uploads what changed, and plans the passes. Records nothing. After
     /// an error, `encode` refuses to record until a `prepare` succeeds (it never records a frame
     /// mixing this one's uploads with the last one's).
+    ///
+    /// # Errors
+    ///
+    /// Nothing is recorded and the previous plan is kept on any error:
+    ///
+    /// * [`Error::InvalidSetting`] naming `lights` for more than [`MAX_LIGHTS`](crate::nodes::MAX_LIGHTS) lights;
+    /// * [`Error::InvalidTexture`] naming `scene_color`, `scene_depth` or a light texture for a
+    ///   wrong format, usage, layer count or size (colour and depth must be the same size);
+    /// * [`Error::InvalidSize`] for a frame larger than the device's texture limits;
+    /// * [`Error::NonFinite`], [`Error::SingularMatrix`] or [`Error::InvalidTransform`] for an
+    ///   occluder's transform;
+    /// * [`Error::DeviceLimitExceeded`] when the occluders' shadow volumes need a larger buffer
+    ///   than the device allows;
+    /// * on the first frame that creates a light's nodes, [`Error::InvalidSize`] for a shadow-map
+    ///   resolution or table size out of range and [`Error::InvalidSetting`] for march steps or
+    ///   bisections out of range (see [`Settings`]).
+    ///
+    /// See the [crate-level example](crate#example) for a frame that passes.
     pub fn prepare(
         &mut self,
         device: &wgpu::Device,
@@ -415,9 +459,13 @@ impl VolumetricShadows {
     /// a view does not tell its size, mip level or layer, so it could not be checked. Never
     /// submits.
     ///
-    /// Errors, recording nothing, without a successful [`prepare`](Self::prepare) of the
-    /// current frame ([`Error::NotPrepared`]: before the first, after a failed one, after
-    /// [`invalidate`](Self::invalidate) or [`set_settings`](Self::set_settings)).
+    /// # Errors
+    ///
+    /// Recording nothing: [`Error::NotPrepared`] without a successful
+    /// [`prepare`](Self::prepare) of the current frame (before the first, after a failed one,
+    /// after [`invalidate`](Self::invalidate) or [`set_settings`](Self::set_settings));
+    /// [`Error::InvalidTexture`] naming `output` when it is not such a texture. See the
+    /// [crate-level example](crate#example).
     pub fn encode<'o>(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
@@ -442,6 +490,11 @@ impl VolumetricShadows {
     /// that submit each pass on its own and time the submission — the way to time passes on
     /// a CPU adapter such as lavapipe, whose timestamps do not bracket compute work. Steps
     /// must be recorded in plan order within a frame; each reads what earlier steps wrote.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidSetting`] naming `index` when it is not a step of the plan, and those of
+    /// [`encode`](Self::encode).
     pub fn encode_step<'o>(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
@@ -528,6 +581,10 @@ impl VolumetricShadows {
     /// GPU time per pass of the last submitted frame (timestamp queries; empty when the device
     /// lacks `TIMESTAMP_QUERY`: time the submission with the wall clock then). Blocks until
     /// the GPU is done.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::Readback`] when mapping the query buffer fails.
     pub fn read_timings(&self, device: &wgpu::Device) -> Result<Vec<PassTime>> {
         match &self.timer {
             Some(t) => t.read(device),

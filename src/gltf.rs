@@ -98,7 +98,9 @@ pub enum ErrorKind {
 /// binary chunk are supported. Buffers that no loaded primitive uses are not read. See the
 /// [module documentation](self) for which nodes and primitives are used.
 ///
-/// Errors: [`Error::Gltf`] with the path as given and an [`ErrorKind`], and
+/// # Errors
+///
+/// [`Error::Gltf`] with the path as given and an [`ErrorKind`], and
 /// [`Error::GltfPrimitive`] when [`Mesh::new`] rejects a primitive (non-finite positions, all
 /// triangles degenerate, too large, ...). A file whose scene has no triangle primitive is an
 /// error of kind [`ErrorKind::NoTriangleMeshes`].
@@ -133,7 +135,9 @@ pub(crate) fn load_budgeted(path: &Path, budget: &mut Budget) -> Result<Vec<Gltf
 /// Loads every triangle mesh placed by the scene of a `.glb` or a self-contained `.gltf`
 /// (all buffers in `data:` URIs or the `.glb` binary chunk) held in memory.
 ///
-/// Same as [`load`], except that errors name the file `<memory>` and a buffer in an external
+/// # Errors
+///
+/// Those of [`load`], except that errors name the file `<memory>` and a buffer in an external
 /// file is an error of kind [`ErrorKind::MissingBuffer`].
 pub fn load_slice(bytes: &[u8]) -> Result<Vec<GltfMesh>> {
     load_slice_with(bytes, &LoadOptions::default())

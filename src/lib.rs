@@ -4,18 +4,175 @@
 //! haze and smoke — for homogeneous single-scattering media, as render-graph nodes that record
 //! into the caller's own `wgpu` device and command encoder.
 //!
+//! Most applications need one type, [`VolumetricShadows`]: create it once with
+//! [`VolumetricShadows::new`], then every frame describe the scene in a [`Frame`] (your
+//! [`Camera`], up to four lights, the [`Medium`], the [`Occluder`]s and your rendered colour
+//! and depth textures), call [`VolumetricShadows::prepare`] (validates, uploads, plans) and
+//! [`VolumetricShadows::encode`] (records into your encoder; you submit). The [`Plan`] that
+//! `prepare` returns says which passes run and why the others are left out.
+//!
+//! # Example
+//!
+//! A complete frame: a device, the application's colour and depth textures (cleared here,
+//! where an application draws its scene), a camera from glam 0.34's `camera::rh` functions, a
+//! box as the occluder, a point light in hazy air, and the output written by the composite.
+//!
+//! ```no_run
+//! use volshadow::glam::{camera::rh, Mat4, Vec3};
+//! use volshadow::scene::Mesh;
+//! use volshadow::{
+//!     Cache, Camera, Frame, Light, Medium, Occluder, OccluderMesh, PhaseFunction, PointLight,
+//!     Settings, VolumetricShadows,
+//! };
+//!
+//! fn main() -> Result<(), Box<dyn std::error::Error>> {
+//!     // Any adapter of any backend: volshadow records into the device you already have.
+//!     let instance = wgpu::Instance::default();
+//!     let adapter = pollster::block_on(instance.request_adapter(&Default::default()))?;
+//!     let (device, queue) = pollster::block_on(adapter.request_device(&Default::default()))?;
+//!
+//!     // The application's own targets. volshadow samples colour and depth
+//!     // (`TEXTURE_BINDING`) and writes the composite into `output` (`RENDER_ATTACHMENT`, of
+//!     // `Settings::output_format`), all the same size.
+//!     let (width, height) = (640, 400);
+//!     let target = |label, format, usage| {
+//!         device.create_texture(&wgpu::TextureDescriptor {
+//!             label: Some(label),
+//!             size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+//!             mip_level_count: 1,
+//!             sample_count: 1,
+//!             dimension: wgpu::TextureDimension::D2,
+//!             format,
+//!             usage,
+//!             view_formats: &[],
+//!         })
+//!     };
+//!     let draw_and_sample =
+//!         wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
+//!     let color = target("scene colour", wgpu::TextureFormat::Rgba16Float, draw_and_sample);
+//!     let depth = target("scene depth", wgpu::TextureFormat::Depth32Float, draw_and_sample);
+//!     let output = target(
+//!         "volshadow output",
+//!         wgpu::TextureFormat::Rgba16Float,
+//!         wgpu::TextureUsages::RENDER_ATTACHMENT,
+//!     );
+//!
+//!     // Right-handed view; wgpu's depth range 0..1 is DirectX's (reversed Z and an infinite
+//!     // far plane work too: `Camera` reads the convention from the matrix).
+//!     let camera = Camera::new(
+//!         rh::view::look_at_mat4(Vec3::new(0.0, 1.6, 7.0), Vec3::new(0.0, 1.3, 0.0), Vec3::Y),
+//!         rh::proj::directx::perspective(
+//!             55f32.to_radians(),
+//!             width as f32 / height as f32,
+//!             0.05,
+//!             200.0,
+//!         ),
+//!     )?;
+//!
+//!     // Once: the shared pipelines, the occluder's mesh (validated, adjacency built, uploaded)
+//!     // and the facade.
+//!     let cache = Cache::new(&device);
+//!     let positions: Vec<Vec3> = (0..8)
+//!         .map(|i| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32))
+//!         .map(|p| p - 0.5)
+//!         .collect();
+//!     let indices = [
+//!         0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4,
+//!         6, 1, 3, 5, 3, 7, 5,
+//!     ];
+//!     let cube = OccluderMesh::new(&device, &Mesh::new(&positions, &indices)?);
+//!     let mut volumetric = VolumetricShadows::new(
+//!         &device,
+//!         &queue,
+//!         &cache,
+//!         Settings {
+//!             output_format: wgpu::TextureFormat::Rgba16Float,
+//!             ..Settings::default()
+//!         },
+//!     )?;
+//!
+//!     // Every frame: draw your scene into `color` and `depth` (here: cleared), ...
+//!     let mut encoder = device.create_command_encoder(&Default::default());
+//!     encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+//!         label: Some("the application's scene"),
+//!         color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+//!             view: &color.create_view(&Default::default()),
+//!             depth_slice: None,
+//!             resolve_target: None,
+//!             ops: wgpu::Operations {
+//!                 load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+//!                 store: wgpu::StoreOp::Store,
+//!             },
+//!         })],
+//!         depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+//!             view: &depth.create_view(&Default::default()),
+//!             depth_ops: Some(wgpu::Operations {
+//!                 load: wgpu::LoadOp::Clear(camera.far_depth()),
+//!                 store: wgpu::StoreOp::Store,
+//!             }),
+//!             stencil_ops: None,
+//!         }),
+//!         timestamp_writes: None,
+//!         occlusion_query_set: None,
+//!         multiview_mask: None,
+//!     });
+//!
+//!     // ... then describe it, prepare (validate, upload, plan) and record volshadow's passes.
+//!     let lights = [Light::from(PointLight::new(
+//!         Vec3::new(0.1, 2.9, -4.6),
+//!         Vec3::new(90.0, 78.0, 60.0),
+//!     )?)
+//!     .into()];
+//!     let medium = Medium::new(
+//!         Vec3::new(0.10, 0.11, 0.13),
+//!         Vec3::splat(0.01),
+//!         PhaseFunction::HenyeyGreenstein { g: 0.7 },
+//!     )?;
+//!     let occluders = [Occluder {
+//!         mesh: &cube,
+//!         transform: Mat4::from_translation(Vec3::new(0.0, 2.0, -2.0)),
+//!     }];
+//!     let plan = volumetric.prepare(
+//!         &device,
+//!         &queue,
+//!         &Frame {
+//!             camera: &camera,
+//!             lights: &lights,
+//!             medium: &medium,
+//!             occluders: &occluders,
+//!             scene_color: &color,
+//!             scene_depth: &depth,
+//!         },
+//!     )?;
+//!     println!("{plan}"); // what runs, and why the rest does not
+//!     volumetric.encode(&mut encoder, &output.create_view(&Default::default()))?;
+//!     queue.submit([encoder.finish()]); // volshadow never submits: you do
+//!     Ok(())
+//! }
+//! ```
+//!
+//! `cargo run --release --example quickstart` renders the same kind of scene headless to a PNG
+//! (with [`HeadlessGpu`], which also reads textures back); the repository's `examples/` hold a
+//! scene-file renderer, a glTF viewer and an interactive window.
+//!
+//! # How it works
+//!
 //! The airlight (in-scattered light) is evaluated in closed form through a per-frame table
-//! built on the GPU from the stable form of Sun et al.'s model (see `DESIGN.md` §2 in the
-//! repository), so it stays finite and accurate from optical depth 1e-4 to 100, looking straight
-//! into the light or with the light behind the eye.
+//! built on the GPU from a numerically stable form of the analytic single-scattering model of
+//! Sun, Ramamoorthi, Narasimhan and Nayar ("A Practical Analytic Single Scattering Model for
+//! Real Time Rendering", 2005), so it stays finite and accurate from optical depth 1e-4 to
+//! 100, looking straight into the light or with the light behind the eye. Shadows are marched
+//! only between shadow-volume extents (Wyman and Ramsey, "Interactive Volumetric Shadows in
+//! Participating Media with Single-Scattering", 2008).
 //!
 //! Objects are split by lifetime: a shared [`gpu::Cache`] of pipelines and layouts, and
 //! per-view nodes ([`nodes`]) that own their textures. Each node has `new`, `prepare`
 //! (validates, resizes, uploads what changed) and `encode` (records into a
-//! `&mut wgpu::CommandEncoder`; nodes never submit).
+//! `&mut wgpu::CommandEncoder`; nodes never submit); [`VolumetricShadows`] owns one set per
+//! light and follows the [`plan`].
 //!
-//! [`reference`](mod@reference) is an independent f64 integrator of the same model, the ground truth the tests
-//! compare every GPU image with.
+//! [`reference`](mod@reference) is an independent f64 integrator of the same model, the ground
+//! truth the tests compare every GPU image with.
 #![warn(missing_docs)]
 
 pub mod error;
@@ -41,3 +198,8 @@ pub use scene::{Camera, Light, Medium, PhaseFunction, PointLight, SpotLight};
 
 pub use glam;
 pub use wgpu;
+
+/// The README's usage snippet, compiled (not run) by `cargo test --doc`.
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;

@@ -120,6 +120,8 @@ pub struct Culled {
 }
 
 /// What a frame records and why the rest is left out. `Display` prints it as a table.
+///
+/// Used in the [crate-level example](crate#example).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Plan {
     /// Passes that run, in recording order.
@@ -438,6 +440,11 @@ pub const ERROR_TABLE: &[MeasuredConfig] = &[
 
 /// The cheapest configuration of [`ERROR_TABLE`] whose measured worst p95 is within
 /// [`ERROR_TARGET_MARGIN`] of `p95` (a relative error: 0.02 = 2%).
+///
+/// # Errors
+///
+/// [`Error::InvalidSetting`] naming `error_target` for a tolerance that is not finite and
+/// positive, or tighter than every configuration of [`ERROR_TABLE`] reaches.
 pub fn for_error_target(p95: f32) -> Result<MeasuredConfig> {
     if !(p95.is_finite() && p95 > 0.0) {
         return Err(Error::InvalidSetting {

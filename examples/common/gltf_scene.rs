@@ -1,7 +1,7 @@
 //! The `gltf` example: every mesh of a glTF model as an occluder in hazy fog (feature `gltf`).
 //!
 //! ```text
-//! gltf MODEL.gltf|MODEL.glb [-o OUT.png] [--size WxH]
+//! gltf MODEL.gltf|MODEL.glb [-o OUT] [--size WxH]
 //! ```
 //!
 //! The scene is built around the model so that any model, of any size, shows its dark shafts:
@@ -15,9 +15,12 @@
 //! * hazy fog: `σs = (0.14, 0.15, 0.17)/r`, `σa = 0.01/r`, Henyey–Greenstein g = 0.5, and
 //!   intensity `40 r²`, so the picture does not depend on the model's units.
 //!
-//! It renders through `VolumetricShadows` with the default (real-time) settings, prints the
-//! plan and per-pass GPU times, and writes a tone-mapped PNG (`OUT` defaults to the model's
-//! stem + `.png`, size 800×500).
+//! It prints each mesh's topology (triangles, closed or open, boundary and non-manifold edges)
+//! and what it means for the shadow volume, renders through `VolumetricShadows` with the
+//! default (real-time) settings, prints the plan and per-pass GPU times, and writes `OUT.png`
+//! (tone-mapped) and `OUT.inscatter.exr` (the in-scattered radiance alone, linear RGB, as
+//! `render` writes it). `OUT` defaults to the model's stem; a trailing `.png` or `.exr` is
+//! dropped. Size 800×500 unless `--size`.
 
 use std::path::PathBuf;
 
@@ -30,19 +33,19 @@ use volshadow::{
 
 use super::raster::{default_ambient, draw_app_frame, texture_desc, DrawLight, DrawObject};
 use super::{
-    auto_exposure, parse_size, read_inscatter, render_frames, rgb, tone_map, write_png, BoxError,
-    FrameStats,
+    auto_exposure, parse_size, read_inscatter, render_frames, rgb, tone_map, write_exr, write_png,
+    BoxError, FrameStats,
 };
 
 /// The command line, for error messages.
-pub const USAGE: &str = "usage: gltf MODEL.gltf|MODEL.glb [-o OUT.png] [--size WxH]";
+pub const USAGE: &str = "usage: gltf MODEL.gltf|MODEL.glb [-o OUT] [--size WxH]";
 
 /// The parsed command line.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Options {
     /// The model.
     pub model: PathBuf,
-    /// The PNG to write.
+    /// Output paths without extension: `OUT.png` and `OUT.inscatter.exr` are written.
     pub out: PathBuf,
     /// Output size, default 800×500.
     pub size: (u32, u32),
@@ -70,10 +73,22 @@ impl Options {
             }
         }
         let model: PathBuf = model.ok_or_else(|| format!("no model given\n{USAGE}"))?;
-        let out = out.unwrap_or_else(|| {
-            PathBuf::from(model.file_stem().unwrap_or("gltf".as_ref())).with_extension("png")
-        });
+        let mut out: PathBuf =
+            out.unwrap_or_else(|| PathBuf::from(model.file_stem().unwrap_or("gltf".as_ref())));
+        if matches!(
+            out.extension().and_then(|e| e.to_str()),
+            Some("png" | "exr")
+        ) {
+            out.set_extension("");
+        }
         Ok(Options { model, out, size })
+    }
+
+    /// `OUT` followed by `suffix` (e.g. `".inscatter.exr"`).
+    pub fn path(&self, suffix: &str) -> PathBuf {
+        let mut s = self.out.as_os_str().to_owned();
+        s.push(suffix);
+        s.into()
     }
 }
 
@@ -81,6 +96,10 @@ impl Options {
 pub struct Rendered {
     /// The PNG written.
     pub png: PathBuf,
+    /// The in-scatter EXR written.
+    pub inscatter_exr: PathBuf,
+    /// Each mesh's one-line topology report, as printed.
+    pub summaries: Vec<String>,
     /// The in-scattered radiance (row-major from the top), summed over the lights.
     pub inscatter: Vec<DVec3>,
     /// The composited linear radiance.
@@ -117,6 +136,14 @@ pub fn render(options: &Options) -> Result<Rendered, BoxError> {
             .map(|m| m.mesh.triangle_count())
             .sum::<usize>()
     );
+    let summaries: Vec<String> = meshes
+        .iter()
+        .enumerate()
+        .map(|(i, m)| mesh_report(i, m))
+        .collect();
+    for line in &summaries {
+        println!("{line}");
+    }
 
     // Camera, ground, light and fog, all in units of r.
     let (width, height) = options.size;
@@ -208,17 +235,61 @@ pub fn render(options: &Options) -> Result<Rendered, BoxError> {
     let radiance: Vec<DVec3> = gpu.read_rgba32f(&output)?.iter().map(rgb).collect();
     let inscatter = read_inscatter(&gpu, &volumetric, &frame)?;
 
+    let (png, inscatter_exr) = (options.path(".png"), options.path(".inscatter.exr"));
+    if let Some(dir) = png.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    }
     write_png(
-        &options.out,
+        &png,
         &tone_map(options.size, &radiance, auto_exposure(&radiance)),
     )?;
-    println!("wrote {} ({width}x{height})", options.out.display());
+    write_exr(&inscatter_exr, options.size, &inscatter)?;
+    println!(
+        "wrote {} and {} ({width}x{height})",
+        png.display(),
+        inscatter_exr.display()
+    );
     Ok(Rendered {
-        png: options.out.clone(),
+        png,
+        inscatter_exr,
+        summaries,
         inscatter,
         radiance,
         stats,
     })
+}
+
+/// One mesh's topology and what it means for its shadow volume, e.g.
+/// `mesh 0 "Box": 12 triangles, closed, 0 boundary and 0 non-manifold edges: ...`.
+pub fn mesh_report(index: usize, mesh: &volshadow::gltf::GltfMesh) -> String {
+    let s = mesh.mesh.summary();
+    let name = mesh.name.as_deref().unwrap_or("(unnamed)");
+    let meaning = if mesh.mesh.is_closed() {
+        "only silhouette edges are extruded, so the shadow-volume extents \
+         are tight"
+    } else {
+        "these edges are extruded as if always on the silhouette, so the shadow-volume \
+         extents are conservative (they cover the shadow and more: correct, but more of each \
+         ray is marched)"
+    };
+    let degenerate = if s.degenerate_triangles > 0 {
+        format!(" ({} degenerate, ignored)", s.degenerate_triangles)
+    } else {
+        String::new()
+    };
+    format!(
+        "mesh {index} {name:?}: {} triangles{degenerate}, {}, {} boundary and {} non-manifold \
+         edges: {meaning}",
+        s.triangles,
+        match (mesh.mesh.is_closed(), s.boundary_edges) {
+            (true, _) => "closed",
+            (false, 0) => "non-manifold",
+            (false, _) => "open",
+        },
+        s.boundary_edges,
+        s.non_manifold_edges
+    )
 }
 
 /// World-space bounds of an object-space box under `transform`.

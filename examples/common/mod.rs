@@ -3,6 +3,7 @@
 //! * [`raster`]: the application's own frame (colour + depth) from triangle meshes.
 //! * [`render_scene`]: the `render` example (a scene file → EXR, PNG, JSON report).
 //! * `gltf_scene` (feature `gltf`): the `gltf` example (a glTF model's shafts → PNG).
+//! * [`headless_env`]: no false `error:` line from Mesa's Vulkan layer on a headless machine.
 //! * Here: output helpers — tone mapping, EXR/PNG writing, eye distances from a depth buffer,
 //!   the `--size WxH` syntax and the timing of a frame.
 //!
@@ -13,6 +14,7 @@
 
 #[cfg(feature = "gltf")]
 pub mod gltf_scene;
+pub mod headless_env;
 pub mod raster;
 pub mod render_scene;
 pub mod report;

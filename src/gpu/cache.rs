@@ -8,6 +8,8 @@ const PRELUDE: &str = include_str!("../../shaders/prelude.wgsl");
 
 /// Shader modules, layouts and pipelines shared by every node on one device. Cloning is
 /// cheap (handles).
+///
+/// Used in the [crate-level example](crate#example).
 #[derive(Clone)]
 pub struct Cache {
     pub(crate) table_layout: wgpu::BindGroupLayout,
@@ -229,6 +231,8 @@ fn compute_pipeline(
 impl Cache {
     /// Compiles the shaders and builds the layouts and compute pipelines. Render pipelines for
     /// the composite are built per output format on first use.
+    ///
+    /// Used in the [crate-level example](crate#example).
     pub fn new(device: &wgpu::Device) -> Self {
         let compute = wgpu::ShaderStages::COMPUTE;
         let table_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {

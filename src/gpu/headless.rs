@@ -19,6 +19,10 @@ pub struct HeadlessGpu {
 
 impl HeadlessGpu {
     /// A device with no optional features, see [`with_optional_features`](Self::with_optional_features).
+    ///
+    /// # Errors
+    ///
+    /// As [`with_optional_features`](Self::with_optional_features).
     pub fn new() -> Result<Self> {
         Self::with_optional_features(wgpu::Features::empty())
     }
@@ -30,6 +34,11 @@ impl HeadlessGpu {
     /// substring, e.g. `llvmpipe` for lavapipe). Without them it prefers a discrete GPU, then an
     /// integrated, virtual or software one. No adapter is an error that says how to install
     /// lavapipe, never a silent fallback.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NoAdapter`] when no adapter exists (it says how to install lavapipe) or none matches
+    /// `WGPU_ADAPTER_NAME`, and [`Error::RequestDevice`] when the adapter refuses the device.
     pub fn with_optional_features(wanted: wgpu::Features) -> Result<Self> {
         let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
         if wgpu::Backends::from_env().is_none() {
@@ -105,6 +114,10 @@ impl HeadlessGpu {
     }
 
     /// Submits `encoder` and waits for the GPU to finish it.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::Readback`] when waiting for the device fails (e.g. the device was lost).
     pub fn submit_and_wait(&self, encoder: wgpu::CommandEncoder) -> Result<()> {
         self.queue.submit([encoder.finish()]);
         self.device
@@ -121,6 +134,12 @@ impl HeadlessGpu {
     /// ignored), and the result is empty without `TIMESTAMP_QUERY`. Labels: the pass names of
     /// [`Pass`](crate::plan::Pass)'s `Display` on a CPU adapter, the nodes' timer labels
     /// otherwise.
+    ///
+    /// # Errors
+    ///
+    /// Those of [`VolumetricShadows::encode`](crate::VolumetricShadows::encode) and
+    /// [`encode_step`](crate::VolumetricShadows::encode_step), and [`Error::Readback`] when waiting
+    /// for the device or reading the timestamps fails.
     pub fn run_timed<'o>(
         &self,
         volumetric: &mut crate::VolumetricShadows,
@@ -154,6 +173,12 @@ impl HeadlessGpu {
 
     /// Reads mip 0, layer 0 of a 2D texture (usage `COPY_SRC`; a colour format with a fixed
     /// block size, or `Depth32Float`) back as tightly packed rows of bytes.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::Readback`] for a format without a fixed texel size for copies (compressed, or a
+    /// depth format whose depth cannot be copied, such as `Depth24Plus`) and when waiting for
+    /// the copy or mapping the buffer fails.
     pub fn read_texture_bytes(&self, texture: &wgpu::Texture) -> Result<Vec<u8>> {
         let format = texture.format();
         let aspect = if format.is_depth_stencil_format() {
@@ -255,6 +280,11 @@ impl HeadlessGpu {
     }
 
     /// Reads an `Rgba32Float` texture back, row-major from the top row.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::Readback`] for a texture that is not `Rgba32Float`, and those of
+    /// [`read_texture_bytes`](Self::read_texture_bytes).
     pub fn read_rgba32f(&self, texture: &wgpu::Texture) -> Result<Vec<[f32; 4]>> {
         if texture.format() != wgpu::TextureFormat::Rgba32Float {
             return Err(Error::Readback(format!(

@@ -8,6 +8,8 @@ use crate::scene::{Mesh, MeshSummary};
 
 /// GPU buffers of one occluder mesh: positions, triangle indices and the edge adjacency built
 /// by [`Mesh::new`]. Upload once, instance any number of times with [`Occluder`].
+///
+/// Used in the [crate-level example](crate#example).
 pub struct OccluderMesh {
     pub(crate) positions: wgpu::Buffer,
     pub(crate) indices: wgpu::Buffer,
@@ -33,6 +35,8 @@ struct GpuEdge {
 
 impl OccluderMesh {
     /// Uploads `mesh` (validated and with adjacency already built by [`Mesh::new`]).
+    ///
+    /// Used in the [crate-level example](crate#example).
     pub fn new(device: &wgpu::Device, mesh: &Mesh) -> Self {
         static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
         let positions: Vec<[f32; 4]> = mesh
@@ -112,6 +116,8 @@ impl OccluderMesh {
 }
 
 /// One occluder in a frame: a mesh and its object → world transform.
+///
+/// Used in the [crate-level example](crate#example).
 #[derive(Clone, Copy)]
 pub struct Occluder<'a> {
     /// The uploaded mesh.

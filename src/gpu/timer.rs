@@ -133,6 +133,10 @@ impl GpuTimer {
 
     /// Reads the times back after the submission that contains [`resolve`](Self::resolve) (blocks
     /// until the GPU is done). Passes with the same label are summed, in first-seen order.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::Readback`] when mapping the query buffer or waiting for the device fails.
     pub fn read(&self, device: &wgpu::Device) -> Result<Vec<PassTime>> {
         let Some(q) = &self.queries else {
             return Ok(Vec::new());

@@ -98,6 +98,10 @@ pub struct AirlightTableNode {
 
 impl AirlightTableNode {
     /// Creates the table texture. Errors if a dimension is below 2 or above [`TableSize::MAX`].
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidSize`] for a table size out of range.
     pub fn new(device: &wgpu::Device, cache: &Cache, size: TableSize) -> Result<Self> {
         size.validate()?;
         let texture = device.create_texture(&wgpu::TextureDescriptor {

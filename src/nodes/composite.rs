@@ -130,6 +130,11 @@ impl CompositeNode {
     /// A composite writing `output_format`, which must be a float, unorm or snorm colour format
     /// usable as a render attachment on every device (e.g. `Rgba16Float`, `Rgba8UnormSrgb`; not
     /// an integer or depth format).
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidTexture`] when `output_format` is an integer or depth format or not
+    /// renderable.
     pub fn new(
         device: &wgpu::Device,
         cache: &Cache,
@@ -161,6 +166,12 @@ impl CompositeNode {
     }
 
     /// Validates the inputs and uploads what changed.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidTexture`] naming the input (`scene_color`, `scene_depth`, an in-scatter
+    /// texture) for a wrong format, usage, layer count or size, and [`Error::InvalidSetting`] for
+    /// more lights than the composite takes.
     pub fn prepare(
         &mut self,
         device: &wgpu::Device,
@@ -248,6 +259,12 @@ impl CompositeNode {
 
     /// Checks that the composite can write `output` (see the module docs for what it must be)
     /// and that `prepare` has succeeded.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidTexture`] naming `output` when its texture has another format or size
+    /// (at its mip level) than prepared, lacks `RENDER_ATTACHMENT`, or is one of the
+    /// composite's inputs, or when `prepare` has not succeeded.
     pub fn check_output(&self, output: &OutputTarget<'_>) -> Result<()> {
         let problem = |p: String| Error::InvalidTexture {
             field: "output",
@@ -309,7 +326,10 @@ impl CompositeNode {
     }
 
     /// Records the composite into `output` (see the module docs for what it must be).
-    /// Errors, recording nothing, if `output` does not fit or `prepare` has not succeeded.
+    ///
+    /// # Errors
+    ///
+    /// Those of [`check_output`](Self::check_output), recording nothing.
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,

@@ -193,6 +193,12 @@ impl ExtentsNode {
 
     /// Uploads the occluders' transforms, the light and the camera, and (re)creates the targets
     /// when `width × height` changed.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidSize`](crate::Error::InvalidSize) for a size beyond the device's
+    /// limits, and [`Error::NonFinite`](crate::Error::NonFinite) or
+    /// [`Error::SingularMatrix`](crate::Error::SingularMatrix) for an occluder's transform.
     pub fn prepare(
         &mut self,
         device: &wgpu::Device,

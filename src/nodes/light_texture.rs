@@ -48,6 +48,11 @@ impl LightTextureNode {
     }
 
     /// Validates `texture` and schedules a rebuild when it differs from the last one.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidTexture`] naming `light_texture` for a texture that is not a filterable 2D
+    /// colour texture with `TEXTURE_BINDING`.
     pub fn prepare(&mut self, device: &wgpu::Device, texture: &wgpu::Texture) -> Result<()> {
         let problem = |p: String| {
             Err(Error::InvalidTexture {

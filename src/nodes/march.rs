@@ -71,6 +71,17 @@ pub enum MarchMethod {
     Textbook,
 }
 
+impl std::fmt::Display for MarchMethod {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            MarchMethod::Exact => "exact",
+            MarchMethod::Hybrid => "hybrid",
+            MarchMethod::BruteForce => "brute force",
+            MarchMethod::Textbook => "textbook march",
+        })
+    }
+}
+
 /// March settings.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct MarchSettings {
@@ -258,6 +269,11 @@ struct Bound {
 
 impl MarchNode {
     /// Creates the node; textures are allocated by the first [`prepare`](Self::prepare).
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidSetting`] naming the field for steps or texture steps outside `1..=4096`
+    /// or more than 16 bisections.
     pub fn new(device: &wgpu::Device, cache: &Cache, settings: MarchSettings) -> Result<Self> {
         settings.validate()?;
         let sampled = wgpu::TextureUsages::TEXTURE_BINDING;
@@ -329,6 +345,10 @@ impl MarchNode {
     }
 
     /// Changes the settings (validated); takes effect at the next `prepare`.
+    ///
+    /// # Errors
+    ///
+    /// As [`MarchNode::new`].
     pub fn set_settings(&mut self, settings: MarchSettings) -> Result<()> {
         settings.validate()?;
         self.settings = settings;
@@ -337,6 +357,12 @@ impl MarchNode {
 
     /// Validates the inputs, (re)creates the outputs when the size changed, and uploads the
     /// uniforms that changed.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidTexture`] naming the input (`scene_depth`, `shadow_map`, `extents`,
+    /// the light texture) for a wrong format, usage, layer count or size, or a texture on a light
+    /// that is not a spot; [`Error::InvalidSize`] for a size beyond the device's limits.
     pub fn prepare(
         &mut self,
         device: &wgpu::Device,

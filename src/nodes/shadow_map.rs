@@ -86,6 +86,11 @@ const SLOT: u64 = 256;
 
 impl ShadowMapNode {
     /// Creates the node. Errors on a zero or too large resolution or a bias outside [0, 0.5).
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidSize`] for a zero resolution or one beyond the device's limits,
+    /// [`Error::NonFinite`] or [`Error::Negative`] for a depth bias outside [0, 0.5).
     pub fn new(device: &wgpu::Device, cache: &Cache, settings: ShadowMapSettings) -> Result<Self> {
         let max = device.limits().max_texture_dimension_2d;
         let min = ShadowMapSettings::MIN_RESOLUTION;
@@ -156,6 +161,10 @@ impl ShadowMapNode {
 
     /// Validates the occluders and decides whether the map must be re-rendered. Returns
     /// whether the next [`encode`](Self::encode) will render.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NonFinite`] or [`Error::SingularMatrix`] for an occluder's transform.
     pub fn prepare(
         &mut self,
         device: &wgpu::Device,

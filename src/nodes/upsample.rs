@@ -25,6 +25,10 @@ impl Scale {
     }
 
     /// The scale whose divisor is `divisor`; any other value is an error.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidSetting`] for a divisor other than 1, 2 or 4.
     pub fn from_divisor(divisor: u32) -> Result<Self> {
         match divisor {
             1 => Ok(Scale::Full),
@@ -68,6 +72,12 @@ pub enum UpsampleFilter {
 
 impl UpsampleFilter {
     /// Checks the separable filter's parameters.
+    ///
+    /// # Errors
+    ///
+    /// For [`UpsampleFilter::Separable`]: [`Error::InvalidSetting`] for a tap count that is even or
+    /// outside `3..=31`, [`Error::NonFinite`] or [`Error::InvalidSetting`] for a sigma that is not
+    /// finite and positive. The other filters have no parameters and never fail.
     pub fn validate(&self) -> Result<()> {
         if let UpsampleFilter::Separable {
             taps,
@@ -152,6 +162,10 @@ pub struct UpsampleNode {
 
 impl UpsampleNode {
     /// Creates the node for `filter` (validated).
+    ///
+    /// # Errors
+    ///
+    /// Those of [`UpsampleFilter::validate`].
     pub fn new(device: &wgpu::Device, cache: &Cache, filter: UpsampleFilter) -> Result<Self> {
         filter.validate()?;
         Ok(Self {
@@ -178,6 +192,10 @@ impl UpsampleNode {
     }
 
     /// Changes the filter (validated); takes effect at the next `prepare`.
+    ///
+    /// # Errors
+    ///
+    /// Those of [`UpsampleFilter::validate`].
     pub fn set_filter(&mut self, filter: UpsampleFilter) -> Result<()> {
         filter.validate()?;
         self.filter = filter;
@@ -185,6 +203,11 @@ impl UpsampleNode {
     }
 
     /// Validates the inputs, (re)creates textures when sizes change, uploads what changed.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidTexture`] naming the input (`scene_depth`, `low`) for a wrong format,
+    /// usage or layer count, or a `low` texture larger than the output.
     pub fn prepare(
         &mut self,
         device: &wgpu::Device,

@@ -11,6 +11,8 @@ use crate::error::{finite, Error, Result};
 /// eye distances are recovered through the inverse projection. The depth value of the far end
 /// (what the caller clears its depth buffer to, `1.0` standard or `0.0` reversed) is detected
 /// from the matrix; pixels holding it are sky and integrate to infinity.
+///
+/// Used in the [crate-level example](crate#example).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Camera {
     view: Mat4,
@@ -21,8 +23,17 @@ pub struct Camera {
 }
 
 impl Camera {
-    /// Validates and stores the matrices. Errors: non-finite entries, a singular view or
-    /// projection matrix, a projection that is not perspective.
+    /// Validates and stores the matrices: `view` maps world to view space (right-handed, e.g.
+    /// `glam::camera::rh::view::look_at_mat4`), `projection` view to clip space (any
+    /// perspective: standard or reversed Z, finite or infinite far, e.g.
+    /// `glam::camera::rh::proj::directx::perspective`). See the
+    /// [crate-level example](crate#example).
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NonFinite`] for a non-finite entry (or an inverse view-projection that
+    /// overflows), [`Error::SingularMatrix`] for a singular view or projection matrix,
+    /// [`Error::NotPerspective`] for a projection that is not perspective.
     pub fn new(view: Mat4, projection: Mat4) -> Result<Self> {
         finite("camera.view", &view.to_cols_array())?;
         finite("camera.projection", &projection.to_cols_array())?;

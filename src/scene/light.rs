@@ -5,6 +5,8 @@ use glam::Vec3;
 use crate::error::{finite, non_negative, Error, Result};
 
 /// An isotropic point light: radiant intensity `intensity` (RGB, per steradian) at `position`.
+///
+/// Used in the [crate-level example](crate#example).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PointLight {
     position: Vec3,
@@ -14,6 +16,13 @@ pub struct PointLight {
 impl PointLight {
     /// A point light. The position must be finite; the intensity finite, non-negative and
     /// non-zero in at least one channel.
+    ///
+    /// Used in the [crate-level example](crate#example).
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NonFinite`] for a non-finite position or intensity, [`Error::Negative`] for a negative
+    /// intensity channel, [`Error::ZeroIntensity`] when every channel is zero.
     pub fn new(position: Vec3, intensity: Vec3) -> Result<Self> {
         finite("point_light.position", &position.to_array())?;
         non_negative("point_light.intensity", &intensity.to_array())?;
@@ -52,6 +61,13 @@ impl SpotLight {
     /// A spot light at `position` pointing along `direction` (any non-zero length), with apex
     /// angle `cone_angle` in radians, strictly between 0 and π, and radiant intensity
     /// `intensity` inside the cone (finite, non-negative, non-zero in some channel).
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NonFinite`] (position, direction, cone angle or intensity), [`Error::Negative`]
+    /// (intensity), [`Error::DegenerateDirection`] for a zero-length direction,
+    /// [`Error::ConeAngleOutOfRange`] for an angle outside (0, π), [`Error::ZeroIntensity`] when
+    /// every channel is zero.
     pub fn new(position: Vec3, direction: Vec3, cone_angle: f32, intensity: Vec3) -> Result<Self> {
         finite("spot_light.position", &position.to_array())?;
         finite("spot_light.direction", &direction.to_array())?;
@@ -103,6 +119,8 @@ impl SpotLight {
 }
 
 /// Any light the crate renders.
+///
+/// Used in the [crate-level example](crate#example).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[non_exhaustive]
 pub enum Light {

@@ -34,8 +34,11 @@ impl LightTexture {
     /// A texture of `width × height` texels (row-major, top row first; finite, ≥ 0, at most
     /// [`MAX_TEXEL`](Self::MAX_TEXEL), which uploads as `f16` infinity beyond).
     ///
-    /// Errors: [`Error::InvalidSize`], [`Error::InvalidTexture`] (texel count), and for a texel
-    /// [`Error::NonFinite`], [`Error::Negative`] or [`Error::TexelOutOfRange`].
+    /// # Errors
+    ///
+    /// [`Error::InvalidSize`] unless both sides are in `1..=MAX_SIZE`, [`Error::InvalidTexture`] when
+    /// `texels.len()` is not `width × height`, [`Error::NonFinite`], [`Error::Negative`] or
+    /// [`Error::TexelOutOfRange`] for a bad texel.
     pub fn new(width: u32, height: u32, texels: Vec<Vec3>) -> Result<Self> {
         if width == 0 || height == 0 || width > Self::MAX_SIZE || height > Self::MAX_SIZE {
             return Err(Error::InvalidSize {
@@ -69,6 +72,11 @@ impl LightTexture {
     }
 
     /// A `cells × cells` checkerboard of two colours, `size × size` texels.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidSize`] unless `1 <= size <= MAX_SIZE`, or a non-finite or negative colour
+    /// (as [`LightTexture::new`]).
     pub fn checkerboard(size: u32, cells: u32, a: Vec3, b: Vec3) -> Result<Self> {
         if size == 0 || size > Self::MAX_SIZE {
             return Err(Error::InvalidSize {
@@ -101,6 +109,10 @@ impl LightTexture {
 
     /// Loads an image file (PNG) as sRGB-encoded colour and converts it to linear RGB, with
     /// the default [`LoadOptions`](crate::load::LoadOptions).
+    ///
+    /// # Errors
+    ///
+    /// Those of [`from_image_file_with`](Self::from_image_file_with).
     #[cfg(feature = "image")]
     pub fn from_image_file(path: impl AsRef<std::path::Path>) -> Result<Self> {
         Self::from_image_file_with(path, &crate::load::LoadOptions::default())

@@ -9,6 +9,8 @@ use crate::error::{finite, non_negative, Error, Result};
 /// integral over the sphere is 1 (isotropic = 1/(4π)).
 ///
 /// Validated by [`Medium::new`] (and [`PhaseFunction::validate`]).
+///
+/// Used in the [crate-level example](crate#example).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[non_exhaustive]
 pub enum PhaseFunction {
@@ -43,6 +45,12 @@ pub enum PhaseFunction {
 impl PhaseFunction {
     /// Checks the parameters: finite, `|g| < 1`, non-negative Hoffman–Preetham coefficients
     /// with a non-zero sum in every channel.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NonFinite`] for a non-finite parameter, [`Error::AsymmetryOutOfRange`] for `|g| ≥ 1`,
+    /// [`Error::Negative`] for a negative Hoffman–Preetham coefficient, and [`Error::ZeroPhaseWeight`]
+    /// when `rayleigh + mie` is zero in a channel.
     pub fn validate(&self) -> Result<()> {
         let check_g = |g: f32| {
             finite("phase.g", &[g])?;
@@ -74,6 +82,8 @@ impl PhaseFunction {
 
 /// A homogeneous participating medium. σs (scattering) and σa (absorption) are per world unit
 /// and per RGB channel; the extinction σt = σs + σa attenuates, σs alone scatters.
+///
+/// Used in the [crate-level example](crate#example).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Medium {
     sigma_s: Vec3,
@@ -84,6 +94,13 @@ pub struct Medium {
 impl Medium {
     /// A medium with scattering `sigma_s`, absorption `sigma_a` (both ≥ 0 and finite, per
     /// channel) and a phase function.
+    ///
+    /// Used in the [crate-level example](crate#example).
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NonFinite`] or [`Error::Negative`] naming `medium.sigma_s` or `medium.sigma_a`, and
+    /// those of [`PhaseFunction::validate`] for the phase function.
     pub fn new(sigma_s: Vec3, sigma_a: Vec3, phase: PhaseFunction) -> Result<Self> {
         non_negative("medium.sigma_s", &sigma_s.to_array())?;
         non_negative("medium.sigma_a", &sigma_a.to_array())?;
@@ -96,6 +113,11 @@ impl Medium {
     }
 
     /// Hoffman–Preetham: σs = βR + βM, phase mixed per channel by βR and βM.
+    ///
+    /// # Errors
+    ///
+    /// Those of [`PhaseFunction::validate`] (non-finite or negative coefficients, `|g| ≥ 1`, a channel
+    /// where `beta_rayleigh + beta_mie` is zero) and of [`Medium::new`] for `sigma_a`.
     pub fn hoffman_preetham(
         beta_rayleigh: Vec3,
         beta_mie: Vec3,

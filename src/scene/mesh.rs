@@ -103,7 +103,11 @@ impl Mesh {
     /// A mesh from `positions` and a triangle list `indices` (three per triangle,
     /// counter-clockwise seen from outside). Both are copied; the caller's data is not touched.
     ///
-    /// Errors, checked in this order: [`Error::EmptyMesh`] (no positions or no indices),
+    /// Used in the [crate-level example](crate#example).
+    ///
+    /// # Errors
+    ///
+    /// Checked in this order: [`Error::EmptyMesh`] (no positions or no indices),
     /// [`Error::MeshTooLarge`] (more than [`Mesh::MAX_TRIANGLES`] triangles or
     /// [`Mesh::MAX_POSITIONS`] positions), [`Error::IndexCountNotMultipleOf3`],
     /// [`Error::NonFinitePosition`] (the first such vertex, referenced or not),

@@ -47,7 +47,9 @@ const LEAD: Vec3 = Vec3::splat(0.01);
 /// (at least one texel), `size × size` texels. The colours depend only on `seed`, through a
 /// SplitMix64 generator, so a scene file reproduces the same window on every machine.
 ///
-/// Errors: [`Error::InvalidSize`] unless `1 <= size <= LightTexture::MAX_SIZE`,
+/// # Errors
+///
+/// [`Error::InvalidSize`] unless `1 <= size <= LightTexture::MAX_SIZE`,
 /// [`Error::InvalidSetting`] unless `1 <= cells <= size`.
 pub fn stained_glass(size: u32, cells: u32, seed: u64) -> Result<LightTexture> {
     if size == 0 || size > LightTexture::MAX_SIZE {

@@ -322,6 +322,13 @@ impl SceneDescription {
     /// Reads and validates a scene file with the default [`LoadOptions`]. Relative paths
     /// inside it (light texture files, glTF files) are resolved against the file's folder and
     /// must stay inside it (see [`crate::load`]).
+    ///
+    /// # Errors
+    ///
+    /// [`Error::SceneFile`] naming the file, the JSON field and the problem (unreadable file, bad
+    /// JSON, unknown or missing field, a value out of range, an unreadable texture or glTF file);
+    /// [`Error::PathOutsideFolder`], [`Error::NotRegularFile`] and [`Error::LimitExceeded`] from
+    /// the file rules of [`crate::load`].
     pub fn load(path: impl AsRef<Path>) -> Result<Self> {
         Self::load_with(path, &LoadOptions::default())
     }
@@ -352,6 +359,10 @@ impl SceneDescription {
     /// Parses and validates a scene from JSON text with the default [`LoadOptions`]; relative
     /// paths inside it resolve against `base_dir` and must stay inside it. Errors name the path
     /// `<string>`.
+    ///
+    /// # Errors
+    ///
+    /// As [`SceneDescription::load`], with the path `<string>`.
     pub fn from_json(text: &str, base_dir: &Path) -> Result<Self> {
         Self::from_json_with(text, base_dir, &LoadOptions::default())
     }

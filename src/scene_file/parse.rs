@@ -50,6 +50,7 @@ fn from_load_error(path: &str) -> impl FnOnce(crate::Error) -> super::json::Prob
 /// What parsing a scene needs besides the JSON: where its files are and the load's totals.
 pub(super) struct Ctx<'a> {
     /// The canonical folder of the scene file, or why it could not be found.
+    #[cfg_attr(not(any(feature = "gltf", feature = "image")), allow(dead_code))]
     pub folder: std::result::Result<PathBuf, String>,
     /// The scene file as errors name it.
     pub file: &'a str,
@@ -73,6 +74,7 @@ impl Ctx<'_> {
     }
 
     /// Reads the file named `named` at `path`: confined to the scene's folder unless allowed.
+    #[cfg_attr(not(any(feature = "gltf", feature = "image")), allow(dead_code))]
     fn read(&mut self, named: &str, path: &str) -> P<(PathBuf, Vec<u8>)> {
         let folder = self
             .folder
