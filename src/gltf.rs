@@ -706,7 +706,7 @@ impl<'a> Loader<'a, '_> {
                 .root
                 .accessors
                 .get(i.value())
-                .map_or(0, |accessor| count(accessor)),
+                .map_or(0, count),
         };
         let triangle_bound = match mode {
             Mode::Triangles => index_count / 3,

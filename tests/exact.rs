@@ -432,7 +432,7 @@ fn random_scene(seed: u64) -> RandomScene {
         let axis = Vec3::new(uniform(-1.0, 1.0), uniform(-1.0, 1.0), uniform(-1.0, 1.0))
             .try_normalize()
             .unwrap_or(Vec3::Y);
-        let rotation = glam::Quat::from_axis_angle(axis, uniform(0.0, 6.28));
+        let rotation = glam::Quat::from_axis_angle(axis, uniform(0.0, std::f32::consts::TAU));
         scene.occluders.push(SceneMesh {
             mesh,
             transform: Mat4::from_scale_rotation_translation(

@@ -416,10 +416,11 @@ pub(crate) fn check_object_transform(m: glam::Mat4) -> std::result::Result<(), T
     if det.is_finite() && det < -1e-12 * scale {
         return Err(TransformProblem::Mirrored(det));
     }
-    if !(det.is_finite() && det > 1e-12 * scale)
-        || !d.inverse().is_finite()
-        || !m.inverse().is_finite()
-    {
+    let invertible = det.is_finite()
+        && det > 1e-12 * scale
+        && d.inverse().is_finite()
+        && m.inverse().is_finite();
+    if !invertible {
         return Err(TransformProblem::Singular(det));
     }
     Ok(())
