@@ -126,8 +126,9 @@ fn scene_specifics() {
     let sphere = load("sphere");
     assert_eq!(
         sphere.medium.phase(),
-        PhaseFunction::HenyeyGreenstein { g: 0.3 }
+        PhaseFunction::HenyeyGreenstein { g: 0.6 }
     );
+    assert_eq!(sphere.method, Method::default(), "no method: the default");
     let cow = load("cow");
     assert!(
         cow.objects.len() >= 10,
@@ -278,7 +279,8 @@ fn methods_and_phases() {
             .method
     };
     assert_eq!(m(r#""reference""#), Method::Reference);
-    assert_eq!(m(r#""hybrid""#), Method::default());
+    assert_eq!(m(r#""hybrid""#), Method::hybrid_default());
+    assert_eq!(m(r#""exact""#), Method::default());
     assert_eq!(
         m(
             r#"{"type": "hybrid", "scale": 2, "upsample": {"separable": {"taps": 5, "sigma_spatial": 1, "sigma_depth": 0.1}}}"#

@@ -217,9 +217,16 @@ pub enum Method {
 }
 
 impl Default for Method {
+    /// [`Method::exact_default`].
+    fn default() -> Self {
+        Method::exact_default()
+    }
+}
+
+impl Method {
     /// `Hybrid { steps: 64, scale: Full, upsample: DepthAware3x3, bisections: 0,
     /// texture_steps: 32 }`.
-    fn default() -> Self {
+    pub fn hybrid_default() -> Self {
         Method::Hybrid {
             steps: 64,
             scale: Scale::Full,
@@ -228,10 +235,9 @@ impl Default for Method {
             texture_steps: 32,
         }
     }
-}
 
-impl Method {
-    /// `Exact` with the defaults of [`MarchSettings`] at full resolution.
+    /// `Exact` with the defaults of [`MarchSettings`] at full resolution (no bisection): the
+    /// default method.
     pub fn exact_default() -> Self {
         let m = MarchSettings::default();
         Method::Exact {

@@ -913,8 +913,8 @@ fn method(v: &Value, path: &str) -> P<Method> {
             steps: 64,
             scale: Scale::Full,
         },
-        "exact" => Method::exact_default(),
-        _ => Method::default(),
+        "hybrid" => Method::hybrid_default(),
+        _ => Method::exact_default(),
     };
     if let Some(s) = v.as_str() {
         ensure(KINDS.contains(&s), path, || {
