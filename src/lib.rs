@@ -145,7 +145,7 @@
 //!         },
 //!     )?;
 //!     println!("{plan}"); // what runs, and why the rest does not
-//!     volumetric.encode(&mut encoder, &output.create_view(&Default::default()))?;
+//!     volumetric.encode(&mut encoder, &output)?;
 //!     queue.submit([encoder.finish()]); // volshadow never submits: you do
 //!     Ok(())
 //! }
