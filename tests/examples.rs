@@ -449,6 +449,16 @@ fn report_metrics_measure_what_they_say() {
     image[50] = reference[50] * 6.0;
     let two = errors(&image, &reference, &masked);
     assert!((two.p99 - 5.0).abs() < 1e-12, "{}", two.p99);
+    // A light's glow in view: one pixel a million times brighter does not set the scale (1% of
+    // the maximum would count that pixel alone and see none of the errors on the ramp).
+    let mut glow = reference.clone();
+    glow[0] = DVec3::splat(1e6);
+    let mut off = glow.clone();
+    for r in &mut off[10..20] {
+        *r *= 1.5;
+    }
+    let lit = errors(&off, &glow, &keep);
+    assert!((lit.p95 - 0.5).abs() < 1e-12, "{}", lit.p95);
 }
 
 #[test]

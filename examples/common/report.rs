@@ -30,7 +30,8 @@
 //! (within 1.5 pixels of its centre, where the in-scatter is singular): RMSE relative to the
 //! mean in-scatter, and the 95th and 99th percentile of the per-pixel relative error
 //! `max_c |gpu_c − ref_c| / max_c ref_c` over pixels whose reference is above 1% of the
-//! image's maximum.
+//! image's 99th-percentile brightness (not its maximum: with a light in view that lies in the
+//! light's glow, and only the glow would count).
 //!
 //! Every sweep of step counts (brute force, paper 003, each hybrid curve) stops once its p95
 //! is below [`SWEEP_STOP_P95`] or no longer improves by 10% per doubling, unless `--full`:
@@ -244,7 +245,8 @@ fn refine_suffix(bisections: u32) -> &'static str {
 pub struct Errors {
     /// RMSE over pixels and channels, relative to the mean reference in-scatter.
     pub rmse: f64,
-    /// 95th percentile of the per-pixel relative error (pixels above 1% of the maximum).
+    /// 95th percentile of the per-pixel relative error (pixels above 1% of the frame's
+    /// 99th-percentile brightness).
     pub p95: f64,
     /// 99th percentile, likewise.
     pub p99: f64,
@@ -605,17 +607,7 @@ fn run_scene(
         for filter in filters {
             let s = settings(MarchMethod::Exact, 64, scale, filter, REFINE);
             let (mut passes, image) = measure(s, &shadowed, march_passes.is_some())?;
-            if let Some(shared) = &march_passes {
-                passes.extend(shared.iter().map(|(k, v)| (*k, *v)));
-            } else {
-                march_passes = Some(
-                    passes
-                        .iter()
-                        .filter(|(k, _)| matches!(**k, "march" | "extents"))
-                        .map(|(k, v)| (*k, *v))
-                        .collect(),
-                );
-            }
+            share_march(&mut passes, &mut march_passes);
             record(
                 Curve::Exact(scale.divisor(), filter),
                 &s,
@@ -656,18 +648,7 @@ fn run_scene(
                     }
                     let s = settings(MarchMethod::Hybrid, steps, scale, filter, bisections);
                     let (mut passes, image) = measure(s, &shadowed, march_passes.is_some())?;
-                    // A filter after the first reuses the first one's march (and extents).
-                    if let Some(shared) = &march_passes {
-                        passes.extend(shared.iter().map(|(k, v)| (*k, *v)));
-                    } else {
-                        march_passes = Some(
-                            passes
-                                .iter()
-                                .filter(|(k, _)| matches!(**k, "march" | "extents"))
-                                .map(|(k, v)| (*k, *v))
-                                .collect(),
-                        );
-                    }
+                    share_march(&mut passes, &mut march_passes);
                     let curve = Curve::Hybrid(scale.divisor(), filter, bisections);
                     let p95 = record(curve, &s, passes, &image, &fixed).errors.p95;
                     if !options.full {
@@ -907,15 +888,23 @@ pub fn errors(image: &[DVec3], reference: &[DVec3], keep: &[bool]) -> Errors {
     let mut sum_sq = 0.0;
     let mut sum_ref = 0.0;
     let mut count = 0usize;
-    let mut peak = 0.0f64;
+    let mut brightness = Vec::new();
     for ((g, r), &k) in image.iter().zip(reference).zip(keep) {
         if k {
             sum_sq += (*g - *r).length_squared();
             sum_ref += r.x + r.y + r.z;
             count += 3;
-            peak = peak.max(r.max_element());
+            brightness.push(r.max_element());
         }
     }
+    // The frame's brightness scale: its 99th percentile, not its maximum. With a light in view
+    // the maximum sits in the light's 1/h glow, and 1% of it would leave only the pixels
+    // around the light counted (where no shadow falls).
+    brightness.sort_by(f64::total_cmp);
+    let peak = brightness
+        .get((brightness.len().saturating_sub(1) as f64 * 0.99) as usize)
+        .copied()
+        .unwrap_or(0.0);
     let mut relative: Vec<f64> = image
         .iter()
         .zip(reference)
@@ -999,6 +988,26 @@ fn cached_reference(
         file.display()
     ));
     Ok(image)
+}
+
+/// Filters after the first of one march reuse its march and extents: the first measurement
+/// keeps their times in `shared`, the later ones take them from it.
+fn share_march(
+    passes: &mut BTreeMap<&'static str, f64>,
+    shared: &mut Option<BTreeMap<&'static str, f64>>,
+) {
+    match shared {
+        Some(times) => passes.extend(times.iter().map(|(k, v)| (*k, *v))),
+        None => {
+            *shared = Some(
+                passes
+                    .iter()
+                    .filter(|(k, _)| matches!(**k, "march" | "extents"))
+                    .map(|(k, v)| (*k, *v))
+                    .collect(),
+            )
+        }
+    }
 }
 
 /// The source files the reference images depend on: the integrator, the scene types, the
@@ -1303,7 +1312,7 @@ fn write_outputs(
     }
     // Markdown.
     let mut md = format!(
-        "# volshadow: error against time\n\n{date}, {adapter}, {}x{} pixels. Timing: {}, median of {} frames after a warm-up frame; F' table and shadow map timed in frames that rebuild everything and counted in every total. Error against the f64 reference: RMSE relative to the mean in-scatter; p95/p99 of the per-pixel relative error where the reference is above 1% of its maximum; the light's own pixels left out. Regenerate: `cargo run --release --example report`.\n\n",
+        "# volshadow: error against time\n\n{date}, {adapter}, {}x{} pixels. Timing: {}, median of {} frames after a warm-up frame; F' table and shadow map timed in frames that rebuild everything and counted in every total. Error against the f64 reference: RMSE relative to the mean in-scatter; p95/p99 of the per-pixel relative error where the reference is above 1% of its 99th percentile (not of its maximum, which a light in view puts in its own glow); the light's own pixels left out. Regenerate: `cargo run --release --example report`.\n\n",
         options.size,
         options.size,
         match clock {

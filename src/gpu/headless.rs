@@ -222,42 +222,21 @@ impl HeadlessGpu {
                 depth_or_array_layers: 1,
             },
         );
-        self.submit_and_wait(encoder)?;
-        let slice = buffer.slice(..);
-        let (sender, receiver) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = sender.send(r);
-        });
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| Error::Readback(e.to_string()))?;
-        receiver
-            .recv()
-            .map_err(|e| Error::Readback(e.to_string()))?
-            .map_err(|e| Error::Readback(e.to_string()))?;
-        let mapped = slice
-            .get_mapped_range()
-            .map_err(|e| Error::Readback(format!("{e:?}")))?;
+        let mapped = self.submit_and_map(encoder, &buffer)?;
         let mut out = Vec::with_capacity((row * height) as usize);
         for y in 0..height as usize {
             let start = y * padded as usize;
             out.extend_from_slice(&mapped[start..start + row as usize]);
         }
-        drop(mapped);
-        buffer.unmap();
         Ok(out)
     }
 
-    /// Reads a whole buffer (usage `COPY_SRC`, size a multiple of 4) back.
-    pub fn read_buffer_bytes(&self, source: &wgpu::Buffer) -> Result<Vec<u8>> {
-        let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("volshadow readback"),
-            size: source.size(),
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        let mut encoder = self.device.create_command_encoder(&Default::default());
-        encoder.copy_buffer_to_buffer(source, 0, &buffer, 0, source.size());
+    /// Submits `encoder`, which copies into `buffer` (`MAP_READ`), and returns its contents.
+    fn submit_and_map(
+        &self,
+        encoder: wgpu::CommandEncoder,
+        buffer: &wgpu::Buffer,
+    ) -> Result<Vec<u8>> {
         self.submit_and_wait(encoder)?;
         let slice = buffer.slice(..);
         let (sender, receiver) = std::sync::mpsc::channel();
@@ -277,6 +256,19 @@ impl HeadlessGpu {
             .to_vec();
         buffer.unmap();
         Ok(out)
+    }
+
+    /// Reads a whole buffer (usage `COPY_SRC`, size a multiple of 4) back.
+    pub fn read_buffer_bytes(&self, source: &wgpu::Buffer) -> Result<Vec<u8>> {
+        let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("volshadow readback"),
+            size: source.size(),
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(source, 0, &buffer, 0, source.size());
+        self.submit_and_map(encoder, &buffer)
     }
 
     /// Reads an `Rgba32Float` texture back, row-major from the top row.

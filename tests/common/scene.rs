@@ -122,7 +122,7 @@ fn first_hit(
 #[derive(Debug, Clone, Copy)]
 pub struct Errors {
     /// 95th percentile of the per-pixel relative error max_c |gpu − ref| / max_c ref over
-    /// pixels whose reference is above 1% of the frame's maximum.
+    /// pixels whose reference is above 1% of the frame's 99th-percentile brightness.
     pub p95: f64,
     /// Largest such error.
     pub max: f64,
@@ -170,10 +170,15 @@ pub fn errors(
     let keep: Vec<usize> = (0..reference.len())
         .filter(|&i| !near_light(camera, light, width, height, i))
         .collect();
-    let max_ref = keep
-        .iter()
-        .map(|&i| reference[i].max_element())
-        .fold(0.0, f64::max);
+    // The brightness scale: the 99th percentile, not the maximum, which a light in view puts
+    // in its own 1/h glow (1% of it would leave only the glow counted). Stricter than the
+    // maximum: more pixels count.
+    let mut brightness: Vec<f64> = keep.iter().map(|&i| reference[i].max_element()).collect();
+    brightness.sort_by(f64::total_cmp);
+    let max_ref = brightness
+        .get((brightness.len().saturating_sub(1) as f64 * 0.99) as usize)
+        .copied()
+        .unwrap_or(0.0);
     let (mut sq, mut sum, mut n) = (0.0, 0.0, 0.0);
     let mut rel = Vec::new();
     for &i in &keep {
