@@ -65,9 +65,9 @@ impl Settings {
 
 impl Settings {
     /// Settings whose 95th-percentile per-pixel relative error of the in-scatter stays within
-    /// `p95` (0.02 = 2%): the planner picks steps, scattering resolution, filter and bisections
-    /// from [`plan::ERROR_TABLE`], measured by the report on the standard scenes with untextured
-    /// lights, keeping headroom ([`plan::ERROR_TARGET_MARGIN`]); textured spots scatter at full
+    /// `p95` (0.02 = 2%): the planner picks the method (exact or hybrid), steps, scattering
+    /// resolution, filter and bisections from [`plan::ERROR_TABLE`], measured by the report on
+    /// the standard scenes with untextured lights, keeping headroom ([`plan::ERROR_TARGET_MARGIN`]); textured spots scatter at full
     /// resolution with [`plan::ERROR_TARGET_TEXTURE_STEPS`]. Everything else is
     /// [`Settings::default`]'s.
     /// A tolerance tighter than any measured configuration reaches is an error.
@@ -80,7 +80,7 @@ impl Settings {
         let picked = plan::for_error_target(p95)?;
         Ok(Settings {
             march: MarchSettings {
-                method: MarchMethod::Hybrid,
+                method: picked.method,
                 steps: picked.steps,
                 bisections: picked.bisections,
                 scale: picked.scale,

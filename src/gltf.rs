@@ -702,11 +702,7 @@ impl<'a> Loader<'a, '_> {
         // no mesh needs more than 3 positions per triangle).
         let index_count = match primitive.indices {
             None => vertex_count,
-            Some(i) => self
-                .root
-                .accessors
-                .get(i.value())
-                .map_or(0, count),
+            Some(i) => self.root.accessors.get(i.value()).map_or(0, count),
         };
         let triangle_bound = match mode {
             Mode::Triangles => index_count / 3,

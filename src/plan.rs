@@ -378,10 +378,12 @@ pub(crate) fn occluder_bound(
         .fold(0.0, f64::max)
 }
 
-/// A hybrid configuration the error target can pick, with what the report
+/// A configuration the error target can pick, with what the report
 /// (`cargo run --release --example report`) measured for it on the standard scenes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MeasuredConfig {
+    /// The march method (exact or hybrid).
+    pub method: MarchMethod,
     /// Worst 95th-percentile relative error over the standard scenes.
     pub p95: f32,
     /// Mean frame time over the analytic floor's (unshadowed airlight) on the same scenes.
@@ -397,6 +399,7 @@ pub struct MeasuredConfig {
 }
 
 const fn measured(
+    method: MarchMethod,
     p95: f32,
     cost: f32,
     steps: u32,
@@ -405,6 +408,7 @@ const fn measured(
     bisections: u32,
 ) -> MeasuredConfig {
     MeasuredConfig {
+        method,
         p95,
         cost,
         steps,
@@ -424,18 +428,20 @@ pub const ERROR_TARGET_TEXTURE_STEPS: u32 = 256;
 pub const ERROR_TARGET_MARGIN: f32 = 0.8;
 
 /// The Pareto front of worst-scene p95 against cost, cheapest first, as written to
-/// `target/volshadow-report/error_table.rs` by the report (run of 2026-11-22, llvmpipe,
-/// 512×512, the five standard scenes with untextured lights). Only configurations measured on
-/// every such scene enter it; the report's sweeps stop early where the error is already small,
-/// so today's front holds 8-step configurations only.
+/// `target/volshadow-report/error_table.rs` by the report (run of 2026-11-23, llvmpipe,
+/// 512×512, the five standard scenes with untextured lights, p95 over pixels above 1% of each
+/// frame's 99th-percentile brightness). Only configurations measured on every such scene enter
+/// it. The exact method's rows list 64 steps and 2 bisections: those only march pixels whose
+/// crossing list overflowed.
 #[rustfmt::skip]
 pub const ERROR_TABLE: &[MeasuredConfig] = &[
-    // measured(p95, cost, steps, scale, upsample, bisections)
-    measured(0.0752, 1.806, 8, Scale::Quarter, UpsampleFilter::Bilinear, 2),
-    measured(0.0665, 1.851, 8, Scale::Quarter, UpsampleFilter::DepthAware3x3, 2),
-    measured(0.0280, 2.327, 8, Scale::Half, UpsampleFilter::DepthAware3x3, 0),
-    measured(0.0204, 3.387, 8, Scale::Full, UpsampleFilter::DepthAware3x3, 0),
-    measured(0.0073, 3.636, 8, Scale::Full, UpsampleFilter::DepthAware3x3, 2),
+    // measured(method, p95, cost, steps, scale, upsample, bisections)
+    measured(MarchMethod::Hybrid, 0.1388, 1.707, 8, Scale::Quarter, UpsampleFilter::DepthAware3x3, 0),
+    measured(MarchMethod::Hybrid, 0.0656, 1.760, 16, Scale::Quarter, UpsampleFilter::DepthAware3x3, 0),
+    measured(MarchMethod::Hybrid, 0.0341, 1.809, 16, Scale::Quarter, UpsampleFilter::DepthAware3x3, 2),
+    measured(MarchMethod::Exact, 0.0213, 1.869, 64, Scale::Quarter, UpsampleFilter::DepthAware3x3, 2),
+    measured(MarchMethod::Exact, 0.0091, 2.923, 64, Scale::Half, UpsampleFilter::DepthAware3x3, 2),
+    measured(MarchMethod::Exact, 0.0003, 5.914, 64, Scale::Full, UpsampleFilter::DepthAware3x3, 2),
 ];
 
 /// The cheapest configuration of [`ERROR_TABLE`] whose measured worst p95 is within

@@ -621,7 +621,8 @@ fn error_target_picks_from_the_measured_table_with_headroom() {
         let row = ERROR_TABLE
             .iter()
             .find(|c| {
-                c.steps == settings.march.steps
+                c.method == settings.march.method
+                    && c.steps == settings.march.steps
                     && c.scale == settings.march.scale
                     && c.upsample == settings.upsample
                     && c.bisections == settings.march.bisections

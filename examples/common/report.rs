@@ -333,7 +333,8 @@ pub struct Check {
 }
 
 /// A hybrid configuration: steps, scale divisor, filter, bisections.
-type ConfigKey = (u32, u32, Filter, u32);
+/// (exact?, steps, scale divisor, filter, bisections).
+type ConfigKey = (bool, u32, u32, Filter, u32);
 
 /// What a run produced.
 pub struct Report {
@@ -1363,9 +1364,13 @@ fn error_table(rows: &[Row]) -> String {
     let rows: Vec<Row> = rows.iter().filter(|r| !r.textured).cloned().collect();
     let rows = rows.as_slice();
     let mut groups: BTreeMap<ConfigKey, Vec<&Row>> = BTreeMap::new();
-    for r in rows.iter().filter(|r| matches!(r.curve, Curve::Hybrid(..))) {
+    for r in rows
+        .iter()
+        .filter(|r| matches!(r.curve, Curve::Hybrid(..) | Curve::Exact(..)))
+    {
+        let exact = matches!(r.curve, Curve::Exact(..));
         groups
-            .entry((r.steps, r.scale, r.filter, r.bisections))
+            .entry((exact, r.steps, r.scale, r.filter, r.bisections))
             .or_default()
             .push(r);
     }
@@ -1386,11 +1391,11 @@ fn error_table(rows: &[Row]) -> String {
         .collect();
     candidates.sort_by(|a, b| a.1.total_cmp(&b.1));
     let mut out = String::from(
-        "// Measured by `cargo run --release --example report`: hybrid configurations on the\n\
-         // Pareto front of worst-scene p95 against mean cost over the analytic floor.\n",
+        "// Measured by `cargo run --release --example report`: exact and hybrid configurations\n\
+         // on the Pareto front of worst-scene p95 against mean cost over the analytic floor.\n",
     );
     let mut best = f64::INFINITY;
-    for (worst, cost, (steps, scale, filter, bisections)) in candidates {
+    for (worst, cost, (exact, steps, scale, filter, bisections)) in candidates {
         if worst < best {
             best = worst;
             let filter = match filter {
@@ -1403,9 +1408,10 @@ fn error_table(rows: &[Row]) -> String {
                 2 => "Scale::Half",
                 _ => "Scale::Quarter",
             };
+            let method = if exact { "Exact" } else { "Hybrid" };
             let _ = writeln!(
                 out,
-                "    measured({worst:.4}, {cost:.3}, {steps}, {scale}, {filter}, {bisections}),"
+                "    measured(MarchMethod::{method}, {worst:.4}, {cost:.3}, {steps}, {scale}, {filter}, {bisections}),"
             );
         }
     }
