@@ -694,9 +694,13 @@ fn run_scene(
         } else {
             s.march.scale
         };
+        let exact = s.march.method == MarchMethod::Exact;
         let same = |r: &&Row| {
-            matches!(r.curve, Curve::Hybrid(..))
-                && r.steps == s.march.steps
+            (if exact {
+                matches!(r.curve, Curve::Exact(..))
+            } else {
+                matches!(r.curve, Curve::Hybrid(..))
+            }) && r.steps == s.march.steps
                 && r.scale == scale.divisor()
                 && r.filter == Filter::of(s.upsample, scale)
                 && r.bisections == s.march.bisections
