@@ -695,7 +695,11 @@ pub fn run(gpu: &HeadlessGpu, options: &Options) -> Result<Summary, BoxError> {
     Ok(summary)
 }
 
+#[path = "common/headless_env.rs"]
+mod headless_env;
+
 fn main() {
+    headless_env::quiet_display_probe();
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = Options::parse(&args).and_then(|options| {
         let gpu = HeadlessGpu::new()?;
