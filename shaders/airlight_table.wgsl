@@ -1,4 +1,4 @@
-// F′ table builder (DESIGN §2): one invocation per row γ_i = π t_i², t_i = i / (rows − 1).
+// F′ table builder: one invocation per row γ_i = π t_i², t_i = i / (rows − 1).
 // Entry j holds T(γ_i, s_j) = ∫₀^{s_j} p exp(−σt (d + x − D)) ds, s_j = j / (n − 1), integrated
 // by 8-point Gauss–Legendre per cell and a compensated running sum along the row.
 

@@ -1,4 +1,4 @@
-// Shadow-volume extents node (DESIGN §3).
+// Shadow-volume extents node.
 //
 // 1. `reset` and `extrude` (compute): per occluder edge, a silhouette edge (one adjacent face
 //    towards the light, one away) or an edge with a single face is extruded away from the light

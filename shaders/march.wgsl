@@ -1,8 +1,8 @@
-// March node: in-scattered radiance per pixel (DESIGN §3, seed paper 000 §3.1).
+// March node: in-scattered radiance per pixel (Wyman and Ramsey 2008, §3.1; Biri et al. 2006).
 //
 // Everything is done in the normalised scattering angle s of the F′ table: the airlight over
 // [s0, s1] is prefactor · (T(s1) − T(s0)). Uniform steps in s are uniform steps in the angle
-// seen from the light (seed 000 Fig. 4): dense near the light where the integrand is large,
+// seen from the light (Wyman and Ramsey 2008, Fig. 4): dense near the light where the integrand is large,
 // and the sky is just s = 1.
 //   analytic:    the whole lit support at once (no occluders);
 //   hybrid:      analytic outside the shadow-volume extents, `steps` steps inside them;
@@ -110,7 +110,7 @@ struct Marched {
 }
 
 // The textured spot's I0 multiplier at a world point, read at the mip level whose texel
-// matches `step_angle` (the angle a march step subtends at the light; seed 000 §3.3).
+// matches `step_angle` (the angle a march step subtends at the light; Wyman and Ramsey 2008, §3.3).
 fn light_texture(p: vec3<f32>, step_angle: f32) -> vec3<f32> {
     let v = (mp.tex_frame * vec4<f32>(p, 1.0)).xyz;
     let k = 1.0 / (max(-v.z, 1.0e-30) * mp.tex.y);
@@ -364,7 +364,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
             if (has_back && back_far > 0.0) {
                 x1 = to_x / back_far;
             }
-            // Widening is always safe (DESIGN §3): a relative margin covers rasterisation
+            // Widening is always safe (the shadow map decides visibility): a relative margin covers rasterisation
             // and depth rounding.
             ext = vec2<f32>(s_of_x(air, r, x0 * 0.999), s_of_x(air, r, min(x1 * 1.001, 3.4e38)));
         }

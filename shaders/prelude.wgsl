@@ -1,5 +1,5 @@
 // volshadow prelude: the maths shared by every node (phase functions, the bounded airlight
-// integrand of DESIGN §2, the F′ table lookup). Each node's WGSL file is appended to this one.
+// integrand of the stable airlight form, the F′ table lookup). Each node's WGSL file is appended to this one.
 
 // Pipeline constant of every per-pixel node: the light is a spot (a cone support that may
 // start away from the eye) rather than a point light (support from the eye, where T = 0).
@@ -11,7 +11,7 @@ const INV_4PI: f32 = 0.0795774715459477;
 // Larger than any radiance we produce; outputs are clamped to it so nothing reaches Inf.
 const MAX_RADIANCE: f32 = 1.0e30;
 
-// Per-frame airlight parameters (DESIGN §1). The phase function is a per-channel mixture of
+// Per-frame airlight parameters. The phase function is a per-channel mixture of
 // five lobes, so every PhaseFunction variant (and Hoffman–Preetham's RGB mix) is one code path.
 struct Airlight {
     light_pos: vec4<f32>,   // xyz light position, w = D = |P − E|
@@ -52,7 +52,7 @@ fn phase(a: Airlight, one_minus_mu: f32, one_plus_mu: f32) -> vec3<f32> {
     return p;
 }
 
-// A ray's constants for the airlight (DESIGN §2). w = π − γ is kept separately so that f32
+// A ray's constants for the airlight. w = π − γ is kept separately so that f32
 // keeps its relative precision when the light is behind the eye (γ → π).
 struct AirRay {
     gamma: f32,            // angle between the view ray and the direction to the light

@@ -1,6 +1,6 @@
 // Upsample node: the low-resolution lit fraction (rgb in [0, 1], a = eye distance, −1 sky)
-// brought to the output resolution without blending across depth discontinuities (seed 000
-// §3.3, seed 003), times the full-resolution analytic airlight of each output pixel.
+// brought to the output resolution without blending across depth discontinuities (Wyman and
+// Ramsey 2008, §3.3; SoftBiF-VS 2017), times the full-resolution analytic airlight of each output pixel.
 //   filter 0: plain bilinear (depth-blind baseline)
 //   filter 1: 3×3 Gaussian over the low-resolution samples whose depth matches the pixel's
 //   filter 2: separable N-tap bilateral, horizontal pass then vertical pass

@@ -1,5 +1,5 @@
 //! The planner: the one place that decides which passes a frame records, and says why the
-//! others are left out (DESIGN §3, "Leave out what a scene does not need").
+//! others are left out.
 
 use std::fmt;
 
@@ -340,7 +340,7 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
 }
 
 /// Upper bound of how much an occluder can change the in-scatter of any pixel, relative to the
-/// unshadowed in-scatter of a ray that reaches it (DESIGN §3): every point it shadows is at
+/// unshadowed in-scatter of a ray that reaches it: every point it shadows is at
 /// least `r` from the light and `e` from the eye, so its loss is at most
 /// `σs·p_max·I0·exp(−σt (r + e))·π/r`, while the first `l = min(e, D)/2` of that ray gather at
 /// least `l·σs·p_min·I0·exp(−σt (D + 2l))/(D + l)²`. Returns ∞ when no bound applies (the eye or

@@ -1,7 +1,7 @@
-//! The per-frame airlight table F′ (DESIGN §2), built by a compute pass.
+//! The per-frame airlight table F′, built by a compute pass.
 //!
 //! Within a frame D = |P − E|, σt and the phase are fixed, so the bounded integral of the
-//! stable form (2) is a function of two numbers: the ray's angle γ to the light and the
+//! stable form of Sun et al.'s airlight (see [`crate::reference`]) is a function of two numbers: the ray's angle γ to the light and the
 //! normalised scattering angle s = (2ξ − γ)/(π − γ) of the end point. The table stores, per
 //! RGB channel,
 //!
@@ -11,7 +11,7 @@
 //! ```
 //!
 //! which is bounded by the phase function's maximum for every σt·D (no `exp(−σt D cos γ)` that
-//! overflows, DESIGN §2). The march multiplies by the singular prefactor
+//! overflows with the light behind the eye). The march multiplies by the singular prefactor
 //! `σs · exp(−σt D) · (π − γ) / (D sin γ)` per pixel, and completes each lookup with the
 //! partial cell integrated exactly at the ray's own γ, so only the γ direction is interpolated.
 //!

@@ -1,4 +1,4 @@
-//! The shadow-volume extents node (DESIGN §3): per pixel, where along the view ray the shadow
+//! The shadow-volume extents node: per pixel, where along the view ray the shadow
 //! volumes of the occluders begin and end.
 //!
 //! A compute pass finds silhouette edges and extrudes them away from the light to infinity,

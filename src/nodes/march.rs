@@ -1,12 +1,15 @@
-//! The march node: in-scattered radiance `L_sctr` per pixel (DESIGN §3, seed paper 000 §3.1).
+//! The march node: in-scattered radiance `L_sctr` per pixel (the hybrid of Wyman and Ramsey,
+//! "Interactive Volumetric Shadows in Participating Media with Single-Scattering", 2008, §3.1,
+//! and the exact integration between shadow planes of Biri, Arquès and Michelin, "Real Time
+//! Rendering of Atmospheric Scattering and Volumetric Shadows", 2006).
 //!
 //! Without shadows every ray is integrated analytically from the [`AirlightTableNode`]'s table:
 //! `I0 · F′(ds)`, with the singular prefactor clamped by the pixel's footprint when looking into
-//! the light (DESIGN §2). With shadows, [`MarchMethod::Hybrid`] keeps the analytic form outside
+//! the light (where the true value is infinite). With shadows, [`MarchMethod::Hybrid`] keeps the analytic form outside
 //! the shadow-volume extents and marches only between them, sampling the shadow map and adding
 //! `I0 · (F′(x₁) − F′(x₀))` over lit steps; [`MarchMethod::BruteForce`] marches the whole ray
 //! (the baseline). Steps are uniform in the normalised scattering angle, i.e. in the angle seen
-//! from the light (seed 000 Fig. 4). A spot light contributes only inside its cone, whose entry
+//! from the light (Wyman and Ramsey 2008, Fig. 4). A spot light contributes only inside its cone, whose entry
 //! and exit along each ray are found analytically.
 //!
 //! # Inputs

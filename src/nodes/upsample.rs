@@ -1,4 +1,5 @@
-//! Low-resolution scattering and the bilateral upsample node (seed papers 000 §3.3 and 003).
+//! Low-resolution scattering and the bilateral upsample node (Wyman and Ramsey 2008, §3.3, and
+//! SoftBiF-VS, "soft volumetric shadows by sampling and bilateral interpolation", 2017).
 
 use crate::error::{finite, Error, Result};
 
@@ -54,11 +55,11 @@ impl Scale {
 pub enum UpsampleFilter {
     /// Plain bilinear, blind to depth: blends across depth edges. A baseline for tests.
     Bilinear,
-    /// Seed 000 §3.3: a 3×3 Gaussian over the low-resolution samples whose depth matches the
+    /// Wyman and Ramsey 2008, §3.3: a 3×3 Gaussian over the low-resolution samples whose depth matches the
     /// full-resolution pixel's; falls back to the nearest-depth sample when none matches.
     #[default]
     DepthAware3x3,
-    /// Seed 003: a separable N-tap bilateral (horizontal then vertical), weights
+    /// SoftBiF-VS (2017): a separable N-tap bilateral (horizontal then vertical), weights
     /// `exp(−d²/2σs²) · exp(−Δz²/2σz²)` with Δz relative to the pixel's depth.
     Separable {
         /// Taps per direction (odd, 3 ..= 31).

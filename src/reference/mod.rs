@@ -61,7 +61,9 @@
 //!   any light by reference (`&PointLight`, `&SpotLight`, `&Light`, `&TexturedSpot`: see
 //!   [`LightSource`]).
 //! * [`inscatter_closed_form`] evaluates the unshadowed integral of a *point* light through the
-//!   substitution of `DESIGN.md` §2 (an integral in the half scattering angle `ξ`), computed
+//!   substitution `x = t + h·tan θ`, `ξ = π/4 + θ/2` (an integral in the half scattering
+//!   angle `ξ`; Sun et al., "A Practical Analytic Single Scattering Model for Real Time
+//!   Rendering", 2005, in a bounded form), computed
 //!   separately: the two check each other. (A spot light's unshadowed value is the point
 //!   light's closed form over the cone's intervals: the integrand inside is the same.)
 //! * [`inscatter_image`] does a whole frame for a [`Camera`], for per-pixel comparisons.
@@ -457,7 +459,7 @@ fn inscatter_light(
 }
 
 /// The unshadowed in-scattered radiance of [`inscatter`] with no occluders, for a point light
-/// only, evaluated independently through the closed form (2) of `DESIGN.md`:
+/// only, evaluated independently through the closed form in the half scattering angle:
 ///
 /// ```text
 /// (2·σs·I0·exp(−σt·D) / h) · ∫_{γ/2}^{ξ(ds)} p(cos 2ξ) · exp(−σt·h·(tan ξ − tan(γ/2))) dξ

@@ -1,5 +1,5 @@
 //! JSON scene files: camera, lights, medium, objects, output size and method in one file, so
-//! any image can be reproduced from it (`DESIGN.md` §7).
+//! any image can be reproduced from it.
 //!
 //! [`SceneDescription::load`] reads, validates and builds everything: the scene types
 //! ([`Camera`], [`Light`], [`Medium`], [`Mesh`], [`LightTexture`]) are constructed, so a
