@@ -181,6 +181,9 @@ mod facade;
 pub mod gltf;
 pub mod gpu;
 pub mod load;
+/// The method's maths: the model, the stable airlight form, the F′ table, shadows along the ray.
+#[doc = include_str!("../docs/METHOD.md")]
+pub mod method {}
 pub mod nodes;
 pub mod plan;
 pub mod reference;

@@ -151,12 +151,27 @@ impl ShadowMapNode {
                 .collect()
             }
             Light::Spot(spot) => {
-                // The cone inscribed in the square frustum, with a texel of margin.
-                let fov = (spot.cone_angle() * 1.02).min(179f32.to_radians());
-                let proj = perspective_infinite_reverse(fov, 1.0, near);
+                let proj = perspective_infinite_reverse(Self::spot_fov(spot), 1.0, near);
                 vec![proj * spot.texture_frame()]
             }
         }
+    }
+
+    /// A spot map's field of view: the cone inscribed in the square frustum, with a texel of
+    /// margin.
+    fn spot_fov(spot: &crate::scene::SpotLight) -> f32 {
+        (spot.cone_angle() * 1.02).min(179f32.to_radians())
+    }
+
+    /// Cosine of the widest angle between a face's axis and a direction inside its frustum
+    /// (a corner of the square): the near plane lies along the axis, so a point at distance r
+    /// can be as near as r times this along it.
+    fn corner_cosine(light: &Light) -> f32 {
+        let half_tan = match light {
+            Light::Point(_) => 1.0,
+            Light::Spot(spot) => (0.5 * Self::spot_fov(spot)).tan(),
+        };
+        1.0 / (1.0 + 2.0 * half_tan * half_tan).sqrt()
     }
 
     /// Validates the occluders and decides whether the map must be re-rendered. Returns
@@ -219,7 +234,9 @@ impl ShadowMapNode {
         }
         self.key = key;
 
-        // Near plane: half the distance to the nearest occluder's bounds, so every occluder is
+        // Near plane: half the distance to the nearest occluder's bounds, or less for a wide
+        // spot cone (measured along the axis, an occluder near the frustum's edge is nearer
+        // than its distance: a 165° cone clipped a sphere 84° off axis), so every occluder is
         // in front of it. Depth is near / distance in f32 (reversed Z), whose relative
         // precision is the same at every distance, so a tiny near plane costs nothing: no
         // floor relative to the scene's size (a terrain-sized occluder elsewhere would push
@@ -227,10 +244,11 @@ impl ShadowMapNode {
         // bounds the distance is 0; then a floor of about one f32 step of the light's
         // coordinates (nothing nearer can be placed) keeps the projection finite.
         let p = light.position();
+        let along_axis = (0.9 * Self::corner_cosine(light)).min(0.5);
         let mut near = f32::INFINITY;
         for o in occluders {
             let (lo, hi) = o.world_bounds();
-            near = near.min(0.5 * p.clamp(lo, hi).distance(p));
+            near = near.min(along_axis * p.clamp(lo, hi).distance(p));
         }
         let floor = 1e-7 * p.abs().max_element().max(1e-3);
         let near = if near.is_finite() {
