@@ -161,6 +161,16 @@ struct LightSlot {
     upsample: UpsampleNode,
 }
 
+impl LightSlot {
+    /// The light's in-scatter at the output resolution: the upsample's when it is planned.
+    fn inscatter(&self, plan: &Plan, light: usize) -> Option<&wgpu::Texture> {
+        match plan.runs(Pass::Upsample, Some(light)) {
+            true => self.upsample.output(),
+            false => self.march.output(),
+        }
+    }
+}
+
 /// Volumetric shadows for a view: prepare a frame, then record it into the caller's encoder.
 ///
 /// Used in the [crate-level example](crate#example).
@@ -419,17 +429,9 @@ impl VolumetricShadows {
         self.plan = plan;
 
         let inscatter: Vec<&wgpu::Texture> = if scatters {
-            self.slots[..frame.lights.len()]
-                .iter()
-                .enumerate()
-                .map(|(i, slot)| {
-                    if self.plan.runs(Pass::Upsample, Some(i)) {
-                        slot.upsample.output()
-                    } else {
-                        slot.march.output()
-                    }
-                    .expect("prepared")
-                })
+            let slots = self.slots.iter().enumerate().take(frame.lights.len());
+            slots
+                .map(|(i, slot)| slot.inscatter(&self.plan, i).expect("prepared"))
                 .collect()
         } else {
             Vec::new()
@@ -585,12 +587,7 @@ impl VolumetricShadows {
     /// The in-scatter each light added last frame (full resolution, `Rgba32Float`), for
     /// debugging and tests.
     pub fn inscatter(&self, light: usize) -> Option<&wgpu::Texture> {
-        let slot = self.slots.get(light)?;
-        if self.plan.runs(Pass::Upsample, Some(light)) {
-            slot.upsample.output()
-        } else {
-            slot.march.output()
-        }
+        self.slots.get(light)?.inscatter(&self.plan, light)
     }
 
     /// March steps per pixel of a light's last march (`R32Uint`, at the march's resolution).

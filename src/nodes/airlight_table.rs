@@ -171,10 +171,6 @@ impl AirlightTableNode {
     /// Uploads the parameters for a frame. Returns whether the next [`encode`](Self::encode)
     /// rebuilds the table: it changed now, or it changed at an earlier `prepare` that no
     /// `encode` followed.
-    ///
-    /// # Errors
-    ///
-    /// None today; `Result` for the contract every node shares.
     pub fn prepare(
         &mut self,
         _device: &wgpu::Device,
@@ -190,10 +186,6 @@ impl AirlightTableNode {
 
     /// Records the table build into `encoder` if [`prepare`](Self::prepare) found a change since
     /// the last build; otherwise records nothing.
-    ///
-    /// # Errors
-    ///
-    /// None today; `Result` for the contract every node shares.
     pub fn encode(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,

@@ -250,10 +250,6 @@ struct Job {
 
 impl ExtentsNode {
     /// Creates the node; buffers and textures are sized by [`prepare`](Self::prepare).
-    ///
-    /// # Errors
-    ///
-    /// None today; `Result` for the contract every node shares.
     pub fn new(device: &wgpu::Device, cache: &Cache) -> Result<Self> {
         let view_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("volshadow extents view"),

@@ -54,10 +54,6 @@ pub struct LightTextureNode {
 
 impl LightTextureNode {
     /// Creates the node.
-    ///
-    /// # Errors
-    ///
-    /// None today; `Result` for the contract every node shares.
     pub fn new(device: &wgpu::Device, cache: &Cache) -> Result<Self> {
         Ok(Self {
             pipelines: cache.light_texture.clone(),
@@ -179,10 +175,6 @@ impl LightTextureNode {
     }
 
     /// Records the mip chain build if the texture changed since the last build.
-    ///
-    /// # Errors
-    ///
-    /// None today; `Result` for the contract every node shares.
     pub fn encode(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,

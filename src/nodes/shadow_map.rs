@@ -331,10 +331,6 @@ impl ShadowMapNode {
     }
 
     /// Records the render of every face, if [`prepare`](Self::prepare) found a change.
-    ///
-    /// # Errors
-    ///
-    /// None today; `Result` for the contract every node shares.
     pub fn encode(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
