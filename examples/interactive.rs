@@ -672,7 +672,8 @@ impl State {
                 .poll(wgpu::PollType::wait_indefinitely())
                 .map_err(|e| volshadow::Error::Readback(e.to_string()))?;
             passes.push(PassTime {
-                label: step.pass.name(),
+                pass: step.pass,
+                light: step.light,
                 ms: start.elapsed().as_secs_f64() * 1e3,
             });
         }
@@ -765,7 +766,7 @@ impl State {
                 .stats
                 .passes
                 .iter()
-                .map(|p| format!("{} {:.2}", p.label, p.ms))
+                .map(|p| format!("{} {:.2}", p.pass, p.ms))
                 .collect();
             format!(
                 "GPU {total:.2} ms: {} | frame {:.1} ms",

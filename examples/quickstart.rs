@@ -119,7 +119,7 @@ pub fn run(
         let gpu_ms: f64 = timings.iter().map(|t| t.ms).sum();
         let per_pass: Vec<String> = timings
             .iter()
-            .map(|t| format!("{} {:.2} ms", t.label, t.ms))
+            .map(|t| format!("{} {:.2} ms", t.pass, t.ms))
             .collect();
         println!(
             "frame {frame_index}: GPU {gpu_ms:.2} ms ({}); wall clock {wall:.1} ms at {width}x{height}",

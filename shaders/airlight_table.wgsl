@@ -10,8 +10,8 @@ const GL8_W = array<f32, 4>(0.3626837833783620, 0.3137066458778873, 0.2223810344
 
 @compute @workgroup_size(64)
 fn build(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let rows = air.table_size.y;
-    let n = air.table_size.x;
+    let rows = air.table_across;
+    let n = air.table_along;
     let i = gid.x;
     if (i >= rows) {
         return;

@@ -1,9 +1,10 @@
 // Composite node: L = Ls · exp(−σt ds) + Σ L_sctr (one per light) into the caller's target
-// (fullscreen triangle).
+// (the prelude's fullscreen triangle).
 
+// Mirrors `CompositeUniform` in src/gpu/uniforms.rs.
 struct Composite {
-    sigma_t: vec4<f32>,
-    count: vec4<u32>,   // x: how many in-scatter inputs (one per light, 0 ..= 4) to add
+    sigma_t: vec3<f32>,
+    count: u32,   // how many in-scatter inputs (one per light, 0 ..= 4) to add
 }
 
 @group(0) @binding(0) var<storage, read> comp: Composite;
@@ -15,12 +16,6 @@ struct Composite {
 @group(0) @binding(6) var inscatter2: texture_2d<f32>;
 @group(0) @binding(7) var inscatter3: texture_2d<f32>;
 
-@vertex
-fn vs_fullscreen(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
-    let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
-    return vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
-}
-
 @fragment
 fn fs_composite(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     let pixel = vec2<u32>(frag.xy);
@@ -28,13 +23,13 @@ fn fs_composite(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     let depth = textureLoad(scene_depth, pixel, 0);
     let ray = pixel_ray(view, frag.xy, depth);
     // Sky: an infinite homogeneous medium hides it, unless a channel does not attenuate at all.
-    var transmittance = select(vec3<f32>(0.0), vec3<f32>(1.0), comp.sigma_t.xyz == vec3<f32>(0.0));
+    var transmittance = select(vec3<f32>(0.0), vec3<f32>(1.0), comp.sigma_t == vec3<f32>(0.0));
     if (ray.distance >= 0.0) {
-        transmittance = exp(-comp.sigma_t.xyz * ray.distance);
+        transmittance = exp(-comp.sigma_t * ray.distance);
     }
     // One in-scatter texture per light; unused slots hold placeholders and are not read.
     var sctr = vec3<f32>(0.0);
-    let n = comp.count.x;
+    let n = comp.count;
     if (n > 0u) { sctr += textureLoad(inscatter0, pixel, 0).xyz; }
     if (n > 1u) { sctr += textureLoad(inscatter1, pixel, 0).xyz; }
     if (n > 2u) { sctr += textureLoad(inscatter2, pixel, 0).xyz; }

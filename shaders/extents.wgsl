@@ -25,11 +25,15 @@ struct VolumeVertex {
     flags: vec4<f32>,     // x = 1 for faces of an open or non-manifold mesh (conservative)
 }
 
+// Mirrors `ExtrudeUniform` in src/nodes/extents.rs.
 struct Extrude {
     world_from_object: mat4x4<f32>,
-    light: vec4<f32>,        // xyz light position
-    counts: vec4<u32>,       // x = edges, y = triangles, z = 1 if the mesh is closed, w = capacity
-    flags: vec4<f32>,        // x = −1 if the transform mirrors (flips the winding), else 1
+    light: vec3<f32>,        // light position
+    mirror: f32,             // −1 if the transform mirrors (flips the winding), else 1
+    edges: u32,
+    triangles: u32,
+    closed: u32,             // 1 if the mesh is closed
+    capacity: u32,           // volume vertices the buffer holds
 }
 
 @group(0) @binding(0) var<storage, read> ex: Extrude;
@@ -56,16 +60,16 @@ fn faces_light(face: u32) -> bool {
     let a = world(indices[3u * face]);
     let b = world(indices[3u * face + 1u]);
     let c = world(indices[3u * face + 2u]);
-    let n = cross(b - a, c - a) * ex.flags.x;
-    return dot(n, ex.light.xyz - a) > 0.0;
+    let n = cross(b - a, c - a) * ex.mirror;
+    return dot(n, ex.light - a) > 0.0;
 }
 
 fn emit(vertices: array<vec4<f32>, 6>, count: u32) {
     let base = atomicAdd(&args.vertex_count, count);
-    if (base + count > ex.counts.w) {
+    if (base + count > ex.capacity) {
         return; // cannot happen: capacity is sized for every edge and triangle
     }
-    let conservative = select(1.0, 0.0, ex.counts.z == 1u);
+    let conservative = select(1.0, 0.0, ex.closed == 1u);
     for (var k = 0u; k < count; k++) {
         volume[base + k].position = vertices[k];
         volume[base + k].flags = vec4<f32>(conservative, 0.0, 0.0, 0.0);
@@ -73,14 +77,14 @@ fn emit(vertices: array<vec4<f32>, 6>, count: u32) {
 }
 
 fn at_infinity(p: vec3<f32>) -> vec4<f32> {
-    return vec4<f32>(p - ex.light.xyz, 0.0);
+    return vec4<f32>(p - ex.light, 0.0);
 }
 
 @compute @workgroup_size(64)
 fn extrude(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x;
-    let edge_count = ex.counts.x;
-    let tri_count = ex.counts.y;
+    let edge_count = ex.edges;
+    let tri_count = ex.triangles;
     if (i < edge_count) {
         let e = edges[i];
         let f0_lit = faces_light(e.z);
@@ -110,17 +114,17 @@ fn extrude(@builtin(global_invocation_id) gid: vec3<u32>) {
         var a = world(indices[3u * f]);
         var b = world(indices[3u * f + 1u]);
         let c = world(indices[3u * f + 2u]);
-        if (ex.flags.x < 0.0) {
+        if (ex.mirror < 0.0) {
             let t = a;
             a = b;
             b = t;
         }
         let zero = vec4<f32>(0.0);
-        let lit = dot(cross(b - a, c - a), ex.light.xyz - a) > 0.0;
-        if (lit || ex.counts.z != 1u) {
+        let lit = dot(cross(b - a, c - a), ex.light - a) > 0.0;
+        if (lit || ex.closed != 1u) {
             emit(array<vec4<f32>, 6>(vec4<f32>(a, 1.0), vec4<f32>(b, 1.0), vec4<f32>(c, 1.0), zero, zero, zero), 3u);
         }
-        if (!lit || ex.counts.z != 1u) {
+        if (!lit || ex.closed != 1u) {
             emit(array<vec4<f32>, 6>(at_infinity(a), at_infinity(b), at_infinity(c), zero, zero, zero), 3u);
         }
     }
@@ -164,9 +168,11 @@ fn fs_back(in: VolumeOut, @builtin(front_facing) front: bool) {
 
 // ---- exact mode: every face crossing in front of the surface, per pixel ----
 
+// Mirrors `CrossingUniform` in src/nodes/extents.rs.
 struct CrossingParams {
-    size: vec4<u32>,  // xy: pass size, z: list entries per pixel (K)
-    near: vec4<f32>,  // x: the volumes' projection near plane (depth = near / view depth)
+    size: vec2<u32>,  // the pass size
+    entries: u32,     // list entries per pixel (K)
+    near: f32,        // the volumes' projection near plane (depth = near / view depth)
 }
 
 @group(0) @binding(1) var<storage, read> cross_view: View;
@@ -186,7 +192,7 @@ struct CrossingParams {
 
 @fragment
 fn fs_crossings(in: VolumeOut, @builtin(front_facing) front: bool) {
-    let size = cp.size.xy;
+    let size = cp.size;
     let pix = vec2<u32>(in.position.xy);
     if (pix.x >= size.x || pix.y >= size.y) {
         return;
@@ -199,7 +205,7 @@ fn fs_crossings(in: VolumeOut, @builtin(front_facing) front: bool) {
     let step = select(0xffffffffu, 1u, front);
     // Depth 0 is at infinity (the dark cap, the far ends of the sides): behind everything.
     var behind = !(in.position.z > 0.0);
-    let z = cp.near.x / max(in.position.z, 1.0e-38);
+    let z = cp.near / max(in.position.z, 1.0e-38);
     if (!behind) {
         let full = textureDimensions(cross_scene_depth);
         let under = min(vec2<u32>((vec2<f32>(pix) + 0.5) * vec2<f32>(full) / vec2<f32>(size)), full - 1u);
@@ -215,7 +221,7 @@ fn fs_crossings(in: VolumeOut, @builtin(front_facing) front: bool) {
     atomicMax(&heads[4u * p + 1u], ~bits);
     atomicMax(&heads[4u * p + 2u], bits);
     let i = atomicAdd(&heads[4u * p], 1u) & 0x7fffffffu;
-    if (i < cp.size.z) {
-        crossings[cp.size.z * p + i] = select(z, -z, front);
+    if (i < cp.entries) {
+        crossings[cp.entries * p + i] = select(z, -z, front);
     }
 }

@@ -4,28 +4,14 @@
 @group(0) @binding(0) var source: texture_2d<f32>;
 @group(0) @binding(1) var linear_sampler: sampler;
 
-struct Out {
-    @builtin(position) position: vec4<f32>,
-    @location(0) uv: vec2<f32>,
-}
-
-@vertex
-fn vs_fullscreen(@builtin(vertex_index) i: u32) -> Out {
-    let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
-    var out: Out;
-    out.position = vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
-    out.uv = vec2<f32>(uv.x, 1.0 - uv.y);
-    return out;
-}
-
 // Level 0: the caller's texture, sampled at texel centres.
 @fragment
-fn fs_copy(in: Out) -> @location(0) vec4<f32> {
+fn fs_copy(in: Fullscreen) -> @location(0) vec4<f32> {
     return vec4<f32>(textureSampleLevel(source, linear_sampler, in.uv, 0.0).xyz, 1.0);
 }
 
 @fragment
-fn fs_down(in: Out) -> @location(0) vec4<f32> {
+fn fs_down(in: Fullscreen) -> @location(0) vec4<f32> {
     let texel = 1.0 / vec2<f32>(textureDimensions(source));
     var sum = vec3<f32>(0.0);
     for (var j = -1; j <= 1; j += 2) {

@@ -27,14 +27,20 @@ const MAX_EDGES: u32 = 8u;
 // The textbook march stops where the transmittance from the eye is below 1e-4 (−ln 1e-4).
 const TEXTBOOK_DEPTH: f32 = 9.2103404;
 
+// Mirrors `MarchUniform` in src/nodes/march.rs.
 struct MarchParams {
-    mode: vec4<u32>,      // y: steps, z: crossing list entries per pixel (x, w unused: see the pipeline constants)
-    spot: vec4<f32>,      // xyz cone axis (unit), w = cos(half apex angle)
-    shadow: vec4<f32>,    // x: shadow-map layers (1 spot, 6 cube), y: relative depth bias, z: extents near plane, w: 1 = write the lit fraction (reduced resolution)
     faces: array<mat4x4<f32>, 6>,  // shadow-map face clip_from_world
     tex_frame: mat4x4<f32>,  // textured spot: the spot's texture frame (view matrix)
-    tex: vec4<f32>,          // x: 1 = textured, y: tan(half apex angle), z: texture width, w: mip levels
-    budget: vec4<u32>,       // x: steps before and after the extents (textured spot)
+    spot: vec4<f32>,         // the cone: axis (unit) and cos(half apex angle)
+    steps: u32,              // steps per marched interval
+    list_entries: u32,       // exact: crossing list entries per pixel
+    texture_steps: u32,      // textured spot: steps before and after the extents
+    lit_fraction: u32,       // 1: write the lit fraction (reduced resolution)
+    depth_bias: f32,         // relative shadow-map depth bias
+    extents_near: f32,       // the extents' projection near plane
+    tan_half_angle: f32,     // textured spot: tan(half apex angle)
+    tex_width: f32,          // textured spot: texture width (texels)
+    tex_mips: f32,           // textured spot: mip levels
 }
 
 @group(0) @binding(0) var<storage, read> air: Airlight;
@@ -68,12 +74,12 @@ fn x_of_s(r: AirRay, s: f32) -> f32 {
     let beta = (1.0 - sc) * r.w;
     // sin β = sin(γ + δ): the same angle's supplement, taken where it is the smaller one.
     let sin_beta = sin(select(beta, r.gamma + sc * r.w, beta > 0.5 * PI));
-    return air.light_pos.w * sin(sc * r.w) / max(sin_beta, 1.0e-30);
+    return air.distance * sin(sc * r.w) / max(sin_beta, 1.0e-30);
 }
 
 // Shadow-map visibility of a world point, in [0, 1] (2×2 percentage-closer filtered).
 fn visibility(p: vec3<f32>) -> f32 {
-    let rel = p - air.light_pos.xyz;
+    let rel = p - air.light_pos;
     var face = 0u;
     if (!SPOT) {
         let m = abs(rel);
@@ -96,12 +102,28 @@ fn visibility(p: vec3<f32>) -> f32 {
     let uv = vec2<f32>(0.5 + 0.5 * ndc.x, 0.5 - 0.5 * ndc.y);
     // Reversed Z: depth = near / distance; nearer than the occluder ⇔ larger depth. The bias
     // is relative, so it means the same at every scene scale.
-    let reference = ndc.z / (1.0 - mp.shadow.y);
+    let reference = ndc.z / (1.0 - mp.depth_bias);
     return textureSampleCompareLevel(shadow_map, shadow_sampler, uv, i32(face), reference);
 }
 
 fn vis_at(ray: PixelRay, r: AirRay, s: f32) -> f32 {
-    return visibility(air.eye.xyz + x_of_s(r, s) * ray.dir);
+    return visibility(air.eye + x_of_s(r, s) * ray.dir);
+}
+
+// The lit/shadow transition in [lo, hi] located by BISECTIONS halvings; `lo` is on the side
+// whose visibility is `v_lo`.
+fn bisect(ray: PixelRay, r: AirRay, lo_start: f32, hi_start: f32, v_lo: f32) -> f32 {
+    var lo = lo_start;
+    var hi = hi_start;
+    for (var b = 0u; b < BISECTIONS; b++) {
+        let m = 0.5 * (lo + hi);
+        if ((vis_at(ray, r, m) >= 0.5) == (v_lo >= 0.5)) {
+            lo = m;
+        } else {
+            hi = m;
+        }
+    }
+    return 0.5 * (lo + hi);
 }
 
 struct Marched {
@@ -113,10 +135,10 @@ struct Marched {
 // matches `step_angle` (the angle a march step subtends at the light; Wyman and Ramsey 2008, §3.3).
 fn light_texture(p: vec3<f32>, step_angle: f32) -> vec3<f32> {
     let v = (mp.tex_frame * vec4<f32>(p, 1.0)).xyz;
-    let k = 1.0 / (max(-v.z, 1.0e-30) * mp.tex.y);
+    let k = 1.0 / (max(-v.z, 1.0e-30) * mp.tan_half_angle);
     let uv = vec2<f32>(0.5 + 0.5 * v.x * k, 0.5 - 0.5 * v.y * k);
-    let texel_angle = 2.0 * mp.tex.y / mp.tex.z;
-    let lod = clamp(log2(max(step_angle / texel_angle, 1.0)), 0.0, mp.tex.w - 1.0);
+    let texel_angle = 2.0 * mp.tan_half_angle / mp.tex_width;
+    let lod = clamp(log2(max(step_angle / texel_angle, 1.0)), 0.0, mp.tex_mips - 1.0);
     return textureSampleLevel(light_tex, light_sampler, uv, lod).xyz;
 }
 
@@ -126,8 +148,8 @@ fn light_texture(p: vec3<f32>, step_angle: f32) -> vec3<f32> {
 fn step_texture(ray: PixelRay, r: AirRay, a: f32, b: f32, footprint: f32) -> vec3<f32> {
     let mid = 0.5 * (a + b);
     let h = 0.2886751 * (b - a);
-    return 0.5 * (light_texture(air.eye.xyz + x_of_s(r, mid - h) * ray.dir, footprint)
-                + light_texture(air.eye.xyz + x_of_s(r, mid + h) * ray.dir, footprint));
+    return 0.5 * (light_texture(air.eye + x_of_s(r, mid - h) * ray.dir, footprint)
+                + light_texture(air.eye + x_of_s(r, mid + h) * ray.dir, footprint));
 }
 
 // ∫ tex dT over [s0, s1] in n uniform steps (a textured spot outside the extents, where
@@ -189,17 +211,7 @@ fn march_shadowed(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: vec3<f32>, t1:
             var edge = s0 + j * ds;
             if (BISECTIONS > 0u && (v >= 0.5) != (v_run >= 0.5)) {
                 // The transition lies between the two midpoints.
-                var lo = edge - 0.5 * ds;
-                var hi = edge + 0.5 * ds;
-                for (var b = 0u; b < BISECTIONS; b++) {
-                    let m = 0.5 * (lo + hi);
-                    if ((vis_at(ray, r, m) >= 0.5) == (v_run >= 0.5)) {
-                        lo = m;
-                    } else {
-                        hi = m;
-                    }
-                }
-                edge = 0.5 * (lo + hi);
+                edge = bisect(ray, r, edge - 0.5 * ds, edge + 0.5 * ds, v_run);
                 out.steps += BISECTIONS;
             }
             let t_edge = table_t(table, air, r, edge);
@@ -239,18 +251,8 @@ fn march_shadowed_textured(ray: PixelRay, r: AirRay, s0: f32, s1: f32, n: u32) -
         let w = step_texture(ray, r, a, b, footprint);
         out.t += (t_b - t_a) * (v * w);
         if (BISECTIONS > 0u && i > 0u && (v >= 0.5) != (v_prev >= 0.5)) {
-            var lo = a - 0.5 * ds;
-            var hi = mid;
-            for (var k = 0u; k < BISECTIONS; k++) {
-                let m = 0.5 * (lo + hi);
-                if ((vis_at(ray, r, m) >= 0.5) == (v_prev >= 0.5)) {
-                    lo = m;
-                } else {
-                    hi = m;
-                }
-            }
             // Move the edge the midpoint rule assumed (at a) to the located transition.
-            let t_edge = table_t(table, air, r, 0.5 * (lo + hi));
+            let t_edge = table_t(table, air, r, bisect(ray, r, a - 0.5 * ds, mid, v_prev));
             out.t += (t_edge - t_a) * (v_prev * w_prev - v * w);
             out.steps += BISECTIONS;
         }
@@ -274,7 +276,7 @@ fn march_textbook(ray: PixelRay, r: AirRay, x_end: f32, n: u32) -> Textbook {
     var out: Textbook;
     out.lit = vec3<f32>(0.0);
     out.open = vec3<f32>(0.0);
-    let d_light = air.light_pos.w;
+    let d_light = air.distance;
     let sigma_min = min(air.sigma_t.x, min(air.sigma_t.y, air.sigma_t.z));
     let x_cap = min(x_end, select(100.0 * d_light, TEXTBOOK_DEPTH / sigma_min, sigma_min > 0.0));
     var sup: Support;
@@ -284,7 +286,7 @@ fn march_textbook(ray: PixelRay, r: AirRay, x_end: f32, n: u32) -> Textbook {
         sup = cone_support(air, mp.spot, ray.dir, x_cap);
     }
     // The pixel footprint at the light bounds 1/d² as the closed form's prefactor is bounded.
-    let d_min = d_light * max(air.eye.w, 1.0e-6);
+    let d_min = d_light * max(air.pixel_radius, 1.0e-6);
     for (var i = 0u; i < sup.count; i++) {
         let x0 = sup.x[i].x;
         let x1 = min(sup.x[i].y, x_cap);
@@ -294,12 +296,12 @@ fn march_textbook(ray: PixelRay, r: AirRay, x_end: f32, n: u32) -> Textbook {
         let dx = (x1 - x0) / f32(n);
         for (var k = 0u; k < n; k++) {
             let x = x0 + (f32(k) + 0.5) * dx;
-            let p = air.eye.xyz + x * ray.dir;
-            let to_p = p - air.light_pos.xyz;
+            let p = air.eye + x * ray.dir;
+            let to_p = p - air.light_pos;
             let d = max(length(to_p), d_min);
             let mu = dot(to_p, -ray.dir) / max(length(to_p), 1.0e-30);
-            var f = air.sigma_s.xyz * air.intensity.xyz * phase(air, 1.0 - mu, 1.0 + mu)
-                  * exp(-air.sigma_t.xyz * (d + x)) / (d * d) * dx;
+            var f = air.sigma_s * air.intensity * phase(air, 1.0 - mu, 1.0 + mu)
+                  * exp(-air.sigma_t * (d + x)) / (d * d) * dx;
             if (TEXTURED) {
                 f *= light_texture(p, dx / d);
             }
@@ -323,18 +325,18 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
     let depth = textureLoad(scene_depth, under, 0);
     let ray = pixel_ray(view, vec2<f32>(gid.xy) + 0.5, depth);
     let r = air_ray(air, ray.dir);
-    let x_end = select(3.4e38, ray.distance, ray.distance >= 0.0);
+    let x_end = select(FAR, ray.distance, ray.distance >= 0.0);
 
     let sup = support_s(air, r, mp.spot, ray.dir, x_end);
 
     if (MODE == 4u) {
-        let tb = march_textbook(ray, r, x_end, mp.mode.y);
+        let tb = march_textbook(ray, r, x_end, mp.steps);
         var value = clamp_radiance(tb.lit);
-        if (mp.shadow.w > 0.5) {
+        if (mp.lit_fraction != 0u) {
             value = select(vec3<f32>(1.0), min(tb.lit / tb.open, vec3<f32>(1.0)), tb.open > vec3<f32>(0.0));
         }
         textureStore(inscatter_out, gid.xy, vec4<f32>(value, ray.distance));
-        textureStore(steps_out, gid.xy, vec4<u32>(mp.mode.y, 0u, 0u, 0u));
+        textureStore(steps_out, gid.xy, vec4<u32>(mp.steps, 0u, 0u, 0u));
         return;
     }
 
@@ -355,18 +357,18 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
         let has_front = front > 0.0;
         let has_back = back_far < 1.0;
         if (has_front || has_back) {
-            let to_x = mp.shadow.z * ray.depth_to_distance;
+            let to_x = mp.extents_near * ray.depth_to_distance;
             var x0 = 0.0;
             if (has_front && back_near <= front) {
                 x0 = to_x / front;
             }
-            var x1 = 3.4e38;
+            var x1 = FAR;
             if (has_back && back_far > 0.0) {
                 x1 = to_x / back_far;
             }
             // Widening is always safe (the shadow map decides visibility): a relative margin covers rasterisation
             // and depth rounding.
-            ext = vec2<f32>(s_of_x(air, r, x0 * 0.999), s_of_x(air, r, min(x1 * 1.001, 3.4e38)));
+            ext = vec2<f32>(s_of_x(air, r, x0 * 0.999), s_of_x(air, r, min(x1 * 1.001, FAR)));
         }
     } else if (MODE == 2u) {
         ext = vec2<f32>(0.0, 1.0);
@@ -374,7 +376,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
         let p = gid.y * size.x + gid.x;
         let head = heads[4u * p];
         let count = head & 0x7fffffffu;
-        let k = mp.mode.z;
+        let k = mp.list_entries;
         // Statistics for sizing the lists, kept off the common path: one counter for every
         // pixel would serialise the pass on its atomics.
         if (2u * count > k) {
@@ -388,7 +390,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
             let z0 = bitcast<f32>(~heads[4u * p + 1u]);
             let z1 = bitcast<f32>(heads[4u * p + 2u]);
             ext = vec2<f32>(s_of_x(air, r, z0 * ray.depth_to_distance * 0.999),
-                            s_of_x(air, r, min(z1 * ray.depth_to_distance * 1.001, 3.4e38)));
+                            s_of_x(air, r, min(z1 * ray.depth_to_distance * 1.001, FAR)));
         } else {
             exact = true;
             n_cross = count;
@@ -421,7 +423,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
             // No occluders: all of it is lit. (MODE == 0 lets the compiler drop the shadow
             // code from the analytic pipeline.)
             if (TEXTURED) {
-                let all = march_textured(ray, r, u0, u1, mp.budget.x);
+                let all = march_textured(ray, r, u0, u1, mp.texture_steps);
                 total += all.t;
                 steps += all.steps;
             } else {
@@ -441,7 +443,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
             var last_z = -1.0;
             var last_i = -1;
             loop {
-                var next_z = 3.4e38;
+                var next_z = FAR;
                 var next_i = -1;
                 var next_e = 0;
                 for (var i = 0u; i < n_cross; i++) {
@@ -480,7 +482,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
                 }
                 if (TEXTURED) {
                     // The texture still needs steps; this piece gets its share of the budget.
-                    let n = max(1u, u32(ceil(f32(mp.budget.x) * (b - a) / max(u1 - u0, 1.0e-30))));
+                    let n = max(1u, u32(ceil(f32(mp.texture_steps) * (b - a) / max(u1 - u0, 1.0e-30))));
                     if (v > 0.0) {
                         let m = march_textured(ray, r, a, b, n);
                         total += v * m.t;
@@ -507,7 +509,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
             let v = vis_at(ray, r, 0.5 * (u0 + u1));
             if (TEXTURED) {
                 if (v > 0.0) {
-                    let all = march_textured(ray, r, u0, u1, mp.budget.x);
+                    let all = march_textured(ray, r, u0, u1, mp.texture_steps);
                     total += v * all.t;
                     steps += all.steps;
                 }
@@ -531,10 +533,10 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
         if (TEXTURED) {
             // The hybrid gives the texture its own resolution inside the extents too; brute
             // force marches everything with its `steps`, texture included.
-            let n = select(mp.mode.y, max(mp.mode.y, mp.budget.x), MODE != 2u);
+            let n = select(mp.steps, max(mp.steps, mp.texture_steps), MODE != 2u);
             inside = march_shadowed_textured(ray, r, m0, m1, n);
         } else {
-            inside = march_shadowed(ray, r, m0, m1, t_m0, t_m1, mp.mode.y);
+            inside = march_shadowed(ray, r, m0, m1, t_m0, t_m1, mp.steps);
         }
         total += inside.t;
         steps += inside.steps;
@@ -548,12 +550,12 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         if (TEXTURED) {
             if (v_before > 0.0) {
-                let before = march_textured(ray, r, u0, m0, mp.budget.x);
+                let before = march_textured(ray, r, u0, m0, mp.texture_steps);
                 total += v_before * before.t;
                 steps += before.steps;
             }
             if (v_after > 0.0) {
-                let after = march_textured(ray, r, m1, u1, mp.budget.x);
+                let after = march_textured(ray, r, m1, u1, mp.texture_steps);
                 total += v_after * after.t;
                 steps += after.steps;
             }
@@ -563,7 +565,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     total = max(total, vec3<f32>(0.0));
     var value = clamp_radiance(r.prefactor * total);
-    if (mp.shadow.w > 0.5) {
+    if (mp.lit_fraction != 0u) {
         // Reduced resolution: the fraction of the unshadowed airlight that arrives, which the
         // upsample multiplies into a full-resolution analytic airlight. It is smooth where the
         // airlight itself is peaked (around the light) and keeps hard edges only at shadows.

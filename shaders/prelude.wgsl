@@ -10,22 +10,28 @@ const PI: f32 = 3.14159265358979;
 const INV_4PI: f32 = 0.0795774715459477;
 // Larger than any radiance we produce; outputs are clamped to it so nothing reaches Inf.
 const MAX_RADIANCE: f32 = 1.0e30;
+// The distance of "no end": the sky, an unbounded piece of a ray, no crossing found.
+const FAR: f32 = 3.4e38;
 
 // Per-frame airlight parameters. The phase function is a per-channel mixture of
 // five lobes, so every PhaseFunction variant (and Hoffman–Preetham's RGB mix) is one code path.
+// Mirrors `AirlightUniform` in src/gpu/uniforms.rs field by field.
 struct Airlight {
-    light_pos: vec4<f32>,   // xyz light position, w = D = |P − E|
-    eye: vec4<f32>,         // xyz eye position, w = pixel angular radius (radians)
-    intensity: vec4<f32>,   // rgb I0
-    sigma_s: vec4<f32>,     // rgb σs
-    sigma_t: vec4<f32>,     // rgb σt = σs + σa
-    w_iso: vec4<f32>,       // per-channel lobe weights, summing to 1
+    light_pos: vec3<f32>,
+    distance: f32,          // D = |P − E|
+    eye: vec3<f32>,
+    pixel_radius: f32,      // the pixel's angular radius (radians)
+    intensity: vec3<f32>,   // I0
+    hg_g: f32,              // Henyey–Greenstein g
+    sigma_s: vec3<f32>,
+    table_along: u32,       // F′ table entries along the ray (s)
+    sigma_t: vec3<f32>,     // σt = σs + σa
+    table_across: u32,      // F′ table rows across rays (γ)
+    w_iso: vec4<f32>,       // per-channel (rgb) lobe weights, summing to 1
     w_rayleigh: vec4<f32>,
     w_hg: vec4<f32>,
     w_hazy: vec4<f32>,
     w_murky: vec4<f32>,
-    hg_g: vec4<f32>,        // x = Henyey–Greenstein g
-    table_size: vec4<u32>,  // x = entries along the ray (s), y = rows across rays (γ)
 }
 
 // Phase function at scattering angle θ, given 1 − cos θ and 1 + cos θ computed without
@@ -35,7 +41,7 @@ fn phase(a: Airlight, one_minus_mu: f32, one_plus_mu: f32) -> vec3<f32> {
     var p = a.w_iso.xyz * INV_4PI;
     p += a.w_rayleigh.xyz * (3.0 / (16.0 * PI)) * (1.0 + mu * mu);
     if (any(a.w_hg.xyz != vec3<f32>(0.0))) {
-        let g = a.hg_g.x;
+        let g = a.hg_g;
         // 1 + g² − 2gμ as a sum of non-negative terms for either sign of g.
         var denom = (1.0 - g) * (1.0 - g) + 2.0 * g * one_minus_mu;
         if (g < 0.0) {
@@ -64,8 +70,8 @@ struct AirRay {
 }
 
 fn air_ray(a: Airlight, dir: vec3<f32>) -> AirRay {
-    let to_light = a.light_pos.xyz - a.eye.xyz;
-    let d = a.light_pos.w;
+    let to_light = a.light_pos - a.eye;
+    let d = a.distance;
     var r: AirRay;
     r.c = length(cross(dir, to_light));
     r.dotv = dot(dir, to_light);
@@ -78,14 +84,14 @@ fn air_ray(a: Airlight, dir: vec3<f32>) -> AirRay {
     var sin_gamma = r.c / d;
     var ratio = 1.0;
     if (r.gamma < 0.5 * PI) {
-        sin_gamma = max(sin_gamma, a.eye.w);
+        sin_gamma = max(sin_gamma, a.pixel_radius);
         ratio = r.w / sin_gamma;
     } else if (sin_gamma > 1.0e-30) {
         ratio = r.w / sin_gamma;
     }
     // In log space: at σt·D = 100, exp(−σt D) = 4e-44 is below f32's normal range while
     // I0 · exp(−σt D) may still be a visible radiance. log(0) = −inf gives exp = 0, no NaN.
-    r.prefactor = exp(log(a.intensity.xyz) + log(a.sigma_s.xyz) - a.sigma_t.xyz * d) * (ratio / d);
+    r.prefactor = exp(log(a.intensity) + log(a.sigma_s) - a.sigma_t * d) * (ratio / d);
     return r;
 }
 
@@ -105,14 +111,14 @@ fn table_integrand_split(a: Airlight, s: f32, one_minus_s: f32, w: f32, sin_half
     let su = sin(u);
     let cu = cos(u);
     let ratio = min(sin(half_a) / max(su, 1.0e-30), 1.0e20);
-    let tau = (2.0 * a.light_pos.w * sin_half_gamma * ratio) * a.sigma_t.xyz;
+    let tau = (2.0 * a.distance * sin_half_gamma * ratio) * a.sigma_t;
     return phase(a, 2.0 * cu * cu, 2.0 * su * su) * exp(-tau);
 }
 
 // Normalised scattering angle of the point at distance x along the ray, from the two angles of
 // the eye–point–light triangle: δ at the light and β at the point, s = δ / (δ + β).
 fn scattering_s(a: Airlight, r: AirRay, x: f32) -> f32 {
-    let d = a.light_pos.w;
+    let d = a.distance;
     let delta = atan2(x * r.c, d * d - x * r.dotv);
     let beta = atan2(r.c, x - r.dotv);
     return clamp(delta / max(delta + beta, 1.0e-30), 0.0, 1.0);
@@ -120,7 +126,7 @@ fn scattering_s(a: Airlight, r: AirRay, x: f32) -> f32 {
 
 // Reads T at (row, entry) of the table with the γ rows interpolated linearly.
 fn table_row_mix(table: texture_2d<f32>, a: Airlight, gamma: f32, j: u32) -> vec3<f32> {
-    let rows = a.table_size.y;
+    let rows = a.table_across;
     let tg = sqrt(clamp(gamma / PI, 0.0, 1.0)) * f32(rows - 1u);
     let i0 = min(u32(tg), rows - 2u);
     let f = clamp(tg - f32(i0), 0.0, 1.0);
@@ -134,7 +140,7 @@ fn table_row_mix(table: texture_2d<f32>, a: Airlight, gamma: f32, j: u32) -> vec
 // would be wrong exactly where the image is brightest (steep rise near the light, optically
 // deep media); the partial cell costs three integrand evaluations and removes that error.
 fn table_t(table: texture_2d<f32>, a: Airlight, r: AirRay, s: f32) -> vec3<f32> {
-    let n = a.table_size.x;
+    let n = a.table_along;
     let ts = s * f32(n - 1u);
     let j = min(u32(ts), n - 1u);
     let s0 = f32(j) / f32(n - 1u);
@@ -168,7 +174,7 @@ struct Support {
 }
 
 fn inside_cone(a: Airlight, spot: vec4<f32>, p: vec3<f32>) -> bool {
-    let rel = p - a.light_pos.xyz;
+    let rel = p - a.light_pos;
     return dot(spot.xyz, rel) >= spot.w * length(rel);
 }
 
@@ -177,7 +183,7 @@ fn cone_support(air: Airlight, spot: vec4<f32>, dir: vec3<f32>, x_end: f32) -> S
     sup.count = 0u;
     let axis = spot.xyz;
     let c2 = spot.w * spot.w;
-    let w0 = air.eye.xyz - air.light_pos.xyz;
+    let w0 = air.eye - air.light_pos;
     let av = dot(axis, dir);
     let aw = dot(axis, w0);
     let qa = av * av - c2;
@@ -209,10 +215,10 @@ fn cone_support(air: Airlight, spot: vec4<f32>, dir: vec3<f32>, x_end: f32) -> S
         let a = cuts[i];
         let b = cuts[i + 1u];
         var mid = 0.5 * (a + b);
-        if (b >= 3.0e38) {
-            mid = a + 1.0 + 2.0 * abs(a) + 1.0e3 * air.light_pos.w; // far along an unbounded piece
+        if (b >= FAR) {
+            mid = a + 1.0 + 2.0 * abs(a) + 1.0e3 * air.distance; // far along an unbounded piece
         }
-        if (b > a && inside_cone(air, spot, air.eye.xyz + mid * dir)) {
+        if (b > a && inside_cone(air, spot, air.eye + mid * dir)) {
             if (sup.count > 0u && sup.x[sup.count - 1u].y == a) {
                 sup.x[sup.count - 1u].y = b;
             } else if (sup.count < 2u) {
@@ -225,7 +231,7 @@ fn cone_support(air: Airlight, spot: vec4<f32>, dir: vec3<f32>, x_end: f32) -> S
 }
 
 fn s_of_x(a: Airlight, r: AirRay, x: f32) -> f32 {
-    if (x >= 3.0e38) {
+    if (x >= FAR) {
         return 1.0;
     }
     return scattering_s(a, r, x);
@@ -270,10 +276,12 @@ fn clamp_radiance(v: vec3<f32>) -> vec3<f32> {
 
 // Camera constants shared by the per-pixel passes: rays are built in view space so that
 // large world coordinates do not cost the ray direction its precision.
+// Mirrors `ViewUniform` in src/gpu/uniforms.rs.
 struct View {
     view_from_clip: mat4x4<f32>,
     world_from_view: mat4x4<f32>,
-    size: vec4<f32>,     // x = width, y = height (pixels of the pass), z = far depth (sky), w unused
+    size: vec2<f32>,     // pixels of the pass
+    far_depth: f32,      // the depth of the sky
 }
 
 // Unit world-space ray direction and eye distance for a pixel centre; distance < 0 means sky.
@@ -287,7 +295,7 @@ struct PixelRay {
 
 fn pixel_ray(v: View, pixel: vec2<f32>, depth: f32) -> PixelRay {
     let ndc = vec2<f32>(pixel.x / v.size.x * 2.0 - 1.0, 1.0 - pixel.y / v.size.y * 2.0);
-    let far_depth = v.size.z;
+    let far_depth = v.far_depth;
     let near_depth = 1.0 - far_depth;
     let near_h = v.view_from_clip * vec4<f32>(ndc, near_depth, 1.0);
     let dir_view = near_h.xyz / near_h.w;
@@ -303,5 +311,20 @@ fn pixel_ray(v: View, pixel: vec2<f32>, depth: f32) -> PixelRay {
             out.distance = length(m * (p.xyz / p.w));
         }
     }
+    return out;
+}
+
+// The fullscreen triangle of the passes that cover their target; uv (0, 0) at the top left.
+struct Fullscreen {
+    @builtin(position) position: vec4<f32>,
+    @location(0) uv: vec2<f32>,
+}
+
+@vertex
+fn vs_fullscreen(@builtin(vertex_index) i: u32) -> Fullscreen {
+    let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
+    var out: Fullscreen;
+    out.position = vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
+    out.uv = vec2<f32>(uv.x, 1.0 - uv.y);
     return out;
 }

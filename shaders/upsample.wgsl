@@ -5,9 +5,14 @@
 //   filter 1: 3×3 Gaussian over the low-resolution samples whose depth matches the pixel's
 //   filter 2: separable N-tap bilateral, horizontal pass then vertical pass
 
+// Mirrors `UpsampleUniform` in src/nodes/upsample.rs.
 struct Upsample {
-    params: vec4<f32>,   // x: filter, y: taps, z: spatial sigma (low-res px), w: depth sigma (relative)
-    sizes: vec4<f32>,    // xy: low-res size, zw: output size
+    kind: u32,            // the filter: 0 bilinear, 1 3×3, 2 separable
+    taps: u32,            // separable: taps per direction
+    sigma_spatial: f32,   // separable: in low-resolution pixels
+    sigma_depth: f32,     // separable: relative to the pixel's eye distance
+    low_size: vec2<f32>,
+    out_size: vec2<f32>,
 }
 
 @group(0) @binding(0) var<storage, read> up: Upsample;
@@ -24,7 +29,7 @@ struct Upsample {
 fn airlight_full(p: vec2<u32>) -> vec4<f32> {
     let ray = pixel_ray(view, vec2<f32>(p) + 0.5, textureLoad(scene_depth, p, 0));
     let r = air_ray(air, ray.dir);
-    let x_end = select(3.4e38, ray.distance, ray.distance >= 0.0);
+    let x_end = select(FAR, ray.distance, ray.distance >= 0.0);
     let sup = support_s(air, r, spot, ray.dir, x_end);
     return vec4<f32>(r.prefactor * unshadowed_t(table, air, r, sup), ray.distance);
 }
@@ -45,18 +50,18 @@ fn depth_delta(a: f32, b: f32) -> f32 {
 }
 
 fn low_at(p: vec2<i32>) -> vec4<f32> {
-    let size = vec2<i32>(up.sizes.xy);
+    let size = vec2<i32>(up.low_size);
     return textureLoad(low, clamp(p, vec2<i32>(0), size - 1), 0);
 }
 
 // Continuous low-resolution coordinate of an output pixel's centre (texel centres at +0.5).
 fn low_coord(p: vec2<u32>) -> vec2<f32> {
-    return (vec2<f32>(p) + 0.5) * up.sizes.xy / up.sizes.zw - 0.5;
+    return (vec2<f32>(p) + 0.5) * up.low_size / up.out_size - 0.5;
 }
 
 @compute @workgroup_size(8, 8)
 fn upsample(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let full = vec2<u32>(up.sizes.zw);
+    let full = vec2<u32>(up.out_size);
     if (gid.x >= full.x || gid.y >= full.y) {
         return;
     }
@@ -64,7 +69,7 @@ fn upsample(@builtin(global_invocation_id) gid: vec3<u32>) {
     let z = analytic.w;
     let q = low_coord(gid.xy);
     var result = vec3<f32>(0.0);
-    if (up.params.x < 0.5) {
+    if (up.kind == 0u) {
         let b = floor(q);
         let f = q - b;
         let i = vec2<i32>(b);
@@ -99,74 +104,63 @@ fn upsample(@builtin(global_invocation_id) gid: vec3<u32>) {
 }
 
 fn bilateral_weight(offset: f32, delta: f32) -> f32 {
-    let s = offset / up.params.z;
-    let d = delta / up.params.w;
+    let s = offset / up.sigma_spatial;
+    let d = delta / up.sigma_depth;
     return exp(-0.5 * (s * s + d * d));
+}
+
+// One direction of the separable bilateral around the continuous coordinate `c`: along x of
+// `low` (horizontal) or along y of `mid` (vertical), against the reference distance `z`.
+fn separable(gid: vec2<u32>, c: f32, z: f32, vertical: bool) -> vec3<f32> {
+    let half = i32(up.taps) / 2;
+    let base = i32(floor(c + 0.5));
+    var sum = vec3<f32>(0.0);
+    var weight = 0.0;
+    var nearest = vec3<f32>(0.0);
+    var nearest_delta = 1.0e38;
+    for (var k = -half; k <= half; k++) {
+        let t = base + k;
+        var s: vec4<f32>;
+        if (vertical) {
+            s = textureLoad(mid, vec2<i32>(i32(gid.x), clamp(t, 0, i32(up.low_size.y) - 1)), 0);
+        } else {
+            s = low_at(vec2<i32>(t, i32(gid.y)));
+        }
+        let delta = depth_delta(s.w, z);
+        if (delta < nearest_delta) {
+            nearest_delta = delta;
+            nearest = s.xyz;
+        }
+        let w = bilateral_weight(f32(t) - c, delta);
+        sum += w * s.xyz;
+        weight += w;
+    }
+    return select(nearest, sum / weight, weight > 1.0e-6);
 }
 
 // Horizontal pass: output width × low-res height; each row's reference depth is the output
 // pixel that the march sampled for that low-res row.
 @compute @workgroup_size(8, 8)
 fn separable_h(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let full = vec2<u32>(up.sizes.zw);
-    let low_size = vec2<u32>(up.sizes.xy);
-    if (gid.x >= full.x || gid.y >= low_size.y) {
+    let full = vec2<u32>(up.out_size);
+    if (gid.x >= full.x || gid.y >= u32(up.low_size.y)) {
         return;
     }
-    let row = min(u32((f32(gid.y) + 0.5) * up.sizes.w / up.sizes.y), full.y - 1u);
+    let row = min(u32((f32(gid.y) + 0.5) * up.out_size.y / up.low_size.y), full.y - 1u);
     let z = full_distance(vec2<u32>(gid.x, row));
-    let cx = (f32(gid.x) + 0.5) * up.sizes.x / up.sizes.z - 0.5;
-    let half = i32(up.params.y) / 2;
-    let base = i32(floor(cx + 0.5));
-    var sum = vec3<f32>(0.0);
-    var weight = 0.0;
-    var nearest = vec3<f32>(0.0);
-    var nearest_delta = 1.0e38;
-    for (var k = -half; k <= half; k++) {
-        let x = base + k;
-        let s = low_at(vec2<i32>(x, i32(gid.y)));
-        let delta = depth_delta(s.w, z);
-        if (delta < nearest_delta) {
-            nearest_delta = delta;
-            nearest = s.xyz;
-        }
-        let w = bilateral_weight(f32(x) - cx, delta);
-        sum += w * s.xyz;
-        weight += w;
-    }
-    let value = select(nearest, sum / weight, weight > 1.0e-6);
-    textureStore(out_tex, gid.xy, vec4<f32>(value, z));
+    let cx = (f32(gid.x) + 0.5) * up.low_size.x / up.out_size.x - 0.5;
+    textureStore(out_tex, gid.xy, vec4<f32>(separable(gid.xy, cx, z, false), z));
 }
 
 // Vertical pass over the horizontal result, against each output pixel's own depth.
 @compute @workgroup_size(8, 8)
 fn separable_v(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let full = vec2<u32>(up.sizes.zw);
+    let full = vec2<u32>(up.out_size);
     if (gid.x >= full.x || gid.y >= full.y) {
         return;
     }
     let analytic = airlight_full(gid.xy);
-    let z = analytic.w;
-    let cy = (f32(gid.y) + 0.5) * up.sizes.y / up.sizes.w - 0.5;
-    let half = i32(up.params.y) / 2;
-    let base = i32(floor(cy + 0.5));
-    let rows = i32(up.sizes.y);
-    var sum = vec3<f32>(0.0);
-    var weight = 0.0;
-    var nearest = vec3<f32>(0.0);
-    var nearest_delta = 1.0e38;
-    for (var k = -half; k <= half; k++) {
-        let y = base + k;
-        let s = textureLoad(mid, vec2<i32>(i32(gid.x), clamp(y, 0, rows - 1)), 0);
-        let delta = depth_delta(s.w, z);
-        if (delta < nearest_delta) {
-            nearest_delta = delta;
-            nearest = s.xyz;
-        }
-        let w = bilateral_weight(f32(y) - cy, delta);
-        sum += w * s.xyz;
-        weight += w;
-    }
-    let value = select(nearest, sum / weight, weight > 1.0e-6);
-    textureStore(out_tex, gid.xy, vec4<f32>(clamp_radiance(value * analytic.xyz), z));
+    let cy = (f32(gid.y) + 0.5) * up.low_size.y / up.out_size.y - 0.5;
+    let value = separable(gid.xy, cy, analytic.w, true);
+    textureStore(out_tex, gid.xy, vec4<f32>(clamp_radiance(value * analytic.xyz), analytic.w));
 }

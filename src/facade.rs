@@ -5,8 +5,8 @@ use crate::gpu::{Cache, GpuTimer, Occluder, PassTime};
 use crate::nodes::{
     AirlightTableNode, CompositeInputs, CompositeNode, CrossingsRequest, ExtentsInputs,
     ExtentsNode, LightTextureNode, MarchInputs, MarchMethod, MarchNode, MarchSettings,
-    OutputTarget, Scale, ShadowMapNode, ShadowMapSettings, Shadows, TableSize, UpsampleFilter,
-    UpsampleInputs, UpsampleNode, MAX_LIGHTS,
+    OutputTarget, Scale, ShadowMapInputs, ShadowMapNode, ShadowMapSettings, Shadows, TableInputs,
+    TableSize, UpsampleFilter, UpsampleInputs, UpsampleNode, MAX_LIGHTS,
 };
 use crate::plan::{self, Culled, FrameFacts, LightFacts, Pass, Plan};
 use crate::scene::{Camera, Light, Medium};
@@ -161,6 +161,16 @@ struct LightSlot {
     upsample: UpsampleNode,
 }
 
+impl LightSlot {
+    /// The light's in-scatter at the output resolution: the upsample's when it is planned.
+    fn inscatter(&self, plan: &Plan, light: usize) -> Option<&wgpu::Texture> {
+        match plan.runs(Pass::Upsample, Some(light)) {
+            true => self.upsample.output(),
+            false => self.march.output(),
+        }
+    }
+}
+
 /// Volumetric shadows for a view: prepare a frame, then record it into the caller's encoder.
 ///
 /// Used in the [crate-level example](crate#example).
@@ -285,14 +295,15 @@ impl VolumetricShadows {
         }
         while self.slots.len() < frame.lights.len() {
             self.slots.push(LightSlot {
-                texture: LightTextureNode::new(device, &self.cache),
+                texture: LightTextureNode::new(device, &self.cache)?,
                 shadow: ShadowMapNode::new(device, &self.cache, self.settings.shadow_map)?,
-                extents: ExtentsNode::new(device, &self.cache),
+                extents: ExtentsNode::new(device, &self.cache)?,
                 table: AirlightTableNode::new(device, &self.cache, self.settings.table)?,
                 march: MarchNode::new(device, &self.cache, self.settings.march)?,
                 upsample: UpsampleNode::new(device, &self.cache, self.settings.upsample)?,
             });
         }
+        // Cheap facts first (no GPU work), then the plan, then exactly the planned steps.
         let scatters = frame.medium.sigma_s().max_element() > 0.0;
         let (width, height) = (frame.scene_depth.width(), frame.scene_depth.height());
         let mut facts = FrameFacts {
@@ -306,15 +317,19 @@ impl VolumetricShadows {
             culled: Vec::new(),
             error_target: self.settings.error_target,
         };
-        for (i, (fl, slot)) in frame.lights.iter().zip(&mut self.slots).enumerate() {
-            let light = &fl.light;
+        let mut kept: Vec<Vec<Occluder<'_>>> = Vec::new();
+        for (i, fl) in frame.lights.iter().enumerate() {
             // Occluders whose effect is provably below the threshold stay out of this light's
             // shadow map and extents.
-            let mut kept: Vec<Occluder<'_>> = Vec::new();
+            let mut light_kept = Vec::new();
             for (j, o) in frame.occluders.iter().enumerate() {
                 o.validate()?;
-                let bound =
-                    plan::occluder_bound(frame.camera.eye(), light, frame.medium, o.world_bounds());
+                let bound = plan::occluder_bound(
+                    frame.camera.eye(),
+                    &fl.light,
+                    frame.medium,
+                    o.world_bounds(),
+                );
                 if bound < f64::from(self.settings.cull_threshold) {
                     facts.culled.push(Culled {
                         light: i,
@@ -322,117 +337,101 @@ impl VolumetricShadows {
                         bound,
                     });
                 } else {
-                    kept.push(*o);
+                    light_kept.push(*o);
                 }
-            }
-            if !scatters {
-                facts.lights.push(LightFacts {
-                    textured: fl.texture.is_some(),
-                    texture_changed: false,
-                    occluders: kept.len(),
-                    shadow_changed: false,
-                    table_changed: false,
-                });
-                continue;
-            }
-            if let Some(t) = fl.texture {
-                slot.texture.prepare(device, t)?;
-            }
-            let shadowed = !kept.is_empty();
-            let shadow_changed = shadowed && slot.shadow.prepare(device, queue, light, &kept)?;
-            let scale = plan::light_scale(
-                self.settings.march.scale,
-                shadowed,
-                fl.texture.is_some(),
-                self.settings.error_target,
-            );
-            let method = self.settings.march.method;
-            let uses_extents = matches!(method, MarchMethod::Hybrid | MarchMethod::Exact);
-            if shadowed && uses_extents {
-                let (w, h) = scale.apply(width, height);
-                slot.extents.prepare(
-                    device,
-                    queue,
-                    &ExtentsInputs {
-                        camera: frame.camera,
-                        light,
-                        occluders: &kept,
-                        size: (w, h),
-                        crossings: (method == MarchMethod::Exact).then_some(CrossingsRequest {
-                            per_pixel: self.settings.march.crossings,
-                            scene_depth: frame.scene_depth,
-                        }),
-                    },
-                )?;
-            }
-            let table_changed = slot
-                .table
-                .prepare(queue, frame.camera.eye(), light, frame.medium);
-            slot.march.set_settings(MarchSettings {
-                scale,
-                ..self.settings.march
-            })?;
-            slot.march.prepare(
-                device,
-                queue,
-                &slot.table,
-                &MarchInputs {
-                    camera: frame.camera,
-                    light,
-                    medium: frame.medium,
-                    scene_depth: frame.scene_depth,
-                    shadows: shadowed
-                        .then(|| {
-                            Some(Shadows {
-                                shadow_map: slot.shadow.shadow_map()?,
-                                extents: if uses_extents {
-                                    slot.extents.extents()
-                                } else {
-                                    None
-                                },
-                            })
-                        })
-                        .flatten(),
-                    light_texture: fl.texture.and(slot.texture.texture()),
-                },
-            )?;
-            if scale != Scale::Full {
-                slot.upsample.set_filter(self.settings.upsample)?;
-                slot.upsample.prepare(
-                    device,
-                    queue,
-                    &UpsampleInputs {
-                        camera: frame.camera,
-                        scene_depth: frame.scene_depth,
-                        low: slot.march.output().expect("prepared"),
-                        table: &slot.table,
-                        light,
-                        medium: frame.medium,
-                    },
-                )?;
             }
             facts.lights.push(LightFacts {
                 textured: fl.texture.is_some(),
-                texture_changed: slot.texture.is_pending(),
-                occluders: kept.len(),
-                shadow_changed,
-                table_changed,
+                occluders: light_kept.len(),
             });
+            kept.push(light_kept);
         }
-        self.plan = plan::plan(&facts);
+        let mut plan = plan::plan(&facts);
+        let mut unchanged = Vec::new();
+        for (index, step) in plan.steps.iter().enumerate() {
+            let Some(i) = step.light else { continue };
+            let (fl, slot, occluders) = (&frame.lights[i], &mut self.slots[i], &kept[i]);
+            let (camera, light, medium) = (frame.camera, &fl.light, frame.medium);
+            let work = match step.pass {
+                Pass::LightTexture => match fl.texture {
+                    Some(t) => slot.texture.prepare(device, queue, t)?,
+                    None => false,
+                },
+                Pass::ShadowMap => {
+                    let inputs = ShadowMapInputs { light, occluders };
+                    slot.shadow.prepare(device, queue, &inputs)?
+                }
+                Pass::Extents => slot.extents.prepare(
+                    device,
+                    queue,
+                    &ExtentsInputs {
+                        camera,
+                        light,
+                        occluders,
+                        size: plan.scale(i).apply(width, height),
+                        crossings: (self.settings.march.method == MarchMethod::Exact).then_some(
+                            CrossingsRequest {
+                                per_pixel: self.settings.march.crossings,
+                                scene_depth: frame.scene_depth,
+                            },
+                        ),
+                    },
+                )?,
+                Pass::AirlightTable => {
+                    let eye = camera.eye();
+                    let inputs = TableInputs { eye, light, medium };
+                    slot.table.prepare(device, queue, &inputs)?
+                }
+                Pass::March => {
+                    slot.march.set_settings(MarchSettings {
+                        scale: plan.scale(i),
+                        ..self.settings.march
+                    })?;
+                    let shadows = plan.runs(Pass::ShadowMap, step.light).then(|| {
+                        Some(Shadows {
+                            shadow_map: slot.shadow.shadow_map()?,
+                            extents: plan
+                                .runs(Pass::Extents, step.light)
+                                .then(|| slot.extents.extents())
+                                .flatten(),
+                        })
+                    });
+                    let inputs = MarchInputs {
+                        camera,
+                        light,
+                        medium,
+                        table: &slot.table,
+                        scene_depth: frame.scene_depth,
+                        shadows: shadows.flatten(),
+                        light_texture: fl.texture.and(slot.texture.texture()),
+                    };
+                    slot.march.prepare(device, queue, &inputs)?
+                }
+                Pass::Upsample => {
+                    slot.upsample.set_settings(self.settings.upsample)?;
+                    let inputs = UpsampleInputs {
+                        camera,
+                        scene_depth: frame.scene_depth,
+                        low: slot.march.output().expect("prepared by the planned march"),
+                        table: &slot.table,
+                        light,
+                        medium,
+                    };
+                    slot.upsample.prepare(device, queue, &inputs)?
+                }
+                Pass::Composite => true,
+            };
+            if !work {
+                unchanged.push(index);
+            }
+        }
+        plan.unchanged(&unchanged);
+        self.plan = plan;
 
         let inscatter: Vec<&wgpu::Texture> = if scatters {
-            self.slots[..frame.lights.len()]
-                .iter()
-                .enumerate()
-                .map(|(i, slot)| {
-                    if self.plan.runs(Pass::Upsample, Some(i)) {
-                        slot.upsample.output()
-                    } else {
-                        slot.march.output()
-                    }
-                    .expect("prepared")
-                })
+            let slots = self.slots.iter().enumerate().take(frame.lights.len());
+            slots
+                .map(|(i, slot)| slot.inscatter(&self.plan, i).expect("prepared"))
                 .collect()
         } else {
             Vec::new()
@@ -532,36 +531,29 @@ impl VolumetricShadows {
         index: usize,
     ) -> Result<()> {
         let step = &self.plan.steps[index];
-        let timer = self.timer.as_mut();
-        match (step.pass, step.light) {
-            (Pass::Composite, _) => self.composite.encode(encoder, output, timer)?,
-            (pass, Some(i)) => {
-                // Slots and plan are built together by a successful prepare; a stale plan is
-                // refused by `check_prepared`, never indexed.
-                let Some(slot) = self.slots.get_mut(i) else {
-                    return Err(Error::NotPrepared {
-                        reason: "the plan names a light that has no resources",
-                    });
-                };
-                match pass {
-                    Pass::LightTexture => {
-                        slot.texture.encode(encoder, timer);
-                    }
-                    Pass::ShadowMap => {
-                        slot.shadow.encode(encoder, timer);
-                    }
-                    Pass::Extents => slot.extents.encode(encoder, timer),
-                    Pass::AirlightTable => {
-                        slot.table.encode(encoder, timer);
-                    }
-                    Pass::March => slot.march.encode(encoder, timer),
-                    Pass::Upsample => slot.upsample.encode(encoder, timer),
-                    Pass::Composite => unreachable!("handled above"),
-                }
-            }
-            (_, None) => {}
+        let mut timer = self.timer.as_mut();
+        if let Some(t) = timer.as_deref_mut() {
+            t.light = step.light;
         }
-        Ok(())
+        let Some(i) = step.light else {
+            return self.composite.encode(encoder, output, timer);
+        };
+        // Slots and plan are built together by a successful prepare; a stale plan is refused
+        // by `check_prepared`, never indexed.
+        let Some(slot) = self.slots.get_mut(i) else {
+            return Err(Error::NotPrepared {
+                reason: "the plan names a light that has no resources",
+            });
+        };
+        match step.pass {
+            Pass::LightTexture => slot.texture.encode(encoder, timer),
+            Pass::ShadowMap => slot.shadow.encode(encoder, timer),
+            Pass::Extents => slot.extents.encode(encoder, timer),
+            Pass::AirlightTable => slot.table.encode(encoder, timer),
+            Pass::March => slot.march.encode(encoder, timer),
+            Pass::Upsample => slot.upsample.encode(encoder, timer),
+            Pass::Composite => self.composite.encode(encoder, output, timer),
+        }
     }
 
     /// Forgets every per-light resource, so the next frame rebuilds all of it (shadow maps,
@@ -595,12 +587,7 @@ impl VolumetricShadows {
     /// The in-scatter each light added last frame (full resolution, `Rgba32Float`), for
     /// debugging and tests.
     pub fn inscatter(&self, light: usize) -> Option<&wgpu::Texture> {
-        let slot = self.slots.get(light)?;
-        if self.plan.runs(Pass::Upsample, Some(light)) {
-            slot.upsample.output()
-        } else {
-            slot.march.output()
-        }
+        self.slots.get(light)?.inscatter(&self.plan, light)
     }
 
     /// March steps per pixel of a light's last march (`R32Uint`, at the march's resolution).

@@ -1,5 +1,7 @@
 //! The planner: the one place that decides which passes a frame records, and says why the
-//! others are left out.
+//! others are left out. It plans from cheap facts (lights, occluders left after culling,
+//! settings); the facade then prepares exactly the planned steps, and the steps whose node
+//! found nothing changed are left out as [`Reason::Unchanged`].
 
 use std::fmt;
 
@@ -130,6 +132,8 @@ pub struct Plan {
     pub skipped: Vec<Skip>,
     /// Occluders culled per light.
     pub culled: Vec<Culled>,
+    /// The scattering resolution of each light.
+    pub(crate) scales: Vec<Scale>,
 }
 
 impl Plan {
@@ -142,6 +146,24 @@ impl Plan {
     /// How many passes of this kind run (over all lights).
     pub fn count(&self, pass: Pass) -> usize {
         self.steps.iter().filter(|s| s.pass == pass).count()
+    }
+    /// The scattering resolution of `light` (full for a light the plan does not know).
+    pub(crate) fn scale(&self, light: usize) -> Scale {
+        self.scales.get(light).copied().unwrap_or_default()
+    }
+    /// Leaves out the steps at `indices` (ascending), whose nodes found nothing changed.
+    pub(crate) fn unchanged(&mut self, indices: &[usize]) {
+        for &index in indices.iter().rev() {
+            let step = self.steps.remove(index);
+            self.skipped.push(Skip {
+                pass: step.pass,
+                light: step.light,
+                reason: Reason::Unchanged,
+            });
+        }
+        // Per light (the frame's last), in pipeline order.
+        self.skipped
+            .sort_by_key(|s| (s.light.unwrap_or(usize::MAX), s.pass as u8));
     }
     /// The reason `pass` is left out for `light`, if it is.
     pub fn skip_reason(&self, pass: Pass, light: Option<usize>) -> Option<&Reason> {
@@ -191,11 +213,8 @@ impl fmt::Display for Plan {
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct LightFacts {
     pub textured: bool,
-    pub texture_changed: bool,
     /// Occluders left after culling.
     pub occluders: usize,
-    pub shadow_changed: bool,
-    pub table_changed: bool,
 }
 
 /// What the planner knows about the frame.
@@ -217,12 +236,7 @@ pub(crate) struct FrameFacts {
 /// exact and costs one lookup per pixel, so it runs at the output resolution; under an error
 /// target a textured spot does too (measured by the report on the stained-glass scene: p95
 /// 9–49% at ½ and ¼, where the lit fraction is upsampled and the texture's detail is lost).
-pub(crate) fn light_scale(
-    scale: Scale,
-    shadowed: bool,
-    textured: bool,
-    error_target: Option<f32>,
-) -> Scale {
+fn light_scale(scale: Scale, shadowed: bool, textured: bool, error_target: Option<f32>) -> Scale {
     if !shadowed || (textured && error_target.is_some()) {
         Scale::Full
     } else {
@@ -230,7 +244,8 @@ pub(crate) fn light_scale(
     }
 }
 
-/// Decides the passes of a frame.
+/// Decides the passes of a frame. The light texture, shadow map and table are planned whenever
+/// they apply; [`Plan::unchanged`] leaves them out when their node has nothing new to record.
 pub(crate) fn plan(facts: &FrameFacts) -> Plan {
     let mut plan = Plan {
         culled: facts.culled.clone(),
@@ -253,6 +268,9 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
     };
     for (i, l) in facts.lights.iter().enumerate() {
         let light = Some(i);
+        let shadowed = l.occluders > 0;
+        let scale = light_scale(facts.scale, shadowed, l.textured, facts.error_target);
+        plan.scales.push(scale);
         if !facts.scatters {
             for pass in [
                 Pass::LightTexture,
@@ -266,26 +284,20 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
             }
             continue;
         }
-        match (l.textured, l.texture_changed) {
-            (false, _) => skip(Pass::LightTexture, light, Reason::Untextured),
-            (true, false) => skip(Pass::LightTexture, light, Reason::Unchanged),
-            (true, true) => run(Pass::LightTexture, light, "blurred mip chain".into()),
+        if l.textured {
+            run(Pass::LightTexture, light, "blurred mip chain".into());
+        } else {
+            skip(Pass::LightTexture, light, Reason::Untextured);
         }
-        let shadowed = l.occluders > 0;
-        let scale = light_scale(facts.scale, shadowed, l.textured, facts.error_target);
         if !shadowed {
             skip(Pass::ShadowMap, light, Reason::NoOccluders);
             skip(Pass::Extents, light, Reason::NoOccluders);
         } else {
-            if l.shadow_changed {
-                run(
-                    Pass::ShadowMap,
-                    light,
-                    format!("{} occluder(s)", l.occluders),
-                );
-            } else {
-                skip(Pass::ShadowMap, light, Reason::Unchanged);
-            }
+            run(
+                Pass::ShadowMap,
+                light,
+                format!("{} occluder(s)", l.occluders),
+            );
             if facts.method == MarchMethod::Hybrid {
                 run(Pass::Extents, light, format!("at 1/{}", scale.divisor()));
             } else if facts.method == MarchMethod::Exact {
@@ -302,11 +314,7 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
                 skip(Pass::Extents, light, Reason::BruteForce);
             }
         }
-        if l.table_changed {
-            run(Pass::AirlightTable, light, "rebuilt".into());
-        } else {
-            skip(Pass::AirlightTable, light, Reason::Unchanged);
-        }
+        run(Pass::AirlightTable, light, "rebuilt".into());
         let method = match (shadowed, facts.method) {
             (false, _) => "analytic".to_string(),
             (true, MarchMethod::Hybrid) => format!("hybrid, {} steps", facts.steps),

@@ -31,12 +31,18 @@ fn table_error(
     let light = PointLight::new(eye + Vec3::new(0.0, 0.0, d), Vec3::ONE).unwrap();
 
     let mut table = AirlightTableNode::new(&gpu.device, cache, size).unwrap();
-    table.prepare(&gpu.queue, eye, &light.into(), &medium);
+    let light = light.into();
+    let inputs = volshadow::nodes::TableInputs {
+        eye,
+        light: &light,
+        medium: &medium,
+    };
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
     assert!(
-        table.encode(&mut encoder, None),
+        table.prepare(&gpu.device, &gpu.queue, &inputs).unwrap(),
         "a fresh table must be built"
     );
+    table.encode(&mut encoder, None).unwrap();
     gpu.submit_and_wait(encoder).unwrap();
     let texels = gpu.read_rgba32f(table.texture()).unwrap();
     assert!(

@@ -6,7 +6,7 @@ mod common;
 use std::path::Path;
 
 use glam::{Mat4, Vec3, Vec4};
-use volshadow::nodes::{ShadowMapNode, ShadowMapSettings};
+use volshadow::nodes::{ShadowMapInputs, ShadowMapNode, ShadowMapSettings};
 use volshadow::scene::{shapes, LightTexture};
 use volshadow::scene_file::SceneDescription;
 use volshadow::{Cache, Error, Light, Occluder, OccluderMesh, PointLight};
@@ -59,7 +59,11 @@ fn occluder_transform_validated_as_scene_files_do() {
             mesh: &mesh,
             transform,
         }];
-        let got = node.prepare(&gpu.device, &gpu.queue, &light, &occluders);
+        let inputs = ShadowMapInputs {
+            light: &light,
+            occluders: &occluders,
+        };
+        let got = node.prepare(&gpu.device, &gpu.queue, &inputs);
         assert!(
             matches!(
                 got,
@@ -87,7 +91,11 @@ fn occluder_transform_validated_as_scene_files_do() {
         mesh: &mesh,
         transform: good,
     }];
-    node.prepare(&gpu.device, &gpu.queue, &light, &occluders)
+    let inputs = ShadowMapInputs {
+        light: &light,
+        occluders: &occluders,
+    };
+    node.prepare(&gpu.device, &gpu.queue, &inputs)
         .expect("a proper transform passes");
     SceneDescription::from_json(&scene_with_matrix(good), Path::new("."))
         .expect("and loads from a scene file");

@@ -177,7 +177,7 @@ fn invalid_spot_and_texture_inputs_are_errors() {
     let gpu = common::gpu();
     let cache = Cache::new(&gpu.device);
     let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
-    let mut node = LightTextureNode::new(&gpu.device, &cache);
+    let mut node = LightTextureNode::new(&gpu.device, &cache).unwrap();
     for format in [
         wgpu::TextureFormat::R32Uint,
         wgpu::TextureFormat::Rgba32Float,
@@ -196,7 +196,7 @@ fn invalid_spot_and_texture_inputs_are_errors() {
             usage: wgpu::TextureUsages::TEXTURE_BINDING,
             view_formats: &[],
         });
-        let err = node.prepare(&gpu.device, &t).err();
+        let err = node.prepare(&gpu.device, &gpu.queue, &t).err();
         assert!(
             matches!(
                 err,

@@ -283,13 +283,12 @@ fn bad_textures_are_typed_errors_not_validation_errors() {
         camera: &camera,
         light: &light,
         medium: &medium,
+        table: &table,
         scene_depth: &colour,
         shadows: None,
         light_texture: None,
     };
-    let err = march
-        .prepare(&gpu.device, &gpu.queue, &table, &inputs)
-        .err();
+    let err = march.prepare(&gpu.device, &gpu.queue, &inputs).err();
     assert!(
         matches!(
             err,
@@ -312,9 +311,7 @@ fn bad_textures_are_typed_errors_not_validation_errors() {
         scene_depth: &unbound,
         ..inputs
     };
-    let err = march
-        .prepare(&gpu.device, &gpu.queue, &table, &inputs)
-        .err();
+    let err = march.prepare(&gpu.device, &gpu.queue, &inputs).err();
     assert!(
         matches!(
             err,

@@ -225,7 +225,7 @@ pub fn write_png(path: &Path, image: &image::RgbImage) -> Result<(), BoxError> {
 pub fn timings_json(timings: &[PassTime]) -> (Vec<serde_json::Value>, Option<f64>) {
     let passes = timings
         .iter()
-        .map(|t| serde_json::json!({ "pass": t.label, "ms": t.ms }))
+        .map(|t| serde_json::json!({ "pass": t.pass.name(), "ms": t.ms }))
         .collect();
     let total = (!timings.is_empty()).then(|| timings.iter().map(|t| t.ms).sum());
     (passes, total)
@@ -239,7 +239,7 @@ pub fn timings_line(timings: &[PassTime]) -> String {
     let total: f64 = timings.iter().map(|t| t.ms).sum();
     let passes: Vec<String> = timings
         .iter()
-        .map(|t| format!("{} {:.3}", t.label, t.ms))
+        .map(|t| format!("{} {:.3}", t.pass, t.ms))
         .collect();
     format!("GPU {total:.3} ms ({})", passes.join(", "))
 }

@@ -840,16 +840,7 @@ fn run_frame(
     volumetric.prepare(&ctx.gpu.device, &ctx.gpu.queue, frame)?;
     let mut times: Vec<(&'static str, f64)> = Vec::new();
     for t in ctx.gpu.run_timed(volumetric, view, skip)? {
-        // Timestamp labels of the nodes, or pass names on a CPU adapter.
-        let column = match t.label {
-            "extrude" | "extents" => "extents",
-            "airlight table" | "F' table" => "F' table",
-            other => PASS_COLUMNS
-                .iter()
-                .find(|c| **c == other)
-                .copied()
-                .unwrap_or("march"),
-        };
+        let column = t.pass.name();
         match times.iter_mut().find(|(c, _)| *c == column) {
             Some((_, ms)) => *ms += t.ms,
             None => times.push((column, t.ms)),

@@ -164,7 +164,8 @@ impl HeadlessGpu {
             let start = std::time::Instant::now();
             self.submit_and_wait(encoder)?;
             times.push(crate::gpu::PassTime {
-                label: step.pass.name(),
+                pass: step.pass,
+                light: step.light,
                 ms: start.elapsed().as_secs_f64() * 1e3,
             });
         }

@@ -14,7 +14,7 @@ pub use timer::{GpuTimer, PassTime};
 use crate::error::{Error, Result};
 
 /// A node's per-frame parameters ("uniforms" in the shaders' sense), in a read-only storage
-/// buffer (see `cache::uniform_entry` for why not a uniform buffer); skips the queue write
+/// buffer (see `cache::Binding::Params` for why not a uniform buffer); skips the queue write
 /// when the contents did not change.
 pub(crate) struct UniformBuffer<T: bytemuck::Pod + PartialEq> {
     buffer: wgpu::Buffer,

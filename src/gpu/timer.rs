@@ -11,11 +11,14 @@
 //! `report` example does.
 
 use crate::error::{Error, Result};
+use crate::plan::Pass;
 
 /// Collects begin/end timestamps of the passes that nodes record with it.
 pub struct GpuTimer {
     queries: Option<Queries>,
-    labels: Vec<&'static str>,
+    passes: Vec<(Pass, Option<usize>)>,
+    /// The light the passes recorded next serve (set by the facade per step).
+    pub(crate) light: Option<usize>,
     capacity: u32,
 }
 
@@ -29,8 +32,10 @@ struct Queries {
 /// One pass's GPU time.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PassTime {
-    /// The pass's label (e.g. `"march"`).
-    pub label: &'static str,
+    /// The pass.
+    pub pass: Pass,
+    /// The light it served (`None`: the whole frame, or a node timed on its own).
+    pub light: Option<usize>,
     /// GPU time in milliseconds.
     pub ms: f64,
 }
@@ -68,7 +73,8 @@ impl GpuTimer {
             });
         Self {
             queries,
-            labels: Vec::new(),
+            passes: Vec::new(),
+            light: None,
             capacity,
         }
     }
@@ -80,25 +86,22 @@ impl GpuTimer {
 
     /// Forgets the passes of the previous frame.
     pub fn clear(&mut self) {
-        self.labels.clear();
+        self.passes.clear();
     }
 
-    fn next_pair(&mut self, label: &'static str) -> Option<(&wgpu::QuerySet, u32)> {
-        let index = self.labels.len() as u32;
+    fn next_pair(&mut self, pass: Pass) -> Option<(&wgpu::QuerySet, u32)> {
+        let index = self.passes.len() as u32;
         if index >= self.capacity {
             return None;
         }
         let queries = self.queries.as_ref()?;
-        self.labels.push(label);
+        self.passes.push((pass, self.light));
         Some((&queries.set, index * 2))
     }
 
-    /// Timestamp writes for a compute pass named `label` (None when not timing or full).
-    pub fn compute_pass(
-        &mut self,
-        label: &'static str,
-    ) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
-        self.next_pair(label)
+    /// Timestamp writes for a compute pass of `pass` (None when not timing or full).
+    pub fn compute_pass(&mut self, pass: Pass) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
+        self.next_pair(pass)
             .map(|(set, i)| wgpu::ComputePassTimestampWrites {
                 query_set: set,
                 beginning_of_pass_write_index: Some(i),
@@ -106,12 +109,9 @@ impl GpuTimer {
             })
     }
 
-    /// Timestamp writes for a render pass named `label` (None when not timing or full).
-    pub fn render_pass(
-        &mut self,
-        label: &'static str,
-    ) -> Option<wgpu::RenderPassTimestampWrites<'_>> {
-        self.next_pair(label)
+    /// Timestamp writes for a render pass of `pass` (None when not timing or full).
+    pub fn render_pass(&mut self, pass: Pass) -> Option<wgpu::RenderPassTimestampWrites<'_>> {
+        self.next_pair(pass)
             .map(|(set, i)| wgpu::RenderPassTimestampWrites {
                 query_set: set,
                 beginning_of_pass_write_index: Some(i),
@@ -123,7 +123,7 @@ impl GpuTimer {
     /// submitting.
     pub fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
         let Some(q) = &self.queries else { return };
-        let count = self.labels.len() as u32 * 2;
+        let count = self.passes.len() as u32 * 2;
         if count == 0 {
             return;
         }
@@ -132,7 +132,7 @@ impl GpuTimer {
     }
 
     /// Reads the times back after the submission that contains [`resolve`](Self::resolve) (blocks
-    /// until the GPU is done). Passes with the same label are summed, in first-seen order.
+    /// until the GPU is done). Times of the same pass and light are summed, in first-seen order.
     ///
     /// # Errors
     ///
@@ -141,7 +141,7 @@ impl GpuTimer {
         let Some(q) = &self.queries else {
             return Ok(Vec::new());
         };
-        let count = self.labels.len() as u64 * 2;
+        let count = self.passes.len() as u64 * 2;
         if count == 0 {
             return Ok(Vec::new());
         }
@@ -165,14 +165,11 @@ impl GpuTimer {
         };
         q.readback.unmap();
         let mut out: Vec<PassTime> = Vec::new();
-        for (i, label) in self.labels.iter().enumerate() {
-            let ns = ticks[2 * i + 1].saturating_sub(ticks[2 * i]) as f64 * q.period_ns;
-            match out.iter_mut().find(|p| p.label == *label) {
-                Some(p) => p.ms += ns * 1e-6,
-                None => out.push(PassTime {
-                    label,
-                    ms: ns * 1e-6,
-                }),
+        for (i, &(pass, light)) in self.passes.iter().enumerate() {
+            let ms = ticks[2 * i + 1].saturating_sub(ticks[2 * i]) as f64 * q.period_ns * 1e-6;
+            match out.iter_mut().find(|p| (p.pass, p.light) == (pass, light)) {
+                Some(p) => p.ms += ms,
+                None => out.push(PassTime { pass, light, ms }),
             }
         }
         Ok(out)

@@ -2,26 +2,29 @@
 //! construction from the scene types.
 
 use bytemuck::{Pod, Zeroable};
-use glam::{Vec3, Vec4};
+use glam::Vec3;
 
 use crate::scene::{Camera, Light, Medium, PhaseFunction};
 
-/// WGSL `Airlight`.
+/// WGSL `Airlight`, field by field (see there what each holds).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
 pub(crate) struct AirlightUniform {
-    pub light_pos: [f32; 4],
-    pub eye: [f32; 4],
-    pub intensity: [f32; 4],
-    pub sigma_s: [f32; 4],
-    pub sigma_t: [f32; 4],
+    pub light_pos: [f32; 3],
+    pub distance: f32,
+    pub eye: [f32; 3],
+    pub pixel_radius: f32,
+    pub intensity: [f32; 3],
+    pub hg_g: f32,
+    pub sigma_s: [f32; 3],
+    pub table_along: u32,
+    pub sigma_t: [f32; 3],
+    pub table_across: u32,
     pub w_iso: [f32; 4],
     pub w_rayleigh: [f32; 4],
     pub w_hg: [f32; 4],
     pub w_hazy: [f32; 4],
     pub w_murky: [f32; 4],
-    pub hg_g: [f32; 4],
-    pub table_size: [u32; 4],
 }
 
 /// Per-channel weights of the five phase lobes (iso, Rayleigh, HG, hazy, murky) and HG's g.
@@ -51,7 +54,7 @@ impl AirlightUniform {
         light: &Light,
         medium: &Medium,
         pixel_angular_radius: f32,
-        table_size: [u32; 2],
+        table: crate::nodes::TableSize,
     ) -> Self {
         let mut light_pos = light.position();
         let min_d = MIN_EYE_LIGHT_DISTANCE * eye.abs().max_element().max(1.0);
@@ -60,20 +63,23 @@ impl AirlightUniform {
         }
         let d = light_pos.distance(eye);
         let (lobes, g) = phase_lobes(medium.phase());
-        let v4 = |v: Vec3| v.extend(0.0).to_array();
+        let rgb = |v: Vec3| v.extend(0.0).to_array();
         Self {
-            light_pos: light_pos.extend(d).to_array(),
-            eye: eye.extend(pixel_angular_radius).to_array(),
-            intensity: v4(light.intensity()),
-            sigma_s: v4(medium.sigma_s()),
-            sigma_t: v4(medium.sigma_t()),
-            w_iso: v4(lobes[0]),
-            w_rayleigh: v4(lobes[1]),
-            w_hg: v4(lobes[2]),
-            w_hazy: v4(lobes[3]),
-            w_murky: v4(lobes[4]),
-            hg_g: Vec4::new(g, 0.0, 0.0, 0.0).to_array(),
-            table_size: [table_size[0], table_size[1], 0, 0],
+            light_pos: light_pos.to_array(),
+            distance: d,
+            eye: eye.to_array(),
+            pixel_radius: pixel_angular_radius,
+            intensity: light.intensity().to_array(),
+            hg_g: g,
+            sigma_s: medium.sigma_s().to_array(),
+            table_along: table.along_ray,
+            sigma_t: medium.sigma_t().to_array(),
+            table_across: table.across_rays,
+            w_iso: rgb(lobes[0]),
+            w_rayleigh: rgb(lobes[1]),
+            w_hg: rgb(lobes[2]),
+            w_hazy: rgb(lobes[3]),
+            w_murky: rgb(lobes[4]),
         }
     }
 
@@ -81,10 +87,11 @@ impl AirlightUniform {
     /// Eye and light may move freely as long as their distance stays the same.
     pub fn table_key(&self) -> Self {
         Self {
-            light_pos: [0.0, 0.0, 0.0, self.light_pos[3]],
-            eye: [0.0; 4],
-            intensity: [0.0; 4],
-            sigma_s: [0.0; 4],
+            light_pos: [0.0; 3],
+            eye: [0.0; 3],
+            pixel_radius: 0.0,
+            intensity: [0.0; 3],
+            sigma_s: [0.0; 3],
             ..*self
         }
     }
@@ -96,7 +103,9 @@ impl AirlightUniform {
 pub(crate) struct ViewUniform {
     pub view_from_clip: [f32; 16],
     pub world_from_view: [f32; 16],
-    pub size: [f32; 4],
+    pub size: [f32; 2],
+    pub far_depth: f32,
+    pub _pad: f32,
 }
 
 impl ViewUniform {
@@ -104,7 +113,9 @@ impl ViewUniform {
         Self {
             view_from_clip: camera.projection().inverse().to_cols_array(),
             world_from_view: camera.view().inverse().to_cols_array(),
-            size: [width as f32, height as f32, camera.far_depth(), 0.0],
+            size: [width as f32, height as f32],
+            far_depth: camera.far_depth(),
+            _pad: 0.0,
         }
     }
 }
@@ -113,6 +124,6 @@ impl ViewUniform {
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
 pub(crate) struct CompositeUniform {
-    pub sigma_t: [f32; 4],
-    pub count: [u32; 4],
+    pub sigma_t: [f32; 3],
+    pub count: u32,
 }

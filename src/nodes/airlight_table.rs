@@ -29,8 +29,10 @@
 //! `STORAGE_BINDING | TEXTURE_BINDING | COPY_SRC`; rgb = T, a = 0. Row i is γ_i, column j is s_j.
 
 use crate::error::{Error, Result};
+use crate::gpu::cache::{bind_group, compute_pipeline, layout, module, Binding};
 use crate::gpu::uniforms::AirlightUniform;
-use crate::gpu::{Cache, UniformBuffer};
+use crate::gpu::{texture_2d, Cache, GpuTimer, UniformBuffer};
+use crate::plan::Pass;
 use crate::scene::{Light, Medium};
 
 /// Size of the F′ table: entries along each ray (s) and rows across rays (γ).
@@ -85,6 +87,41 @@ impl TableSize {
     }
 }
 
+/// The table's binding table: `@binding(i)` of `shaders/airlight_table.wgsl` is entry `i`.
+const BINDINGS: [Binding; 2] = [
+    Binding::Params,                                    // air
+    Binding::Storage(wgpu::TextureFormat::Rgba32Float), // table_out
+];
+
+/// The table's layout and pipeline, held by the [`Cache`].
+#[derive(Clone)]
+pub(crate) struct Pipelines {
+    layout: wgpu::BindGroupLayout,
+    build: wgpu::ComputePipeline,
+}
+
+impl Pipelines {
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
+        let label = "volshadow F' table";
+        let layout = layout(device, label, wgpu::ShaderStages::COMPUTE, &BINDINGS);
+        let source = include_str!("../../shaders/airlight_table.wgsl");
+        let module = module(device, "volshadow airlight_table.wgsl", source);
+        let build = compute_pipeline(device, label, &layout, &module, "build", &[]);
+        Self { layout, build }
+    }
+}
+
+/// What the table is built for: it depends on the light only through the eye–light distance.
+#[derive(Clone, Copy)]
+pub struct TableInputs<'a> {
+    /// The eye.
+    pub eye: glam::Vec3,
+    /// The light.
+    pub light: &'a Light,
+    /// The medium.
+    pub medium: &'a Medium,
+}
+
 /// Builds the F′ table. `prepare` decides whether the table needs rebuilding (only when D, σt,
 /// the phase or the size changed); `encode` records the compute pass only then.
 pub struct AirlightTableNode {
@@ -97,83 +134,67 @@ pub struct AirlightTableNode {
 }
 
 impl AirlightTableNode {
-    /// Creates the table texture. Errors if a dimension is below 2 or above [`TableSize::MAX`].
+    /// Creates the table texture.
     ///
     /// # Errors
     ///
     /// [`Error::InvalidSize`] for a table size out of range.
     pub fn new(device: &wgpu::Device, cache: &Cache, size: TableSize) -> Result<Self> {
         size.validate()?;
-        let texture = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("volshadow F' table"),
-            size: wgpu::Extent3d {
-                width: size.along_ray,
-                height: size.across_rays,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba32Float,
-            usage: wgpu::TextureUsages::STORAGE_BINDING
+        let texture = texture_2d(
+            device,
+            "volshadow F' table",
+            (size.along_ray, size.across_rays, 1),
+            wgpu::TextureFormat::Rgba32Float,
+            wgpu::TextureUsages::STORAGE_BINDING
                 | wgpu::TextureUsages::TEXTURE_BINDING
                 | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
+        );
         let uniform = UniformBuffer::new(device, "volshadow F' table uniform");
         let view = texture.create_view(&Default::default());
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("volshadow F' table"),
-            layout: &cache.table_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: uniform.binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::TextureView(&view),
-                },
-            ],
-        });
+        let bind_group = bind_group(
+            device,
+            "volshadow F' table",
+            &cache.table.layout,
+            [uniform.binding(), wgpu::BindingResource::TextureView(&view)],
+        );
         Ok(Self {
             size,
             texture,
             uniform,
             bind_group,
-            pipeline: cache.table_pipeline.clone(),
+            pipeline: cache.table.build.clone(),
             pending: false,
         })
     }
 
-    /// Uploads the parameters for a frame seen from `eye`. Returns whether the next
-    /// [`encode`](Self::encode) rebuilds the table: it changed now, or it changed at an earlier
-    /// `prepare` that no `encode` followed.
+    /// Uploads the parameters for a frame. Returns whether the next [`encode`](Self::encode)
+    /// rebuilds the table: it changed now, or it changed at an earlier `prepare` that no
+    /// `encode` followed.
     pub fn prepare(
         &mut self,
+        _device: &wgpu::Device,
         queue: &wgpu::Queue,
-        eye: glam::Vec3,
-        light: &Light,
-        medium: &Medium,
-    ) -> bool {
+        inputs: &TableInputs<'_>,
+    ) -> Result<bool> {
         // The table depends on the light only through D = |P − E| (the key drops the rest).
-        let key = AirlightUniform::new(eye, light, medium, 0.0, self.table_dims()).table_key();
-        let changed = self.uniform.write(queue, key);
-        self.pending |= changed;
-        self.pending
+        let key = AirlightUniform::new(inputs.eye, inputs.light, inputs.medium, 0.0, self.size)
+            .table_key();
+        self.pending |= self.uniform.write(queue, key);
+        Ok(self.pending)
     }
 
     /// Records the table build into `encoder` if [`prepare`](Self::prepare) found a change since
-    /// the last build; otherwise records nothing. Returns whether it recorded.
+    /// the last build; otherwise records nothing.
     pub fn encode(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
-        timer: Option<&mut crate::gpu::GpuTimer>,
-    ) -> bool {
+        timer: Option<&mut GpuTimer>,
+    ) -> Result<()> {
         if !std::mem::take(&mut self.pending) {
-            return false;
+            return Ok(());
         }
-        let timestamp_writes = timer.and_then(|t| t.compute_pass("airlight table"));
+        let timestamp_writes = timer.and_then(|t| t.compute_pass(Pass::AirlightTable));
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("volshadow F' table"),
             timestamp_writes,
@@ -181,7 +202,7 @@ impl AirlightTableNode {
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.dispatch_workgroups(self.size.across_rays.div_ceil(64), 1, 1);
-        true
+        Ok(())
     }
 
     /// The table texture (see the module docs for its layout).
@@ -192,9 +213,5 @@ impl AirlightTableNode {
     /// The table's size.
     pub fn size(&self) -> TableSize {
         self.size
-    }
-
-    pub(crate) fn table_dims(&self) -> [u32; 2] {
-        [self.size.along_ray, self.size.across_rays]
     }
 }

@@ -19,12 +19,58 @@
 //! level or layer: checking the texture behind a view would accept a view of the wrong mip
 //! level (and write a crop) and reject a correct one.
 
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+
 use crate::error::{Error, Result};
+use crate::gpu::cache::{bind_group, cached, fullscreen_pipeline, layout, module, Binding};
 use crate::gpu::uniforms::{CompositeUniform, ViewUniform};
 use crate::gpu::{
-    check_depth_texture, check_float_texture, check_size, depth_view, Cache, UniformBuffer,
+    check_depth_texture, check_float_texture, check_size, depth_view, texture_2d, Cache, GpuTimer,
+    UniformBuffer,
 };
+use crate::plan::Pass;
 use crate::scene::{Camera, Medium};
+
+/// The composite's binding table: `@binding(i)` of `shaders/composite.wgsl` is entry `i`.
+const BINDINGS: [Binding; 4 + MAX_LIGHTS] = [
+    Binding::Params,  // comp
+    Binding::Params,  // view
+    Binding::Texture, // scene_color
+    Binding::Depth,   // scene_depth
+    Binding::Texture, // inscatter0 ..
+    Binding::Texture,
+    Binding::Texture,
+    Binding::Texture,
+];
+
+/// The composite's layout and its pipelines, one per output format (built on first use); held
+/// by the [`Cache`].
+#[derive(Clone)]
+pub(crate) struct Pipelines {
+    layout: wgpu::BindGroupLayout,
+    module: wgpu::ShaderModule,
+    formats: Arc<Mutex<HashMap<wgpu::TextureFormat, wgpu::RenderPipeline>>>,
+}
+
+impl Pipelines {
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
+        let label = "volshadow composite";
+        let source = include_str!("../../shaders/composite.wgsl");
+        Self {
+            layout: layout(device, label, wgpu::ShaderStages::FRAGMENT, &BINDINGS),
+            module: module(device, "volshadow composite.wgsl", source),
+            formats: Arc::default(),
+        }
+    }
+
+    fn writing(&self, device: &wgpu::Device, format: wgpu::TextureFormat) -> wgpu::RenderPipeline {
+        cached(&self.formats, format, || {
+            let (label, entry) = ("volshadow composite", "fs_composite");
+            fullscreen_pipeline(device, label, &self.layout, &self.module, entry, format)
+        })
+    }
+}
 
 /// What the composite reads in a frame.
 #[derive(Debug, Clone, Copy)]
@@ -143,29 +189,23 @@ impl CompositeNode {
         check_output_format(device, output_format)?;
         Ok(Self {
             format: output_format,
-            pipeline: cache.composite_pipeline(device, output_format),
-            layout: cache.composite_layout.clone(),
+            pipeline: cache.composite.writing(device, output_format),
+            layout: cache.composite.layout.clone(),
             uniform: UniformBuffer::new(device, "volshadow composite"),
             view: UniformBuffer::new(device, "volshadow composite view"),
-            placeholder: device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("volshadow no in-scatter"),
-                size: wgpu::Extent3d {
-                    width: 1,
-                    height: 1,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: wgpu::TextureFormat::Rgba32Float,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING,
-                view_formats: &[],
-            }),
+            placeholder: texture_2d(
+                device,
+                "volshadow no in-scatter",
+                (1, 1, 1),
+                wgpu::TextureFormat::Rgba32Float,
+                wgpu::TextureUsages::TEXTURE_BINDING,
+            ),
             bound: None,
         })
     }
 
-    /// Validates the inputs and uploads what changed.
+    /// Validates the inputs and uploads what changed. Returns `true` (the composite is
+    /// recorded every frame).
     ///
     /// # Errors
     ///
@@ -177,7 +217,7 @@ impl CompositeNode {
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         inputs: &CompositeInputs<'_>,
-    ) -> Result<()> {
+    ) -> Result<bool> {
         check_float_texture("scene_color", inputs.scene_color)?;
         check_depth_texture("scene_depth", inputs.scene_depth)?;
         let (width, height) = (inputs.scene_color.width(), inputs.scene_color.height());
@@ -211,35 +251,22 @@ impl CompositeNode {
                 .iter()
                 .map(|t| t.create_view(&Default::default()))
                 .collect();
-            let mut entries = vec![
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: self.uniform.binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: self.view.binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: wgpu::BindingResource::TextureView(&color),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: wgpu::BindingResource::TextureView(&depth),
-                },
-            ];
-            for (i, view) in lights.iter().enumerate() {
-                entries.push(wgpu::BindGroupEntry {
-                    binding: 4 + i as u32,
-                    resource: wgpu::BindingResource::TextureView(view),
-                });
-            }
-            let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("volshadow composite"),
-                layout: &self.layout,
-                entries: &entries,
-            });
+            let view = wgpu::BindingResource::TextureView;
+            let bind_group = bind_group(
+                device,
+                "volshadow composite",
+                &self.layout,
+                [
+                    self.uniform.binding(),
+                    self.view.binding(),
+                    view(&color),
+                    view(&depth),
+                    view(&lights[0]),
+                    view(&lights[1]),
+                    view(&lights[2]),
+                    view(&lights[3]),
+                ],
+            );
             self.bound = Some(Bound {
                 textures,
                 bind_group,
@@ -248,13 +275,13 @@ impl CompositeNode {
         self.uniform.write(
             queue,
             CompositeUniform {
-                sigma_t: inputs.medium.sigma_t().extend(0.0).to_array(),
-                count: [inputs.inscatter.len() as u32, 0, 0, 0],
+                sigma_t: inputs.medium.sigma_t().to_array(),
+                count: inputs.inscatter.len() as u32,
             },
         );
         self.view
             .write(queue, ViewUniform::new(inputs.camera, width, height));
-        Ok(())
+        Ok(true)
     }
 
     /// Checks that the composite can write `output` (see the module docs for what it must be)
@@ -334,7 +361,7 @@ impl CompositeNode {
         &self,
         encoder: &mut wgpu::CommandEncoder,
         output: &OutputTarget<'_>,
-        timer: Option<&mut crate::gpu::GpuTimer>,
+        timer: Option<&mut GpuTimer>,
     ) -> Result<()> {
         self.check_output(output)?;
         let Some(bound) = &self.bound else {
@@ -367,7 +394,7 @@ impl CompositeNode {
                 },
             })],
             depth_stencil_attachment: None,
-            timestamp_writes: timer.and_then(|t| t.render_pass("composite")),
+            timestamp_writes: timer.and_then(|t| t.render_pass(Pass::Composite)),
             occlusion_query_set: None,
             multiview_mask: None,
         });

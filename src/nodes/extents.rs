@@ -30,11 +30,115 @@
 use glam::Mat4;
 
 use crate::error::{Error, Result};
+use crate::gpu::cache::{bind_group, compute_pipeline, depth_pipeline, layout, module, Binding};
 use crate::gpu::uniforms::ViewUniform;
 use crate::gpu::{
     check_depth_texture, check_target_size, depth_view, Cache, GpuTimer, Occluder, UniformBuffer,
 };
+use crate::plan::Pass;
 use crate::scene::{Camera, Light};
+
+/// The extrusion's binding table (`@binding(i)` of the compute stage of `shaders/extents.wgsl`).
+const EXTRUDE_BINDINGS: [Binding; 6] = [
+    Binding::Params,    // ex: the occluder's slot of the extrude parameters
+    Binding::Params,    // positions
+    Binding::Params,    // indices
+    Binding::Params,    // edges
+    Binding::ReadWrite, // volume
+    Binding::ReadWrite, // args: the indirect draw
+];
+/// The three depth passes' binding table.
+const RASTER_BINDINGS: [Binding; 1] = [Binding::VertexParams /* vv: clip_from_world */];
+/// The crossing lists' binding table (the exact method).
+const CROSSINGS_BINDINGS: [Binding; 6] = [
+    Binding::VertexParams, // vv
+    Binding::Params,       // cross_view
+    Binding::Params,       // cp
+    Binding::Depth,        // cross_scene_depth
+    Binding::ReadWrite,    // heads
+    Binding::ReadWrite,    // crossings
+];
+
+/// The node's layouts and pipelines, held by the [`Cache`].
+#[derive(Clone)]
+pub(crate) struct Pipelines {
+    extrude_layout: wgpu::BindGroupLayout,
+    raster_layout: wgpu::BindGroupLayout,
+    crossings_layout: wgpu::BindGroupLayout,
+    reset: wgpu::ComputePipeline,
+    extrude: wgpu::ComputePipeline,
+    /// Front, back near and back far.
+    depths: [wgpu::RenderPipeline; 3],
+    crossings: wgpu::RenderPipeline,
+}
+
+impl Pipelines {
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
+        let fragment = wgpu::ShaderStages::FRAGMENT;
+        let extrude_layout = layout(
+            device,
+            "volshadow extrude",
+            wgpu::ShaderStages::COMPUTE,
+            &EXTRUDE_BINDINGS,
+        );
+        let raster_layout = layout(device, "volshadow extents", fragment, &RASTER_BINDINGS);
+        // Exact mode: every crossing appended to per-pixel lists from the fragment stage
+        // (storage buffers and atomics there are core WebGPU).
+        let crossings_layout = layout(
+            device,
+            "volshadow extents crossings",
+            fragment,
+            &CROSSINGS_BINDINGS,
+        );
+        let source = include_str!("../../shaders/extents.wgsl");
+        let module = module(device, "volshadow extents.wgsl", source);
+        let compute =
+            |label, entry| compute_pipeline(device, label, &extrude_layout, &module, entry, &[]);
+        let volume_vertices = [wgpu::VertexBufferLayout {
+            array_stride: 32,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32x4],
+        }];
+        let raster = |layout, entry, compare| {
+            depth_pipeline(
+                device,
+                "volshadow extents",
+                layout,
+                &module,
+                "vs_volume",
+                Some(entry),
+                &volume_vertices,
+                compare,
+            )
+        };
+        // Reversed Z: nearest = greatest depth.
+        use wgpu::CompareFunction::{Greater, Less};
+        Self {
+            reset: compute("volshadow extrude reset", "reset"),
+            extrude: compute("volshadow extrude", "extrude"),
+            depths: [
+                raster(&raster_layout, "fs_front", Some(Greater)),
+                raster(&raster_layout, "fs_back", Some(Greater)),
+                raster(&raster_layout, "fs_back", Some(Less)),
+            ],
+            crossings: raster(&crossings_layout, "fs_crossings", None),
+            extrude_layout,
+            raster_layout,
+            crossings_layout,
+        }
+    }
+}
+
+/// Per-pixel shadow-volume extents, as written by [`ExtentsNode`].
+#[derive(Clone, Copy)]
+pub struct Extents<'a> {
+    /// Front, back-near and back-far depth textures (see the module docs).
+    pub textures: &'a [wgpu::Texture; 3],
+    /// The extents projection's near plane.
+    pub near: f32,
+    /// Per-pixel crossing lists (the exact method); `None`: the textures hold the extents.
+    pub crossings: Option<Crossings<'a>>,
+}
 
 /// The near plane of the extents' projection, relative to the eye–light distance: small enough
 /// that volumes are cut only right at the eye, where the start-at-zero rule covers them.
@@ -47,16 +151,20 @@ const SLOT: u64 = 256;
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct ExtrudeUniform {
     world_from_object: [f32; 16],
-    light: [f32; 4],
-    counts: [u32; 4],
-    flags: [f32; 4],
+    light: [f32; 3],
+    mirror: f32,
+    edges: u32,
+    triangles: u32,
+    closed: u32,
+    capacity: u32,
 }
 
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 struct CrossingUniform {
-    size: [u32; 4],
-    near: [f32; 4],
+    size: [u32; 2],
+    entries: u32,
+    near: f32,
 }
 
 /// Most crossings a per-pixel list can hold ([`CrossingsRequest::per_pixel`]).
@@ -121,12 +229,7 @@ struct CrossingLists {
 
 /// Computes per-pixel shadow-volume extents.
 pub struct ExtentsNode {
-    reset_pipeline: wgpu::ComputePipeline,
-    extrude_pipeline: wgpu::ComputePipeline,
-    extrude_layout: wgpu::BindGroupLayout,
-    front_pipeline: wgpu::RenderPipeline,
-    back_near_pipeline: wgpu::RenderPipeline,
-    back_far_pipeline: wgpu::RenderPipeline,
+    pipelines: Pipelines,
     view_buffer: wgpu::Buffer,
     raster_bind_group: wgpu::BindGroup,
     extrude_buffer: Option<wgpu::Buffer>,
@@ -135,8 +238,6 @@ pub struct ExtentsNode {
     jobs: Vec<Job>,
     targets: Option<[wgpu::Texture; 3]>,
     near: f32,
-    crossings_pipeline: wgpu::RenderPipeline,
-    crossings_layout: wgpu::BindGroupLayout,
     /// `Some` when the last `prepare` asked for crossing lists.
     crossings: Option<CrossingLists>,
     crossings_on: bool,
@@ -149,28 +250,21 @@ struct Job {
 
 impl ExtentsNode {
     /// Creates the node; buffers and textures are sized by [`prepare`](Self::prepare).
-    pub fn new(device: &wgpu::Device, cache: &Cache) -> Self {
+    pub fn new(device: &wgpu::Device, cache: &Cache) -> Result<Self> {
         let view_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("volshadow extents view"),
             size: 64,
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let raster_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("volshadow extents raster"),
-            layout: &cache.extents_raster_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: view_buffer.as_entire_binding(),
-            }],
-        });
-        Self {
-            reset_pipeline: cache.extents_reset_pipeline.clone(),
-            extrude_pipeline: cache.extents_extrude_pipeline.clone(),
-            extrude_layout: cache.extents_extrude_layout.clone(),
-            front_pipeline: cache.extents_front_pipeline.clone(),
-            back_near_pipeline: cache.extents_back_near_pipeline.clone(),
-            back_far_pipeline: cache.extents_back_far_pipeline.clone(),
+        let raster_bind_group = bind_group(
+            device,
+            "volshadow extents raster",
+            &cache.extents.raster_layout,
+            [view_buffer.as_entire_binding()],
+        );
+        Ok(Self {
+            pipelines: cache.extents.clone(),
             view_buffer,
             raster_bind_group,
             extrude_buffer: None,
@@ -184,15 +278,13 @@ impl ExtentsNode {
             jobs: Vec::new(),
             targets: None,
             near: 0.0,
-            crossings_pipeline: cache.extents_crossings_pipeline.clone(),
-            crossings_layout: cache.extents_crossings_layout.clone(),
             crossings: None,
             crossings_on: false,
-        }
+        })
     }
 
     /// Uploads the occluders' transforms, the light and the camera, and (re)creates the targets
-    /// when `width × height` changed.
+    /// when `width × height` changed. Returns `true` (the extents are recorded every frame).
     ///
     /// # Errors
     ///
@@ -204,7 +296,7 @@ impl ExtentsNode {
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         inputs: &ExtentsInputs<'_>,
-    ) -> Result<()> {
+    ) -> Result<bool> {
         let ExtentsInputs {
             camera,
             light,
@@ -297,88 +389,79 @@ impl ExtentsNode {
         for (i, o) in occluders.iter().enumerate() {
             let uniform = ExtrudeUniform {
                 world_from_object: o.transform.to_cols_array(),
-                light: light.position().extend(1.0).to_array(),
-                counts: [
-                    o.mesh.edge_count,
-                    o.mesh.triangle_count,
-                    u32::from(o.mesh.is_closed()),
-                    capacity as u32,
-                ],
-                flags: [o.transform.determinant().signum(), 0.0, 0.0, 0.0],
+                light: light.position().to_array(),
+                mirror: o.transform.determinant().signum(),
+                edges: o.mesh.edge_count,
+                triangles: o.mesh.triangle_count,
+                closed: u32::from(o.mesh.is_closed()),
+                capacity: capacity as u32,
             };
             queue.write_buffer(
                 extrude_buffer,
                 i as u64 * SLOT,
                 bytemuck::bytes_of(&uniform),
             );
-            let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("volshadow extrude"),
-                layout: &self.extrude_layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                            buffer: extrude_buffer,
-                            offset: i as u64 * SLOT,
-                            size: wgpu::BufferSize::new(
-                                std::mem::size_of::<ExtrudeUniform>() as u64
-                            ),
-                        }),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: o.mesh.positions.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 2,
-                        resource: o.mesh.indices.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 3,
-                        resource: o.mesh.edges.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 4,
-                        resource: volume.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 5,
-                        resource: self.args.as_entire_binding(),
-                    },
+            let bind_group = bind_group(
+                device,
+                "volshadow extrude",
+                &self.pipelines.extrude_layout,
+                [
+                    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: extrude_buffer,
+                        offset: i as u64 * SLOT,
+                        size: wgpu::BufferSize::new(std::mem::size_of::<ExtrudeUniform>() as u64),
+                    }),
+                    o.mesh.positions.as_entire_binding(),
+                    o.mesh.indices.as_entire_binding(),
+                    o.mesh.edges.as_entire_binding(),
+                    volume.as_entire_binding(),
+                    self.args.as_entire_binding(),
                 ],
-            });
+            );
             self.jobs.push(Job {
                 bind_group,
                 invocations: o.mesh.edge_count + o.mesh.triangle_count,
             });
         }
-        Ok(())
+        Ok(true)
     }
 
-    /// Records the extrusion and the three depth passes.
-    pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, mut timer: Option<&mut GpuTimer>) {
+    /// Records the extrusion and the three depth passes (or the crossing lists).
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NotPrepared`] before the first successful `prepare`, recording nothing.
+    pub fn encode(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        mut timer: Option<&mut GpuTimer>,
+    ) -> Result<()> {
         let (Some(targets), Some(volume)) = (&self.targets, &self.volume) else {
-            return;
+            return Err(Error::NotPrepared {
+                reason: "ExtentsNode::prepare has not succeeded yet",
+            });
         };
         {
-            let timestamp_writes = timer.as_deref_mut().and_then(|t| t.compute_pass("extrude"));
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("volshadow extrude reset"),
-                timestamp_writes,
+                timestamp_writes: timer
+                    .as_deref_mut()
+                    .and_then(|t| t.compute_pass(Pass::Extents)),
             });
             if let Some(first) = self.jobs.first() {
-                pass.set_pipeline(&self.reset_pipeline);
+                pass.set_pipeline(&self.pipelines.reset);
                 pass.set_bind_group(0, &first.bind_group, &[]);
                 pass.dispatch_workgroups(1, 1, 1);
             }
         }
         if !self.jobs.is_empty() {
-            let timestamp_writes = timer.as_deref_mut().and_then(|t| t.compute_pass("extrude"));
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("volshadow extrude"),
-                timestamp_writes,
+                timestamp_writes: timer
+                    .as_deref_mut()
+                    .and_then(|t| t.compute_pass(Pass::Extents)),
             });
-            pass.set_pipeline(&self.extrude_pipeline);
+            pass.set_pipeline(&self.pipelines.extrude);
             for job in &self.jobs {
                 pass.set_bind_group(0, &job.bind_group, &[]);
                 pass.dispatch_workgroups(job.invocations.div_ceil(64), 1, 1);
@@ -386,13 +469,15 @@ impl ExtentsNode {
         }
         if self.crossings_on {
             let Some(lists) = &self.crossings else {
-                return;
+                return Ok(());
             };
             encoder.clear_buffer(&lists.heads, 0, None);
             // The depth target is only there because a render pass needs an attachment:
             // the pipeline neither tests nor writes it.
             let view = targets[0].create_view(&Default::default());
-            let timestamp_writes = timer.as_deref_mut().and_then(|t| t.render_pass("extents"));
+            let timestamp_writes = timer
+                .as_deref_mut()
+                .and_then(|t| t.render_pass(Pass::Extents));
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("volshadow extents crossings"),
                 color_attachments: &[],
@@ -409,21 +494,22 @@ impl ExtentsNode {
                 multiview_mask: None,
             });
             if !self.jobs.is_empty() {
-                pass.set_pipeline(&self.crossings_pipeline);
+                pass.set_pipeline(&self.pipelines.crossings);
                 pass.set_bind_group(0, &lists.bind_group, &[]);
                 pass.set_vertex_buffer(0, volume.slice(..));
                 pass.draw_indirect(&self.args, 0);
             }
-            return;
+            return Ok(());
         }
-        let passes = [
-            (&targets[0], &self.front_pipeline, 0.0),
-            (&targets[1], &self.back_near_pipeline, 0.0),
-            (&targets[2], &self.back_far_pipeline, 1.0),
-        ];
-        for (target, pipeline, clear) in passes {
+        for ((target, pipeline), clear) in targets
+            .iter()
+            .zip(&self.pipelines.depths)
+            .zip([0.0, 0.0, 1.0])
+        {
             let view = target.create_view(&Default::default());
-            let timestamp_writes = timer.as_deref_mut().and_then(|t| t.render_pass("extents"));
+            let timestamp_writes = timer
+                .as_deref_mut()
+                .and_then(|t| t.render_pass(Pass::Extents));
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("volshadow extents"),
                 color_attachments: &[],
@@ -446,10 +532,11 @@ impl ExtentsNode {
                 pass.draw_indirect(&self.args, 0);
             }
         }
+        Ok(())
     }
 
     /// The extents for the march; `None` before the first `prepare`.
-    pub fn extents(&self) -> Option<crate::nodes::Extents<'_>> {
+    pub fn extents(&self) -> Option<Extents<'_>> {
         let crossings = if self.crossings_on {
             let lists = self.crossings.as_ref()?;
             Some(Crossings {
@@ -460,7 +547,7 @@ impl ExtentsNode {
         } else {
             None
         };
-        Some(crate::nodes::Extents {
+        Some(Extents {
             textures: self.targets.as_ref()?,
             near: self.near,
             crossings,
@@ -549,42 +636,26 @@ impl ExtentsNode {
         params.write(
             queue,
             CrossingUniform {
-                size: [width, height, per_pixel, 0],
-                near: [self.near, 0.0, 0.0, 0.0],
+                size: [width, height],
+                entries: per_pixel,
+                near: self.near,
             },
         );
         let bind_group = bound.unwrap_or_else(|| {
             let depth_view = depth_view(request.scene_depth);
-            device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("volshadow extents crossings"),
-                layout: &self.crossings_layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: self.view_buffer.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: view.binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 2,
-                        resource: params.binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 3,
-                        resource: wgpu::BindingResource::TextureView(&depth_view),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 4,
-                        resource: heads.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 5,
-                        resource: list.as_entire_binding(),
-                    },
+            bind_group(
+                device,
+                "volshadow extents crossings",
+                &self.pipelines.crossings_layout,
+                [
+                    self.view_buffer.as_entire_binding(),
+                    view.binding(),
+                    params.binding(),
+                    wgpu::BindingResource::TextureView(&depth_view),
+                    heads.as_entire_binding(),
+                    list.as_entire_binding(),
                 ],
-            })
+            )
         });
         self.crossings = Some(CrossingLists {
             view,

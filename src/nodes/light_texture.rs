@@ -11,12 +11,39 @@
 //! rebuilt only when the input texture changes.
 
 use crate::error::{Error, Result};
+use crate::gpu::cache::{bind_group, fullscreen_pipeline, layout, module, Binding};
 use crate::gpu::{Cache, GpuTimer};
+use crate::plan::Pass;
+
+/// The binding table: `@binding(i)` of `shaders/light_texture.wgsl` is entry `i`.
+const BINDINGS: [Binding; 2] = [
+    Binding::Filterable, // source
+    Binding::Sampler,    // linear_sampler
+];
+
+/// The node's layout and its two pipelines (level 0, the levels below), held by the [`Cache`].
+#[derive(Clone)]
+pub(crate) struct Pipelines {
+    layout: wgpu::BindGroupLayout,
+    levels: [wgpu::RenderPipeline; 2],
+}
+
+impl Pipelines {
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
+        let label = "volshadow light texture";
+        let layout = layout(device, label, wgpu::ShaderStages::FRAGMENT, &BINDINGS);
+        let source = include_str!("../../shaders/light_texture.wgsl");
+        let module = module(device, "volshadow light_texture.wgsl", source);
+        let format = wgpu::TextureFormat::Rgba16Float;
+        let levels = ["fs_copy", "fs_down"]
+            .map(|entry| fullscreen_pipeline(device, label, &layout, &module, entry, format));
+        Self { layout, levels }
+    }
+}
 
 /// Builds and holds the blurred mip chain of a light texture.
 pub struct LightTextureNode {
-    pipelines: [wgpu::RenderPipeline; 2],
-    layout: wgpu::BindGroupLayout,
+    pipelines: Pipelines,
     sampler: wgpu::Sampler,
     source: Option<wgpu::Texture>,
     mips: Option<wgpu::Texture>,
@@ -27,13 +54,9 @@ pub struct LightTextureNode {
 
 impl LightTextureNode {
     /// Creates the node.
-    pub fn new(device: &wgpu::Device, cache: &Cache) -> Self {
-        Self {
-            pipelines: [
-                cache.light_copy_pipeline.clone(),
-                cache.light_down_pipeline.clone(),
-            ],
-            layout: cache.light_texture_layout.clone(),
+    pub fn new(device: &wgpu::Device, cache: &Cache) -> Result<Self> {
+        Ok(Self {
+            pipelines: cache.light_texture.clone(),
             sampler: device.create_sampler(&wgpu::SamplerDescriptor {
                 label: Some("volshadow light texture"),
                 mag_filter: wgpu::FilterMode::Linear,
@@ -44,16 +67,22 @@ impl LightTextureNode {
             mips: None,
             levels: Vec::new(),
             pending: false,
-        }
+        })
     }
 
-    /// Validates `texture` and schedules a rebuild when it differs from the last one.
+    /// Validates `texture` and schedules a rebuild when it differs from the last one. Returns
+    /// whether the next [`encode`](Self::encode) rebuilds the mip chain.
     ///
     /// # Errors
     ///
     /// [`Error::InvalidTexture`] naming `light_texture` for a texture that is not a filterable 2D
     /// colour texture with `TEXTURE_BINDING`.
-    pub fn prepare(&mut self, device: &wgpu::Device, texture: &wgpu::Texture) -> Result<()> {
+    pub fn prepare(
+        &mut self,
+        device: &wgpu::Device,
+        _queue: &wgpu::Queue,
+        texture: &wgpu::Texture,
+    ) -> Result<bool> {
         let problem = |p: String| {
             Err(Error::InvalidTexture {
                 field: "light_texture",
@@ -88,7 +117,7 @@ impl LightTextureNode {
             return problem("needs TextureUsages::TEXTURE_BINDING".into());
         }
         if self.source.as_ref() == Some(texture) {
-            return Ok(());
+            return Ok(self.pending);
         }
         let (w, h) = (texture.width(), texture.height());
         let levels = 32 - w.max(h).leading_zeros();
@@ -128,46 +157,36 @@ impl LightTextureNode {
                     mip_level_count: Some(1),
                     ..Default::default()
                 });
-                let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("volshadow light texture level"),
-                    layout: &self.layout,
-                    entries: &[
-                        wgpu::BindGroupEntry {
-                            binding: 0,
-                            resource: wgpu::BindingResource::TextureView(&input),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 1,
-                            resource: wgpu::BindingResource::Sampler(&self.sampler),
-                        },
+                let bind_group = bind_group(
+                    device,
+                    "volshadow light texture level",
+                    &self.pipelines.layout,
+                    [
+                        wgpu::BindingResource::TextureView(&input),
+                        wgpu::BindingResource::Sampler(&self.sampler),
                     ],
-                });
+                );
                 (bind_group, target)
             })
             .collect();
         self.source = Some(texture.clone());
         self.pending = true;
-        Ok(())
+        Ok(true)
     }
 
-    /// Whether the next [`encode`](Self::encode) rebuilds the mip chain.
-    pub fn is_pending(&self) -> bool {
-        self.pending
-    }
-
-    /// Records the mip chain build if the texture changed. Returns whether it recorded.
+    /// Records the mip chain build if the texture changed since the last build.
     pub fn encode(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
         mut timer: Option<&mut GpuTimer>,
-    ) -> bool {
+    ) -> Result<()> {
         if !std::mem::take(&mut self.pending) {
-            return false;
+            return Ok(());
         }
         for (level, (bind_group, target)) in self.levels.iter().enumerate() {
             let timestamp_writes = timer
                 .as_deref_mut()
-                .and_then(|t| t.render_pass("light texture"));
+                .and_then(|t| t.render_pass(Pass::LightTexture));
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("volshadow light texture level"),
                 color_attachments: &[Some(wgpu::RenderPassColorAttachment {
@@ -184,11 +203,11 @@ impl LightTextureNode {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            pass.set_pipeline(&self.pipelines[usize::from(level > 0)]);
+            pass.set_pipeline(&self.pipelines.levels[usize::from(level > 0)]);
             pass.set_bind_group(0, bind_group, &[]);
             pass.draw(0..3, 0..1);
         }
-        true
+        Ok(())
     }
 
     /// The mip chain (`None` before the first `prepare`).

@@ -31,23 +31,107 @@
 //! airlight — so the peak around the light stays sharp and only shadows are low-resolution. [`MarchNode::step_counts`]: `R32Uint`, same
 //! size: march steps (and bisections) each pixel executed.
 
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+
 use crate::error::{Error, Result};
-use crate::gpu::cache::MarchVariant;
+use crate::gpu::cache::{bind_group, cached, compute_pipeline, layout, module, Binding};
 use crate::gpu::uniforms::{AirlightUniform, ViewUniform};
 use crate::gpu::{
     check_depth_layers, check_depth_texture, check_size, check_target_size, depth_view, texture_2d,
     Cache, GpuTimer, UniformBuffer,
 };
+use crate::nodes::extents::Extents;
 use crate::nodes::shadow_map::ShadowMap;
-use crate::nodes::AirlightTableNode;
+use crate::nodes::{AirlightTableNode, Scale};
+use crate::plan::Pass;
 use crate::scene::{Camera, Light, Medium};
 
-// The march shader's MODE pipeline constant.
-const MODE_ANALYTIC: u32 = 0;
-const MODE_HYBRID: u32 = 1;
-const MODE_BRUTE_FORCE: u32 = 2;
-const MODE_EXACT: u32 = 3;
-const MODE_TEXTBOOK: u32 = 4;
+/// The march's binding table: `@binding(i)` of `shaders/march.wgsl` is entry `i`.
+const BINDINGS: [Binding; 17] = [
+    Binding::Params,                                    // air
+    Binding::Params,                                    // view
+    Binding::Texture,                                   // table
+    Binding::Depth,                                     // scene_depth
+    Binding::Storage(wgpu::TextureFormat::Rgba32Float), // inscatter_out
+    Binding::Params,                                    // mp
+    Binding::DepthArray,                                // shadow_map
+    Binding::Comparison,                                // shadow_sampler
+    Binding::Depth,                                     // extent_front
+    Binding::Depth,                                     // extent_back_near
+    Binding::Depth,                                     // extent_back_far
+    Binding::Storage(wgpu::TextureFormat::R32Uint),     // steps_out
+    Binding::Filterable,                                // light_tex
+    Binding::Sampler,                                   // light_sampler
+    Binding::Params,                                    // heads
+    Binding::Params,                                    // crossings
+    Binding::ReadWrite,                                 // stats
+];
+
+/// The march shader's `MODE` pipeline constant: how a pixel's ray is integrated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+enum Mode {
+    Analytic = 0,
+    Hybrid = 1,
+    BruteForce = 2,
+    Exact = 3,
+    Textbook = 4,
+}
+
+/// The march shader's pipeline constants: one pipeline each.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+struct Variant {
+    mode: Mode,
+    spot: bool,
+    textured: bool,
+    bisections: u32,
+}
+
+/// The march's layout and its pipelines, one per [`Variant`] built on first use; held by the
+/// [`Cache`].
+#[derive(Clone)]
+pub(crate) struct Pipelines {
+    layout: wgpu::BindGroupLayout,
+    module: wgpu::ShaderModule,
+    variants: Arc<Mutex<HashMap<Variant, wgpu::ComputePipeline>>>,
+}
+
+impl Pipelines {
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
+        let source = include_str!("../../shaders/march.wgsl");
+        Self {
+            layout: layout(
+                device,
+                "volshadow march",
+                wgpu::ShaderStages::COMPUTE,
+                &BINDINGS,
+            ),
+            module: module(device, "volshadow march.wgsl", source),
+            variants: Arc::default(),
+        }
+    }
+
+    fn variant(&self, device: &wgpu::Device, v: Variant) -> wgpu::ComputePipeline {
+        cached(&self.variants, v, || {
+            let flag = |b: bool| if b { 1.0 } else { 0.0 };
+            let constants = [
+                ("MODE", f64::from(v.mode as u32)),
+                ("SPOT", flag(v.spot)),
+                ("TEXTURED", flag(v.textured)),
+                ("BISECTIONS", f64::from(v.bisections)),
+            ];
+            let label = "volshadow march";
+            compute_pipeline(
+                device,
+                label,
+                &self.layout,
+                &self.module,
+                "march",
+                &constants,
+            )
+        })
+    }
+}
 
 /// How the shadowed part of each ray is integrated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -98,7 +182,7 @@ pub struct MarchSettings {
     /// at most 16). Default 0.
     pub bisections: u32,
     /// Resolution of the march relative to `scene_depth` (full, ½, ¼). Default full.
-    pub scale: crate::nodes::Scale,
+    pub scale: Scale,
     /// Textured spot lights: steps before and after the shadow-volume extents (inside the
     /// cone), and for the hybrid at least as many between them (the texture's detail needs
     /// them whether or not a shadow is there); 1 ..= 4096. Default 32.
@@ -120,7 +204,7 @@ impl Default for MarchSettings {
             method: MarchMethod::Exact,
             steps: 64,
             bisections: 0,
-            scale: crate::nodes::Scale::Full,
+            scale: Scale::Full,
             texture_steps: 32,
             crossings: DEFAULT_CROSSINGS,
         }
@@ -161,17 +245,6 @@ impl MarchSettings {
     }
 }
 
-/// Per-pixel shadow-volume extents, as written by [`ExtentsNode`](crate::nodes::ExtentsNode).
-#[derive(Clone, Copy)]
-pub struct Extents<'a> {
-    /// Front, back-near and back-far depth textures (see the extents node).
-    pub textures: &'a [wgpu::Texture; 3],
-    /// The extents projection's near plane.
-    pub near: f32,
-    /// Per-pixel crossing lists (the exact method); `None`: the textures hold the extents.
-    pub crossings: Option<crate::nodes::Crossings<'a>>,
-}
-
 /// What shadows the march: the shadow map, and for the hybrid the extents.
 #[derive(Clone, Copy)]
 pub struct Shadows<'a> {
@@ -192,6 +265,8 @@ pub struct MarchInputs<'a> {
     pub light: &'a Light,
     /// The medium.
     pub medium: &'a Medium,
+    /// The F′ table, prepared for the same eye, light and medium.
+    pub table: &'a AirlightTableNode,
     /// The caller's depth buffer (see the module docs).
     pub scene_depth: &'a wgpu::Texture,
     /// Occluders' shadows; `None`: no occluders, analytic everywhere.
@@ -204,14 +279,21 @@ pub struct MarchInputs<'a> {
 
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+/// WGSL `MarchParams` (`shaders/march.wgsl`), field by field.
 struct MarchUniform {
-    mode: [u32; 4],
-    spot: [f32; 4],
-    shadow: [f32; 4],
     faces: [[f32; 16]; 6],
     tex_frame: [f32; 16],
-    tex: [f32; 4],
-    budget: [u32; 4],
+    spot: [f32; 4],
+    steps: u32,
+    list_entries: u32,
+    texture_steps: u32,
+    lit_fraction: u32,
+    depth_bias: f32,
+    extents_near: f32,
+    tan_half_angle: f32,
+    tex_width: f32,
+    tex_mips: f32,
+    _pad: [u32; 3],
 }
 
 /// What the exact method met in a frame, counted by the march (see
@@ -244,10 +326,9 @@ impl MarchStats {
 /// Computes in-scattered radiance per pixel into its own `Rgba32Float` texture.
 pub struct MarchNode {
     settings: MarchSettings,
-    cache: Cache,
+    pipelines: Pipelines,
     /// The pipeline of the last `prepare`'s variant.
     pipeline: Option<wgpu::ComputePipeline>,
-    layout: wgpu::BindGroupLayout,
     airlight: UniformBuffer<AirlightUniform>,
     view: UniformBuffer<ViewUniform>,
     params: UniformBuffer<MarchUniform>,
@@ -282,9 +363,8 @@ impl MarchNode {
         let sampled = wgpu::TextureUsages::TEXTURE_BINDING;
         Ok(Self {
             settings,
-            cache: cache.clone(),
+            pipelines: cache.march.clone(),
             pipeline: None,
-            layout: cache.march_layout.clone(),
             airlight: UniformBuffer::new(device, "volshadow march airlight"),
             view: UniformBuffer::new(device, "volshadow march view"),
             params: UniformBuffer::new(device, "volshadow march params"),
@@ -359,7 +439,7 @@ impl MarchNode {
     }
 
     /// Validates the inputs, (re)creates the outputs when the size changed, and uploads the
-    /// uniforms that changed.
+    /// uniforms that changed. Returns `true` (the march is recorded every frame).
     ///
     /// # Errors
     ///
@@ -370,9 +450,9 @@ impl MarchNode {
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
-        table: &AirlightTableNode,
         inputs: &MarchInputs<'_>,
-    ) -> Result<()> {
+    ) -> Result<bool> {
+        let table = inputs.table;
         check_depth_texture("scene_depth", inputs.scene_depth)?;
         let (full_width, full_height) = (inputs.scene_depth.width(), inputs.scene_depth.height());
         check_target_size("scene_depth size", device, full_width, full_height)?;
@@ -480,57 +560,31 @@ impl MarchNode {
                     _ => t.create_view(&Default::default()),
                 })
                 .collect();
-            let view_entry = |binding, view| wgpu::BindGroupEntry {
-                binding,
-                resource: wgpu::BindingResource::TextureView(view),
-            };
-            let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("volshadow march"),
-                layout: &self.layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: self.airlight.binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: self.view.binding(),
-                    },
-                    view_entry(2, &views[0]),
-                    view_entry(3, &views[1]),
-                    view_entry(4, &views[2]),
-                    wgpu::BindGroupEntry {
-                        binding: 5,
-                        resource: self.params.binding(),
-                    },
-                    view_entry(6, &views[3]),
-                    wgpu::BindGroupEntry {
-                        binding: 7,
-                        resource: wgpu::BindingResource::Sampler(&self.sampler),
-                    },
-                    view_entry(8, &views[4]),
-                    view_entry(9, &views[5]),
-                    view_entry(10, &views[6]),
-                    view_entry(11, &views[7]),
-                    view_entry(12, &views[8]),
-                    wgpu::BindGroupEntry {
-                        binding: 13,
-                        resource: wgpu::BindingResource::Sampler(&self.linear),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 14,
-                        resource: buffers[0].as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 15,
-                        resource: buffers[1].as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 16,
-                        resource: self.stats.as_entire_binding(),
-                    },
+            let view = |i: usize| wgpu::BindingResource::TextureView(&views[i]);
+            let bind_group = bind_group(
+                device,
+                "volshadow march",
+                &self.pipelines.layout,
+                [
+                    self.airlight.binding(),
+                    self.view.binding(),
+                    view(0),
+                    view(1),
+                    view(2),
+                    self.params.binding(),
+                    view(3),
+                    wgpu::BindingResource::Sampler(&self.sampler),
+                    view(4),
+                    view(5),
+                    view(6),
+                    view(7),
+                    view(8),
+                    wgpu::BindingResource::Sampler(&self.linear),
+                    buffers[0].as_entire_binding(),
+                    buffers[1].as_entire_binding(),
+                    self.stats.as_entire_binding(),
                 ],
-            });
+            );
             self.bound = Some(Bound {
                 textures,
                 buffers,
@@ -547,96 +601,98 @@ impl MarchNode {
                 inputs.light,
                 inputs.medium,
                 camera.pixel_angular_radius(height),
-                table.table_dims(),
+                table.size(),
             ),
         );
         self.view
             .write(queue, ViewUniform::new(camera, width, height));
 
         let mut faces = [[0.0; 16]; 6];
-        let mut shadow = [0.0; 4];
+        let (mut depth_bias, mut extents_near) = (0.0, 0.0);
         let mode = match &inputs.shadows {
-            None if self.settings.method == MarchMethod::Textbook => MODE_TEXTBOOK,
-            None => MODE_ANALYTIC,
+            None if self.settings.method == MarchMethod::Textbook => Mode::Textbook,
+            None => Mode::Analytic,
             Some(s) => {
                 for (slot, face) in faces.iter_mut().zip(s.shadow_map.faces) {
                     *slot = face.to_cols_array();
                 }
-                shadow = [
-                    s.shadow_map.faces.len() as f32,
-                    s.shadow_map.depth_bias,
-                    s.extents.map_or(0.0, |e| e.near),
-                    0.0,
-                ];
+                depth_bias = s.shadow_map.depth_bias;
+                extents_near = s.extents.map_or(0.0, |e| e.near);
                 match (self.settings.method, s.extents) {
-                    (MarchMethod::Hybrid, Some(e)) if e.crossings.is_none() => MODE_HYBRID,
-                    (MarchMethod::Exact, Some(e)) if e.crossings.is_some() => MODE_EXACT,
-                    (MarchMethod::Textbook, _) => MODE_TEXTBOOK,
-                    _ => MODE_BRUTE_FORCE,
+                    (MarchMethod::Hybrid, Some(e)) if e.crossings.is_none() => Mode::Hybrid,
+                    (MarchMethod::Exact, Some(e)) if e.crossings.is_some() => Mode::Exact,
+                    (MarchMethod::Textbook, _) => Mode::Textbook,
+                    _ => Mode::BruteForce,
                 }
             }
-        };
-        shadow[3] = if self.settings.scale == crate::nodes::Scale::Full {
-            0.0
-        } else {
-            1.0
         };
         let spot = match inputs.light {
             Light::Spot(s) => s.direction().extend(s.cos_half_angle()).to_array(),
             Light::Point(_) => [0.0; 4],
         };
-        let (tex_frame, tex) = match (inputs.light, inputs.light_texture) {
-            (Light::Spot(s), Some(t)) => (
-                s.texture_frame().to_cols_array(),
-                [
-                    1.0,
-                    (0.5 * s.cone_angle()).tan(),
-                    t.width() as f32,
-                    t.mip_level_count() as f32,
-                ],
-            ),
-            _ => ([0.0; 16], [0.0; 4]),
-        };
+        let (tex_frame, [tan_half_angle, tex_width, tex_mips]) =
+            match (inputs.light, inputs.light_texture) {
+                (Light::Spot(s), Some(t)) => (
+                    s.texture_frame().to_cols_array(),
+                    [
+                        (0.5 * s.cone_angle()).tan(),
+                        t.width() as f32,
+                        t.mip_level_count() as f32,
+                    ],
+                ),
+                _ => ([0.0; 16], [0.0; 3]),
+            };
         self.params.write(
             queue,
             MarchUniform {
-                mode: [
-                    0,
-                    self.settings.steps,
-                    crossings.map_or(0, |c| c.per_pixel),
-                    0,
-                ],
-                spot,
-                shadow,
                 faces,
                 tex_frame,
-                tex,
-                budget: [self.settings.texture_steps, 0, 0, 0],
+                spot,
+                steps: self.settings.steps,
+                list_entries: crossings.map_or(0, |c| c.per_pixel),
+                texture_steps: self.settings.texture_steps,
+                lit_fraction: u32::from(self.settings.scale != Scale::Full),
+                depth_bias,
+                extents_near,
+                tan_half_angle,
+                tex_width,
+                tex_mips,
+                _pad: [0; 3],
             },
         );
-        self.pipeline = Some(self.cache.march_pipeline(
+        self.pipeline = Some(self.pipelines.variant(
             device,
-            MarchVariant {
+            Variant {
                 mode,
                 spot: matches!(inputs.light, Light::Spot(_)),
                 textured: inputs.light_texture.is_some(),
-                bisections: if mode == MODE_ANALYTIC {
+                bisections: if mode == Mode::Analytic {
                     0
                 } else {
                     self.settings.bisections
                 },
             },
         ));
-        Ok(())
+        Ok(true)
     }
 
-    /// Records the march. Records nothing before the first successful `prepare`.
-    pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, timer: Option<&mut GpuTimer>) {
+    /// Records the march.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NotPrepared`] before the first successful `prepare`, recording nothing.
+    pub fn encode(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: Option<&mut GpuTimer>,
+    ) -> Result<()> {
         let (Some(bound), Some(pipeline)) = (&self.bound, &self.pipeline) else {
-            return;
+            return Err(Error::NotPrepared {
+                reason: "MarchNode::prepare has not succeeded yet",
+            });
         };
         encoder.clear_buffer(&self.stats, 0, None);
-        let timestamp_writes = timer.and_then(|t| t.compute_pass("march"));
+        let timestamp_writes = timer.and_then(|t| t.compute_pass(Pass::March));
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("volshadow march"),
             timestamp_writes,
@@ -644,6 +700,7 @@ impl MarchNode {
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &bound.bind_group, &[]);
         pass.dispatch_workgroups(bound.size.0.div_ceil(8), bound.size.1.div_ceil(8), 1);
+        Ok(())
     }
 
     /// The in-scatter texture (see the module docs); `None` before the first `prepare`.

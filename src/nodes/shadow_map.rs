@@ -14,8 +14,56 @@
 use glam::{Mat4, Vec3};
 
 use crate::error::{finite, Error, Result};
+use crate::gpu::cache::{bind_group, depth_pipeline, layout, module, Binding};
 use crate::gpu::{Cache, GpuTimer, Occluder};
+use crate::plan::Pass;
 use crate::scene::Light;
+
+/// The binding table: `@binding(i)` of `shaders/shadow_map.wgsl` is entry `i`.
+const BINDINGS: [Binding; 2] = [
+    Binding::DynamicParams(64), // face: clip_from_world, one slot per face
+    Binding::DynamicParams(64), // instance: world_from_object, one slot per occluder
+];
+
+/// The node's layout and pipeline, held by the [`Cache`].
+#[derive(Clone)]
+pub(crate) struct Pipelines {
+    layout: wgpu::BindGroupLayout,
+    depth: wgpu::RenderPipeline,
+}
+
+impl Pipelines {
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
+        let label = "volshadow shadow map";
+        let layout = layout(device, label, wgpu::ShaderStages::VERTEX, &BINDINGS);
+        let source = include_str!("../../shaders/shadow_map.wgsl");
+        let module = module(device, "volshadow shadow_map.wgsl", source);
+        let depth = depth_pipeline(
+            device,
+            label,
+            &layout,
+            &module,
+            "vs_shadow",
+            None,
+            &[wgpu::VertexBufferLayout {
+                array_stride: 16,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &wgpu::vertex_attr_array![0 => Float32x4],
+            }],
+            Some(wgpu::CompareFunction::Greater),
+        );
+        Self { layout, depth }
+    }
+}
+
+/// What the shadow map is rendered for.
+#[derive(Clone, Copy)]
+pub struct ShadowMapInputs<'a> {
+    /// The light.
+    pub light: &'a Light,
+    /// The occluders.
+    pub occluders: &'a [Occluder<'a>],
+}
 
 /// Shadow-map settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -63,8 +111,7 @@ pub struct ShadowMap<'a> {
 /// a transform changed since the last render.
 pub struct ShadowMapNode {
     settings: ShadowMapSettings,
-    pipeline: wgpu::RenderPipeline,
-    layout: wgpu::BindGroupLayout,
+    pipelines: Pipelines,
     texture: Option<wgpu::Texture>,
     faces: Vec<Mat4>,
     face_buffer: wgpu::Buffer,
@@ -112,8 +159,7 @@ impl ShadowMapNode {
         }
         Ok(Self {
             settings,
-            pipeline: cache.shadow_pipeline.clone(),
-            layout: cache.shadow_layout.clone(),
+            pipelines: cache.shadow_map.clone(),
             texture: None,
             faces: Vec::new(),
             face_buffer: device.create_buffer(&wgpu::BufferDescriptor {
@@ -184,9 +230,9 @@ impl ShadowMapNode {
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
-        light: &Light,
-        occluders: &[Occluder<'_>],
+        inputs: &ShadowMapInputs<'_>,
     ) -> Result<bool> {
+        let ShadowMapInputs { light, occluders } = *inputs;
         for occluder in occluders {
             occluder.validate()?;
         }
@@ -273,28 +319,19 @@ impl ShadowMapNode {
                 usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
-            self.bind_group = Some(device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("volshadow shadow map"),
-                layout: &self.layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                            buffer: &self.face_buffer,
-                            offset: 0,
-                            size: wgpu::BufferSize::new(64),
-                        }),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                            buffer: &buffer,
-                            offset: 0,
-                            size: wgpu::BufferSize::new(64),
-                        }),
-                    },
-                ],
-            }));
+            let slot = |buffer| {
+                wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer,
+                    offset: 0,
+                    size: wgpu::BufferSize::new(64),
+                })
+            };
+            self.bind_group = Some(bind_group(
+                device,
+                "volshadow shadow map",
+                &self.pipelines.layout,
+                [slot(&self.face_buffer), slot(&buffer)],
+            ));
             self.instance_buffer = Some(buffer);
         }
         let instances = self.instance_buffer.as_ref().expect("just created");
@@ -312,17 +349,16 @@ impl ShadowMapNode {
     }
 
     /// Records the render of every face, if [`prepare`](Self::prepare) found a change.
-    /// Returns whether it recorded.
     pub fn encode(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
         mut timer: Option<&mut GpuTimer>,
-    ) -> bool {
+    ) -> Result<()> {
         if !std::mem::take(&mut self.pending) {
-            return false;
+            return Ok(());
         }
         let (Some(texture), Some(bind_group)) = (&self.texture, &self.bind_group) else {
-            return false;
+            return Ok(());
         };
         for layer in 0..texture.depth_or_array_layers() {
             let view = texture.create_view(&wgpu::TextureViewDescriptor {
@@ -334,7 +370,7 @@ impl ShadowMapNode {
             });
             let timestamp_writes = timer
                 .as_deref_mut()
-                .and_then(|t| t.render_pass("shadow map"));
+                .and_then(|t| t.render_pass(Pass::ShadowMap));
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("volshadow shadow map"),
                 color_attachments: &[],
@@ -350,7 +386,7 @@ impl ShadowMapNode {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            pass.set_pipeline(&self.pipeline);
+            pass.set_pipeline(&self.pipelines.depth);
             for (i, draw) in self.draws.iter().enumerate() {
                 pass.set_bind_group(
                     0,
@@ -362,7 +398,7 @@ impl ShadowMapNode {
                 pass.draw_indexed(0..draw.index_count, 0, 0..1);
             }
         }
-        true
+        Ok(())
     }
 
     /// The shadow map for the march (`None` before the first `prepare`).

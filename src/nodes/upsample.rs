@@ -107,10 +107,63 @@ impl UpsampleFilter {
     }
 }
 
-use crate::gpu::cache::UpsamplePipelines;
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+
+use crate::gpu::cache::{bind_group, cached, compute_pipeline, layout, module, Binding};
 use crate::gpu::uniforms::ViewUniform;
 use crate::gpu::{check_depth_texture, check_float_texture, Cache, GpuTimer, UniformBuffer};
+use crate::plan::Pass;
 use crate::scene::Camera;
+
+/// The upsample's binding table: `@binding(i)` of `shaders/upsample.wgsl` is entry `i`.
+const BINDINGS: [Binding; 9] = [
+    Binding::Params,                                    // up
+    Binding::Params,                                    // view
+    Binding::Texture,                                   // low
+    Binding::Depth,                                     // scene_depth
+    Binding::Texture,                                   // mid
+    Binding::Storage(wgpu::TextureFormat::Rgba32Float), // out_tex
+    Binding::Texture,                                   // table
+    Binding::Params,                                    // air
+    Binding::Params,                                    // spot
+];
+
+/// The upsample's entry points for one kind of light: the single pass (bilinear and 3×3), and
+/// the separable filter's horizontal and vertical passes.
+type EntryPoints = [wgpu::ComputePipeline; 3];
+
+/// The upsample's layout and pipelines, per kind of light (built on first use); held by the
+/// [`Cache`].
+#[derive(Clone)]
+pub(crate) struct Pipelines {
+    layout: wgpu::BindGroupLayout,
+    module: wgpu::ShaderModule,
+    /// Keyed by "the light is a spot".
+    lights: Arc<Mutex<HashMap<bool, EntryPoints>>>,
+}
+
+impl Pipelines {
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
+        let label = "volshadow upsample";
+        let source = include_str!("../../shaders/upsample.wgsl");
+        Self {
+            layout: layout(device, label, wgpu::ShaderStages::COMPUTE, &BINDINGS),
+            module: module(device, "volshadow upsample.wgsl", source),
+            lights: Arc::default(),
+        }
+    }
+
+    fn for_light(&self, device: &wgpu::Device, spot: bool) -> EntryPoints {
+        cached(&self.lights, spot, || {
+            let constants = [("SPOT", if spot { 1.0 } else { 0.0 })];
+            ["upsample", "separable_h", "separable_v"].map(|entry| {
+                let label = "volshadow upsample";
+                compute_pipeline(device, label, &self.layout, &self.module, entry, &constants)
+            })
+        })
+    }
+}
 
 /// What the upsample reads in a frame.
 #[derive(Clone, Copy)]
@@ -134,8 +187,12 @@ pub struct UpsampleInputs<'a> {
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 struct UpsampleUniform {
-    params: [f32; 4],
-    sizes: [f32; 4],
+    kind: u32,
+    taps: u32,
+    sigma_spatial: f32,
+    sigma_depth: f32,
+    low_size: [f32; 2],
+    out_size: [f32; 2],
 }
 
 /// Brings low-resolution in-scatter to the output resolution with a depth-aware filter.
@@ -145,10 +202,9 @@ struct UpsampleUniform {
 /// `STORAGE_BINDING | TEXTURE_BINDING | COPY_SRC`; rgb = in-scatter, a = eye distance (−1 sky).
 pub struct UpsampleNode {
     filter: UpsampleFilter,
-    layout: wgpu::BindGroupLayout,
-    cache: Cache,
-    /// The pipelines for the last `prepare`'s kind of light.
-    pipelines: Option<UpsamplePipelines>,
+    pipelines: Pipelines,
+    /// The entry points for the last `prepare`'s kind of light.
+    entry_points: Option<EntryPoints>,
     uniform: UniformBuffer<UpsampleUniform>,
     view: UniformBuffer<ViewUniform>,
     airlight: UniformBuffer<crate::gpu::uniforms::AirlightUniform>,
@@ -171,9 +227,8 @@ impl UpsampleNode {
         filter.validate()?;
         Ok(Self {
             filter,
-            layout: cache.upsample_layout.clone(),
-            cache: cache.clone(),
-            pipelines: None,
+            pipelines: cache.upsample.clone(),
+            entry_points: None,
             uniform: UniformBuffer::new(device, "volshadow upsample"),
             view: UniformBuffer::new(device, "volshadow upsample view"),
             airlight: UniformBuffer::new(device, "volshadow upsample airlight"),
@@ -188,7 +243,7 @@ impl UpsampleNode {
     }
 
     /// The filter.
-    pub fn filter(&self) -> UpsampleFilter {
+    pub fn settings(&self) -> UpsampleFilter {
         self.filter
     }
 
@@ -197,13 +252,14 @@ impl UpsampleNode {
     /// # Errors
     ///
     /// Those of [`UpsampleFilter::validate`].
-    pub fn set_filter(&mut self, filter: UpsampleFilter) -> Result<()> {
+    pub fn set_settings(&mut self, filter: UpsampleFilter) -> Result<()> {
         filter.validate()?;
         self.filter = filter;
         Ok(())
     }
 
     /// Validates the inputs, (re)creates textures when sizes change, uploads what changed.
+    /// Returns `true` (the upsample is recorded every frame).
     ///
     /// # Errors
     ///
@@ -214,7 +270,7 @@ impl UpsampleNode {
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         inputs: &UpsampleInputs<'_>,
-    ) -> Result<()> {
+    ) -> Result<bool> {
         check_depth_texture("scene_depth", inputs.scene_depth)?;
         check_float_texture("low", inputs.low)?;
         let (w, h) = (inputs.scene_depth.width(), inputs.scene_depth.height());
@@ -271,48 +327,23 @@ impl UpsampleNode {
             let make = |mid_sampled: &wgpu::Texture, out: &wgpu::Texture| {
                 let mid_view = mid_sampled.create_view(&Default::default());
                 let out_view = out.create_view(&Default::default());
-                device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("volshadow upsample"),
-                    layout: &self.layout,
-                    entries: &[
-                        wgpu::BindGroupEntry {
-                            binding: 0,
-                            resource: self.uniform.binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 1,
-                            resource: self.view.binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 2,
-                            resource: wgpu::BindingResource::TextureView(&low_view),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 3,
-                            resource: wgpu::BindingResource::TextureView(&depth),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 4,
-                            resource: wgpu::BindingResource::TextureView(&mid_view),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 5,
-                            resource: wgpu::BindingResource::TextureView(&out_view),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 6,
-                            resource: wgpu::BindingResource::TextureView(&table_view),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 7,
-                            resource: self.airlight.binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 8,
-                            resource: self.spot.binding(),
-                        },
+                let view = wgpu::BindingResource::TextureView;
+                bind_group(
+                    device,
+                    "volshadow upsample",
+                    &self.pipelines.layout,
+                    [
+                        self.uniform.binding(),
+                        self.view.binding(),
+                        view(&low_view),
+                        view(&depth),
+                        view(&mid_view),
+                        view(&out_view),
+                        view(&table_view),
+                        self.airlight.binding(),
+                        self.spot.binding(),
                     ],
-                })
+                )
             };
             let groups = if separable {
                 // Horizontal: writes the intermediate; vertical: reads it, writes the output.
@@ -322,20 +353,24 @@ impl UpsampleNode {
             };
             self.bound = Some((textures, groups));
         }
-        let (kind, taps, sigma_s, sigma_z) = match self.filter {
-            UpsampleFilter::Bilinear => (0.0, 0, 1.0, 1.0),
-            UpsampleFilter::DepthAware3x3 => (1.0, 3, 1.0, 1.0),
+        let (kind, taps, sigma_spatial, sigma_depth) = match self.filter {
+            UpsampleFilter::Bilinear => (0, 0, 1.0, 1.0),
+            UpsampleFilter::DepthAware3x3 => (1, 3, 1.0, 1.0),
             UpsampleFilter::Separable {
                 taps,
                 sigma_spatial,
                 sigma_depth,
-            } => (2.0, taps, sigma_spatial, sigma_depth),
+            } => (2, taps, sigma_spatial, sigma_depth),
         };
         self.uniform.write(
             queue,
             UpsampleUniform {
-                params: [kind, taps as f32, sigma_s, sigma_z],
-                sizes: [lw as f32, lh as f32, w as f32, h as f32],
+                kind,
+                taps,
+                sigma_spatial,
+                sigma_depth,
+                low_size: [lw as f32, lh as f32],
+                out_size: [w as f32, h as f32],
             },
         );
         self.view
@@ -348,7 +383,7 @@ impl UpsampleNode {
                 inputs.light,
                 inputs.medium,
                 camera.pixel_angular_radius(h),
-                inputs.table.table_dims(),
+                inputs.table.size(),
             ),
         );
         let (spot, is_spot) = match inputs.light {
@@ -358,35 +393,48 @@ impl UpsampleNode {
             crate::scene::Light::Point(_) => ([0.0; 4], false),
         };
         self.spot.write(queue, spot);
-        self.pipelines = Some(self.cache.upsample_pipelines(device, is_spot));
+        self.entry_points = Some(self.pipelines.for_light(device, is_spot));
         self.size = (w, h);
         self.low_height = lh;
-        Ok(())
+        Ok(true)
     }
 
     /// Records the upsample (one pass, or two for the separable filter).
-    pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, timer: Option<&mut GpuTimer>) {
-        let (Some((_, groups)), Some(pipelines)) = (&self.bound, &self.pipelines) else {
-            return;
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NotPrepared`] before the first successful `prepare`, recording nothing.
+    pub fn encode(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: Option<&mut GpuTimer>,
+    ) -> Result<()> {
+        let (Some((_, groups)), Some([single, horizontal_pipeline, vertical_pipeline])) =
+            (&self.bound, &self.entry_points)
+        else {
+            return Err(Error::NotPrepared {
+                reason: "UpsampleNode::prepare has not succeeded yet",
+            });
         };
-        let timestamp_writes = timer.and_then(|t| t.compute_pass("upsample"));
+        let timestamp_writes = timer.and_then(|t| t.compute_pass(Pass::Upsample));
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("volshadow upsample"),
             timestamp_writes,
         });
         let (w, h) = self.size;
         if let [horizontal, vertical] = groups.as_slice() {
-            pass.set_pipeline(&pipelines.horizontal);
+            pass.set_pipeline(horizontal_pipeline);
             pass.set_bind_group(0, horizontal, &[]);
             pass.dispatch_workgroups(w.div_ceil(8), self.low_height.div_ceil(8), 1);
-            pass.set_pipeline(&pipelines.vertical);
+            pass.set_pipeline(vertical_pipeline);
             pass.set_bind_group(0, vertical, &[]);
             pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
         } else {
-            pass.set_pipeline(&pipelines.single);
+            pass.set_pipeline(single);
             pass.set_bind_group(0, &groups[0], &[]);
             pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
         }
+        Ok(())
     }
 
     /// The upsampled in-scatter; `None` before the first `prepare`.

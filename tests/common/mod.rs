@@ -182,16 +182,24 @@ pub fn march_frame(
     let light = Light::from(light);
     let mut table = AirlightTableNode::new(&gpu.device, cache, table_size).unwrap();
     let mut march = MarchNode::new(&gpu.device, cache, MarchSettings::default()).unwrap();
-    table.prepare(&gpu.queue, camera.eye(), &light, medium);
+    let eye = camera.eye();
+    let table_inputs = volshadow::nodes::TableInputs {
+        eye,
+        light: &light,
+        medium,
+    };
+    table
+        .prepare(&gpu.device, &gpu.queue, &table_inputs)
+        .unwrap();
     march
         .prepare(
             &gpu.device,
             &gpu.queue,
-            &table,
             &MarchInputs {
                 camera,
                 light: &light,
                 medium,
+                table: &table,
                 scene_depth: depth,
                 shadows: None,
                 light_texture: None,
@@ -199,8 +207,8 @@ pub fn march_frame(
         )
         .unwrap();
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    table.encode(&mut encoder, None);
-    march.encode(&mut encoder, None);
+    table.encode(&mut encoder, None).unwrap();
+    march.encode(&mut encoder, None).unwrap();
     gpu.submit_and_wait(encoder).unwrap();
     gpu.read_rgba32f(march.output().unwrap()).unwrap()
 }
@@ -244,7 +252,7 @@ impl ShadowFrame {
     pub fn time_ms(&self, label: &str) -> f64 {
         self.times
             .iter()
-            .filter(|t| t.label == label)
+            .filter(|t| t.pass.name() == label)
             .map(|t| t.ms)
             .sum()
     }
@@ -323,8 +331,8 @@ pub fn shadow_frame_full(
     texture: Option<&wgpu::Texture>,
 ) -> ShadowFrame {
     let mut light_texture = texture.map(|t| {
-        let mut node = volshadow::nodes::LightTextureNode::new(&gpu.device, cache);
-        node.prepare(&gpu.device, t).unwrap();
+        let mut node = volshadow::nodes::LightTextureNode::new(&gpu.device, cache).unwrap();
+        node.prepare(&gpu.device, &gpu.queue, t).unwrap();
         node
     });
     use volshadow::gpu::GpuTimer;
@@ -339,13 +347,17 @@ pub fn shadow_frame_full(
         },
     )
     .unwrap();
-    let mut extents = ExtentsNode::new(&gpu.device, cache);
+    let mut extents = ExtentsNode::new(&gpu.device, cache).unwrap();
     let mut table = AirlightTableNode::new(&gpu.device, cache, TableSize::default()).unwrap();
     let mut march = MarchNode::new(&gpu.device, cache, settings).unwrap();
     let mut timer = GpuTimer::new(&gpu.device, &gpu.queue, 32);
 
     shadow
-        .prepare(&gpu.device, &gpu.queue, light, occluders)
+        .prepare(
+            &gpu.device,
+            &gpu.queue,
+            &volshadow::nodes::ShadowMapInputs { light, occluders },
+        )
         .unwrap();
     extents
         .prepare(
@@ -365,16 +377,20 @@ pub fn shadow_frame_full(
             },
         )
         .unwrap();
-    table.prepare(&gpu.queue, camera.eye(), light, medium);
+    let eye = camera.eye();
+    let table_inputs = volshadow::nodes::TableInputs { eye, light, medium };
+    table
+        .prepare(&gpu.device, &gpu.queue, &table_inputs)
+        .unwrap();
     march
         .prepare(
             &gpu.device,
             &gpu.queue,
-            &table,
             &MarchInputs {
                 camera,
                 light,
                 medium,
+                table: &table,
                 scene_depth: depth,
                 shadows: Some(Shadows {
                     shadow_map: shadow.shadow_map().unwrap(),
@@ -403,14 +419,14 @@ pub fn shadow_frame_full(
     });
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
     if let Some(node) = light_texture.as_mut() {
-        node.encode(&mut encoder, Some(&mut timer));
+        node.encode(&mut encoder, Some(&mut timer)).unwrap();
     }
-    shadow.encode(&mut encoder, Some(&mut timer));
-    extents.encode(&mut encoder, Some(&mut timer));
-    table.encode(&mut encoder, Some(&mut timer));
-    march.encode(&mut encoder, Some(&mut timer));
+    shadow.encode(&mut encoder, Some(&mut timer)).unwrap();
+    extents.encode(&mut encoder, Some(&mut timer)).unwrap();
+    table.encode(&mut encoder, Some(&mut timer)).unwrap();
+    march.encode(&mut encoder, Some(&mut timer)).unwrap();
     if let Some(node) = upsample.as_mut() {
-        node.encode(&mut encoder, Some(&mut timer));
+        node.encode(&mut encoder, Some(&mut timer)).unwrap();
     }
     timer.resolve(&mut encoder);
     gpu.submit_and_wait(encoder).unwrap();
