@@ -27,6 +27,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
+use lexopt::prelude::*;
 use volshadow::glam::{Mat4, Vec3};
 use volshadow::nodes::UpsampleFilter;
 use volshadow::nodes::{MarchMethod, MarchSettings, Scale, ShadowMapSettings, TableSize};
@@ -82,26 +83,21 @@ impl Options {
     /// Parses the command line (see the module docs).
     pub fn parse(args: &[String]) -> Result<Self, BoxError> {
         let mut o = Options::default();
-        let mut it = args.iter();
-        while let Some(flag) = it.next() {
-            let mut value = || {
-                it.next()
-                    .ok_or_else(|| format!("{flag} needs a value"))
-                    .cloned()
-            };
-            match flag.as_str() {
-                "--frames" => o.frames = value()?.parse()?,
-                "--size" => {
-                    let v = value()?;
+        let mut parser = lexopt::Parser::from_args(args);
+        while let Some(arg) = parser.next()? {
+            match arg {
+                Long("frames") => o.frames = parser.value()?.parse()?,
+                Long("size") => {
+                    let v = parser.value()?.string()?;
                     let (w, h) = v.split_once('x').ok_or("--size is WIDTHxHEIGHT")?;
                     o.size = (w.parse()?, h.parse()?);
                 }
-                "--report-every" => o.report_every = value()?.parse()?,
-                "--resize-every" => o.resize_every = value()?.parse()?,
-                "--settings-every" => o.settings_every = value()?.parse()?,
-                "--warmup" => o.warmup = value()?.parse()?,
-                "--max-seconds" => o.max_seconds = Some(value()?.parse()?),
-                other => return Err(format!("unknown argument {other}").into()),
+                Long("report-every") => o.report_every = parser.value()?.parse()?,
+                Long("resize-every") => o.resize_every = parser.value()?.parse()?,
+                Long("settings-every") => o.settings_every = parser.value()?.parse()?,
+                Long("warmup") => o.warmup = parser.value()?.parse()?,
+                Long("max-seconds") => o.max_seconds = Some(parser.value()?.parse()?),
+                _ => return Err(arg.unexpected().into()),
             }
         }
         if o.frames == 0 || o.report_every == 0 || o.resize_every == 0 || o.settings_every == 0 {

@@ -2,6 +2,8 @@
 
 use std::path::{Path, PathBuf};
 
+use lexopt::prelude::*;
+
 use super::BoxError;
 
 /// The command line, for error messages.
@@ -36,23 +38,20 @@ impl Options {
             full: false,
             quick: false,
         };
-        let mut it = args.iter();
-        while let Some(arg) = it.next() {
-            let mut value = |flag: &str| {
-                it.next()
-                    .ok_or_else(|| -> BoxError { format!("{flag} needs a value\n{USAGE}").into() })
-            };
-            let number = |flag: &str, text: &str| -> Result<u32, BoxError> {
-                match text.parse::<u32>() {
-                    Ok(n) if n > 0 => Ok(n),
-                    _ => {
-                        Err(format!("{flag} must be a positive whole number, got {text:?}").into())
-                    }
-                }
-            };
-            match arg.as_str() {
-                "--scenes" => {
-                    options.scenes = value(arg)?
+        let number = |parser: &mut lexopt::Parser, flag: &str| -> Result<u32, BoxError> {
+            let text = parser.value()?.string()?;
+            match text.parse::<u32>() {
+                Ok(n) if n > 0 => Ok(n),
+                _ => Err(format!("{flag} must be a positive whole number, got {text:?}").into()),
+            }
+        };
+        let mut parser = lexopt::Parser::from_args(args);
+        while let Some(arg) = parser.next()? {
+            match arg {
+                Long("scenes") => {
+                    options.scenes = parser
+                        .value()?
+                        .string()?
                         .split(',')
                         .map(|name| {
                             let path = PathBuf::from(name);
@@ -64,13 +63,13 @@ impl Options {
                         })
                         .collect()
                 }
-                "--size" => options.size = number(arg, value(arg)?)?,
-                "--frames" => options.frames = number(arg, value(arg)?)? as usize,
-                "--out" => options.out = PathBuf::from(value(arg)?),
-                "--full" => options.full = true,
-                "--quick" => options.quick = true,
-                "-h" | "--help" => return Err(USAGE.into()),
-                other => return Err(format!("unknown argument {other:?}\n{USAGE}").into()),
+                Long("size") => options.size = number(&mut parser, "--size")?,
+                Long("frames") => options.frames = number(&mut parser, "--frames")? as usize,
+                Long("out") => options.out = PathBuf::from(parser.value()?),
+                Long("full") => options.full = true,
+                Long("quick") => options.quick = true,
+                Short('h') | Long("help") => return Err(USAGE.into()),
+                _ => return Err(format!("{}\n{USAGE}", arg.unexpected()).into()),
             }
         }
         if options.scenes.is_empty() {
