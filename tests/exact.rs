@@ -22,6 +22,8 @@ const EXACT_P95: f64 = 0.005;
 const EXACT_RMSE: f64 = 0.005;
 /// The hybrid at its defaults.
 const HYBRID_RMSE: f64 = 0.02;
+/// Scene (c) is stiff fog: its optical depth σt·D from the eye to the light is at least this.
+const STIFF_OPTICAL_DEPTH: f64 = 30.0;
 
 fn exact() -> MarchSettings {
     MarchSettings {
@@ -226,7 +228,10 @@ fn c_thick_fog_light_behind_eye_in_shadow_near_the_edge() {
     let camera = look_at(Vec3::new(-0.05, 1.0, 0.0), Vec3::new(0.6, 0.8, -5.0), 60.0);
     let optical_depth = f64::from(medium.sigma_t().min_element())
         * f64::from(light.position().distance(camera.eye()));
-    assert!(optical_depth >= 30.0, "σt·D = {optical_depth}");
+    assert!(
+        optical_depth >= STIFF_OPTICAL_DEPTH,
+        "σt·D = {optical_depth}"
+    );
     assert!(eye_in_shadow(&scene, &camera, &light));
     let shot = Shot::new(&scene, &camera, &light, &medium, SIZE);
     // The hybrid and brute force take the shadow's edge from the 1024² shadow map; here the

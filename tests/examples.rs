@@ -9,6 +9,8 @@
 
 #[path = "../examples/common/mod.rs"]
 mod common_examples;
+#[path = "common/files.rs"]
+mod files;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -19,25 +21,6 @@ use common_examples::render_scene::{self, RenderMethod};
 const SIZE: u32 = 64;
 /// Issue 5: in-scatter RMSE against the reference, relative to the reference's mean.
 const MAX_RMSE: f64 = 0.02;
-
-/// A fresh, empty directory under the system temp dir, removed when dropped.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> Self {
-        let dir =
-            std::env::temp_dir().join(format!("volshadow-examples-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        TempDir(dir)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
 
 fn args(list: &[&str]) -> Vec<String> {
     list.iter().map(|s| s.to_string()).collect()
@@ -178,14 +161,14 @@ fn light_pixels(scene: &Path) -> Vec<usize> {
 
 #[test]
 fn render_every_scene_and_match_the_reference() {
-    let dir = TempDir::new("render");
+    let dir = tempfile::tempdir().unwrap();
     let size = format!("{SIZE}x{SIZE}");
     let mut failures = Vec::new();
     for scene in scene_files() {
         let stem = scene.file_stem().unwrap().to_string_lossy().into_owned();
         let scene_arg = scene.to_str().unwrap();
         let start = Instant::now();
-        let out = dir.0.join(&stem);
+        let out = dir.path().join(&stem);
         let gpu = render_scene::run(&args(&[
             scene_arg,
             "-o",
@@ -201,7 +184,7 @@ fn render_every_scene_and_match_the_reference() {
         // The same scene without occluder shadows (`--method analytic` passes no occluders;
         // the app's frame is the same), tone-mapped with the shadowed render's exposure.
         let exposure = gpu.report["exposure"].as_f64().unwrap().to_string();
-        let out = dir.0.join(format!("{stem}.unshadowed"));
+        let out = dir.path().join(format!("{stem}.unshadowed"));
         let unshadowed = render_scene::run(&args(&[
             scene_arg,
             "-o",
@@ -231,7 +214,7 @@ fn render_every_scene_and_match_the_reference() {
         }
 
         let start = Instant::now();
-        let out = dir.0.join(format!("{stem}.reference"));
+        let out = dir.path().join(format!("{stem}.reference"));
         let reference = render_scene::run(&args(&[
             scene_arg,
             "-o",
@@ -267,14 +250,14 @@ fn render_every_scene_and_match_the_reference() {
 #[test]
 fn render_parses_every_method() {
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sphere.json");
-    let dir = TempDir::new("methods");
+    let dir = tempfile::tempdir().unwrap();
     for method in [
         "analytic",
         "brute:16",
         "hybrid:16:2:separable:2",
         "hybrid:8:4:bilinear",
     ] {
-        let out = dir.0.join(method.replace(':', "_"));
+        let out = dir.path().join(method.replace(':', "_"));
         let rendered = render_scene::run(&args(&[
             scene.to_str().unwrap(),
             "-o",
@@ -296,8 +279,8 @@ fn render_parses_every_method() {
 fn render_rejects_bad_arguments_and_files() {
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sphere.json");
     let scene = scene.to_str().unwrap();
-    let dir = TempDir::new("bad");
-    let bad_json = dir.0.join("bad.json");
+    let dir = tempfile::tempdir().unwrap();
+    let bad_json = dir.path().join("bad.json");
     std::fs::write(&bad_json, "{\"name\": 3}").unwrap();
     for bad in [
         vec![],
@@ -346,22 +329,7 @@ fn box_glb() -> Vec<u8> {
         "accessors": [{"bufferView": 0, "componentType": 5126, "count": 8, "type": "VEC3",
                        "min": [-1, -0.5, -0.75], "max": [1, 0.5, 0.75]},
                       {"bufferView": 1, "componentType": 5123, "count": 36, "type": "SCALAR"}]}"#;
-    let mut json = json.as_bytes().to_vec();
-    while !json.len().is_multiple_of(4) {
-        json.push(b' ');
-    }
-    let total = 12 + 8 + json.len() + 8 + bin.len();
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&json);
-    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(&bin);
-    out
+    files::glb(json, &bin)
 }
 
 #[cfg(feature = "gltf")]
@@ -369,10 +337,10 @@ fn box_glb() -> Vec<u8> {
 fn gltf_renders_a_box() {
     use common_examples::gltf_scene;
 
-    let dir = TempDir::new("gltf");
-    let model = dir.0.join("box.glb");
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("box.glb");
     std::fs::write(&model, box_glb()).unwrap();
-    let png = dir.0.join("box.png");
+    let png = dir.path().join("box.png");
     let rendered = gltf_scene::run(&args(&[
         model.to_str().unwrap(),
         "-o",
@@ -386,7 +354,7 @@ fn gltf_renders_a_box() {
     assert_eq!(rendered.png, png);
     assert_eq!(rendered.inscatter.len(), (SIZE * SIZE) as usize);
     // The in-scatter EXR beside the PNG holds what the run returned (f32 of the f64 sums).
-    assert_eq!(rendered.inscatter_exr, dir.0.join("box.inscatter.exr"));
+    assert_eq!(rendered.inscatter_exr, dir.path().join("box.inscatter.exr"));
     let exr = read_exr(&rendered.inscatter_exr);
     for (e, r) in exr.iter().zip(&rendered.inscatter) {
         assert_eq!(*e, r.as_vec3().to_array());
@@ -417,7 +385,7 @@ fn gltf_renders_a_box() {
         "{plan:?}"
     );
 
-    assert!(gltf_scene::run(&args(&[dir.0.join("missing.glb").to_str().unwrap()])).is_err());
+    assert!(gltf_scene::run(&args(&[dir.path().join("missing.glb").to_str().unwrap()])).is_err());
     assert!(
         gltf_scene::run(&args(&[png.to_str().unwrap()])).is_err(),
         "a PNG is not a glTF"
@@ -466,8 +434,8 @@ fn report_runs_every_kind_of_configuration_and_writes_its_files() {
     // The report's own code path at a small size: two scenes (one with a textured spot), a
     // few configurations each, one timed frame. Checks the outputs exist and agree, and that
     // the measured errors order as the methods should.
-    let dir = TempDir::new("report");
-    let out = dir.0.to_string_lossy().into_owned();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_string_lossy().into_owned();
     let report = common_examples::report::run(&args(&[
         "--quick",
         "--size",
@@ -488,9 +456,9 @@ fn report_runs_every_kind_of_configuration_and_writes_its_files() {
         let len = std::fs::metadata(f).unwrap().len();
         assert!(len > 100, "{} has {len} bytes", f.display());
     }
-    let csv = std::fs::read_to_string(dir.0.join("report.csv")).unwrap();
+    let csv = std::fs::read_to_string(dir.path().join("report.csv")).unwrap();
     assert_eq!(csv.lines().count(), report.rows.len() + 1);
-    let svg = std::fs::read_to_string(dir.0.join("error_vs_time.svg")).unwrap();
+    let svg = std::fs::read_to_string(dir.path().join("error_vs_time.svg")).unwrap();
     assert!(svg.contains("<svg") && svg.contains("brute force") && svg.contains("hybrid"));
     for r in &report.rows {
         assert!(r.total_ms.is_finite() && r.total_ms > 0.0, "{r:?}");
@@ -519,7 +487,9 @@ fn report_runs_every_kind_of_configuration_and_writes_its_files() {
     let brute = p95(Curve::Brute, 16);
     let floor = p95(Curve::Analytic, 0);
     println!("sphere 48x48 p95: hybrid 8 {hybrid:.4}, brute force 16 {brute:.4}, floor {floor:.4}");
-    assert!(hybrid < 0.02 && hybrid < brute && brute < floor);
+    // The 2% accuracy target, met by the hybrid at 8 steps; brute force at 16 does worse.
+    const TARGET_P95: f64 = 0.02;
+    assert!(hybrid < TARGET_P95 && hybrid < brute && brute < floor);
 }
 
 /// The report's reference cache is keyed by every source the reference depends on: the files
@@ -559,11 +529,11 @@ fn report_cache_key_covers_the_reference_sources() {
 fn headless_child_render() {
     common_examples::headless_env::quiet_display_probe();
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sphere.json");
-    let dir = TempDir::new("headless-child");
+    let dir = tempfile::tempdir().unwrap();
     render_scene::run(&args(&[
         scene.to_str().unwrap(),
         "-o",
-        dir.0.join("sphere").to_str().unwrap(),
+        dir.path().join("sphere").to_str().unwrap(),
         "--size",
         "32x32",
     ]))

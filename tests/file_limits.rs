@@ -2,12 +2,16 @@
 //! the folder of the file that names them, only regular files are read, and totals (bytes,
 //! triangles, lights, texels, nodes, placed meshes) are bounded, each with a typed error.
 //!
-//! Every test builds its own files under a fresh folder of `std::env::temp_dir()`.
+//! Every test builds its own files under a fresh temporary folder.
 #![cfg(feature = "gltf")]
 
-use std::path::{Path, PathBuf};
+#[path = "common/files.rs"]
+mod files;
+
+use std::path::Path;
 use std::time::{Duration, Instant};
 
+use files::{glb, WriteAt};
 use volshadow::scene_file::SceneDescription;
 use volshadow::{gltf, Error, Limit, LoadOptions};
 
@@ -15,37 +19,6 @@ use volshadow::{gltf, Error, Limit, LoadOptions};
 /// milliseconds; a loader that opens a FIFO blocks forever and one that reads `/dev/zero`
 /// reads until memory runs out, both far beyond this.
 const QUICK: Duration = Duration::from_secs(1);
-
-/// A fresh, empty folder for one test (removed when dropped).
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!(
-            "volshadow-file-limits-{name}-{}",
-            std::process::id()
-        ));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        TempDir(dir)
-    }
-    fn path(&self) -> &Path {
-        &self.0
-    }
-    /// Writes `bytes` at `relative` (creating folders) and returns the full path.
-    fn write(&self, relative: &str, bytes: impl AsRef<[u8]>) -> PathBuf {
-        let path = self.0.join(relative);
-        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
-        std::fs::write(&path, bytes).unwrap();
-        path
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
 
 /// A valid scene with `objects` and, if given, `lights` (raw JSON arrays).
 fn scene(objects: &str, lights: Option<&str>) -> String {
@@ -149,7 +122,7 @@ fn same_either_way(dir: &Path, text: &str, create: impl Fn(), remove: impl Fn())
 
 #[test]
 fn parent_path_is_outside_whether_or_not_it_exists() {
-    let t = TempDir::new("parent");
+    let t = tempfile::tempdir().unwrap();
     let scene_dir = t.path().join("scene");
     std::fs::create_dir_all(&scene_dir).unwrap();
     let secret = t.path().join("secret.gltf");
@@ -167,7 +140,7 @@ fn parent_path_is_outside_whether_or_not_it_exists() {
 #[cfg(feature = "image")]
 #[test]
 fn texture_file_outside_whether_or_not_it_exists() {
-    let t = TempDir::new("texture");
+    let t = tempfile::tempdir().unwrap();
     let scene_dir = t.path().join("scene");
     std::fs::create_dir_all(&scene_dir).unwrap();
     // The same through a light texture's "file" (the message names that field).
@@ -185,7 +158,7 @@ fn texture_file_outside_whether_or_not_it_exists() {
 
 #[test]
 fn absolute_path_is_outside_whether_or_not_it_exists() {
-    let t = TempDir::new("absolute");
+    let t = tempfile::tempdir().unwrap();
     let scene_dir = t.path().join("scene");
     std::fs::create_dir_all(&scene_dir).unwrap();
     let secret = t.path().join("secret.gltf");
@@ -202,7 +175,7 @@ fn absolute_path_is_outside_whether_or_not_it_exists() {
 /// A glTF's buffer URI, plain, percent-encoded and absolute, pointing at `../secret.bin`.
 #[test]
 fn gltf_buffer_uri_outside_whether_or_not_it_exists() {
-    let t = TempDir::new("uri");
+    let t = tempfile::tempdir().unwrap();
     let secret = t.path().join("secret.bin");
     for uri in [
         "../secret.bin".to_owned(),
@@ -235,7 +208,7 @@ fn gltf_buffer_uri_outside_whether_or_not_it_exists() {
 #[cfg(unix)]
 #[test]
 fn symlink_out_of_the_folder_is_outside() {
-    let t = TempDir::new("symlink");
+    let t = tempfile::tempdir().unwrap();
     let scene_dir = t.path().join("scene");
     std::fs::create_dir_all(&scene_dir).unwrap();
     let secret = t.path().join("secret.gltf");
@@ -268,7 +241,7 @@ fn symlink_out_of_the_folder_is_outside() {
 #[cfg(unix)]
 #[test]
 fn paths_inside_the_folder_load() {
-    let t = TempDir::new("inside");
+    let t = tempfile::tempdir().unwrap();
     t.write("scene/models/real.bin", triangle_bin());
     t.write("scene/models/m.gltf", gltf_with_buffer("link%20name.bin"));
     std::os::unix::fs::symlink("real.bin", t.path().join("scene/models/link name.bin")).unwrap();
@@ -282,7 +255,7 @@ fn paths_inside_the_folder_load() {
 /// `LoadOptions::allow_outside` lifts the rule.
 #[test]
 fn allow_outside_loads_an_outside_file() {
-    let t = TempDir::new("allow");
+    let t = tempfile::tempdir().unwrap();
     t.write("secret.bin", triangle_bin());
     t.write("models/m.gltf", gltf_with_buffer("../secret.bin"));
     let text = gltf_scene("../models/m.gltf");
@@ -317,7 +290,7 @@ fn dev_zero_is_not_read() {
     let e = quick("glTF /dev/zero", || gltf::load("/dev/zero")).unwrap_err();
     assert!(is_not_regular(&e), "{e}");
     // As a buffer URI and a scene path, once going outside is allowed.
-    let t = TempDir::new("devzero");
+    let t = tempfile::tempdir().unwrap();
     let gltf_path = t.write("m.gltf", gltf_with_buffer("/dev/zero"));
     let e = quick("buffer /dev/zero", || gltf::load_with(&gltf_path, &options)).unwrap_err();
     assert!(is_not_regular(&e), "{e}");
@@ -332,7 +305,7 @@ fn dev_zero_is_not_read() {
 #[cfg(unix)]
 #[test]
 fn fifo_is_not_opened() {
-    let t = TempDir::new("fifo");
+    let t = tempfile::tempdir().unwrap();
     let fifo = t.path().join("pipe");
     let made = std::process::Command::new("mkfifo")
         .arg(&fifo)
@@ -352,7 +325,7 @@ fn fifo_is_not_opened() {
 
 #[test]
 fn directory_is_not_read() {
-    let t = TempDir::new("dir");
+    let t = tempfile::tempdir().unwrap();
     std::fs::create_dir_all(t.path().join("models")).unwrap();
     let e = scene_err(t.path(), &gltf_scene("models"));
     assert!(is_not_regular(&e), "{e}");
@@ -364,7 +337,7 @@ fn directory_is_not_read() {
 
 #[test]
 fn file_bytes_limit() {
-    let t = TempDir::new("bytes");
+    let t = tempfile::tempdir().unwrap();
     t.write("secret.bin", triangle_bin());
     let path = t.write("m.gltf", gltf_with_buffer("secret.bin"));
     let size = std::fs::metadata(&path).unwrap().len();
@@ -449,26 +422,6 @@ fn texel_limit_stops_twenty_4096_textures() {
         }
         e => panic!("expected the texel limit, got {e}"),
     }
-}
-
-/// A binary glTF container.
-fn glb(json: &str, bin: &[u8]) -> Vec<u8> {
-    let mut json = json.as_bytes().to_vec();
-    while !json.len().is_multiple_of(4) {
-        json.push(b' ');
-    }
-    let total = 12 + 8 + json.len() + 8 + bin.len();
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&json);
-    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(bin);
-    out
 }
 
 /// A glb with one `n × n`-quad grid mesh (2n² triangles) placed by `nodes` nodes.

@@ -2,8 +2,12 @@
 //! `std::env::temp_dir()`, or bytes for `load_slice`).
 #![cfg(feature = "gltf")]
 
-use std::path::{Path, PathBuf};
+#[path = "common/files.rs"]
+mod files;
 
+use std::path::Path;
+
+use files::{glb, WriteAt};
 use volshadow::glam::{Mat4, Quat, Vec3};
 use volshadow::gltf::{self, ErrorKind, GltfMesh};
 use volshadow::Error;
@@ -92,30 +96,6 @@ impl Doc {
     }
 }
 
-/// A binary glTF container.
-fn glb(json: &str, bin: &[u8]) -> Vec<u8> {
-    let mut json = json.as_bytes().to_vec();
-    while !json.len().is_multiple_of(4) {
-        json.push(b' ');
-    }
-    let mut bin = bin.to_vec();
-    while !bin.len().is_multiple_of(4) {
-        bin.push(0);
-    }
-    let total = 12 + 8 + json.len() + 8 + bin.len();
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&json);
-    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(&bin);
-    out
-}
-
 /// Standard base64 with padding.
 fn base64(data: &[u8]) -> String {
     const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
@@ -144,30 +124,6 @@ fn data_uri(bin: &[u8]) -> String {
         base64(bin),
         bin.len()
     )
-}
-
-/// A fresh, empty directory under the system temp dir, removed when dropped.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> Self {
-        let dir =
-            std::env::temp_dir().join(format!("volshadow-gltf-test-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        TempDir(dir)
-    }
-    fn write(&self, name: &str, bytes: impl AsRef<[u8]>) -> PathBuf {
-        let path = self.0.join(name);
-        std::fs::write(&path, bytes).unwrap();
-        path
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -225,7 +181,7 @@ fn path_str(p: &Path) -> String {
 
 #[test]
 fn gltf_with_external_bin_cube() {
-    let dir = TempDir::new("bin-cube");
+    let dir = tempfile::tempdir().unwrap();
     // The URI is percent-encoded: the file name has a space.
     dir.write("cube data.bin", cube_bin(&cube_positions()));
     let doc = Doc::cube(r#"{"uri": "cube%20data.bin", "byteLength": 168}"#);
@@ -257,7 +213,7 @@ fn glb_two_instances_under_a_parent() {
              "matrix": [1, 0, 0, 0,  0, 0, 1, 0,  0, -1, 0, 0,  -3, 0, 0, 1]}]"#,
     );
     let bytes = glb(&doc.json(), &bin);
-    let dir = TempDir::new("glb-instances");
+    let dir = tempfile::tempdir().unwrap();
     let path = dir.write("instances.glb", &bytes);
 
     let meshes = gltf::load(&path).unwrap();
@@ -310,7 +266,7 @@ fn data_uri_gltf() {
     );
 
     // And from a file, with no other file next to it.
-    let dir = TempDir::new("data-uri");
+    let dir = tempfile::tempdir().unwrap();
     let path = dir.write("embedded.gltf", doc.json());
     let from_file = gltf::load(&path).unwrap();
     assert_eq!(from_file.len(), 1);
@@ -529,14 +485,14 @@ fn error_not_a_gltf() {
         gltf_kind(gltf::load_slice(b""), "<memory>"),
         ErrorKind::NotGltf
     );
-    let dir = TempDir::new("not-gltf");
+    let dir = tempfile::tempdir().unwrap();
     let path = dir.write("notes.gltf", "just some text\n");
     assert_eq!(
         gltf_kind(gltf::load(&path), &path_str(&path)),
         ErrorKind::NotGltf
     );
     // A file that does not exist at all.
-    let path = dir.0.join("absent.gltf");
+    let path = dir.path().join("absent.gltf");
     assert_eq!(
         gltf_kind(gltf::load(&path), &path_str(&path)),
         ErrorKind::Io
@@ -547,7 +503,7 @@ fn error_not_a_gltf() {
 fn error_truncated_glb() {
     let doc = Doc::cube(r#"{"byteLength": 168}"#);
     let bytes = glb(&doc.json(), &cube_bin(&cube_positions()));
-    let dir = TempDir::new("truncated");
+    let dir = tempfile::tempdir().unwrap();
     let path = dir.write("cut.glb", &bytes[..bytes.len() - 40]);
     assert_eq!(
         gltf_kind(gltf::load(&path), &path_str(&path)),
@@ -577,7 +533,7 @@ fn error_truncated_glb() {
 
 #[test]
 fn error_missing_buffer_file() {
-    let dir = TempDir::new("missing-buffer");
+    let dir = tempfile::tempdir().unwrap();
     let doc = Doc::cube(r#"{"uri": "missing.bin", "byteLength": 168}"#);
     let path = dir.write("cube.gltf", doc.json());
     let err = gltf::load(&path).unwrap_err();

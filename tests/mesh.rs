@@ -424,6 +424,8 @@ fn hundred_thousand_triangles_build_fast() {
     assert!(sphere.triangle_count() >= 100_000);
     assert!(sphere.is_closed() && mesh.is_closed());
     assert_eq!(mesh.edges().len(), sphere.edges().len());
+    // Gross-regression guards, not timings: ~0.1 s here; quadratic welding takes minutes. The
+    // meshes expose no operation count to check instead.
     assert!(shape_time.as_secs_f64() < 2.0, "{shape_time:?}");
     assert!(new_time.as_secs_f64() < 2.0, "{new_time:?}");
 }

@@ -1,7 +1,7 @@
 //! The quickstart example as a test: its in-scatter, small, against the f64 reference, and its
 //! dark shafts are really there.
 
-#[path = "../examples/quickstart.rs"]
+#[path = "../examples/quickstart/main.rs"]
 #[allow(dead_code)]
 mod quickstart;
 

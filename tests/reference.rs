@@ -2,9 +2,13 @@
 //! independent closed form (2), shadowed rays against a brute-force Riemann sum, exact lit
 //! intervals against brute-force sampling, degenerate rays, and the per-frame image helper.
 
+#[path = "common/rng.rs"]
+mod rng;
+
 use std::f64::consts::PI;
 use std::time::Instant;
 
+use rng::Rng;
 use volshadow::glam::camera::rh::proj::directx;
 use volshadow::glam::camera::rh::view::look_at_mat4;
 use volshadow::glam::{DQuat, DVec3, Vec3};
@@ -228,25 +232,6 @@ fn shadowed_rays_match_a_fine_riemann_sum() {
     println!("max |reference − Riemann| / Riemann error bound = {worst_ratio:.3}");
 }
 
-/// A small deterministic generator for test rays.
-struct Lcg(u64);
-impl Lcg {
-    fn next(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn vec(&mut self, lo: f64, hi: f64) -> DVec3 {
-        DVec3::new(
-            lo + (hi - lo) * self.next(),
-            lo + (hi - lo) * self.next(),
-            lo + (hi - lo) * self.next(),
-        )
-    }
-}
-
 /// Samples `samples` points uniformly in (0, ds) and checks that `segment_blocked` agrees with
 /// `lit_intervals` everywhere except within `margin` of an interval end. Returns (number of lit
 /// intervals, number of dark samples, number of samples within the margin that disagreed).
@@ -289,7 +274,7 @@ fn check_intervals(
 }
 
 fn lit_interval_suite(name: &str, occluders: &[Occluder], centre: DVec3, size: f64) {
-    let mut rng = Lcg(0x5eed ^ name.len() as u64);
+    let mut rng = Rng::new(0x5eed ^ name.len() as u64);
     let samples = 100_000;
     let mut with_shadow = 0;
     let mut total_excused = 0;
@@ -688,8 +673,9 @@ fn image_128_with_a_sphere_is_fast() {
         std::thread::available_parallelism().map_or(1, |n| n.get())
     );
     assert!(image.iter().all(|p| p.is_finite()));
-    // Budget from the brief: "well under a few seconds" in the dev profile; 10 s only catches
-    // a gross regression on a loaded 2-core machine.
+    // A gross-regression guard, not a timing: "well under a few seconds" in the dev profile;
+    // 10 s only catches a gross regression on a loaded 2-core machine (the integrator exposes
+    // no work count to check instead).
     assert!(elapsed.as_secs_f64() < 10.0, "{elapsed:?}");
 }
 
@@ -697,7 +683,7 @@ fn image_128_with_a_sphere_is_fast() {
 fn random_rays_across_scales_are_finite_and_consistent() {
     // Scene scales 1e-2 … 1e4, optical depths 1e-4 … 1e2, strongly forward and backward
     // phases, random ds (including sky), random occluders near the ray.
-    let mut rng = Lcg(42);
+    let mut rng = Rng::new(42);
     let phases = [
         PhaseFunction::Isotropic,
         PhaseFunction::HenyeyGreenstein { g: 0.95 },

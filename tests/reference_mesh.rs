@@ -4,9 +4,13 @@
 //!
 //! `cargo test --test reference_mesh -- --nocapture` prints the counts and the timing.
 
+#[path = "common/rng.rs"]
+mod rng;
+
 use std::f64::consts::PI;
 use std::time::Instant;
 
+use rng::Rng;
 use volshadow::glam::{DMat4, DQuat, DVec3, EulerRot};
 use volshadow::reference::{lit_intervals, Cuboid, Occluder, TriangleMesh};
 
@@ -159,38 +163,6 @@ fn old_lit_intervals(
 // ---------------------------------------------------------------------------------------------
 // Meshes.
 // ---------------------------------------------------------------------------------------------
-
-/// A small deterministic generator (SplitMix64).
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        (z >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next()
-    }
-
-    fn vec(&mut self, lo: f64, hi: f64) -> DVec3 {
-        DVec3::new(self.range(lo, hi), self.range(lo, hi), self.range(lo, hi))
-    }
-
-    fn unit(&mut self) -> DVec3 {
-        loop {
-            let d = self.vec(-1.0, 1.0);
-            let l = d.length();
-            if l > 0.1 && l <= 1.0 {
-                return d / l;
-            }
-        }
-    }
-}
 
 /// A `(columns + 1) × (rows + 1)` grid of positions `f(u, v)`, `u, v ∈ [0, 1]`, two triangles
 /// per cell: the first and last column (and row) duplicate positions when `f` is periodic, as
@@ -354,7 +326,7 @@ fn random_query(rng: &mut Rng, centre: DVec3, size: f64) -> (DVec3, DVec3, f64, 
 fn compare(name: &str, mesh: TriangleMesh, centre: DVec3, size: f64, rays: usize, seed: u64) {
     let tris: Vec<[DVec3; 3]> = mesh.triangle_vertices().collect();
     let occluders = [Occluder::Mesh(mesh)];
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let mut counts = Counts::default();
     for _ in 0..rays {
         let (e, dir, ds, p) = random_query(&mut rng, centre, size);
@@ -390,7 +362,7 @@ fn compare(name: &str, mesh: TriangleMesh, centre: DVec3, size: f64, rays: usize
 
 #[test]
 fn mesh_intervals_match_brute_force() {
-    let mut rng = Rng(7);
+    let mut rng = Rng::new(7);
     let centre = DVec3::new(1.5, -0.5, 2.0);
 
     let (p, t) = uv_sphere(24, 12);
@@ -431,7 +403,7 @@ fn mesh_intervals_match_brute_force() {
 /// Several threads with different light positions share one mesh (and its silhouette cache).
 #[test]
 fn mesh_intervals_match_across_threads_and_lights() {
-    let mut rng = Rng(11);
+    let mut rng = Rng::new(11);
     let centre = DVec3::new(-0.5, 0.2, 0.3);
     let (p, t) = torus();
     let mesh = TriangleMesh::transformed(&p, &t, placement(&mut rng, centre, 1.0));
@@ -442,7 +414,7 @@ fn mesh_intervals_match_across_threads_and_lights() {
         for thread in 0..3u64 {
             let (occluders, tris) = (&occluders, &tris);
             scope.spawn(move || {
-                let mut rng = Rng(100 + thread);
+                let mut rng = Rng::new(100 + thread);
                 let lights: Vec<DVec3> = (0..2)
                     .map(|_| centre + rng.unit() * rng.range(1.5, 3.0))
                     .collect();
@@ -461,7 +433,7 @@ fn mesh_intervals_match_across_threads_and_lights() {
 /// Timing (printed, not asserted) of the old and new code on a 2304-triangle sphere.
 #[test]
 fn mesh_timing() {
-    let mut rng = Rng(3);
+    let mut rng = Rng::new(3);
     let centre = DVec3::new(0.2, 0.1, -0.4);
     let (p, t) = uv_sphere(48, 24);
     let mesh = TriangleMesh::transformed(&p, &t, placement(&mut rng, centre, 1.0));

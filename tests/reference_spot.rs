@@ -6,8 +6,12 @@
 //! (`direction·(X − P) ≥ cos_half_angle·|X − P|`, the light's f32 values converted to f64), so
 //! the sampling shares nothing with the reference's ray–cone quadratic.
 
+#[path = "common/rng.rs"]
+mod rng;
+
 use std::f64::consts::PI;
 
+use rng::Rng;
 use volshadow::glam::camera::rh::proj::directx;
 use volshadow::glam::camera::rh::view::look_at_mat4;
 use volshadow::glam::{DVec3, Vec3};
@@ -38,25 +42,6 @@ fn lit(spot: &SpotLight, occluders: &[Occluder], x: DVec3) -> bool {
 fn basis(a: DVec3) -> (DVec3, DVec3) {
     let u = a.any_orthonormal_vector();
     (u, a.cross(u).normalize())
-}
-
-/// A small deterministic generator for test rays.
-struct Lcg(u64);
-impl Lcg {
-    fn next(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn vec(&mut self, lo: f64, hi: f64) -> DVec3 {
-        DVec3::new(
-            lo + (hi - lo) * self.next(),
-            lo + (hi - lo) * self.next(),
-            lo + (hi - lo) * self.next(),
-        )
-    }
 }
 
 /// Outcome of sampling one ray against its intervals.
@@ -204,7 +189,7 @@ fn generator(spot: &SpotLight, beta: f64, phi: f64) -> DVec3 {
 
 #[test]
 fn cone_intervals_match_brute_force_sampling() {
-    let mut rng = Lcg(0xc0ffee);
+    let mut rng = Rng::new(0xc0ffee);
     let samples = 100_000;
     let mut rays = 0;
     let mut crossing = 0;
@@ -602,7 +587,7 @@ fn extreme_cone_angles_give_no_nan() {
     let p = DVec3::new(0.3, 2.0, -0.5);
     let axis = DVec3::new(0.2, -1.0, 0.3).normalize();
     let point = PointLight::new(p.as_vec3(), i0).unwrap();
-    let mut rng = Lcg(7);
+    let mut rng = Rng::new(7);
     let mut lit_rays = 0;
     let mut checked = 0;
     let mut max_value = 0.0f64;

@@ -6,9 +6,13 @@
 //! view matrix from glam's own f64 `look_to`, the bilinear filter written out), so they share
 //! nothing with the reference's projection, lookup or kink breakpoints.
 
+#[path = "common/rng.rs"]
+mod rng;
+
 use std::f64::consts::PI;
 use std::time::Instant;
 
+use rng::Rng;
 use volshadow::glam::camera::rh::proj::directx;
 use volshadow::glam::camera::rh::view::look_at_mat4;
 use volshadow::glam::dcamera::rh::view::look_to_mat4;
@@ -189,13 +193,8 @@ fn gradient(n: u32) -> LightTexture {
 
 /// Pseudo-random texels in [0, 1): a kink at every texel-centre line, none of them aligned.
 fn noise(n: u32) -> LightTexture {
-    let mut state = 0x2545_f491_4f6c_dd1du64;
-    let mut next = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (state >> 40) as f32 / (1u64 << 24) as f32
-    };
+    let mut rng = Rng::new(0x2545_f491_4f6c_dd1d);
+    let mut next = || rng.next() as f32;
     let texels = (0..n * n)
         .map(|_| Vec3::new(next(), next(), next()))
         .collect();
@@ -419,13 +418,8 @@ fn uv_mapping_follows_the_documented_frame() {
 
     // Random points inside the cones against the formula evaluated with glam's f64 look_to,
     // and `emission` against intensity × the written-out bilinear lookup.
-    let mut state = 7u64;
-    let mut next = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = Rng::new(7);
+    let mut next = || rng.next();
     let (mut uv_err, mut emission_err, mut outside) = (0.0f64, 0.0f64, 0);
     for s in &spots {
         let textured = TexturedSpot::new(*s, &tex);

@@ -1,7 +1,7 @@
 //! The soak example, short: 200 frames at 96×64 with everything animated, a resize and a
 //! settings switch every 20 frames, on top of one warm-up frame per size and settings.
 
-#[path = "../examples/soak.rs"]
+#[path = "../examples/soak/main.rs"]
 #[allow(dead_code)]
 mod soak;
 

@@ -24,6 +24,7 @@
 
 use std::path::PathBuf;
 
+use lexopt::prelude::*;
 use volshadow::glam::{DVec3, Mat4, Vec2, Vec3};
 use volshadow::scene::shapes;
 use volshadow::{
@@ -55,21 +56,14 @@ impl Options {
     /// Parses the arguments after the program name.
     pub fn parse(args: &[String]) -> Result<Self, BoxError> {
         let (mut model, mut out, mut size) = (None, None, (800, 500));
-        let mut it = args.iter();
-        while let Some(arg) = it.next() {
-            let mut value = |flag: &str| {
-                it.next()
-                    .ok_or_else(|| -> BoxError { format!("{flag} needs a value\n{USAGE}").into() })
-            };
-            match arg.as_str() {
-                "-o" | "--output" => out = Some(PathBuf::from(value(arg)?)),
-                "--size" => size = parse_size(value(arg)?)?,
-                "-h" | "--help" => return Err(USAGE.into()),
-                flag if flag.starts_with('-') => {
-                    return Err(format!("unknown option {flag:?}\n{USAGE}").into())
-                }
-                path if model.is_none() => model = Some(PathBuf::from(path)),
-                extra => return Err(format!("unexpected argument {extra:?}\n{USAGE}").into()),
+        let mut parser = lexopt::Parser::from_args(args);
+        while let Some(arg) = parser.next()? {
+            match arg {
+                Short('o') | Long("output") => out = Some(PathBuf::from(parser.value()?)),
+                Long("size") => size = parse_size(&parser.value()?.string()?)?,
+                Short('h') | Long("help") => return Err(USAGE.into()),
+                Value(path) if model.is_none() => model = Some(PathBuf::from(path)),
+                _ => return Err(format!("{}\n{USAGE}", arg.unexpected()).into()),
             }
         }
         let model: PathBuf = model.ok_or_else(|| format!("no model given\n{USAGE}"))?;

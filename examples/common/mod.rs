@@ -1,6 +1,8 @@
 //! What the examples share, and what `tests/examples.rs` calls to run them as tests.
 //!
 //! * [`raster`]: the application's own frame (colour + depth) from triangle meshes.
+//! * [`fullscreen`]: the app's full-screen ray-cast pass (`quickstart_scene`, `soak`), texture
+//!   descriptors.
 //! * [`render_scene`]: the `render` example (a scene file → EXR, PNG, JSON report).
 //! * `gltf_scene` (feature `gltf`): the `gltf` example (a glTF model's shafts → PNG).
 //! * [`headless_env`]: no false `error:` line from Mesa's Vulkan layer on a headless machine.
@@ -12,6 +14,7 @@
 //! used by every includer.
 #![allow(dead_code)]
 
+pub mod fullscreen;
 #[cfg(feature = "gltf")]
 pub mod gltf_scene;
 pub mod headless_env;

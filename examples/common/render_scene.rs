@@ -33,6 +33,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use lexopt::prelude::*;
 use volshadow::glam::DVec3;
 use volshadow::nodes::{Scale, UpsampleFilter};
 use volshadow::reference::{self, TexturedSpot};
@@ -249,32 +250,22 @@ impl Options {
     pub fn parse(args: &[String]) -> Result<Self, BoxError> {
         let mut scene = None;
         let (mut out, mut method, mut size, mut exposure) = (None, None, None, None);
-        let mut it = args.iter();
-        while let Some(arg) = it.next() {
-            let mut value = |flag: &str| {
-                it.next()
-                    .ok_or_else(|| -> BoxError { format!("{flag} needs a value\n{USAGE}").into() })
-            };
-            match arg.as_str() {
-                "-o" | "--output" => out = Some(PathBuf::from(value(arg)?)),
-                "--method" => method = Some(RenderMethod::parse(value(arg)?)?),
-                "--size" => size = Some(parse_size(value(arg)?)?),
-                "--exposure" => {
-                    let text = value(arg)?;
-                    let e: f64 = text
-                        .parse()
-                        .map_err(|_| format!("--exposure {text:?} is not a number"))?;
+        let mut parser = lexopt::Parser::from_args(args);
+        while let Some(arg) = parser.next()? {
+            match arg {
+                Short('o') | Long("output") => out = Some(PathBuf::from(parser.value()?)),
+                Long("method") => method = Some(RenderMethod::parse(&parser.value()?.string()?)?),
+                Long("size") => size = Some(parse_size(&parser.value()?.string()?)?),
+                Long("exposure") => {
+                    let e: f64 = parser.value()?.parse()?;
                     if !(e.is_finite() && e > 0.0) {
                         return Err(format!("--exposure must be positive, got {e}").into());
                     }
                     exposure = Some(e);
                 }
-                "-h" | "--help" => return Err(USAGE.into()),
-                flag if flag.starts_with('-') => {
-                    return Err(format!("unknown option {flag:?}\n{USAGE}").into())
-                }
-                path if scene.is_none() => scene = Some(PathBuf::from(path)),
-                extra => return Err(format!("unexpected argument {extra:?}\n{USAGE}").into()),
+                Short('h') | Long("help") => return Err(USAGE.into()),
+                Value(path) if scene.is_none() => scene = Some(PathBuf::from(path)),
+                _ => return Err(format!("{}\n{USAGE}", arg.unexpected()).into()),
             }
         }
         let scene: PathBuf = scene.ok_or_else(|| format!("no scene file given\n{USAGE}"))?;

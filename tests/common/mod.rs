@@ -258,51 +258,69 @@ impl ShadowFrame {
     }
 }
 
-/// Shadow map + extents + table + march for one frame, timed when the device allows.
-#[allow(clippy::too_many_arguments)]
-pub fn shadow_frame(
-    gpu: &HeadlessGpu,
-    cache: &Cache,
-    camera: &Camera,
-    light: &Light,
-    medium: &Medium,
-    depth: &wgpu::Texture,
-    occluders: &[volshadow::gpu::Occluder<'_>],
-    settings: MarchSettings,
-    shadow_resolution: u32,
-) -> ShadowFrame {
-    shadow_frame_upsampled(
-        gpu,
-        cache,
-        camera,
-        light,
-        medium,
-        depth,
-        occluders,
-        settings,
-        shadow_resolution,
-        volshadow::nodes::UpsampleFilter::DepthAware3x3,
-    )
-}
-
-/// As [`shadow_frame`], with the march at `settings.scale` brought back to full resolution by
-/// `filter` (the in-scatter is full resolution; steps and extents are at the march's).
-#[allow(clippy::too_many_arguments)]
-pub fn shadow_frame_upsampled(
-    gpu: &HeadlessGpu,
-    cache: &Cache,
-    camera: &Camera,
-    light: &Light,
-    medium: &Medium,
-    depth: &wgpu::Texture,
-    occluders: &[volshadow::gpu::Occluder<'_>],
+/// Shadow map + extents + table + march (+ upsample) for one frame, timed when the device
+/// allows: the frame's inputs, and the options with their defaults (`MarchSettings::default()`,
+/// a 1024² shadow map, the depth-aware 3×3 upsampling, no light texture).
+#[derive(Clone, Copy)]
+pub struct ShadowPasses<'a> {
+    camera: &'a Camera,
+    light: &'a Light,
+    medium: &'a Medium,
+    depth: &'a wgpu::Texture,
+    occluders: &'a [volshadow::gpu::Occluder<'a>],
     settings: MarchSettings,
     shadow_resolution: u32,
     filter: volshadow::nodes::UpsampleFilter,
-) -> ShadowFrame {
-    shadow_frame_full(
-        gpu,
-        cache,
+    texture: Option<&'a wgpu::Texture>,
+}
+
+impl<'a> ShadowPasses<'a> {
+    pub fn new(
+        camera: &'a Camera,
+        light: &'a Light,
+        medium: &'a Medium,
+        depth: &'a wgpu::Texture,
+        occluders: &'a [volshadow::gpu::Occluder<'a>],
+    ) -> Self {
+        Self {
+            camera,
+            light,
+            medium,
+            depth,
+            occluders,
+            settings: MarchSettings::default(),
+            shadow_resolution: 1024,
+            filter: volshadow::nodes::UpsampleFilter::DepthAware3x3,
+            texture: None,
+        }
+    }
+
+    pub fn settings(self, settings: MarchSettings) -> Self {
+        Self { settings, ..self }
+    }
+
+    pub fn shadow_resolution(self, shadow_resolution: u32) -> Self {
+        Self {
+            shadow_resolution,
+            ..self
+        }
+    }
+
+    /// The filter that brings a march at `settings.scale` back to full resolution (the
+    /// in-scatter is full resolution; steps and extents are at the march's).
+    pub fn filter(self, filter: volshadow::nodes::UpsampleFilter) -> Self {
+        Self { filter, ..self }
+    }
+
+    /// A spot light's texture.
+    pub fn texture(self, texture: Option<&'a wgpu::Texture>) -> Self {
+        Self { texture, ..self }
+    }
+}
+
+/// Runs `passes` (see [`ShadowPasses`]).
+pub fn shadow_frame(gpu: &HeadlessGpu, cache: &Cache, passes: &ShadowPasses) -> ShadowFrame {
+    let ShadowPasses {
         camera,
         light,
         medium,
@@ -311,25 +329,8 @@ pub fn shadow_frame_upsampled(
         settings,
         shadow_resolution,
         filter,
-        None,
-    )
-}
-
-/// As [`shadow_frame_upsampled`], with an optional light texture for a spot light.
-#[allow(clippy::too_many_arguments)]
-pub fn shadow_frame_full(
-    gpu: &HeadlessGpu,
-    cache: &Cache,
-    camera: &Camera,
-    light: &Light,
-    medium: &Medium,
-    depth: &wgpu::Texture,
-    occluders: &[volshadow::gpu::Occluder<'_>],
-    settings: MarchSettings,
-    shadow_resolution: u32,
-    filter: volshadow::nodes::UpsampleFilter,
-    texture: Option<&wgpu::Texture>,
-) -> ShadowFrame {
+        texture,
+    } = *passes;
     let mut light_texture = texture.map(|t| {
         let mut node = volshadow::nodes::LightTextureNode::new(&gpu.device, cache).unwrap();
         node.prepare(&gpu.device, &gpu.queue, t).unwrap();

@@ -326,19 +326,13 @@ impl<'a> Shot<'a> {
                 transform: o.transform,
             })
             .collect();
-        let frame = super::shadow_frame_full(
-            gpu,
-            cache,
-            self.camera,
-            self.light,
-            self.medium,
-            &depth,
-            &occluders,
-            settings,
-            self.shadow_resolution,
-            self.filter,
-            self.texture.map(|(t, _)| t),
-        );
+        let passes =
+            super::ShadowPasses::new(self.camera, self.light, self.medium, &depth, &occluders)
+                .settings(settings)
+                .shadow_resolution(self.shadow_resolution)
+                .filter(self.filter)
+                .texture(self.texture.map(|(t, _)| t));
+        let frame = super::shadow_frame(gpu, cache, &passes);
         let errors = errors(
             &frame.inscatter,
             reference,

@@ -11,6 +11,7 @@
 //! The plan and per-pass GPU times are printed. Bad arguments or files print the error and
 //! exit with status 1.
 
+#[path = "../common/mod.rs"]
 mod common;
 
 fn main() {

@@ -12,6 +12,7 @@
 //! `examples/common/render_scene.rs`. Bad arguments or files print the error and exit with
 //! status 1.
 
+#[path = "../common/mod.rs"]
 mod common;
 
 fn main() {

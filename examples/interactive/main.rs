@@ -32,10 +32,9 @@ use volshadow::glam::{DVec3, Mat4, Vec3};
 use volshadow::gpu::PassTime;
 use volshadow::nodes::{MarchMethod, Scale};
 use volshadow::reference::{self, Sphere};
-use volshadow::scene::shapes;
 use volshadow::{
-    Cache, Camera, Frame, FrameLight, Light, Medium, Occluder, OccluderMesh, PhaseFunction,
-    PointLight, Settings, VolumetricShadows,
+    Cache, Camera, Frame, FrameLight, Light, Medium, Occluder, OccluderMesh, PointLight, Settings,
+    VolumetricShadows,
 };
 use winit::application::ApplicationHandler;
 use winit::dpi::{PhysicalPosition, PhysicalSize};
@@ -44,19 +43,16 @@ use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop, OwnedDisplayHan
 use winit::keyboard::{Key, NamedKey};
 use winit::window::{Window, WindowId};
 
-/// The spheres of the scene (centre, radius): drawn by the app, and occluders for volshadow.
-/// `SCENE_WGSL` repeats them.
-const SPHERES: [(Vec3, f32); 2] = [
-    (Vec3::new(-0.6, 2.2, -2.2), 0.5),
-    (Vec3::new(0.8, 1.7, -1.4), 0.4),
-];
-/// The light moves in the plane z = `LIGHT_PLANE_Z`, behind the spheres.
-const LIGHT_PLANE_Z: f32 = -4.6;
-const LIGHT_INTENSITY: Vec3 = Vec3::new(90.0, 78.0, 60.0);
-const EYE: Vec3 = Vec3::new(0.0, 1.6, 7.0);
+#[path = "../common/fullscreen.rs"]
+mod fullscreen;
+#[path = "../common/quickstart_scene.rs"]
+mod quickstart_scene;
+
+use fullscreen::texture_desc;
+use quickstart_scene::{camera, ScenePass, EYE, LIGHT_INTENSITY, LIGHT_POSITION, SPHERES};
+
 /// Offscreen colour format: the app's frame, and volshadow's output.
 const HDR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
-const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// How often the title is refreshed, and how often it is printed.
 const TITLE_EVERY: Duration = Duration::from_millis(250);
 const PRINT_EVERY: Duration = Duration::from_secs(1);
@@ -374,20 +370,13 @@ impl State {
 
         // volshadow: the occluder meshes (uploaded once) and the facade.
         let cache = Cache::new(&device);
-        let meshes = SPHERES
-            .iter()
-            .map(|&(c, r)| OccluderMesh::new(&device, &shapes::uv_sphere(c, r, 48, 24)))
-            .collect();
+        let meshes = quickstart_scene::sphere_meshes(&device);
         let settings = Settings {
             output_format: HDR,
             ..Settings::default()
         };
         let volumetric = VolumetricShadows::new(&device, &queue, &cache, settings)?;
-        let medium = Medium::new(
-            Vec3::new(0.10, 0.11, 0.13),
-            Vec3::splat(0.01),
-            PhaseFunction::HenyeyGreenstein { g: 0.7 },
-        )?;
+        let medium = quickstart_scene::medium()?;
 
         let now = Instant::now();
         let mut state = Self {
@@ -405,7 +394,7 @@ impl State {
             meshes,
             volumetric,
             medium,
-            light_position: Vec3::new(0.1, 2.9, LIGHT_PLANE_Z),
+            light_position: LIGHT_POSITION,
             shadows: true,
             stats: Stats {
                 passes_run: 0,
@@ -439,26 +428,15 @@ impl State {
             Err(e) => return self.report(&e),
         };
         let texture = |label, format| {
-            self.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width: size.width,
-                    height: size.height,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                    | wgpu::TextureUsages::TEXTURE_BINDING,
-                view_formats: &[],
-            })
+            let usage =
+                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
+            let desc = texture_desc(label, (size.width, size.height), format, usage);
+            self.device.create_texture(&desc)
         };
         self.targets = Some(Targets {
             camera,
             color: texture("scene colour", HDR),
-            depth: texture("scene depth", DEPTH),
+            depth: texture("scene depth", wgpu::TextureFormat::Depth32Float),
             output: texture("volshadow output", HDR),
         });
         self.window.request_redraw();
@@ -473,7 +451,7 @@ impl State {
         let ndc_y = (1.0 - 2.0 * cursor.y / f64::from(self.config.height)) as f32;
         let d = targets.camera.ray_direction(ndc_x, ndc_y);
         if d.z < -1e-3 {
-            let p = EYE + d * ((LIGHT_PLANE_Z - EYE.z) / d.z);
+            let p = EYE + d * ((LIGHT_POSITION.z - EYE.z) / d.z);
             // Keep it above the ground and not absurdly far to the side.
             self.light_position = Vec3::new(p.x.clamp(-8.0, 8.0), p.y.clamp(0.1, 8.0), p.z);
         }
@@ -552,9 +530,8 @@ impl State {
         self.scene.encode(
             &self.queue,
             &mut encoder,
-            &targets,
-            &light,
-            &self.medium,
+            (&targets.color, &targets.depth),
+            (&targets.camera, &light, &self.medium),
             self.shadows,
         );
 
@@ -696,21 +673,12 @@ impl State {
                 .iter()
                 .map(|c| c.dot(DVec3::new(0.2126, 0.7152, 0.0722)) as f32)
                 .fold(0.0, f32::max);
-            let size = wgpu::Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            };
-            let texture = self.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("f64 reference in-scatter"),
-                size,
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: wgpu::TextureFormat::Rgba32Float,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-                view_formats: &[],
-            });
+            let texture = self.device.create_texture(&texture_desc(
+                "f64 reference in-scatter",
+                (width, height),
+                wgpu::TextureFormat::Rgba32Float,
+                wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            ));
             self.queue.write_texture(
                 texture.as_image_copy(),
                 bytemuck::cast_slice(&texels),
@@ -719,7 +687,7 @@ impl State {
                     bytes_per_row: Some(width * 16),
                     rows_per_image: Some(height),
                 },
-                size,
+                texture.size(),
             );
             self.reference.texture = Some((key, texture, max));
         }
@@ -796,153 +764,6 @@ impl State {
     }
 }
 
-/// The quickstart camera for a window of this size.
-fn camera(width: u32, height: u32) -> volshadow::Result<Camera> {
-    Camera::new(
-        volshadow::glam::camera::rh::view::look_at_mat4(EYE, Vec3::new(0.0, 1.3, 0.0), Vec3::Y),
-        volshadow::glam::camera::rh::proj::directx::perspective(
-            55f32.to_radians(),
-            width as f32 / height as f32,
-            0.05,
-            200.0,
-        ),
-    )
-}
-
-/// The application's own frame: ray-casts the ground and the spheres, shades them with the
-/// point light (inverse square, attenuated through the medium, optionally shadowed by the
-/// spheres), writes colour and depth.
-struct ScenePass {
-    pipeline: wgpu::RenderPipeline,
-    uniform: wgpu::Buffer,
-    bind_group: wgpu::BindGroup,
-}
-
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct SceneUniform {
-    clip_from_world: [f32; 16],
-    world_from_clip: [f32; 16],
-    eye: [f32; 4],
-    light: [f32; 4],
-    intensity: [f32; 4],
-    sigma_t: [f32; 4],
-    /// Width, height, shadows (0 or 1), unused.
-    size: [f32; 4],
-}
-
-impl ScenePass {
-    fn new(device: &wgpu::Device) -> Self {
-        let uniform = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("scene uniform"),
-            size: std::mem::size_of::<SceneUniform>() as u64,
-            // Storage, not uniform, as volshadow's own parameters: Mesa's lavapipe recompiles
-            // a shader for every new uniform-buffer value (and keeps each variant).
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("interactive scene"),
-            source: wgpu::ShaderSource::Wgsl(SCENE_WGSL.into()),
-        });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("interactive scene"),
-            layout: None,
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: Default::default(),
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Always),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs"),
-                compilation_options: Default::default(),
-                targets: &[Some(HDR.into())],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("scene"),
-            layout: &pipeline.get_bind_group_layout(0),
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: uniform.as_entire_binding(),
-            }],
-        });
-        Self {
-            pipeline,
-            uniform,
-            bind_group,
-        }
-    }
-
-    fn encode(
-        &self,
-        queue: &wgpu::Queue,
-        encoder: &mut wgpu::CommandEncoder,
-        targets: &Targets,
-        light: &PointLight,
-        medium: &Medium,
-        shadows: bool,
-    ) {
-        let camera = &targets.camera;
-        let uniform = SceneUniform {
-            clip_from_world: (camera.projection() * camera.view()).to_cols_array(),
-            world_from_clip: camera.world_from_clip().to_cols_array(),
-            eye: camera.eye().extend(0.0).to_array(),
-            light: light.position().extend(0.0).to_array(),
-            intensity: light.intensity().extend(0.0).to_array(),
-            sigma_t: medium.sigma_t().extend(0.0).to_array(),
-            size: [
-                targets.color.width() as f32,
-                targets.color.height() as f32,
-                if shadows { 1.0 } else { 0.0 },
-                0.0,
-            ],
-        };
-        queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&uniform));
-        let color_view = targets.color.create_view(&Default::default());
-        let depth_view = targets.depth.create_view(&Default::default());
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("scene"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &color_view,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &depth_view,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(camera.far_depth()),
-                    store: wgpu::StoreOp::Store,
-                }),
-                stencil_ops: None,
-            }),
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
-        pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, &self.bind_group, &[]);
-        pass.draw(0..3, 0..1);
-    }
-}
-
 /// The tone-mapping blit (exposure and Reinhard; sRGB-encoded in the shader only when the
 /// swapchain format does not do it: a non-sRGB 8-bit format; a float format takes linear), and
 /// the comparison views against the f64 reference.
@@ -976,7 +797,7 @@ impl Blit {
             );
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("blit"),
-            source: wgpu::ShaderSource::Wgsl(BLIT_WGSL.into()),
+            source: wgpu::ShaderSource::Wgsl(include_str!("blit.wgsl").into()),
         });
         let texture = |binding, sample_type| wgpu::BindGroupLayoutEntry {
             binding,
@@ -1046,20 +867,12 @@ impl Blit {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let dummy = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("blit placeholder"),
-            size: wgpu::Extent3d {
-                width: 1,
-                height: 1,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba32Float,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        });
+        let dummy = device.create_texture(&texture_desc(
+            "blit placeholder",
+            (1, 1),
+            wgpu::TextureFormat::Rgba32Float,
+            wgpu::TextureUsages::TEXTURE_BINDING,
+        ));
         Self {
             pipeline,
             layout,
@@ -1130,190 +943,3 @@ impl Blit {
         })
     }
 }
-
-const BLIT_WGSL: &str = r#"
-override ENCODE_SRGB: bool = false;
-const EXPOSURE: f32 = 1.6;
-
-struct Blit {
-    world_from_clip: mat4x4<f32>,
-    eye: vec4<f32>,
-    sigma_t: vec4<f32>,
-    params: vec4<f32>,
-    sizes: vec4<f32>,
-}
-
-@group(0) @binding(0) var hdr: texture_2d<f32>;
-@group(0) @binding(1) var scene_color: texture_2d<f32>;
-@group(0) @binding(2) var scene_depth: texture_depth_2d;
-@group(0) @binding(3) var inscatter: texture_2d<f32>;
-@group(0) @binding(4) var reference_image: texture_2d<f32>;
-@group(0) @binding(5) var<uniform> u: Blit;
-
-@vertex fn vs(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
-    let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
-    return vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
-}
-
-fn srgb(v: vec3<f32>) -> vec3<f32> {
-    return select(1.055 * pow(v, vec3<f32>(1.0 / 2.4)) - 0.055, 12.92 * v, v <= vec3<f32>(0.0031308));
-}
-
-fn tone(c: vec3<f32>) -> vec4<f32> {
-    let e = EXPOSURE * max(c, vec3<f32>(0.0));
-    var v = e / (1.0 + e);
-    if (ENCODE_SRGB) {
-        v = srgb(v);
-    }
-    return vec4<f32>(v, 1.0);
-}
-
-fn luminance(c: vec3<f32>) -> f32 {
-    return dot(c, vec3<f32>(0.2126, 0.7152, 0.0722));
-}
-
-// The low-resolution reference at window pixel p, bilinear between its pixel centres.
-fn reference_at(p: vec2<f32>) -> vec3<f32> {
-    let size = u.sizes.xy;
-    let q = p / u.sizes.zw * size - 0.5;
-    let q0 = floor(q);
-    let f = q - q0;
-    let last = vec2<i32>(size) - 1;
-    let i0 = clamp(vec2<i32>(q0), vec2<i32>(0), last);
-    let i1 = clamp(vec2<i32>(q0) + 1, vec2<i32>(0), last);
-    let a = textureLoad(reference_image, vec2<i32>(i0.x, i0.y), 0).rgb;
-    let b = textureLoad(reference_image, vec2<i32>(i1.x, i0.y), 0).rgb;
-    let c = textureLoad(reference_image, vec2<i32>(i0.x, i1.y), 0).rgb;
-    let d = textureLoad(reference_image, vec2<i32>(i1.x, i1.y), 0).rgb;
-    return mix(mix(a, b, f.x), mix(c, d, f.x), f.y);
-}
-
-// Relative error: black 0, blue 2%, yellow 5%, red 10% or more.
-fn heat(e: f32) -> vec3<f32> {
-    let blue = vec3<f32>(0.1, 0.2, 1.0);
-    let yellow = vec3<f32>(1.0, 0.9, 0.1);
-    let red = vec3<f32>(1.0, 0.1, 0.05);
-    if (e < 0.02) {
-        return blue * (e / 0.02);
-    }
-    if (e < 0.05) {
-        return mix(blue, yellow, (e - 0.02) / 0.03);
-    }
-    return mix(yellow, red, clamp((e - 0.05) / 0.05, 0.0, 1.0));
-}
-
-@fragment fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
-    let pixel = vec2<i32>(p.xy);
-    let mode = u.params.x;
-    if (mode < 0.5 || u.params.z < 0.5) {
-        return tone(textureLoad(hdr, pixel, 0).rgb);
-    }
-    if (mode < 1.5) {
-        let split = u.params.y;
-        if (abs(p.x - split) < 1.0) {
-            return vec4<f32>(1.0);
-        }
-        if (p.x < split) {
-            return tone(textureLoad(hdr, pixel, 0).rgb);
-        }
-        // The app's colour attenuated to the eye, plus the reference's in-scatter.
-        let color = textureLoad(scene_color, pixel, 0).rgb;
-        let z = textureLoad(scene_depth, pixel, 0);
-        let ndc = vec2<f32>(p.x / u.sizes.z * 2.0 - 1.0, 1.0 - p.y / u.sizes.w * 2.0);
-        let w = u.world_from_clip * vec4<f32>(ndc, z, 1.0);
-        let d = length(w.xyz / w.w - u.eye.xyz);
-        var t = exp(-u.sigma_t.xyz * d);
-        if (!(d < 1e30)) {
-            t = vec3<f32>(0.0);
-        }
-        return tone(color * t + reference_at(p.xy));
-    }
-    let g = luminance(textureLoad(inscatter, pixel, 0).rgb);
-    let r = luminance(reference_at(p.xy));
-    return vec4<f32>(heat(abs(g - r) / max(r, 0.01 * u.params.w)), 1.0);
-}
-"#;
-
-/// The quickstart's scene shader; `scene.size.z` switches the spheres' shadows on the surfaces.
-const SCENE_WGSL: &str = r#"
-struct Scene {
-    clip_from_world: mat4x4<f32>,
-    world_from_clip: mat4x4<f32>,
-    eye: vec4<f32>,
-    light: vec4<f32>,
-    intensity: vec4<f32>,
-    sigma_t: vec4<f32>,
-    size: vec4<f32>,
-}
-@group(0) @binding(0) var<storage, read> scene: Scene;
-
-struct Out {
-    @location(0) color: vec4<f32>,
-    @builtin(frag_depth) depth: f32,
-}
-
-@vertex fn vs(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
-    let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
-    return vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
-}
-
-const SPHERES = array<vec4<f32>, 2>(vec4<f32>(-0.6, 2.2, -2.2, 0.5), vec4<f32>(0.8, 1.7, -1.4, 0.4));
-
-fn hit_sphere(o: vec3<f32>, d: vec3<f32>, s: vec4<f32>) -> f32 {
-    let oc = o - s.xyz;
-    let b = dot(oc, d);
-    let c = dot(oc, oc) - s.w * s.w;
-    let disc = b * b - c;
-    if (disc < 0.0) { return -1.0; }
-    let t = -b - sqrt(disc);
-    return select(-1.0, t, t > 1e-4);
-}
-
-@fragment fn fs(@builtin(position) p: vec4<f32>) -> Out {
-    let ndc = vec2<f32>(p.x / scene.size.x * 2.0 - 1.0, 1.0 - p.y / scene.size.y * 2.0);
-    let a = scene.world_from_clip * vec4<f32>(ndc, 0.0, 1.0);
-    let b = scene.world_from_clip * vec4<f32>(ndc, 0.5, 1.0);
-    let o = scene.eye.xyz;
-    let d = normalize(b.xyz / b.w - a.xyz / a.w);
-    var t = 1e30;
-    var n = vec3<f32>(0.0);
-    var albedo = vec3<f32>(0.0);
-    if (d.y < 0.0) {
-        t = -o.y / d.y;
-        n = vec3<f32>(0.0, 1.0, 0.0);
-        let hit = o + t * d;
-        let checker = (i32(floor(hit.x)) + i32(floor(hit.z))) & 1;
-        albedo = select(vec3<f32>(0.55), vec3<f32>(0.35), checker == 1);
-    }
-    for (var k = 0; k < 2; k++) {
-        let ts = hit_sphere(o, d, SPHERES[k]);
-        if (ts > 0.0 && ts < t) {
-            t = ts;
-            n = normalize(o + t * d - SPHERES[k].xyz);
-            albedo = vec3<f32>(0.7, 0.45, 0.3);
-        }
-    }
-    var out: Out;
-    if (t >= 1e30) {
-        out.color = vec4<f32>(0.0, 0.0, 0.0, 1.0);
-        out.depth = 1.0;
-        return out;
-    }
-    let x = o + t * d;
-    let to_light = scene.light.xyz - x;
-    let dist = length(to_light);
-    let l = to_light / dist;
-    var lit = 1.0;
-    if (scene.size.z > 0.5) {
-        for (var k = 0; k < 2; k++) {
-            let ts = hit_sphere(x + n * 1e-3, l, SPHERES[k]);
-            if (ts > 0.0 && ts < dist) { lit = 0.0; }
-        }
-    }
-    let e = scene.intensity.xyz * exp(-scene.sigma_t.xyz * dist) / (dist * dist);
-    out.color = vec4<f32>(albedo / 3.14159265 * e * max(dot(n, l), 0.0) * lit + 0.01 * albedo, 1.0);
-    let clip = scene.clip_from_world * vec4<f32>(x, 1.0);
-    out.depth = clip.z / clip.w;
-    return out;
-}
-"#;

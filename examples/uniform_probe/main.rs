@@ -128,8 +128,8 @@ fn composite(gpu: &HeadlessGpu, storage: bool, frames: u32, kind: &str) {
     let device = &gpu.device;
     let mut src = format!(
         "{}\n{}",
-        include_str!("../shaders/prelude.wgsl"),
-        include_str!("../shaders/composite.wgsl")
+        include_str!("../../shaders/prelude.wgsl"),
+        include_str!("../../shaders/composite.wgsl")
     );
     if storage {
         src = src.replace("var<uniform>", "var<storage, read>");

@@ -27,6 +27,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
+use lexopt::prelude::*;
 use volshadow::glam::{Mat4, Vec3};
 use volshadow::nodes::UpsampleFilter;
 use volshadow::nodes::{MarchMethod, MarchSettings, Scale, ShadowMapSettings, TableSize};
@@ -35,6 +36,13 @@ use volshadow::{
     Cache, Camera, Frame, FrameLight, HeadlessGpu, Light, Medium, Occluder, OccluderMesh,
     PhaseFunction, PointLight, Settings, SpotLight, VolumetricShadows,
 };
+
+#[path = "../common/fullscreen.rs"]
+mod fullscreen;
+#[path = "../common/headless_env.rs"]
+mod headless_env;
+
+use fullscreen::{texture_desc, FullscreenPass};
 
 type BoxError = Box<dyn std::error::Error>;
 
@@ -75,26 +83,21 @@ impl Options {
     /// Parses the command line (see the module docs).
     pub fn parse(args: &[String]) -> Result<Self, BoxError> {
         let mut o = Options::default();
-        let mut it = args.iter();
-        while let Some(flag) = it.next() {
-            let mut value = || {
-                it.next()
-                    .ok_or_else(|| format!("{flag} needs a value"))
-                    .cloned()
-            };
-            match flag.as_str() {
-                "--frames" => o.frames = value()?.parse()?,
-                "--size" => {
-                    let v = value()?;
+        let mut parser = lexopt::Parser::from_args(args);
+        while let Some(arg) = parser.next()? {
+            match arg {
+                Long("frames") => o.frames = parser.value()?.parse()?,
+                Long("size") => {
+                    let v = parser.value()?.string()?;
                     let (w, h) = v.split_once('x').ok_or("--size is WIDTHxHEIGHT")?;
                     o.size = (w.parse()?, h.parse()?);
                 }
-                "--report-every" => o.report_every = value()?.parse()?,
-                "--resize-every" => o.resize_every = value()?.parse()?,
-                "--settings-every" => o.settings_every = value()?.parse()?,
-                "--warmup" => o.warmup = value()?.parse()?,
-                "--max-seconds" => o.max_seconds = Some(value()?.parse()?),
-                other => return Err(format!("unknown argument {other}").into()),
+                Long("report-every") => o.report_every = parser.value()?.parse()?,
+                Long("resize-every") => o.resize_every = parser.value()?.parse()?,
+                Long("settings-every") => o.settings_every = parser.value()?.parse()?,
+                Long("warmup") => o.warmup = parser.value()?.parse()?,
+                Long("max-seconds") => o.max_seconds = Some(parser.value()?.parse()?),
+                _ => return Err(arg.unexpected().into()),
             }
         }
         if o.frames == 0 || o.report_every == 0 || o.resize_every == 0 || o.settings_every == 0 {
@@ -244,68 +247,6 @@ struct AppParams {
     spheres: [[f32; 4]; 3],
 }
 
-const APP_WGSL: &str = r#"
-struct App {
-    world_from_clip: mat4x4<f32>,
-    clip_from_world: mat4x4<f32>,
-    eye: vec4<f32>,
-    light: vec4<f32>,   // xyz position, w: far depth
-    size: vec4<f32>,
-    spheres: array<vec4<f32>, 3>,
-}
-@group(0) @binding(0) var<storage, read> app: App;
-
-struct Out {
-    @location(0) color: vec4<f32>,
-    @builtin(frag_depth) depth: f32,
-}
-
-@vertex fn vs(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
-    let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
-    return vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
-}
-
-fn hit_sphere(o: vec3<f32>, d: vec3<f32>, s: vec4<f32>) -> f32 {
-    let oc = o - s.xyz;
-    let b = dot(oc, d);
-    let disc = b * b - (dot(oc, oc) - s.w * s.w);
-    if (disc < 0.0) { return -1.0; }
-    let t = -b - sqrt(disc);
-    return select(-1.0, t, t > 1e-4);
-}
-
-@fragment fn fs(@builtin(position) p: vec4<f32>) -> Out {
-    let ndc = vec2<f32>(p.x / app.size.x * 2.0 - 1.0, 1.0 - p.y / app.size.y * 2.0);
-    let a = app.world_from_clip * vec4<f32>(ndc, 0.0, 1.0);
-    let b = app.world_from_clip * vec4<f32>(ndc, 0.5, 1.0);
-    let o = app.eye.xyz;
-    let d = normalize(b.xyz / b.w - a.xyz / a.w);
-    var t = 1e30;
-    var n = vec3<f32>(0.0, 1.0, 0.0);
-    if (d.y < 0.0) { t = -o.y / d.y; }
-    for (var k = 0; k < 3; k++) {
-        let ts = hit_sphere(o, d, app.spheres[k]);
-        if (ts > 0.0 && ts < t) {
-            t = ts;
-            n = normalize(o + t * d - app.spheres[k].xyz);
-        }
-    }
-    var out: Out;
-    if (t >= 1e30) {
-        out.color = vec4<f32>(0.0, 0.0, 0.0, 1.0);
-        out.depth = app.light.w;
-        return out;
-    }
-    let x = o + t * d;
-    let l = app.light.xyz - x;
-    let e = 20.0 / dot(l, l);
-    out.color = vec4<f32>(vec3<f32>(0.5 / 3.14159265 * e * max(dot(n, normalize(l)), 0.0) + 0.01), 1.0);
-    let clip = app.clip_from_world * vec4<f32>(x, 1.0);
-    out.depth = clip.z / clip.w;
-    return out;
-}
-"#;
-
 /// The app's colour, depth and volshadow's output at one size.
 struct Targets {
     size: (u32, u32),
@@ -316,22 +257,8 @@ struct Targets {
 
 impl Targets {
     fn new(device: &wgpu::Device, size: (u32, u32)) -> Self {
-        let tex = |label, format, usage| {
-            device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width: size.0,
-                    height: size.1,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
-        };
+        let tex =
+            |label, format, usage| device.create_texture(&texture_desc(label, size, format, usage));
         let attach = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
         Self {
             size,
@@ -383,51 +310,12 @@ pub fn run(gpu: &HeadlessGpu, options: &Options) -> Result<Summary, BoxError> {
     }
 
     // The app's pass: one pipeline, parameters in a storage buffer.
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("soak app"),
-        source: wgpu::ShaderSource::Wgsl(APP_WGSL.into()),
-    });
-    let app_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some("soak app"),
-        layout: None,
-        vertex: wgpu::VertexState {
-            module: &module,
-            entry_point: Some("vs"),
-            compilation_options: Default::default(),
-            buffers: &[],
-        },
-        primitive: Default::default(),
-        depth_stencil: Some(wgpu::DepthStencilState {
-            format: wgpu::TextureFormat::Depth32Float,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(wgpu::CompareFunction::Always),
-            stencil: Default::default(),
-            bias: Default::default(),
-        }),
-        multisample: Default::default(),
-        fragment: Some(wgpu::FragmentState {
-            module: &module,
-            entry_point: Some("fs"),
-            compilation_options: Default::default(),
-            targets: &[Some(wgpu::TextureFormat::Rgba16Float.into())],
-        }),
-        multiview_mask: None,
-        cache: None,
-    });
-    let app_buffer = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("soak app parameters"),
-        size: std::mem::size_of::<AppParams>() as u64,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let app_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("soak app"),
-        layout: &app_pipeline.get_bind_group_layout(0),
-        entries: &[wgpu::BindGroupEntry {
-            binding: 0,
-            resource: app_buffer.as_entire_binding(),
-        }],
-    });
+    let app_pass = FullscreenPass::new(
+        device,
+        "soak app",
+        include_str!("app.wgsl"),
+        std::mem::size_of::<AppParams>(),
+    );
 
     // volshadow.
     let cache = Cache::new(device);
@@ -547,39 +435,15 @@ pub fn run(gpu: &HeadlessGpu, options: &Options) -> Result<Summary, BoxError> {
             size: [size.0 as f32, size.1 as f32, 0.0, 0.0],
             spheres: spheres.map(|(c, r)| c.extend(r).to_array()),
         };
-        gpu.queue
-            .write_buffer(&app_buffer, 0, bytemuck::bytes_of(&params));
         let mut encoder = device.create_command_encoder(&Default::default());
-        {
-            let color = targets.color.create_view(&Default::default());
-            let depth = targets.depth.create_view(&Default::default());
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("soak app"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &color,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &depth,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(camera.far_depth()),
-                        store: wgpu::StoreOp::Store,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_pipeline(&app_pipeline);
-            pass.set_bind_group(0, &app_bind_group, &[]);
-            pass.draw(0..3, 0..1);
-        }
+        let app_targets = (&targets.color, &targets.depth);
+        app_pass.encode(
+            &gpu.queue,
+            &mut encoder,
+            &params,
+            app_targets,
+            camera.far_depth(),
+        );
         vs.prepare(
             device,
             &gpu.queue,
@@ -694,9 +558,6 @@ pub fn run(gpu: &HeadlessGpu, options: &Options) -> Result<Summary, BoxError> {
     );
     Ok(summary)
 }
-
-#[path = "common/headless_env.rs"]
-mod headless_env;
 
 fn main() {
     headless_env::quiet_display_probe();

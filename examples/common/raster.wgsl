@@ -1,0 +1,69 @@
+struct Light {
+    position: vec4<f32>,
+    intensity: vec4<f32>,
+    direction: vec4<f32>,
+    frame: mat4x4<f32>,
+    params: vec4<f32>,
+}
+struct Scene {
+    clip_from_world: mat4x4<f32>,
+    eye: vec4<f32>,
+    sigma_t: vec4<f32>,
+    ambient: vec4<f32>,
+    light_count: vec4<u32>,
+    lights: array<Light, 4>,
+}
+@group(0) @binding(0) var<uniform> scene: Scene;
+@group(0) @binding(1) var texture0: texture_2d<f32>;
+@group(0) @binding(2) var texture1: texture_2d<f32>;
+@group(0) @binding(3) var texture2: texture_2d<f32>;
+@group(0) @binding(4) var texture3: texture_2d<f32>;
+@group(0) @binding(5) var linear: sampler;
+
+struct Varyings {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) albedo: vec3<f32>,
+}
+
+@vertex fn vs(@location(0) position: vec3<f32>, @location(1) normal: vec3<f32>,
+              @location(2) albedo: vec3<f32>) -> Varyings {
+    var out: Varyings;
+    out.clip = scene.clip_from_world * vec4<f32>(position, 1.0);
+    out.world = position;
+    out.normal = normal;
+    out.albedo = albedo;
+    return out;
+}
+
+fn light_texel(i: u32, uv: vec2<f32>) -> vec3<f32> {
+    if (i == 0u) { return textureSampleLevel(texture0, linear, uv, 0.0).rgb; }
+    if (i == 1u) { return textureSampleLevel(texture1, linear, uv, 0.0).rgb; }
+    if (i == 2u) { return textureSampleLevel(texture2, linear, uv, 0.0).rgb; }
+    return textureSampleLevel(texture3, linear, uv, 0.0).rgb;
+}
+
+@fragment fn fs(in: Varyings) -> @location(0) vec4<f32> {
+    var n = in.normal;
+    if (dot(n, scene.eye.xyz - in.world) < 0.0) { n = -n; }
+    var irradiance = vec3<f32>(0.0);
+    for (var i = 0u; i < scene.light_count.x; i++) {
+        let light = scene.lights[i];
+        let to_light = light.position.xyz - in.world;
+        let d = max(length(to_light), 1e-6);
+        let l = to_light / d;
+        var emitted = light.intensity.rgb;
+        if (light.position.w > 0.5) {
+            if (dot(-l, light.direction.xyz) < light.direction.w) { continue; }
+            if (light.intensity.w > 0.5) {
+                let v = light.frame * vec4<f32>(in.world, 1.0);
+                let s = 0.5 / (-v.z * light.params.x);
+                emitted *= light_texel(i, vec2<f32>(0.5 + v.x * s, 0.5 - v.y * s));
+            }
+        }
+        irradiance += emitted * max(dot(n, l), 0.0) / (d * d) * exp(-scene.sigma_t.xyz * d);
+    }
+    let radiance = in.albedo / 3.14159265 * irradiance + in.albedo * scene.ambient.xyz;
+    return vec4<f32>(radiance, 1.0);
+}

@@ -1,0 +1,500 @@
+//! Measuring: every configuration of a scene, its per-pass GPU times (median of the timed
+//! frames) and its image, and the sweeps' stop rule.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::time::Instant;
+
+use volshadow::glam::DVec3;
+use volshadow::nodes::{MarchMethod, MarchSettings, Scale};
+use volshadow::plan::Pass;
+use volshadow::scene_file::SceneDescription;
+use volshadow::{Cache, Frame, HeadlessGpu, Settings, VolumetricShadows};
+
+use super::cache::cached_reference;
+use super::metrics::{errors, keep_mask};
+use super::render_scene::GpuScene;
+use super::{read_inscatter, BoxError, Check, Curve, Filter, Options, Row};
+use super::{FIXED_PASSES, REFINE, SWEEP_STOP_P95, TOLERANCES};
+
+/// A step sweep's stop rule (see the module docs).
+#[derive(Debug, Clone, Default)]
+pub struct Sweep {
+    previous: Option<f64>,
+    stopped: bool,
+}
+
+impl Sweep {
+    /// Records a point; true (and says why) when the sweep stops after it.
+    pub fn stops(&mut self, ctx: &Context, curve: Curve, steps: u32, p95: f64) -> bool {
+        let converged = self.previous.is_some_and(|p| p95 > 0.9 * p);
+        self.previous = Some(p95);
+        if p95 < SWEEP_STOP_P95 || converged {
+            ctx.progress(&format!(
+                "  {} stops at {steps} steps: p95 {:.3}% {}",
+                curve.name(),
+                100.0 * p95,
+                if p95 < SWEEP_STOP_P95 {
+                    "is below the stop threshold"
+                } else {
+                    "no longer improves by 10% per doubling"
+                }
+            ));
+            self.stopped = true;
+        }
+        self.stopped
+    }
+}
+
+/// How passes are timed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Clock {
+    /// Each pass submitted alone, wall clock around submit-and-wait (CPU adapters).
+    WallPerPass,
+    /// Timestamp queries.
+    Timestamps,
+}
+
+pub struct Context<'a> {
+    pub gpu: &'a HeadlessGpu,
+    pub cache: Cache,
+    pub clock: Clock,
+    pub frames: usize,
+    pub start: Instant,
+}
+
+impl Context<'_> {
+    pub fn progress(&self, text: &str) {
+        println!("[{:7.1} s] {text}", self.start.elapsed().as_secs_f64());
+    }
+}
+
+/// Everything measured on one scene.
+pub fn run_scene(
+    ctx: &Context,
+    options: &Options,
+    path: &Path,
+    scene: &SceneDescription,
+) -> Result<(Vec<Row>, Vec<Check>), BoxError> {
+    let size = (options.size, options.size);
+    let camera = if scene.size.0 == scene.size.1 {
+        scene.camera
+    } else {
+        super::with_aspect(&scene.camera, 1.0)?
+    };
+    let reference = cached_reference(ctx, options, path, scene, &camera, size)?;
+    let keep = keep_mask(scene, &camera, size);
+    // Every configuration marches a textured spot's lit parts with the error target's budget,
+    // the one its table was measured with.
+    let texture_steps = volshadow::plan::ERROR_TARGET_TEXTURE_STEPS;
+
+    let gpu_scene = GpuScene::new(ctx.gpu, scene, &camera, size, true)?;
+    let output = gpu_scene.output(ctx.gpu);
+    let view = &output;
+    let lights = gpu_scene.lights();
+    let occluders = gpu_scene.occluders();
+    let shadowed = gpu_scene.frame(&lights, &occluders);
+    let unshadowed = gpu_scene.frame(&lights, &[]);
+    let mut facade: Option<VolumetricShadows> = None;
+    let mut measure = |settings: Settings, frame: &Frame, reuse: bool| {
+        measure(ctx, &mut facade, settings, frame, view, reuse)
+    };
+    let base = Settings {
+        output_format: wgpu::TextureFormat::Rgba32Float,
+        cull_threshold: 0.0,
+        ..Settings::default()
+    };
+    let settings = |method, steps, scale, filter: Filter, bisections| Settings {
+        march: MarchSettings {
+            method,
+            steps,
+            bisections,
+            scale,
+            texture_steps,
+            ..MarchSettings::default()
+        },
+        upsample: filter.upsample(),
+        ..base
+    };
+
+    // Passes whose work does not depend on the configuration (F′ table, shadow map,
+    // composite): timed once per scene, in frames that rebuild everything.
+    let fixed = time_fixed(
+        ctx,
+        settings(MarchMethod::Hybrid, 8, Scale::Full, Filter::None, 0),
+        &shadowed,
+        view,
+    )?;
+    let floor_fixed = time_fixed(
+        ctx,
+        settings(MarchMethod::Hybrid, 8, Scale::Full, Filter::None, 0),
+        &unshadowed,
+        view,
+    )?;
+
+    let rows = std::cell::RefCell::new(Vec::<Row>::new());
+    let record = |curve: Curve,
+                  settings: &Settings,
+                  mut passes: BTreeMap<&'static str, f64>,
+                  image: &[DVec3],
+                  fixed: &BTreeMap<&'static str, f64>|
+     -> Row {
+        for (pass, ms) in fixed {
+            passes.insert(pass, *ms);
+        }
+        let errors = errors(image, &reference, &keep);
+        let scale = settings.march.scale;
+        let row = Row {
+            scene: scene.name.clone(),
+            textured: scene.lights.iter().any(|l| l.texture.is_some()),
+            curve,
+            steps: if curve == Curve::Analytic {
+                0
+            } else {
+                settings.march.steps
+            },
+            scale: scale.divisor(),
+            filter: Filter::of(settings.upsample, scale),
+            bisections: settings.march.bisections,
+            total_ms: passes.values().sum(),
+            passes,
+            errors,
+        };
+        ctx.progress(&format!(
+            "  {:<42} {:>5} steps  {:>9.1} ms  p95 {:>7.3}%  p99 {:>7.3}%  RMSE {:>7.3}%",
+            curve.name(),
+            row.steps,
+            row.total_ms,
+            100.0 * errors.p95,
+            100.0 * errors.p99,
+            100.0 * errors.rmse
+        ));
+        rows.borrow_mut().push(row.clone());
+        row
+    };
+
+    // The floor.
+    let s = settings(MarchMethod::Hybrid, 8, Scale::Full, Filter::None, 0);
+    let (passes, image) = measure(s, &unshadowed, false)?;
+    record(Curve::Analytic, &s, passes, &image, &floor_fixed);
+
+    // Brute force, and paper 003's configuration.
+    let sweep: Vec<u32> = if options.quick {
+        vec![16, 32]
+    } else {
+        vec![16, 32, 64, 128, 256, 512, 1024]
+    };
+    for (curve, method, scale, filter) in [
+        (
+            Curve::Brute,
+            MarchMethod::BruteForce,
+            Scale::Full,
+            Filter::None,
+        ),
+        (
+            Curve::Paper003,
+            MarchMethod::BruteForce,
+            Scale::Quarter,
+            Filter::Separable,
+        ),
+        (
+            Curve::Textbook,
+            MarchMethod::Textbook,
+            Scale::Full,
+            Filter::None,
+        ),
+    ] {
+        let mut sweep_state = Sweep::default();
+        for &steps in &sweep {
+            let s = settings(method, steps, scale, filter, 0);
+            let (passes, image) = measure(s, &shadowed, false)?;
+            let p95 = record(curve, &s, passes, &image, &fixed).errors.p95;
+            if !options.full && sweep_state.stops(ctx, curve, steps, p95) {
+                break;
+            }
+        }
+    }
+
+    // The exact method: no steps (they only march pixels whose crossing list overflowed).
+    for scale in [Scale::Full, Scale::Half, Scale::Quarter] {
+        let filters = if scale == Scale::Full {
+            vec![Filter::None]
+        } else {
+            vec![Filter::Box3, Filter::Separable]
+        };
+        let mut march_passes: Option<BTreeMap<&'static str, f64>> = None;
+        for filter in filters {
+            let s = settings(MarchMethod::Exact, 64, scale, filter, REFINE);
+            let (mut passes, image) = measure(s, &shadowed, march_passes.is_some())?;
+            share_march(&mut passes, &mut march_passes);
+            record(
+                Curve::Exact(scale.divisor(), filter),
+                &s,
+                passes,
+                &image,
+                &fixed,
+            );
+        }
+    }
+
+    // The hybrid.
+    let (steps_list, scales, refines): (Vec<u32>, Vec<Scale>, Vec<u32>) = if options.quick {
+        (
+            vec![8, 32],
+            vec![Scale::Full, Scale::Quarter],
+            vec![0, REFINE],
+        )
+    } else {
+        (
+            vec![8, 16, 32, 64, 128, 256],
+            vec![Scale::Full, Scale::Half, Scale::Quarter],
+            vec![0, REFINE],
+        )
+    };
+    for &bisections in &refines {
+        for &scale in &scales {
+            let filters = if scale == Scale::Full {
+                vec![Filter::None]
+            } else {
+                vec![Filter::Box3, Filter::Separable, Filter::Bilinear]
+            };
+            let mut sweeps = vec![Sweep::default(); filters.len()];
+            for &steps in &steps_list {
+                let mut march_passes: Option<BTreeMap<&'static str, f64>> = None;
+                for (&filter, sweep_state) in filters.iter().zip(&mut sweeps) {
+                    if sweep_state.stopped {
+                        continue;
+                    }
+                    let s = settings(MarchMethod::Hybrid, steps, scale, filter, bisections);
+                    let (mut passes, image) = measure(s, &shadowed, march_passes.is_some())?;
+                    share_march(&mut passes, &mut march_passes);
+                    let curve = Curve::Hybrid(scale.divisor(), filter, bisections);
+                    let p95 = record(curve, &s, passes, &image, &fixed).errors.p95;
+                    if !options.full {
+                        sweep_state.stops(ctx, curve, steps, p95);
+                    }
+                }
+                if sweeps.iter().all(|s| s.stopped) {
+                    break;
+                }
+            }
+        }
+    }
+
+    // The error target.
+    let mut checks = Vec::new();
+    for tolerance in TOLERANCES {
+        let target = match Settings::for_error_target(tolerance) {
+            Ok(target) => target,
+            Err(e) => {
+                ctx.progress(&format!("  error target {:.0}%: {e}", 100.0 * tolerance));
+                checks.push(Check {
+                    scene: scene.name.clone(),
+                    tolerance,
+                    p95: f64::INFINITY,
+                });
+                continue;
+            }
+        };
+        let s = Settings {
+            output_format: base.output_format,
+            cull_threshold: base.cull_threshold,
+            ..target
+        };
+        let curve = Curve::Target((tolerance * 1000.0).round() as u32);
+        // The configuration the plan actually runs (a textured spot scatters at full
+        // resolution under an error target); a sweep may have measured it already.
+        let plan = VolumetricShadows::new(&ctx.gpu.device, &ctx.gpu.queue, &ctx.cache, s)?
+            .prepare(&ctx.gpu.device, &ctx.gpu.queue, &shadowed)?
+            .clone();
+        let scale = if plan.count(Pass::Upsample) == 0 {
+            Scale::Full
+        } else {
+            s.march.scale
+        };
+        let exact = s.march.method == MarchMethod::Exact;
+        let same = |r: &&Row| {
+            (if exact {
+                matches!(r.curve, Curve::Exact(..))
+            } else {
+                matches!(r.curve, Curve::Hybrid(..))
+            }) && r.steps == s.march.steps
+                && r.scale == scale.divisor()
+                && r.filter == Filter::of(s.upsample, scale)
+                && r.bisections == s.march.bisections
+        };
+        let measured = rows.borrow().iter().find(same).cloned();
+        let row = match measured {
+            Some(r) => {
+                ctx.progress(&format!(
+                    "  error target {:.0}%: the plan runs {} {} steps, measured above",
+                    100.0 * tolerance,
+                    r.curve.name(),
+                    r.steps
+                ));
+                let row = Row { curve, ..r };
+                rows.borrow_mut().push(row.clone());
+                row
+            }
+            None => {
+                let (passes, image) = measure(s, &shadowed, false)?;
+                record(curve, &s, passes, &image, &fixed)
+            }
+        };
+        let ok = row.errors.p95 <= f64::from(tolerance);
+        ctx.progress(&format!(
+            "  error target {:.0}%: p95 {:.3}% {}",
+            100.0 * tolerance,
+            100.0 * row.errors.p95,
+            if ok { "meets it" } else { "MISSES it" }
+        ));
+        checks.push(Check {
+            scene: scene.name.clone(),
+            tolerance,
+            p95: row.errors.p95,
+        });
+    }
+    Ok((rows.into_inner(), checks))
+}
+
+/// One configuration: a warm-up frame (whose image is measured), then `frames` timed frames;
+/// the median per pass. With `reuse_march` the march and extents are not recorded (the
+/// previous configuration's march output, from identical inputs, is upsampled again).
+pub fn measure(
+    ctx: &Context,
+    facade: &mut Option<VolumetricShadows>,
+    settings: Settings,
+    frame: &Frame,
+    view: &wgpu::Texture,
+    reuse_march: bool,
+) -> Result<(BTreeMap<&'static str, f64>, Vec<DVec3>), BoxError> {
+    let volumetric = match facade.as_mut() {
+        Some(v) if reuse_march => {
+            v.set_settings(settings)?;
+            v
+        }
+        _ => facade.insert(VolumetricShadows::new(
+            &ctx.gpu.device,
+            &ctx.gpu.queue,
+            &ctx.cache,
+            settings,
+        )?),
+    };
+    // The composite is timed per scene ([`time_fixed`]); the error is read before it.
+    let skip: &[Pass] = if reuse_march {
+        &[Pass::March, Pass::Extents, Pass::Composite]
+    } else {
+        &[Pass::Composite]
+    };
+    let mut samples: BTreeMap<&'static str, Vec<f64>> = BTreeMap::new();
+    let mut image = Vec::new();
+    for index in 0..=ctx.frames {
+        let times = run_frame(ctx, volumetric, frame, view, skip)?;
+        if index == 0 {
+            image = read_inscatter(ctx.gpu, volumetric, frame)?;
+            continue;
+        }
+        for (pass, ms) in times {
+            // Passes that ran only in the first frame (table, shadow map, light texture) are
+            // timed apart.
+            if !matches!(pass, "F' table" | "shadow map" | "light texture") {
+                samples.entry(pass).or_default().push(ms);
+            }
+        }
+    }
+    let medians = samples
+        .into_iter()
+        .map(|(pass, mut v)| (pass, median(&mut v)))
+        .collect();
+    Ok((medians, image))
+}
+
+/// Times the passes that are the same for every configuration of a scene (F′ table, shadow
+/// map, composite), median of `frames` frames in which everything is rebuilt.
+pub fn time_fixed(
+    ctx: &Context,
+    settings: Settings,
+    frame: &Frame,
+    view: &wgpu::Texture,
+) -> Result<BTreeMap<&'static str, f64>, BoxError> {
+    let mut volumetric =
+        VolumetricShadows::new(&ctx.gpu.device, &ctx.gpu.queue, &ctx.cache, settings)?;
+    let mut samples: BTreeMap<&'static str, Vec<f64>> = BTreeMap::new();
+    for index in 0..=ctx.frames {
+        volumetric.invalidate();
+        // The march and what feeds it do not change these passes' work: left out (the
+        // composite reads an in-scatter texture of the same size either way).
+        let times = run_frame(
+            ctx,
+            &mut volumetric,
+            frame,
+            view,
+            &[Pass::Extents, Pass::March, Pass::Upsample],
+        )?;
+        if index == 0 {
+            continue;
+        }
+        for (pass, ms) in times {
+            if FIXED_PASSES.contains(&pass) {
+                samples.entry(pass).or_default().push(ms);
+            }
+        }
+    }
+    Ok(samples
+        .into_iter()
+        .map(|(pass, mut v)| (pass, median(&mut v)))
+        .collect())
+}
+
+/// Prepares and runs one frame, leaving out the `skip` passes (on a CPU adapter); the time of
+/// each pass run, by report column.
+pub fn run_frame(
+    ctx: &Context,
+    volumetric: &mut VolumetricShadows,
+    frame: &Frame,
+    view: &wgpu::Texture,
+    skip: &[Pass],
+) -> Result<Vec<(&'static str, f64)>, BoxError> {
+    volumetric.prepare(&ctx.gpu.device, &ctx.gpu.queue, frame)?;
+    let mut times: Vec<(&'static str, f64)> = Vec::new();
+    for t in ctx.gpu.run_timed(volumetric, view, skip)? {
+        let column = t.pass.name();
+        match times.iter_mut().find(|(c, _)| *c == column) {
+            Some((_, ms)) => *ms += t.ms,
+            None => times.push((column, t.ms)),
+        }
+    }
+    Ok(times)
+}
+
+pub fn median(values: &mut [f64]) -> f64 {
+    values.sort_by(f64::total_cmp);
+    let n = values.len();
+    if n == 0 {
+        0.0
+    } else if n % 2 == 1 {
+        values[n / 2]
+    } else {
+        0.5 * (values[n / 2 - 1] + values[n / 2])
+    }
+}
+
+/// Filters after the first of one march reuse its march and extents: the first measurement
+/// keeps their times in `shared`, the later ones take them from it.
+pub fn share_march(
+    passes: &mut BTreeMap<&'static str, f64>,
+    shared: &mut Option<BTreeMap<&'static str, f64>>,
+) {
+    match shared {
+        Some(times) => passes.extend(times.iter().map(|(k, v)| (*k, *v))),
+        None => {
+            *shared = Some(
+                passes
+                    .iter()
+                    .filter(|(k, _)| matches!(**k, "march" | "extents"))
+                    .map(|(k, v)| (*k, *v))
+                    .collect(),
+            )
+        }
+    }
+}

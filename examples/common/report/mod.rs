@@ -1,0 +1,331 @@
+//! The `report` example: error against GPU time for every method and setting on the standard
+//! scenes (DESIGN §6).
+//!
+//! ```text
+//! report [--scenes a,b,…] [--size N] [--frames N] [--out DIR] [--full] [--quick]
+//! ```
+//!
+//! For each scene file (default: every `scenes/*.json`) at `N × N` (default 512) it renders
+//! * the **analytic floor**: the same frame without occluders (unshadowed airlight);
+//! * **brute force** at 16, 32, …, 1024 steps (full resolution);
+//! * **paper 003**'s configuration: brute force at ¼ resolution with the separable bilateral;
+//! * the **hybrid** at 8 … 256 steps × scattering at full, ½ and ¼ resolution × upsampling
+//!   bilinear (depth-blind: "none") / depth-aware 3×3 / separable × refinement (2 bisections)
+//!   off / on;
+//! * the **error-target** settings ([`Settings::for_error_target`]) for p95 5%, 2% and 1%,
+//!   each checked against its tolerance.
+//!
+//! Timing: per pass, median of `--frames` (default 5) frames after a warm-up frame (which is
+//! also the frame whose error is measured). On a CPU adapter (lavapipe) each pass is submitted
+//! on its own and timed by the wall clock — there the "GPU" is the CPU running the submission,
+//! and lavapipe's timestamps do not bracket compute dispatches; elsewhere by timestamp queries
+//! when the device has them. The passes whose work is the same for every configuration — F′
+//! table, shadow map, composite — are timed once per scene, in frames in which everything is
+//! rebuilt, and counted in every configuration's total, as in a frame where the camera and the
+//! light moved; a configuration's total is the sum of its passes' medians. At reduced
+//! resolution the filters share one march, timed once.
+//!
+//! Error: against the f64 reference (cached on disk under `OUT/cache`, keyed by a hash of the
+//! scene file, the size and the reference's source), over every pixel but a light's own
+//! (within 1.5 pixels of its centre, where the in-scatter is singular): RMSE relative to the
+//! mean in-scatter, and the 95th and 99th percentile of the per-pixel relative error
+//! `max_c |gpu_c − ref_c| / max_c ref_c` over pixels whose reference is above 1% of the
+//! image's 99th-percentile brightness (not its maximum: with a light in view that lies in the
+//! light's glow, and only the glow would count).
+//!
+//! Every sweep of step counts (brute force, paper 003, each hybrid curve) stops once its p95
+//! is below [`SWEEP_STOP_P95`] or no longer improves by 10% per doubling, unless `--full`:
+//! beyond that point its cost only grows and no comparison the report makes reads it.
+//!
+//! Writes `OUT/report.md`, `OUT/report.csv`, `OUT/error_vs_time.svg` and
+//! `OUT/error_table.rs` (the measured table the planner's error target is built from) to `OUT`
+//! (default `target/volshadow-report`). `--quick` runs a few configurations only (the test).
+//!
+//! Files by job: `options` (command line), `measure` (timing, sweeps), `metrics` (errors),
+//! `cache` (reference images on disk), `output` (summary, tables, plot); here the run.
+
+mod cache;
+mod measure;
+mod metrics;
+mod options;
+mod output;
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use volshadow::nodes::{Scale, UpsampleFilter};
+use volshadow::scene_file::SceneDescription;
+use volshadow::{Cache, HeadlessGpu};
+
+use measure::{median, run_scene, Clock, Context};
+pub use options::Options;
+pub use output::summary;
+use output::{today, write_outputs};
+// For `tests/examples.rs`.
+#[allow(unused_imports)]
+pub use {cache::reference_sources, metrics::errors};
+
+use super::render_scene;
+use super::{read_inscatter, with_aspect, BoxError};
+
+/// A step sweep stops once its p95 relative error is below this (half the tightest tolerance
+/// the report checks).
+pub const SWEEP_STOP_P95: f64 = 0.005;
+
+/// The tolerances (p95 relative error) the error-target check runs.
+pub const TOLERANCES: [f32; 3] = [0.05, 0.02, 0.01];
+
+/// Bisections of "refinement on".
+const REFINE: u32 = 2;
+
+/// The separable filter of seed paper 003 as the report runs it.
+const SEPARABLE: UpsampleFilter = UpsampleFilter::Separable {
+    taps: 7,
+    sigma_spatial: 1.5,
+    sigma_depth: 0.05,
+};
+
+/// A plotted method: one curve of the plot, one group of the table.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Curve {
+    /// No occluders: the unshadowed airlight (one point).
+    Analytic,
+    /// Brute force at full resolution.
+    Brute,
+    /// Brute force at ¼ resolution with the separable bilateral (seed paper 003).
+    Paper003,
+    /// The hybrid: scale divisor, filter, bisections.
+    Hybrid(u32, Filter, u32),
+    /// The exact method: scale divisor, filter.
+    Exact(u32, Filter),
+    /// The textbook march in distance (the baseline most engines ship).
+    Textbook,
+    /// The error-target settings for this tolerance (in units of 0.1%).
+    Target(u32),
+}
+
+/// The upsampling filter of a configuration (`None` at full resolution).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Filter {
+    /// Full resolution: nothing to upsample.
+    None,
+    /// Plain bilinear (depth-blind).
+    Bilinear,
+    /// Depth-aware 3×3.
+    Box3,
+    /// Separable bilateral.
+    Separable,
+}
+
+impl Filter {
+    fn of(filter: UpsampleFilter, scale: Scale) -> Self {
+        match (scale, filter) {
+            (Scale::Full, _) => Filter::None,
+            (_, UpsampleFilter::Bilinear) => Filter::Bilinear,
+            (_, UpsampleFilter::Separable { .. }) => Filter::Separable,
+            _ => Filter::Box3,
+        }
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            Filter::None => "none",
+            Filter::Bilinear => "bilinear",
+            Filter::Box3 => "3x3",
+            Filter::Separable => "separable",
+        }
+    }
+
+    fn upsample(self) -> UpsampleFilter {
+        match self {
+            Filter::Bilinear => UpsampleFilter::Bilinear,
+            Filter::Separable => SEPARABLE,
+            Filter::None | Filter::Box3 => UpsampleFilter::DepthAware3x3,
+        }
+    }
+}
+
+impl Curve {
+    /// The curve's name in the table and the plot's legend.
+    pub fn name(self) -> String {
+        match self {
+            Curve::Analytic => "analytic floor".into(),
+            Curve::Brute => "brute force".into(),
+            Curve::Paper003 => "paper 003 (brute 1/4 + separable)".into(),
+            Curve::Hybrid(1, _, b) => format!("hybrid full{}", refine_suffix(b)),
+            Curve::Hybrid(d, f, b) => format!("hybrid 1/{d} {}{}", f.name(), refine_suffix(b)),
+            Curve::Exact(1, _) => "exact full".into(),
+            Curve::Exact(d, f) => format!("exact 1/{d} {}", f.name()),
+            Curve::Textbook => "textbook march".into(),
+            Curve::Target(t) => format!("error target {:.1}%", f64::from(t) / 10.0),
+        }
+    }
+}
+
+fn refine_suffix(bisections: u32) -> &'static str {
+    if bisections > 0 {
+        " +refine"
+    } else {
+        ""
+    }
+}
+
+/// Errors of one image against the reference.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Errors {
+    /// RMSE over pixels and channels, relative to the mean reference in-scatter.
+    pub rmse: f64,
+    /// 95th percentile of the per-pixel relative error (pixels above 1% of the frame's
+    /// 99th-percentile brightness).
+    pub p95: f64,
+    /// 99th percentile, likewise.
+    pub p99: f64,
+}
+
+/// One measured configuration.
+#[derive(Debug, Clone)]
+pub struct Row {
+    /// Scene name.
+    pub scene: String,
+    /// Whether a light of the scene is textured.
+    pub textured: bool,
+    /// Method.
+    pub curve: Curve,
+    /// Steps per marched interval (0 for the floor).
+    pub steps: u32,
+    /// Scale divisor.
+    pub scale: u32,
+    /// Filter.
+    pub filter: Filter,
+    /// Bisections.
+    pub bisections: u32,
+    /// Median ms per pass (table and shadow map from the scene's full-rebuild frames).
+    pub passes: BTreeMap<&'static str, f64>,
+    /// Sum of the passes.
+    pub total_ms: f64,
+    /// Error against the reference.
+    pub errors: Errors,
+}
+
+/// Pass columns, in pipeline order.
+const PASS_COLUMNS: [&str; 7] = [
+    "light texture",
+    "shadow map",
+    "F' table",
+    "extents",
+    "march",
+    "upsample",
+    "composite",
+];
+
+/// Passes timed once per scene and added to every configuration's total.
+const FIXED_PASSES: [&str; 3] = ["shadow map", "F' table", "composite"];
+
+/// One error-target check: the scene, the tolerance (p95) and the p95 achieved (∞ when no
+/// settings could be made for the tolerance).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Check {
+    /// Scene name.
+    pub scene: String,
+    /// Tolerance.
+    pub tolerance: f32,
+    /// Achieved p95.
+    pub p95: f64,
+}
+
+/// A hybrid configuration: steps, scale divisor, filter, bisections.
+/// (exact?, steps, scale divisor, filter, bisections).
+type ConfigKey = (bool, u32, u32, Filter, u32);
+
+/// What a run produced.
+pub struct Report {
+    /// Every measured configuration.
+    pub rows: Vec<Row>,
+    /// The error-target checks: scene, tolerance, achieved p95.
+    pub checks: Vec<Check>,
+    /// Files written.
+    pub files: Vec<PathBuf>,
+}
+
+/// Parses `args` and runs the report: the whole example.
+pub fn run(args: &[String]) -> Result<Report, BoxError> {
+    report(&Options::parse(args)?)
+}
+
+/// Runs the report as `options` say.
+pub fn report(options: &Options) -> Result<Report, BoxError> {
+    let gpu = HeadlessGpu::with_optional_features(wgpu::Features::TIMESTAMP_QUERY)?;
+    let adapter = gpu.adapter_summary();
+    let is_cpu = gpu.adapter.get_info().device_type == wgpu::DeviceType::Cpu;
+    let clock = if is_cpu {
+        Clock::WallPerPass
+    } else if gpu
+        .device
+        .features()
+        .contains(wgpu::Features::TIMESTAMP_QUERY)
+    {
+        Clock::Timestamps
+    } else {
+        return Err("a GPU adapter without TIMESTAMP_QUERY: no per-pass times to report".into());
+    };
+    let overhead_ms = {
+        let mut samples: Vec<f64> = (0..21)
+            .map(|_| {
+                let encoder = gpu.device.create_command_encoder(&Default::default());
+                let start = Instant::now();
+                gpu.submit_and_wait(encoder)
+                    .map(|_| start.elapsed().as_secs_f64() * 1e3)
+            })
+            .collect::<Result<_, _>>()?;
+        median(&mut samples)
+    };
+    let ctx = Context {
+        gpu: &gpu,
+        cache: Cache::new(&gpu.device),
+        clock,
+        frames: options.frames,
+        start: Instant::now(),
+    };
+    let date = today();
+    println!("volshadow report, {date}: {adapter}");
+    println!(
+        "timing: {}, median of {} frames after a warm-up frame",
+        match clock {
+            Clock::WallPerPass => "each pass submitted alone, wall clock (CPU adapter)",
+            Clock::Timestamps => "timestamp queries",
+        },
+        options.frames
+    );
+    if clock == Clock::WallPerPass {
+        println!(
+            "an empty submission takes {overhead_ms:.3} ms (median of 21), included in each pass"
+        );
+    }
+    std::fs::create_dir_all(options.out.join("cache"))
+        .map_err(|e| format!("cannot create {}: {e}", options.out.display()))?;
+
+    let mut rows = Vec::new();
+    let mut checks = Vec::new();
+    for (index, path) in options.scenes.iter().enumerate() {
+        let scene = SceneDescription::load(path)?;
+        ctx.progress(&format!(
+            "scene {}/{}: {} ({})",
+            index + 1,
+            options.scenes.len(),
+            scene.name,
+            path.display()
+        ));
+        let (scene_rows, scene_checks) = run_scene(&ctx, options, path, &scene)?;
+        rows.extend(scene_rows);
+        checks.extend(scene_checks);
+    }
+    let files = write_outputs(options, &adapter, &date, clock, &rows, &checks)?;
+    println!("\n{}", summary(&rows, &checks));
+    ctx.progress(&format!("done; wrote {}", options.out.display()));
+    Ok(Report {
+        rows,
+        checks,
+        files,
+    })
+}

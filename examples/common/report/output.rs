@@ -1,0 +1,507 @@
+//! What the report writes: the printed summary, `report.md`, `report.csv`, `error_table.rs` and
+//! `error_vs_time.svg`.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use super::measure::Clock;
+use super::{BoxError, Check, ConfigKey, Curve, Filter, Options, Row, PASS_COLUMNS};
+
+/// Today's date (UTC), `YYYY-MM-DD`, from the system clock.
+pub fn today() -> String {
+    let days = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs() / 86_400) as i64;
+    // Howard Hinnant's civil-from-days.
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    format!("{year:04}-{month:02}-{day:02}")
+}
+
+/// The cheapest row of `curve`-matching rows of `scene` with p95 ≤ `p95`.
+pub fn cheapest<'a>(
+    rows: &'a [Row],
+    scene: &str,
+    p95: f64,
+    filter: impl Fn(&Row) -> bool,
+) -> Option<&'a Row> {
+    rows.iter()
+        .filter(|r| r.scene == scene && filter(r) && r.errors.p95 <= p95)
+        .min_by(|a, b| a.total_ms.total_cmp(&b.total_ms))
+}
+
+/// The per-scene summary and the error-target checks, as printed and written.
+pub fn summary(rows: &[Row], checks: &[Check]) -> String {
+    let mut out = String::new();
+    let mut scenes: Vec<&str> = Vec::new();
+    for r in rows {
+        if !scenes.contains(&r.scene.as_str()) {
+            scenes.push(&r.scene);
+        }
+    }
+    let _ = writeln!(out, "## Summary\n");
+    let is_exact = |r: &Row| matches!(r.curve, Curve::Exact(..));
+    let _ = writeln!(
+        out,
+        "| scene | textbook march at p95 ≤ 2% | brute force at p95 ≤ 2% | exact at p95 ≤ 2% | exact vs textbook | exact vs brute force | exact 1/2 3x3 (p95) / analytic floor |"
+    );
+    let _ = writeln!(out, "|---|---|---|---|---|---|---|");
+    for scene in &scenes {
+        let floor = rows
+            .iter()
+            .find(|r| r.scene == *scene && r.curve == Curve::Analytic);
+        let textbook = cheapest(rows, scene, 0.02, |r| r.curve == Curve::Textbook);
+        let brute = cheapest(rows, scene, 0.02, |r| r.curve == Curve::Brute);
+        let exact = cheapest(rows, scene, 0.02, is_exact);
+        let half = rows
+            .iter()
+            .find(|r| r.scene == *scene && r.curve == Curve::Exact(2, Filter::Box3));
+        let describe = |r: Option<&Row>| match r {
+            Some(r) if r.curve == Curve::Textbook || r.curve == Curve::Brute => format!(
+                "{} steps: {:.1} ms (p95 {:.2}%)",
+                r.steps,
+                r.total_ms,
+                100.0 * r.errors.p95
+            ),
+            Some(r) => format!(
+                "{}: {:.1} ms (p95 {:.2}%)",
+                r.curve.name(),
+                r.total_ms,
+                100.0 * r.errors.p95
+            ),
+            None => "not reached".into(),
+        };
+        // A baseline that never reached 2%: a lower bound from its most expensive point.
+        let speedup = |baseline: Option<&Row>, curve: Curve| match (baseline, exact) {
+            (Some(b), Some(e)) => format!("{:.1}x", b.total_ms / e.total_ms),
+            (None, Some(e)) => rows
+                .iter()
+                .filter(|r| r.scene == *scene && r.curve == curve)
+                .max_by(|a, b| a.total_ms.total_cmp(&b.total_ms))
+                .map_or("n/a".into(), |b| {
+                    format!(
+                        "> {:.1}x (at {} steps p95 {:.2}%)",
+                        b.total_ms / e.total_ms,
+                        b.steps,
+                        100.0 * b.errors.p95
+                    )
+                }),
+            _ => "n/a".into(),
+        };
+        let ratio = match (half, floor) {
+            (Some(h), Some(f)) => format!(
+                "{:.2}x ({:.1} / {:.1} ms, p95 {:.2}%)",
+                h.total_ms / f.total_ms,
+                h.total_ms,
+                f.total_ms,
+                100.0 * h.errors.p95
+            ),
+            _ => "n/a".into(),
+        };
+        let _ = writeln!(
+            out,
+            "| {scene} | {} | {} | {} | {} | {} | {ratio} |",
+            describe(textbook),
+            describe(brute),
+            describe(exact),
+            speedup(textbook, Curve::Textbook),
+            speedup(brute, Curve::Brute),
+        );
+    }
+    let _ = writeln!(out);
+    let _ = writeln!(
+        out,
+        "| scene | brute force at p95 ≤ 2% | hybrid at p95 ≤ 2% | speedup | 1/4-res pipeline at p95 ≤ 2% | its cost / analytic floor |"
+    );
+    let _ = writeln!(out, "|---|---|---|---|---|---|");
+    let is_hybrid = |r: &Row| matches!(r.curve, Curve::Hybrid(..));
+    for scene in scenes {
+        let floor = rows
+            .iter()
+            .find(|r| r.scene == scene && r.curve == Curve::Analytic);
+        let brute = cheapest(rows, scene, 0.02, |r| r.curve == Curve::Brute);
+        let hybrid = cheapest(rows, scene, 0.02, is_hybrid);
+        let quarter = cheapest(rows, scene, 0.02, |r| is_hybrid(r) && r.scale == 4);
+        let describe = |r: Option<&Row>| match r {
+            Some(r) => format!(
+                "{} {} steps: {:.1} ms (p95 {:.2}%)",
+                r.curve.name(),
+                r.steps,
+                r.total_ms,
+                100.0 * r.errors.p95
+            ),
+            None => "not reached".into(),
+        };
+        let speedup = match (brute, hybrid) {
+            (Some(b), Some(h)) => format!("{:.1}x", b.total_ms / h.total_ms),
+            (None, Some(h)) => {
+                // Brute force never got there: a lower bound from its most expensive point.
+                let best = rows
+                    .iter()
+                    .filter(|r| r.scene == scene && r.curve == Curve::Brute)
+                    .max_by(|a, b| a.total_ms.total_cmp(&b.total_ms));
+                best.map_or("n/a".into(), |b| {
+                    format!(
+                        "> {:.1}x (brute force at {} steps: p95 {:.2}%)",
+                        b.total_ms / h.total_ms,
+                        b.steps,
+                        100.0 * b.errors.p95
+                    )
+                })
+            }
+            _ => "n/a".into(),
+        };
+        let ratio = match (quarter, floor) {
+            (Some(q), Some(f)) => {
+                let static_light = q.total_ms - q.passes.get("shadow map").copied().unwrap_or(0.0);
+                format!(
+                    "{:.2}x ({:.1} / {:.1} ms); {:.2}x with the light static (no shadow map)",
+                    q.total_ms / f.total_ms,
+                    q.total_ms,
+                    f.total_ms,
+                    static_light / f.total_ms
+                )
+            }
+            _ => "n/a".into(),
+        };
+        let _ = writeln!(
+            out,
+            "| {scene} | {} | {} | {speedup} | {} | {ratio} |",
+            describe(brute),
+            describe(hybrid),
+            describe(quarter)
+        );
+    }
+    let _ = writeln!(out, "\n## Error-target check\n");
+    let _ = writeln!(out, "| scene | tolerance (p95) | achieved p95 | result |");
+    let _ = writeln!(out, "|---|---|---|---|");
+    for Check {
+        scene,
+        tolerance,
+        p95,
+    } in checks
+    {
+        let tolerance = f64::from(*tolerance);
+        let result = if *p95 <= tolerance {
+            "pass".to_string()
+        } else if p95.is_infinite() {
+            "FAIL: no configuration of the error table reaches it with headroom".to_string()
+        } else {
+            format!(
+                "FAIL by {:.2} points ({:.2}x)",
+                100.0 * (p95 - tolerance),
+                p95 / tolerance
+            )
+        };
+        let _ = writeln!(
+            out,
+            "| {scene} | {:.0}% | {} | {result} |",
+            100.0 * tolerance,
+            if p95.is_finite() {
+                format!("{:.3}%", 100.0 * p95)
+            } else {
+                "–".into()
+            }
+        );
+    }
+    out
+}
+
+pub fn write_outputs(
+    options: &Options,
+    adapter: &str,
+    date: &str,
+    clock: Clock,
+    rows: &[Row],
+    checks: &[Check],
+) -> Result<Vec<PathBuf>, BoxError> {
+    let write = |name: &str, text: &str| -> Result<PathBuf, BoxError> {
+        let path = options.out.join(name);
+        std::fs::write(&path, text).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        Ok(path)
+    };
+    // CSV.
+    let mut csv = String::from("scene,method,steps,scale,filter,bisections");
+    for c in PASS_COLUMNS {
+        let _ = write!(
+            csv,
+            ",{}_ms",
+            c.replace("F' ", "").replace(' ', "_").to_lowercase()
+        );
+    }
+    csv.push_str(",total_ms,rmse_rel,p95,p99\n");
+    for r in rows {
+        let _ = write!(
+            csv,
+            "{},{},{},{},{},{}",
+            r.scene,
+            r.curve.name(),
+            r.steps,
+            r.scale,
+            r.filter.name(),
+            r.bisections
+        );
+        for c in PASS_COLUMNS {
+            let _ = write!(csv, ",{:.3}", r.passes.get(c).copied().unwrap_or(0.0));
+        }
+        let _ = writeln!(
+            csv,
+            ",{:.3},{:.6},{:.6},{:.6}",
+            r.total_ms, r.errors.rmse, r.errors.p95, r.errors.p99
+        );
+    }
+    // Markdown.
+    let mut md = format!(
+        "# volshadow: error against time\n\n{date}, {adapter}, {}x{} pixels. Timing: {}, median of {} frames after a warm-up frame; F' table and shadow map timed in frames that rebuild everything and counted in every total. Error against the f64 reference: RMSE relative to the mean in-scatter; p95/p99 of the per-pixel relative error where the reference is above 1% of its 99th percentile (not of its maximum, which a light in view puts in its own glow); the light's own pixels left out. Regenerate: `cargo run --release --example report`.\n\n",
+        options.size,
+        options.size,
+        match clock {
+            Clock::WallPerPass => "each pass submitted alone and timed by the wall clock (CPU adapter)",
+            Clock::Timestamps => "timestamp queries",
+        },
+        options.frames
+    );
+    md.push_str(&summary(rows, checks));
+    md.push_str("\n## All configurations\n\n| scene | method | steps | ");
+    for c in PASS_COLUMNS {
+        let _ = write!(md, "{c} ms | ");
+    }
+    md.push_str("total ms | RMSE | p95 | p99 |\n|---|---|---|");
+    md.push_str(&"---|".repeat(PASS_COLUMNS.len() + 4));
+    md.push('\n');
+    for r in rows {
+        let _ = write!(md, "| {} | {} | {} | ", r.scene, r.curve.name(), r.steps);
+        for c in PASS_COLUMNS {
+            match r.passes.get(c) {
+                Some(ms) => {
+                    let _ = write!(md, "{ms:.1} | ");
+                }
+                None => md.push_str("– | "),
+            }
+        }
+        let _ = writeln!(
+            md,
+            "{:.1} | {:.3}% | {:.3}% | {:.3}% |",
+            r.total_ms,
+            100.0 * r.errors.rmse,
+            100.0 * r.errors.p95,
+            100.0 * r.errors.p99
+        );
+    }
+    let mut files = vec![write("report.csv", &csv)?, write("report.md", &md)?];
+    files.push(plot(options, rows, adapter, date)?);
+    files.push(write("error_table.rs", &error_table(rows))?);
+    Ok(files)
+}
+
+/// Hybrid configurations over the scenes with untextured lights (under an error target a
+/// textured spot scatters at full resolution): the worst p95 and the mean cost relative to
+/// each scene's analytic floor, Pareto-optimal ones only, as rows of `volshadow::plan`'s table.
+/// Only configurations measured on every such scene count (a sweep that stopped early on one
+/// scene leaves its later step counts out).
+pub fn error_table(rows: &[Row]) -> String {
+    let rows: Vec<Row> = rows.iter().filter(|r| !r.textured).cloned().collect();
+    let rows = rows.as_slice();
+    let mut groups: BTreeMap<ConfigKey, Vec<&Row>> = BTreeMap::new();
+    for r in rows
+        .iter()
+        .filter(|r| matches!(r.curve, Curve::Hybrid(..) | Curve::Exact(..)))
+    {
+        let exact = matches!(r.curve, Curve::Exact(..));
+        groups
+            .entry((exact, r.steps, r.scale, r.filter, r.bisections))
+            .or_default()
+            .push(r);
+    }
+    let scenes = rows.iter().filter(|r| r.curve == Curve::Analytic).count();
+    let floor = |scene: &str| {
+        rows.iter()
+            .find(|r| r.scene == scene && r.curve == Curve::Analytic)
+            .map_or(1.0, |r| r.total_ms)
+    };
+    let mut candidates: Vec<(f64, f64, ConfigKey)> = groups
+        .into_iter()
+        .filter(|(_, v)| v.len() == scenes)
+        .map(|(key, v)| {
+            let worst = v.iter().map(|r| r.errors.p95).fold(0.0, f64::max);
+            let cost = v.iter().map(|r| r.total_ms / floor(&r.scene)).sum::<f64>() / v.len() as f64;
+            (worst, cost, key)
+        })
+        .collect();
+    candidates.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let mut out = String::from(
+        "// Measured by `cargo run --release --example report`: exact and hybrid configurations\n\
+         // on the Pareto front of worst-scene p95 against mean cost over the analytic floor.\n",
+    );
+    let mut best = f64::INFINITY;
+    for (worst, cost, (exact, steps, scale, filter, bisections)) in candidates {
+        if worst < best {
+            best = worst;
+            let filter = match filter {
+                Filter::None | Filter::Box3 => "UpsampleFilter::DepthAware3x3".to_string(),
+                Filter::Bilinear => "UpsampleFilter::Bilinear".to_string(),
+                Filter::Separable => "SEPARABLE".to_string(),
+            };
+            let scale = match scale {
+                1 => "Scale::Full",
+                2 => "Scale::Half",
+                _ => "Scale::Quarter",
+            };
+            let method = if exact { "Exact" } else { "Hybrid" };
+            let _ = writeln!(
+                out,
+                "    measured(MarchMethod::{method}, {worst:.4}, {cost:.3}, {steps}, {scale}, {filter}, {bisections}),"
+            );
+        }
+    }
+    out
+}
+
+/// `error_vs_time.svg`: per scene, p95 error (log) against total time (log), one curve per
+/// method.
+pub fn plot(
+    options: &Options,
+    rows: &[Row],
+    adapter: &str,
+    date: &str,
+) -> Result<PathBuf, BoxError> {
+    use plotters::prelude::*;
+    let path = options.out.join("error_vs_time.svg");
+    let mut scenes: Vec<&str> = Vec::new();
+    for r in rows {
+        if !scenes.contains(&r.scene.as_str()) {
+            scenes.push(&r.scene);
+        }
+    }
+    let columns = 2usize;
+    let panel_rows = scenes.len().div_ceil(columns).max(1);
+    let file = path.clone();
+    let header = 90;
+    let root = SVGBackend::new(&file, (1200, header + 420 * panel_rows as u32)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (title, body) = root.split_vertically(header);
+    title.draw(&Text::new(
+        format!(
+            "volshadow: p95 relative error against frame time, {}x{} ({date}, {adapter})",
+            options.size, options.size
+        ),
+        (10, 10),
+        ("sans-serif", 16).into_font(),
+    ))?;
+    let panels = body.split_evenly((panel_rows, columns));
+    // The plotted curves: brute force, paper 003, and the hybrid with refinement on.
+    let plotted = |c: Curve| match c {
+        Curve::Brute | Curve::Paper003 | Curve::Textbook | Curve::Exact(..) => true,
+        Curve::Hybrid(_, f, b) => b > 0 && f != Filter::Bilinear,
+        _ => false,
+    };
+    let palette = [
+        RGBColor(0, 0, 0),
+        RGBColor(120, 120, 120),
+        RGBColor(214, 39, 40),
+        RGBColor(31, 119, 180),
+        RGBColor(44, 160, 44),
+        RGBColor(255, 127, 14),
+        RGBColor(148, 103, 189),
+        RGBColor(140, 86, 75),
+    ];
+    // One colour per method across all panels, and one legend for all of them.
+    let mut curves: Vec<Curve> = rows
+        .iter()
+        .map(|r| r.curve)
+        .filter(|c| plotted(*c))
+        .collect();
+    curves.sort();
+    curves.dedup();
+    let color_of = |c: Curve| {
+        let i = curves.iter().position(|k| *k == c).unwrap_or(0);
+        palette[i % palette.len()]
+    };
+    let floor_grey = RGBColor(160, 160, 160);
+    let mut legend: Vec<(String, RGBColor)> =
+        curves.iter().map(|c| (c.name(), color_of(*c))).collect();
+    legend.push(("analytic floor (its time)".into(), floor_grey));
+    for (i, (name, color)) in legend.iter().enumerate() {
+        let (x, y) = (10 + 295 * (i % 4) as i32, 38 + 22 * (i / 4) as i32);
+        title.draw(&PathElement::new(
+            vec![(x, y + 7), (x + 24, y + 7)],
+            color.stroke_width(2),
+        ))?;
+        title.draw(&Text::new(
+            name.clone(),
+            (x + 30, y),
+            ("sans-serif", 13).into_font(),
+        ))?;
+    }
+    for (panel, scene) in panels.iter().zip(&scenes) {
+        let scene_rows: Vec<&Row> = rows.iter().filter(|r| r.scene == *scene).collect();
+        let (mut t0, mut t1, mut e0, mut e1) = (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64);
+        for r in &scene_rows {
+            if r.total_ms > 0.0 {
+                t0 = t0.min(r.total_ms);
+                t1 = t1.max(r.total_ms);
+            }
+            if r.errors.p95 > 0.0 && r.errors.p95.is_finite() {
+                e0 = e0.min(r.errors.p95);
+                e1 = e1.max(r.errors.p95);
+            }
+        }
+        if !(t0 < t1 && e0 < e1) {
+            continue;
+        }
+        let mut chart = ChartBuilder::on(panel)
+            .caption(*scene, ("sans-serif", 18))
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(
+                (t0 * 0.8..t1 * 1.25).log_scale(),
+                (e0 * 0.8..e1 * 1.25).log_scale(),
+            )?;
+        chart
+            .configure_mesh()
+            .light_line_style(RGBColor(238, 238, 238))
+            .bold_line_style(RGBColor(200, 200, 200))
+            .x_labels(8)
+            .y_labels(8)
+            .x_desc("frame time, ms (sum of pass medians)")
+            .y_desc("p95 relative error")
+            .x_label_formatter(&|v| format!("{v:.0}"))
+            .y_label_formatter(&|v| format!("{:.2}%", 100.0 * v))
+            .draw()?;
+        for curve in curves
+            .iter()
+            .filter(|c| scene_rows.iter().any(|r| r.curve == **c))
+        {
+            let color = color_of(*curve);
+            let mut points: Vec<(f64, f64)> = scene_rows
+                .iter()
+                .filter(|r| r.curve == *curve && r.errors.p95 > 0.0)
+                .map(|r| (r.total_ms, r.errors.p95))
+                .collect();
+            points.sort_by(|a, b| a.0.total_cmp(&b.0));
+            chart.draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))?;
+            chart.draw_series(
+                points
+                    .into_iter()
+                    .map(|p| Circle::new(p, 3, color.filled())),
+            )?;
+        }
+        if let Some(floor) = scene_rows.iter().find(|r| r.curve == Curve::Analytic) {
+            chart.draw_series(LineSeries::new(
+                vec![(floor.total_ms, e0 * 0.8), (floor.total_ms, e1 * 1.25)],
+                floor_grey.stroke_width(1),
+            ))?;
+        }
+    }
+    root.present()?;
+    Ok(path)
+}
