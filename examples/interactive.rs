@@ -376,7 +376,7 @@ impl State {
         let cache = Cache::new(&device);
         let meshes = SPHERES
             .iter()
-            .map(|&(c, r)| OccluderMesh::new(&device, &shapes::uv_sphere(c, r, 48, 24)))
+            .map(|&(c, r)| OccluderMesh::new(&device, &shapes::uv_sphere(c, r, 48, 24).unwrap()))
             .collect();
         let settings = Settings {
             output_format: HDR,

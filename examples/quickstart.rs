@@ -75,7 +75,7 @@ pub fn run(
     let cache = Cache::new(&gpu.device);
     let meshes: Vec<OccluderMesh> = SPHERES
         .iter()
-        .map(|&(c, r)| OccluderMesh::new(&gpu.device, &shapes::uv_sphere(c, r, 48, 24)))
+        .map(|&(c, r)| OccluderMesh::new(&gpu.device, &shapes::uv_sphere(c, r, 48, 24).unwrap()))
         .collect();
     let occluders: Vec<Occluder> = meshes
         .iter()

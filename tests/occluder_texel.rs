@@ -32,7 +32,7 @@ fn occluder_transform_validated_as_scene_files_do() {
     let gpu = common::gpu();
     let cache = Cache::new(&gpu.device);
     let mut node = ShadowMapNode::new(&gpu.device, &cache, ShadowMapSettings::default()).unwrap();
-    let mesh = OccluderMesh::new(&gpu.device, &shapes::cuboid(Vec3::ZERO, Vec3::ONE));
+    let mesh = OccluderMesh::new(&gpu.device, &shapes::cuboid(Vec3::ZERO, Vec3::ONE).unwrap());
     let light = Light::Point(PointLight::new(Vec3::new(0.0, 5.0, 0.0), Vec3::ONE).unwrap());
     let mut projective = Mat4::IDENTITY;
     projective.x_axis.w = 0.5;
