@@ -361,3 +361,34 @@ pub fn fence(center: Vec3, posts: u32, spacing: f32, half: Vec3, rail: bool) -> 
     }
     Mesh::new(&positions, &indices)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Invalid parameters are errors (they were assertions, so each call below panicked).
+    #[test]
+    fn invalid_parameters_are_errors() {
+        let setting = |r: Result<Mesh>, name: &str| matches!(r, Err(Error::InvalidSetting { field, .. }) if field == name);
+        assert!(setting(uv_sphere(Vec3::ZERO, -1.0, 8, 4), "radius"));
+        assert!(setting(
+            torus(Vec3::ZERO, 1.0, 2.0, 8, 4),
+            "torus.minor_radius"
+        ));
+        assert!(setting(
+            fence(Vec3::ZERO, 0, 1.0, Vec3::ONE, false),
+            "posts"
+        ));
+        let center = cuboid(Vec3::NAN, Vec3::ONE);
+        assert!(matches!(
+            center,
+            Err(Error::NonFinite {
+                field: "center",
+                ..
+            })
+        ));
+        // 2^33 triangles, beyond Mesh::MAX_TRIANGLES: refused before anything is allocated.
+        let huge = torus(Vec3::ZERO, 2.0, 1.0, 1 << 16, 1 << 16);
+        assert!(matches!(huge, Err(Error::MeshTooLarge { .. })));
+    }
+}

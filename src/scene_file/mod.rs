@@ -3,7 +3,7 @@
 //!
 //! [`SceneDescription::load`] reads, validates and builds everything: the scene types
 //! ([`Camera`], [`Light`], [`Medium`], [`Mesh`], [`LightTexture`]) are constructed, so a
-//! loaded scene is ready to render. Every problem is an [`Error::SceneFile`] naming the file,
+//! loaded scene is ready to render. Every problem is an [`Error::SceneFile`] ([`SceneFileError`]) naming the file,
 //! the field (a path such as `lights[1].cone_angle_degrees`) and what is wrong; no input
 //! panics.
 //!
@@ -108,6 +108,7 @@ use std::path::Path;
 
 use glam::{DVec3, Mat4, Vec3};
 
+pub use crate::error::SceneFileError;
 use crate::error::{Error, Result};
 use crate::load::{Budget, LoadOptions};
 use crate::nodes::{MarchMethod, MarchSettings, Scale, UpsampleFilter};
@@ -347,10 +348,13 @@ impl SceneDescription {
     pub fn load_with(path: impl AsRef<Path>, options: &LoadOptions) -> Result<Self> {
         let path = path.as_ref();
         let shown = path.display().to_string();
-        let unreadable = |problem: String| Error::SceneFile {
-            path: shown.clone(),
-            field: "(file)".to_owned(),
-            problem: format!("cannot read the file: {problem}"),
+        let unreadable = |problem: String| {
+            SceneFileError {
+                path: shown.clone(),
+                field: "(file)".to_owned(),
+                problem: format!("cannot read the file: {problem}"),
+            }
+            .into()
         };
         let mut budget = Budget::new(options);
         let bytes = budget.read(path).map_err(|e| match e {
@@ -391,10 +395,13 @@ impl SceneDescription {
         shown: &str,
         budget: Budget,
     ) -> Result<Self> {
-        let at = |field: String, problem: String| Error::SceneFile {
-            path: shown.to_owned(),
-            field,
-            problem,
+        let at = |field: String, problem: String| -> Error {
+            SceneFileError {
+                path: shown.to_owned(),
+                field,
+                problem,
+            }
+            .into()
         };
         // Through a `Value`, as serde_json keeps the last of duplicate keys there.
         let value: serde_json::Value = serde_json::from_str(text)

@@ -90,13 +90,29 @@ impl<'de> Deserialize<'de> for Num {
 
 impl<'de> Deserialize<'de> for Int {
     fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        // Integers are exact up to 2^53 as floats too.
-        match d.deserialize_any(Scalar("a non-negative integer"))? {
-            x if x >= 0.0 && x.fract() == 0.0 && x <= 9_007_199_254_740_992.0 => Ok(Int(x as u64)),
-            x => Err(de::Error::custom(format!(
-                "expected a non-negative integer, got {x}"
-            ))),
+        struct V;
+        impl Visitor<'_> for V {
+            type Value = u64;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a non-negative integer")
+            }
+            fn visit_u64<E: de::Error>(self, n: u64) -> Result<u64, E> {
+                Ok(n)
+            }
+            fn visit_i64<E: de::Error>(self, n: i64) -> Result<u64, E> {
+                self.visit_f64(n as f64)
+            }
+            // Integers are exact up to 2^53 as floats too.
+            fn visit_f64<E: de::Error>(self, x: f64) -> Result<u64, E> {
+                if x >= 0.0 && x.fract() == 0.0 && x <= 9_007_199_254_740_992.0 {
+                    return Ok(x as u64);
+                }
+                Err(E::custom(format!(
+                    "expected a non-negative integer, got {x}"
+                )))
+            }
         }
+        d.deserialize_any(V).map(Int)
     }
 }
 
