@@ -648,17 +648,9 @@ fn gltf(file: &str, field: &str, _shape: &str, ctx: &mut Ctx) -> P<Vec<(String, 
         .folder
         .as_ref()
         .map_err(|e| problem(field, format!("cannot resolve {file:?}: {e}")))?;
-    let file = match crate::load::resolve(folder, Path::new(file), ctx.budget.options.allow_outside)
-    {
-        crate::load::Resolved::Path(p) => p,
-        crate::load::Resolved::Outside => {
-            return Err(from_load_error(field)(Error::PathOutsideFolder {
-                file: ctx.file.to_owned(),
-                field: field.to_owned(),
-                target: file.to_owned(),
-            }))
-        }
-    };
+    let allow = ctx.budget.options.allow_outside;
+    let file = crate::load::confine(folder, Path::new(file), allow, ctx.file, field)
+        .map_err(from_load_error(field))?;
     // Its triangles and placed meshes count into the scene's totals.
     let meshes =
         crate::gltf::load_budgeted(&file, &mut ctx.budget).map_err(from_load_error(field))?;
