@@ -151,51 +151,13 @@ pub enum Error {
         /// What is wrong with it.
         problem: String,
     },
-    /// A glTF file that could not be loaded (feature `gltf`): unreadable, not glTF, truncated,
-    /// a missing buffer file, an accessor or index out of range, no triangle meshes, an invalid
-    /// node transform, ...
+    /// A glTF file that could not be loaded (feature `gltf`).
     #[cfg(feature = "gltf")]
-    #[error("glTF `{path}`: {problem}")]
-    Gltf {
-        /// The file as given to [`crate::gltf::load`], or `<memory>` for
-        /// [`crate::gltf::load_slice`].
-        path: String,
-        /// What kind of problem, for callers that handle some differently.
-        kind: crate::gltf::ErrorKind,
-        /// What is wrong, naming the glTF object (mesh, primitive, accessor, node, buffer).
-        problem: String,
-    },
-    /// A glTF mesh primitive that [`crate::scene::Mesh::new`] rejected (feature `gltf`):
-    /// non-finite positions, all triangles degenerate, an index count that is not a multiple
-    /// of 3, too many triangles or positions.
-    #[cfg(feature = "gltf")]
-    #[error("glTF `{path}`: mesh {mesh} primitive {primitive}: {source}")]
-    GltfPrimitive {
-        /// The file as given to [`crate::gltf::load`], or `<memory>` for
-        /// [`crate::gltf::load_slice`].
-        path: String,
-        /// Index of the mesh in the file's `meshes`.
-        mesh: usize,
-        /// Index of the primitive in the mesh's `primitives`.
-        primitive: usize,
-        /// The error from [`crate::scene::Mesh::new`].
-        source: Box<Error>,
-    },
+    #[error(transparent)]
+    Gltf(#[from] GltfError),
     /// A scene file (see [`crate::scene_file`]) that could not be read, parsed or validated.
-    ///
-    /// `field` is the path of the offending value inside the file, such as
-    /// `lights[1].cone_angle_degrees`; `(file)` for I/O errors and `(json)` for syntax errors,
-    /// whose `problem` gives the line and column.
-    #[error("{path}: {field}: {problem}")]
-    SceneFile {
-        /// The file as given to [`crate::scene_file::SceneDescription::load`], or `<string>`
-        /// for [`crate::scene_file::SceneDescription::from_json`].
-        path: String,
-        /// Where in the file: a path of keys and indices, such as `objects[2].shape.radius`.
-        field: String,
-        /// What is wrong with it.
-        problem: String,
-    },
+    #[error(transparent)]
+    SceneFile(#[from] SceneFileError),
     /// [`encode`](crate::VolumetricShadows::encode) without a successful
     /// [`prepare`](crate::VolumetricShadows::prepare) of the current frame: before any
     /// `prepare`, after a `prepare` that failed, or after `invalidate` or `set_settings`.
@@ -289,6 +251,93 @@ pub enum Error {
     /// Reading a buffer or texture back from the GPU failed (headless helper).
     #[error("GPU readback failed: {0}")]
     Readback(String),
+}
+
+/// A glTF file that could not be loaded (feature `gltf`), as [`Error::Gltf`].
+#[cfg(feature = "gltf")]
+#[derive(Debug, Clone, PartialEq, Error)]
+#[non_exhaustive]
+pub enum GltfError {
+    /// Unreadable, not glTF, truncated, a missing buffer file, an accessor or index out of
+    /// range, no triangle meshes, an invalid node transform, ...
+    #[error("glTF `{path}`: {problem}")]
+    Invalid {
+        /// The file as given to `gltf::load`, or `<memory>` for `gltf::load_slice`.
+        path: String,
+        /// What kind of problem, for callers that handle some differently.
+        kind: GltfErrorKind,
+        /// What is wrong, naming the glTF object (mesh, primitive, accessor, node, buffer).
+        problem: String,
+    },
+    /// A mesh primitive that [`crate::scene::Mesh::new`] rejected: non-finite positions, all
+    /// triangles degenerate, an index count that is not a multiple of 3, too many triangles
+    /// or positions.
+    #[error("glTF `{path}`: mesh {mesh} primitive {primitive}: {source}")]
+    Primitive {
+        /// The file as given to `gltf::load`, or `<memory>` for `gltf::load_slice`.
+        path: String,
+        /// Index of the mesh in the file's `meshes`.
+        mesh: usize,
+        /// Index of the primitive in the mesh's `primitives`.
+        primitive: usize,
+        /// The error from [`crate::scene::Mesh::new`].
+        source: Box<Error>,
+    },
+}
+
+#[cfg(feature = "gltf")]
+/// What kind of problem a [`GltfError::Invalid`] reports (`volshadow::gltf::ErrorKind`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum GltfErrorKind {
+    /// The file itself could not be read.
+    Io,
+    /// The bytes are not a glTF 2.0 asset: neither binary glTF (`glTF` magic) nor JSON that
+    /// parses as a glTF document.
+    NotGltf,
+    /// The data ends early: a `.glb` shorter than its header or a chunk says, JSON cut off, or
+    /// a buffer shorter than its `byteLength`.
+    Truncated,
+    /// A buffer's external file could not be read, or `load_slice` met a buffer in an
+    /// external file (it has no directory to look in).
+    MissingBuffer,
+    /// An accessor or buffer view reaches past the end of its buffer view or buffer, or a
+    /// sparse accessor names an element beyond its count.
+    AccessorOutOfRange,
+    /// A vertex index is not less than the primitive's number of positions.
+    IndexOutOfRange,
+    /// The walked scene contains no mesh primitive with triangles.
+    NoTriangleMeshes,
+    /// A node that places a mesh has a world transform that is not finite or not invertible,
+    /// or a rotation that is not a finite non-zero quaternion.
+    InvalidTransform,
+    /// A feature this loader does not read: a required compression extension, a glTF version
+    /// other than 2, a `.glb` version other than 2, or a buffer URI with a scheme other than
+    /// `data:`.
+    Unsupported,
+    /// Any other violation of the glTF specification: a reference to an object that does not
+    /// exist, an accessor of the wrong type, invalid base64, a node with two parents or in a
+    /// cycle, a malformed `.glb` chunk layout.
+    Malformed,
+}
+
+/// A scene file (see [`crate::scene_file`]) that could not be read, parsed or validated, as
+/// [`Error::SceneFile`].
+///
+/// `field` is the path of the offending value inside the file, such as
+/// `lights[1].cone_angle_degrees`; `(file)` for I/O errors and `(json)` for syntax errors,
+/// whose `problem` gives the line and column.
+#[derive(Debug, Clone, PartialEq, Error)]
+#[error("{path}: {field}: {problem}")]
+#[non_exhaustive]
+pub struct SceneFileError {
+    /// The file as given to [`crate::scene_file::SceneDescription::load`], or `<string>`
+    /// for [`crate::scene_file::SceneDescription::from_json`].
+    pub path: String,
+    /// Where in the file: a path of keys and indices, such as `objects[2].shape.radius`.
+    pub field: String,
+    /// What is wrong with it.
+    pub problem: String,
 }
 
 /// Shorthand for `Result<T, volshadow::Error>`.

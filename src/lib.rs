@@ -190,7 +190,9 @@ pub mod reference;
 pub mod scene;
 pub mod scene_file;
 
-pub use error::{Error, Result};
+#[cfg(feature = "gltf")]
+pub use error::GltfError;
+pub use error::{Error, Result, SceneFileError};
 pub use facade::{Frame, FrameLight, Settings, VolumetricShadows};
 pub use gpu::headless::HeadlessGpu;
 pub use gpu::Cache;

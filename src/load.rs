@@ -124,6 +124,7 @@ impl fmt::Display for Limit {
 #[derive(Debug, Clone)]
 pub(crate) struct Budget {
     pub(crate) options: LoadOptions,
+    /// Indexed by `Limit as usize`.
     used: [u64; 7],
 }
 
@@ -132,18 +133,6 @@ impl Budget {
         Self {
             options: *options,
             used: [0; 7],
-        }
-    }
-
-    fn slot(limit: Limit) -> usize {
-        match limit {
-            Limit::FileBytes => 0,
-            Limit::TotalBytes => 1,
-            Limit::Triangles => 2,
-            Limit::Lights => 3,
-            Limit::Texels => 4,
-            Limit::Nodes => 5,
-            Limit::Instances => 6,
         }
     }
 
@@ -163,7 +152,7 @@ impl Budget {
 
     /// Checks that `n` more of `limit` fit, without counting them.
     pub(crate) fn check(&self, limit: Limit, n: u64, file: &str) -> Result<()> {
-        let total = self.used[Self::slot(limit)].saturating_add(n);
+        let total = self.used[limit as usize].saturating_add(n);
         let max = self.max(limit);
         if total > max {
             return Err(Error::LimitExceeded {
@@ -179,14 +168,16 @@ impl Budget {
     /// Counts `n` more of `limit`, or fails if the total would pass its bound.
     pub(crate) fn add(&mut self, limit: Limit, n: u64, file: &str) -> Result<()> {
         self.check(limit, n, file)?;
-        let slot = Self::slot(limit);
+        let slot = limit as usize;
         self.used[slot] = self.used[slot].saturating_add(n);
         Ok(())
     }
 
     /// Reads the regular file at `path` (see [`read_regular_file`]) and counts its bytes.
     pub(crate) fn read(&mut self, path: &Path) -> Result<Vec<u8>> {
-        let remaining = self.max(Limit::TotalBytes).saturating_sub(self.used[1]);
+        let remaining = self
+            .max(Limit::TotalBytes)
+            .saturating_sub(self.used[Limit::TotalBytes as usize]);
         let limit = self.options.max_file_bytes.min(remaining);
         let which = if limit < self.options.max_file_bytes {
             Limit::TotalBytes
@@ -198,7 +189,7 @@ impl Budget {
                 Error::LimitExceeded {
                     file,
                     limit: which,
-                    count: self.used[1].saturating_add(count),
+                    count: self.used[Limit::TotalBytes as usize].saturating_add(count),
                     max: self.max(Limit::TotalBytes),
                 }
             }
@@ -283,9 +274,24 @@ pub(crate) fn folder_of(file: &Path) -> Result<PathBuf> {
     dir.canonicalize().map_err(|e| io_error(dir, &e))
 }
 
-/// Reads the file that `named` (a path written at `field` of the file `file`) names, relative
-/// to `folder` (the canonical folder of `file`) and confined to it unless the options allow
-/// otherwise, and counts its bytes. Returns the path read and its bytes.
+/// Where `named` (a path written at `field` of the file `file`) leads from `folder` (the
+/// canonical folder of `file`): confined to it unless `allow_outside` (see [`resolve`]).
+pub(crate) fn confine(
+    folder: &Path,
+    named: &Path,
+    allow_outside: bool,
+    file: &str,
+    field: &str,
+) -> Result<PathBuf> {
+    resolve(folder, named, allow_outside).ok_or_else(|| Error::PathOutsideFolder {
+        file: file.to_owned(),
+        field: field.to_owned(),
+        target: named.display().to_string(),
+    })
+}
+
+/// Reads the file that `named` names (see [`confine`]) and counts its bytes. Returns the path
+/// read and its bytes.
 pub(crate) fn read_named(
     budget: &mut Budget,
     folder: &Path,
@@ -293,25 +299,9 @@ pub(crate) fn read_named(
     file: &str,
     field: &str,
 ) -> Result<(PathBuf, Vec<u8>)> {
-    match resolve(folder, named, budget.options.allow_outside) {
-        Resolved::Path(path) => {
-            let bytes = budget.read(&path)?;
-            Ok((path, bytes))
-        }
-        Resolved::Outside => Err(Error::PathOutsideFolder {
-            file: file.to_owned(),
-            field: field.to_owned(),
-            target: named.display().to_string(),
-        }),
-    }
-}
-
-/// Where a path named inside a file leads.
-pub(crate) enum Resolved {
-    /// Inside the folder (or anywhere, when allowed): the path to read.
-    Path(PathBuf),
-    /// Outside the folder, whether or not the target exists.
-    Outside,
+    let path = confine(folder, named, budget.options.allow_outside, file, field)?;
+    let bytes = budget.read(&path)?;
+    Ok((path, bytes))
 }
 
 /// One step of a path being resolved.
@@ -340,22 +330,20 @@ fn parts(path: &Path, folder: &Path) -> Option<Vec<Part>> {
 }
 
 /// Resolves `named` (a path written inside a file) against `folder` (that file's canonical
-/// folder).
+/// folder): `None` when it leads outside.
 ///
 /// With `allow_outside` it is `folder.join(named)`. Otherwise the path is walked one component
-/// at a time from `folder`, following symbolic links and `..`, and is [`Resolved::Outside`] as
+/// at a time from `folder`, following symbolic links and `..`, and is `None` as
 /// soon as it leaves the folder (an absolute path, or a link to one, counts as inside only when
 /// it starts with `folder`). Only paths inside the folder are ever looked at on disk, so the
-/// outcome cannot depend on what exists outside it: an outside target is `Outside` whether it
+/// outcome cannot depend on what exists outside it: an outside target is `None` whether it
 /// exists or not. A component that does not exist ends the look-ups, and the rest is applied
-/// as written. More than 40 links (a loop) also count as `Outside`.
-pub(crate) fn resolve(folder: &Path, named: &Path, allow_outside: bool) -> Resolved {
+/// as written. More than 40 links (a loop) also give `None`.
+pub(crate) fn resolve(folder: &Path, named: &Path, allow_outside: bool) -> Option<PathBuf> {
     if allow_outside {
-        return Resolved::Path(folder.join(named));
+        return Some(folder.join(named));
     }
-    let Some(mut pending) = parts(named, folder) else {
-        return Resolved::Outside;
-    };
+    let mut pending = parts(named, folder)?;
     pending.reverse();
     let mut current = folder.to_path_buf();
     let mut missing = false;
@@ -364,7 +352,7 @@ pub(crate) fn resolve(folder: &Path, named: &Path, allow_outside: bool) -> Resol
         match part {
             Part::Parent => {
                 if current == folder {
-                    return Resolved::Outside;
+                    return None;
                 }
                 current.pop();
             }
@@ -378,15 +366,13 @@ pub(crate) fn resolve(folder: &Path, named: &Path, allow_outside: bool) -> Resol
                         hops += 1;
                         let target = match std::fs::read_link(&current) {
                             Ok(target) if hops <= 40 => target,
-                            _ => return Resolved::Outside,
+                            _ => return None,
                         };
                         current.pop();
                         if target.has_root() {
                             current = folder.to_path_buf();
                         }
-                        let Some(steps) = parts(&target, folder) else {
-                            return Resolved::Outside;
-                        };
+                        let steps = parts(&target, folder)?;
                         pending.extend(steps.into_iter().rev());
                     }
                     Ok(_) => {}
@@ -395,9 +381,5 @@ pub(crate) fn resolve(folder: &Path, named: &Path, allow_outside: bool) -> Resol
             }
         }
     }
-    if current.starts_with(folder) {
-        Resolved::Path(current)
-    } else {
-        Resolved::Outside
-    }
+    current.starts_with(folder).then_some(current)
 }

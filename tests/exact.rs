@@ -138,18 +138,9 @@ fn a_camera_in_the_shade_of_a_wide_roof() {
         ..Default::default()
     };
     scene
-        .add(shapes::cuboid(
-            Vec3::new(0.0, 3.0, 0.0),
-            Vec3::new(3.0, 0.05, 3.0),
-        ))
-        .add(shapes::cuboid(
-            Vec3::new(2.2, 1.45, -0.6),
-            Vec3::new(0.12, 1.45, 0.12),
-        ))
-        .add(shapes::cuboid(
-            Vec3::new(2.2, 1.45, 1.6),
-            Vec3::new(0.12, 1.45, 0.12),
-        ));
+        .add(shapes::cuboid(Vec3::new(0.0, 3.0, 0.0), Vec3::new(3.0, 0.05, 3.0)).unwrap())
+        .add(shapes::cuboid(Vec3::new(2.2, 1.45, -0.6), Vec3::new(0.12, 1.45, 0.12)).unwrap())
+        .add(shapes::cuboid(Vec3::new(2.2, 1.45, 1.6), Vec3::new(0.12, 1.45, 0.12)).unwrap());
     let light = point_light(Vec3::new(1.0, 7.0, 0.5));
     // Under the roof, looking along its shadow and out of it.
     let camera = look_at(Vec3::new(0.5, 1.2, 0.8), Vec3::new(6.0, 0.9, -1.0), 70.0);
@@ -174,18 +165,9 @@ fn b_eye_inside_two_overlapping_volumes() {
         ..Default::default()
     };
     scene
-        .add(shapes::cuboid(
-            Vec3::new(-0.3, 2.5, 0.0),
-            Vec3::new(0.9, 0.1, 1.0),
-        ))
-        .add(shapes::cuboid(
-            Vec3::new(0.2, 3.2, 0.3),
-            Vec3::new(0.8, 0.1, 0.9),
-        ))
-        .add(shapes::cuboid(
-            Vec3::new(1.4, 2.5, 0.6),
-            Vec3::new(0.6, 0.1, 0.6),
-        ));
+        .add(shapes::cuboid(Vec3::new(-0.3, 2.5, 0.0), Vec3::new(0.9, 0.1, 1.0)).unwrap())
+        .add(shapes::cuboid(Vec3::new(0.2, 3.2, 0.3), Vec3::new(0.8, 0.1, 0.9)).unwrap())
+        .add(shapes::cuboid(Vec3::new(1.4, 2.5, 0.6), Vec3::new(0.6, 0.1, 0.6)).unwrap());
     let light = point_light(Vec3::new(0.1, 6.0, 0.0));
     let camera = look_at(Vec3::new(0.1, 1.0, 0.0), Vec3::new(3.0, 0.7, 2.0), 70.0);
     let occ = scene.reference_occluders();
@@ -214,10 +196,7 @@ fn c_thick_fog_light_behind_eye_in_shadow_near_the_edge() {
     };
     // The box's edge x = 0 and the light (x = 0) put the shadow's side on the plane x = 0;
     // the eye stands 0.05 inside it.
-    scene.add(shapes::cuboid(
-        Vec3::new(-0.5, 1.0, 5.0),
-        Vec3::new(0.5, 0.5, 0.1),
-    ));
+    scene.add(shapes::cuboid(Vec3::new(-0.5, 1.0, 5.0), Vec3::new(0.5, 0.5, 0.1)).unwrap());
     let light = point_light(Vec3::new(0.0, 1.0, 10.0));
     let medium = Medium::new(
         Vec3::new(1.0, 1.1, 1.2),
@@ -264,10 +243,13 @@ fn blind(slats: u32) -> MeshScene {
         ..Default::default()
     };
     for i in 0..slats {
-        scene.add(shapes::cuboid(
-            Vec3::new(0.0, 0.9 + 0.22 * i as f32, 0.0),
-            Vec3::new(1.4, 0.015, 0.1),
-        ));
+        scene.add(
+            shapes::cuboid(
+                Vec3::new(0.0, 0.9 + 0.22 * i as f32, 0.0),
+                Vec3::new(1.4, 0.015, 0.1),
+            )
+            .unwrap(),
+        );
     }
     scene
 }
@@ -326,7 +308,7 @@ fn e_volume_cut_by_the_near_plane() {
         ..Default::default()
     };
     scene.occluders.push(SceneMesh {
-        mesh: shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.6, 24, 12),
+        mesh: shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.6, 24, 12).unwrap(),
         transform: Mat4::IDENTITY,
         visible: false,
     });
@@ -377,7 +359,7 @@ fn f_textured_spot_eye_in_its_occluders_shadow() {
         ground: Some(0.0),
         ..Default::default()
     };
-    scene.add(shapes::uv_sphere(Vec3::new(0.0, 2.6, 0.0), 0.7, 24, 12));
+    scene.add(shapes::uv_sphere(Vec3::new(0.0, 2.6, 0.0), 0.7, 24, 12).unwrap());
     let light = Light::from(spot);
     let camera = look_at(Vec3::new(-0.1, 1.0, 0.1), Vec3::new(2.5, 0.6, 2.5), 70.0);
     assert!(eye_in_shadow(&scene, &camera, &light));
@@ -420,16 +402,16 @@ fn random_scene(seed: u64) -> RandomScene {
         let (mesh, radius) = match kind {
             0 => {
                 let h = Vec3::new(uniform(0.05, 1.0), uniform(0.03, 0.6), uniform(0.05, 1.0));
-                (shapes::cuboid(Vec3::ZERO, h), h.length())
+                (shapes::cuboid(Vec3::ZERO, h).unwrap(), h.length())
             }
             1 => {
                 let r = uniform(0.15, 0.8);
-                (shapes::uv_sphere(Vec3::ZERO, r, 16, 8), r)
+                (shapes::uv_sphere(Vec3::ZERO, r, 16, 8).unwrap(), r)
             }
             _ => {
                 let major = uniform(0.3, 0.8);
                 (
-                    shapes::torus(Vec3::ZERO, major, major * uniform(0.2, 0.5), 16, 8),
+                    shapes::torus(Vec3::ZERO, major, major * uniform(0.2, 0.5), 16, 8).unwrap(),
                     major * 1.5,
                 )
             }
@@ -637,7 +619,7 @@ fn reduced_resolution_with_the_upsample_filters() {
         ground: Some(0.0),
         ..Default::default()
     };
-    scene.add(shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.6, 24, 12));
+    scene.add(shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.6, 24, 12).unwrap());
     let light = point_light(Vec3::new(0.4, 4.2, -0.3));
     let camera = look_at(Vec3::new(0.05, 0.9, 0.1), Vec3::new(2.0, 0.6, 3.0), 60.0);
     assert!(eye_in_shadow(&scene, &camera, &light));
@@ -688,7 +670,7 @@ fn intersecting_occluders_with_a_low_light() {
         ..Default::default()
     };
     scene.occluders.push(SceneMesh {
-        mesh: shapes::uv_sphere(Vec3::ZERO, 1.0, 48, 24),
+        mesh: shapes::uv_sphere(Vec3::ZERO, 1.0, 48, 24).unwrap(),
         transform: Mat4::from_scale_rotation_translation(
             Vec3::new(1.4, 0.75, 0.7),
             glam::Quat::IDENTITY,
@@ -696,10 +678,7 @@ fn intersecting_occluders_with_a_low_light() {
         ),
         visible: true,
     });
-    scene.add(shapes::cuboid(
-        Vec3::new(0.85, 0.5, 0.38),
-        Vec3::new(0.14, 0.5, 0.14),
-    ));
+    scene.add(shapes::cuboid(Vec3::new(0.85, 0.5, 0.38), Vec3::new(0.14, 0.5, 0.14)).unwrap());
     let light = point_light(Vec3::new(0.5, 1.9, -2.8));
     let camera = look_at(Vec3::new(-1.0, 2.2, 9.0), Vec3::new(0.3, 1.2, 0.0), 45.0);
     let medium = Medium::new(

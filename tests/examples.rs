@@ -504,7 +504,7 @@ fn report_cache_key_covers_the_reference_sources() {
         .collect();
     for needed in [
         "src/reference/bvh.rs",
-        "src/scene_file/json.rs",
+        "src/scene_file/spec.rs",
         "src/scene/shapes.rs",
         "src/scene/medium.rs",
         "src/scene/light.rs",

@@ -225,7 +225,7 @@ fn non_scattering_medium_only_attenuates() {
     .unwrap();
     let sphere = OccluderMesh::new(
         &rig.gpu.device,
-        &shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.5, 16, 8),
+        &shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.5, 16, 8).unwrap(),
     );
     let r = render(
         &rig,
@@ -274,7 +274,7 @@ fn untextured_light_needs_no_light_texture_and_equals_a_white_texture() {
     .unwrap();
     let sphere = OccluderMesh::new(
         &rig.gpu.device,
-        &shapes::uv_sphere(Vec3::new(0.0, 2.0, -0.3), 0.4, 16, 8),
+        &shapes::uv_sphere(Vec3::new(0.0, 2.0, -0.3), 0.4, 16, 8).unwrap(),
     );
     let occluders = [Occluder {
         mesh: &sphere,
@@ -322,7 +322,7 @@ fn full_resolution_needs_no_upsample() {
     let rig = rig();
     let sphere = OccluderMesh::new(
         &rig.gpu.device,
-        &shapes::uv_sphere(Vec3::new(0.0, 2.0, -0.3), 0.5, 16, 8),
+        &shapes::uv_sphere(Vec3::new(0.0, 2.0, -0.3), 0.5, 16, 8).unwrap(),
     );
     let occluders = [Occluder {
         mesh: &sphere,
@@ -352,7 +352,7 @@ fn unchanged_frame_rebuilds_neither_table_nor_shadow_map_and_gives_the_same_imag
     let rig = rig();
     let sphere = OccluderMesh::new(
         &rig.gpu.device,
-        &shapes::uv_sphere(Vec3::new(0.0, 2.0, -0.3), 0.5, 16, 8),
+        &shapes::uv_sphere(Vec3::new(0.0, 2.0, -0.3), 0.5, 16, 8).unwrap(),
     );
     let occluders = [Occluder {
         mesh: &sphere,
@@ -414,7 +414,7 @@ fn optically_deep_occluder_is_culled_without_changing_the_image() {
         .into();
     let far = OccluderMesh::new(
         &rig.gpu.device,
-        &shapes::uv_sphere(Vec3::new(0.0, 1.5, -40.0), 1.0, 16, 8),
+        &shapes::uv_sphere(Vec3::new(0.0, 1.5, -40.0), 1.0, 16, 8).unwrap(),
     );
     let occluders = [Occluder {
         mesh: &far,
@@ -447,7 +447,7 @@ fn optically_deep_occluder_is_culled_without_changing_the_image() {
     // A near occluder is not culled.
     let near = OccluderMesh::new(
         &rig.gpu.device,
-        &shapes::uv_sphere(Vec3::new(0.0, 1.5, 1.0), 0.3, 16, 8),
+        &shapes::uv_sphere(Vec3::new(0.0, 1.5, 1.0), 0.3, 16, 8).unwrap(),
     );
     let mut vs =
         VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, culling).unwrap();
@@ -496,7 +496,7 @@ fn too_many_lights_and_bad_settings_are_errors() {
 fn sphere_mesh(rig: &Rig) -> OccluderMesh {
     OccluderMesh::new(
         &rig.gpu.device,
-        &shapes::uv_sphere(Vec3::new(0.0, 2.0, -0.3), 0.5, 16, 8),
+        &shapes::uv_sphere(Vec3::new(0.0, 2.0, -0.3), 0.5, 16, 8).unwrap(),
     )
 }
 

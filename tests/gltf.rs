@@ -9,7 +9,7 @@ use std::path::Path;
 
 use files::{glb, WriteAt};
 use volshadow::glam::{Mat4, Quat, Vec3};
-use volshadow::gltf::{self, ErrorKind, GltfMesh};
+use volshadow::gltf::{self, ErrorKind, GltfError, GltfMesh};
 use volshadow::Error;
 
 // ---------------------------------------------------------------------------------------------
@@ -158,11 +158,12 @@ fn gltf_kind(result: volshadow::Result<Vec<GltfMesh>>, path: &str) -> ErrorKind 
     let message = error.to_string();
     assert!(message.contains(path), "{message}");
     match error {
-        Error::Gltf {
+        Error::Gltf(GltfError::Invalid {
             path: p,
             kind,
             problem,
-        } => {
+            ..
+        }) => {
             assert_eq!(p, path);
             assert!(!problem.is_empty());
             kind
@@ -643,12 +644,13 @@ fn error_non_finite_positions() {
     positions[3][1] = f32::NAN;
     let doc = Doc::cube(&data_uri(&cube_bin(&positions)));
     match gltf::load_slice(doc.json().as_bytes()) {
-        Err(Error::GltfPrimitive {
+        Err(Error::Gltf(GltfError::Primitive {
             path,
             mesh: 0,
             primitive: 0,
             source,
-        }) => {
+            ..
+        })) => {
             assert_eq!(path, "<memory>");
             assert!(
                 matches!(*source, Error::NonFinitePosition { vertex: 3, .. }),

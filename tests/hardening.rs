@@ -205,7 +205,7 @@ fn encode_needs_a_successful_prepare_of_the_current_frame() {
     let medium = medium();
     let sphere = OccluderMesh::new(
         device,
-        &shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.5, 16, 8),
+        &shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.5, 16, 8).unwrap(),
     );
     let occluders = [Occluder {
         mesh: &sphere,
@@ -268,7 +268,7 @@ fn a_failed_prepare_leaves_no_mixed_frame() {
     let medium = medium();
     let sphere = OccluderMesh::new(
         device,
-        &shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.5, 16, 8),
+        &shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.5, 16, 8).unwrap(),
     );
     let occluders = [Occluder {
         mesh: &sphere,
@@ -554,7 +554,7 @@ fn occluders_beyond_the_volume_buffer_limit_are_a_typed_error_and_the_next_frame
     // vertices of 32 bytes = 137 MB, beyond the default 128 MiB storage binding.
     let small = OccluderMesh::new(
         device,
-        &shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.05, 24, 12),
+        &shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.05, 24, 12).unwrap(),
     );
     assert_eq!(small.summary().triangles, 528);
     let many: Vec<Occluder> = (0..540)
@@ -635,7 +635,7 @@ fn a_mesh_beyond_the_buffer_size_limit_is_a_typed_error() {
     // 128 MiB binding and the 256 MiB buffer limits (the binding is named first).
     let big = OccluderMesh::new(
         device,
-        &shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.5, 540, 540),
+        &shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.5, 540, 540).unwrap(),
     );
     let occluders = [Occluder {
         mesh: &big,

@@ -31,7 +31,7 @@ fn a_wide_spot_cone_keeps_an_occluder_near_its_edge_in_the_shadow_map() {
     };
     // Seen from the light, 84° off the cone's axis and 0.3 units below the light: along the
     // axis its nearest point is 0.4 units *behind* the light's plane, its farthest 1.0 ahead.
-    scene.add(shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.7, 48, 24));
+    scene.add(shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.7, 48, 24).unwrap());
     let camera = common::look_at(
         Vec3::new(0.0, 1.5, 6.0),
         Vec3::new(0.0, 1.5, 0.0),
@@ -100,7 +100,7 @@ fn a_light_a_millionth_above_a_sphere_keeps_its_shadow() {
         ground: Some(0.0),
         ..Default::default()
     };
-    scene.add(shapes::uv_sphere(Vec3::new(0.0, 1.0, 0.0), 1.0, 48, 24));
+    scene.add(shapes::uv_sphere(Vec3::new(0.0, 1.0, 0.0), 1.0, 48, 24).unwrap());
     let camera = common::look_at(
         Vec3::new(0.0, 1.5, 6.0),
         Vec3::new(0.0, 1.5, 0.0),

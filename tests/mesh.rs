@@ -332,7 +332,7 @@ fn summary_display_is_one_line() {
 fn closed_shapes_are_closed_and_outward() {
     use std::f64::consts::PI;
     let c = Vec3::new(1.0, -2.0, 3.0);
-    let sphere = shapes::uv_sphere(c, 2.0, 48, 24);
+    let sphere = shapes::uv_sphere(c, 2.0, 48, 24).unwrap();
     assert_eq!(sphere.triangle_count(), 2 * 48 * 23);
     assert_closed("uv_sphere", &sphere, 2, 4.0 / 3.0 * PI * 8.0, 0.02);
     let (lo, hi) = sphere.bounds();
@@ -340,7 +340,7 @@ fn closed_shapes_are_closed_and_outward() {
         (lo - (c - 2.0)).abs().max_element() < 1e-5 && (hi - (c + 2.0)).abs().max_element() < 1e-5
     );
 
-    let cuboid = shapes::cuboid(c, Vec3::new(0.5, 1.0, 2.0));
+    let cuboid = shapes::cuboid(c, Vec3::new(0.5, 1.0, 2.0)).unwrap();
     assert_eq!(cuboid.positions().len(), 24);
     assert_eq!(cuboid.edges().len(), 18);
     assert_eq!(
@@ -349,7 +349,7 @@ fn closed_shapes_are_closed_and_outward() {
     );
     assert_closed("cuboid", &cuboid, 2, 8.0, 1e-6);
 
-    let torus = shapes::torus(c, 2.0, 0.5, 48, 24);
+    let torus = shapes::torus(c, 2.0, 0.5, 48, 24).unwrap();
     assert_closed("torus", &torus, 0, 2.0 * PI * PI * 2.0 * 0.25, 0.02);
     let (lo, hi) = torus.bounds();
     assert!((hi.y - lo.y - 1.0).abs() < 1e-5, "torus axis is +Y");
@@ -357,7 +357,8 @@ fn closed_shapes_are_closed_and_outward() {
     // Tube volume ≈ π w² × helix length.
     let (r, w, turns, h) = (1.0f64, 0.15, 3.5, 2.0);
     let length = ((2.0 * PI * r * turns).powi(2) + h * h).sqrt();
-    let spring = shapes::helix_spring(c, r as f32, w as f32, turns as f32, h as f32, 32, 24);
+    let spring =
+        shapes::helix_spring(c, r as f32, w as f32, turns as f32, h as f32, 32, 24).unwrap();
     assert_closed("helix_spring", &spring, 2, PI * w * w * length, 0.05);
     let (lo, hi) = spring.bounds();
     assert!((hi.y - lo.y) as f64 > h && ((hi.y - lo.y) as f64) < h + 2.0 * w + 1e-4);
@@ -366,7 +367,7 @@ fn closed_shapes_are_closed_and_outward() {
 #[test]
 fn open_shapes_have_boundaries() {
     for segments in [3, 17, 64] {
-        let cyl = shapes::cylinder_open(Vec3::ZERO, 1.0, 2.0, segments);
+        let cyl = shapes::cylinder_open(Vec3::ZERO, 1.0, 2.0, segments).unwrap();
         let s = cyl.summary();
         println!("cylinder_open({segments}): {s}");
         assert_eq!(s.boundary_edges, 2 * segments as usize);
@@ -381,7 +382,7 @@ fn open_shapes_have_boundaries() {
         assert!(n.dot(Vec3::new(mid.x, 0.0, mid.z)) > 0.0);
     }
 
-    let plane = shapes::plane(Vec3::new(0.0, 1.0, 0.0), Vec2::new(2.0, 3.0));
+    let plane = shapes::plane(Vec3::new(0.0, 1.0, 0.0), Vec2::new(2.0, 3.0)).unwrap();
     let s = plane.summary();
     println!("plane: {s}");
     assert_eq!((s.triangles, s.edges, s.boundary_edges), (2, 5, 4));
@@ -401,7 +402,7 @@ fn open_shapes_have_boundaries() {
 fn hundred_thousand_triangles_build_fast() {
     let (segments, rings) = (317, 159);
     let start = Instant::now();
-    let sphere = shapes::uv_sphere(Vec3::ZERO, 1.0, segments, rings);
+    let sphere = shapes::uv_sphere(Vec3::ZERO, 1.0, segments, rings).unwrap();
     let shape_time = start.elapsed();
     // Time Mesh::new alone on a triangle soup (the worst case for welding).
     let soup: Vec<Vec3> = sphere

@@ -595,6 +595,7 @@ fn spring_image_timing() {
     let scene =
         SceneDescription::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/spring.json")).unwrap();
     let occluders = scene.reference_occluders();
+    let ray_distance = scene.ray_caster();
     let (w, h) = scene.size;
     let light = &scene.lights[0].light;
     let start = Instant::now();
@@ -602,7 +603,7 @@ fn spring_image_timing() {
         &scene.camera,
         w,
         h,
-        |o, d| scene.ray_distance(o, d),
+        &ray_distance,
         &scene.medium,
         light,
         &[],
@@ -613,7 +614,7 @@ fn spring_image_timing() {
         &scene.camera,
         w,
         h,
-        |o, d| scene.ray_distance(o, d),
+        &ray_distance,
         &scene.medium,
         light,
         &occluders,
@@ -649,7 +650,7 @@ fn spring_image_timing() {
         .flat_map(|y| (0..w).step_by(8).map(move |x| (x, y)))
         .map(|(x, y)| {
             let (o, d) = camera_ray(&scene.camera, pixel_ndc(w, h, x, y));
-            (o, d, scene.ray_distance(o, d))
+            (o, d, ray_distance(o, d))
         })
         .collect();
     let start = Instant::now();

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use volshadow::glam::{DVec3, Mat4, Vec3};
 use volshadow::nodes::{Scale, UpsampleFilter};
 use volshadow::scene_file::{Method, SceneDescription};
-use volshadow::{Error, Light, PhaseFunction};
+use volshadow::{Error, Light, PhaseFunction, SceneFileError};
 
 fn scenes_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes")
@@ -51,7 +51,7 @@ fn expect_error(text: &str, field: &str, contains: &[&str]) -> String {
     let err = parse(text).expect_err("the scene must be rejected");
     let message = err.to_string();
     match &err {
-        Error::SceneFile { path, field: f, .. } => {
+        Error::SceneFile(SceneFileError { path, field: f, .. }) => {
             assert_eq!(path, "<string>", "{message}");
             assert_eq!(f, field, "{message}");
         }
@@ -542,7 +542,7 @@ fn error_other_validation() {
     );
     let missing = SceneDescription::load(scenes_dir().join("no_such_scene.json")).unwrap_err();
     assert!(
-        matches!(&missing, Error::SceneFile { field, .. } if field == "(file)"),
+        matches!(&missing, Error::SceneFile(SceneFileError { field, .. }) if field == "(file)"),
         "{missing}"
     );
 }

@@ -224,7 +224,10 @@ fn sphere_scene() -> Scene {
     let center = Vec3::new(0.0, 2.0, 0.0);
     Scene {
         spheres: vec![(center.as_dvec3(), 0.6)],
-        occluders: vec![(shapes::uv_sphere(center, 0.6, 24, 12), Mat4::IDENTITY)],
+        occluders: vec![(
+            shapes::uv_sphere(center, 0.6, 24, 12).unwrap(),
+            Mat4::IDENTITY,
+        )],
     }
 }
 
@@ -544,7 +547,10 @@ fn light_behind_the_camera() {
     let center = Vec3::new(0.0, 2.0, 2.0);
     let scene = Scene {
         spheres: vec![],
-        occluders: vec![(shapes::uv_sphere(center, 0.6, 24, 12), Mat4::IDENTITY)],
+        occluders: vec![(
+            shapes::uv_sphere(center, 0.6, 24, 12).unwrap(),
+            Mat4::IDENTITY,
+        )],
     };
     let camera = look_at(Vec3::new(0.0, 2.3, 4.0), Vec3::new(0.0, 1.5, 0.0));
     check_no_missing_shadow(
@@ -563,11 +569,11 @@ fn two_overlapping_occluders() {
         spheres: vec![(a.as_dvec3(), 0.5), (b.as_dvec3(), 0.45)],
         occluders: vec![
             (
-                shapes::uv_sphere(Vec3::ZERO, 0.5, 20, 10),
+                shapes::uv_sphere(Vec3::ZERO, 0.5, 20, 10).unwrap(),
                 Mat4::from_translation(a),
             ),
             (
-                shapes::uv_sphere(Vec3::ZERO, 0.45, 20, 10),
+                shapes::uv_sphere(Vec3::ZERO, 0.45, 20, 10).unwrap(),
                 Mat4::from_translation(b),
             ),
         ],
@@ -588,7 +594,10 @@ fn torus_with_light_through_its_hole() {
     let center = Vec3::new(0.0, 2.2, 0.0);
     let scene = Scene {
         spheres: vec![],
-        occluders: vec![(shapes::torus(center, 0.7, 0.25, 24, 12), Mat4::IDENTITY)],
+        occluders: vec![(
+            shapes::torus(center, 0.7, 0.25, 24, 12).unwrap(),
+            Mat4::IDENTITY,
+        )],
     };
     let camera = look_at(Vec3::new(0.0, 1.4, 4.5), Vec3::new(0.0, 1.3, 0.0));
     check_no_missing_shadow(
@@ -605,7 +614,7 @@ fn open_mesh_cylinder_without_caps() {
     let scene = Scene {
         spheres: vec![],
         occluders: vec![(
-            shapes::cylinder_open(Vec3::ZERO, 0.4, 0.8, 24),
+            shapes::cylinder_open(Vec3::ZERO, 0.4, 0.8, 24).unwrap(),
             Mat4::from_translation(Vec3::new(0.0, 2.0, 0.0)) * Mat4::from_rotation_z(1.2),
         )],
     };
@@ -844,9 +853,12 @@ fn a_terrain_sized_occluder_does_not_cost_a_small_one_its_shadow() {
     let light_pos = Vec3::new(0.4, 4.2, -0.3);
     let light = point_light(light_pos);
     let small = light_pos - Vec3::new(0.0, 0.35, 0.0);
-    let sphere = (shapes::uv_sphere(small, 0.08, 24, 12), Mat4::IDENTITY);
+    let sphere = (
+        shapes::uv_sphere(small, 0.08, 24, 12).unwrap(),
+        Mat4::IDENTITY,
+    );
     let terrain = (
-        shapes::plane(Vec3::new(0.0, -0.5, 0.0), glam::Vec2::splat(10_000.0)),
+        shapes::plane(Vec3::new(0.0, -0.5, 0.0), glam::Vec2::splat(10_000.0)).unwrap(),
         Mat4::IDENTITY,
     );
     let scene = |occluders: Vec<(Mesh, Mat4)>| Scene {

@@ -45,7 +45,7 @@ fn textured_rmse(medium: &Medium) -> f64 {
         1.0,
     );
     let center = Vec3::new(0.0, 2.2, 0.0);
-    let mesh = shapes::uv_sphere(center, 0.5, 24, 12);
+    let mesh = shapes::uv_sphere(center, 0.5, 24, 12).unwrap();
 
     let depths: Vec<f32> = (0..SIZE * SIZE)
         .map(|i| {

@@ -81,7 +81,7 @@ fn bilateral_filters_do_not_blend_across_a_depth_edge() {
         .into();
     let block = OccluderMesh::new(
         &gpu.device,
-        &shapes::cuboid(Vec3::new(0.0, 1.75, 4.5), Vec3::splat(0.3)),
+        &shapes::cuboid(Vec3::new(0.0, 1.75, 4.5), Vec3::splat(0.3)).unwrap(),
     );
     let occluders = [Occluder {
         mesh: &block,

@@ -152,7 +152,7 @@ pub fn render(options: &Options) -> Result<Rendered, BoxError> {
             0.01 * r,
         ),
     )?;
-    let ground = shapes::plane(Vec3::new(center.x, lo.y, center.z), Vec2::splat(12.0 * r));
+    let ground = shapes::plane(Vec3::new(center.x, lo.y, center.z), Vec2::splat(12.0 * r)).unwrap();
     let light = Light::from(PointLight::new(
         center + r * Vec3::new(0.3, 1.0, -2.2),
         Vec3::new(1.0, 0.92, 0.8) * (40.0 * r * r),

@@ -435,7 +435,7 @@ pub fn reference_inscatter(
 ) -> Vec<DVec3> {
     let occluders = scene.reference_occluders();
     let mut inscatter = vec![DVec3::ZERO; (width * height) as usize];
-    let ds = |o: DVec3, d: DVec3| scene.ray_distance(o, d);
+    let ds = scene.ray_caster();
     for l in &scene.lights {
         let image = match (l.light, &l.texture) {
             (Light::Spot(spot), Some(texture)) => {
@@ -444,7 +444,7 @@ pub fn reference_inscatter(
                     camera,
                     width,
                     height,
-                    ds,
+                    &ds,
                     &scene.medium,
                     &textured,
                     &occluders,
@@ -454,7 +454,7 @@ pub fn reference_inscatter(
                 camera,
                 width,
                 height,
-                ds,
+                &ds,
                 &scene.medium,
                 &light,
                 &occluders,

@@ -319,7 +319,7 @@ pub fn run(gpu: &HeadlessGpu, options: &Options) -> Result<Summary, BoxError> {
 
     // volshadow.
     let cache = Cache::new(device);
-    let sphere = OccluderMesh::new(device, &shapes::uv_sphere(Vec3::ZERO, 1.0, 32, 16));
+    let sphere = OccluderMesh::new(device, &shapes::uv_sphere(Vec3::ZERO, 1.0, 32, 16).unwrap());
     let spot_texture =
         LightTexture::checkerboard(64, 8, Vec3::new(1.0, 0.8, 0.5), Vec3::new(0.2, 0.4, 1.0))?
             .upload(device, &gpu.queue);

@@ -212,7 +212,7 @@ impl Default for MarchSettings {
 }
 
 impl MarchSettings {
-    fn validate(&self) -> Result<()> {
+    pub(crate) fn validate(&self) -> Result<()> {
         if !(1..=4096).contains(&self.steps) {
             return Err(Error::InvalidSetting {
                 field: "march.steps",

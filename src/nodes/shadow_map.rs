@@ -137,7 +137,7 @@ impl ShadowMapNode {
     /// # Errors
     ///
     /// [`Error::InvalidSize`] for a zero resolution or one beyond the device's limits,
-    /// [`Error::NonFinite`] or [`Error::Negative`] for a depth bias outside [0, 0.5).
+    /// [`Error::NonFinite`] or [`Error::InvalidSetting`] for a depth bias outside [0, 0.5).
     pub fn new(device: &wgpu::Device, cache: &Cache, settings: ShadowMapSettings) -> Result<Self> {
         let max = device.limits().max_texture_dimension_2d;
         let min = ShadowMapSettings::MIN_RESOLUTION;
@@ -152,9 +152,9 @@ impl ShadowMapNode {
         }
         finite("shadow_map.depth_bias", &[settings.depth_bias])?;
         if !(0.0..0.5).contains(&settings.depth_bias) {
-            return Err(Error::Negative {
-                field: "shadow_map.depth_bias (must lie in [0, 0.5))",
-                value: settings.depth_bias,
+            return Err(Error::InvalidSetting {
+                field: "shadow_map.depth_bias",
+                problem: format!("must lie in [0, 0.5), got {}", settings.depth_bias),
             });
         }
         Ok(Self {

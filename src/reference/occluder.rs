@@ -486,6 +486,18 @@ impl TriangleMesh {
             .any_on_segment(a, b, |t| segment_hits_triangle(a, b, t))
     }
 
+    /// Distance from `o` along the unit direction `d` to the nearest triangle (both sides,
+    /// edges included, distance > 0), or `f64::INFINITY` when the ray meets none.
+    pub fn ray_distance(&self, o: DVec3, d: DVec3) -> f64 {
+        let mut best = f64::INFINITY;
+        self.bvh.each_on_ray(o, d, |t| {
+            if let Some(s) = ray_hits_triangle(o, d, t).filter(|&s| s > 0.0) {
+                best = best.min(s);
+            }
+        });
+        best
+    }
+
     /// The wedges of the silhouette edges seen from `p` (cached for the last `p`).
     fn silhouette(&self, p: DVec3) -> Arc<Silhouette> {
         let light = p.to_array().map(f64::to_bits);
@@ -619,26 +631,29 @@ fn mesh_edges(positions: &[DVec3], triangles: &[[u32; 3]]) -> Vec<Edge> {
 }
 
 /// Möller–Trumbore for the closed segment `[a, b]` against a triangle (either side).
-fn segment_hits_triangle(a: DVec3, b: DVec3, &Triangle { v0, e1, e2 }: &Triangle) -> bool {
-    let d = b - a;
+fn segment_hits_triangle(a: DVec3, b: DVec3, t: &Triangle) -> bool {
+    ray_hits_triangle(a, b - a, t).is_some_and(|s| (0.0..=1.0).contains(&s))
+}
+
+/// Möller–Trumbore, both sides, edges included: the parameter `s` of the hit `o + s·d`.
+fn ray_hits_triangle(o: DVec3, d: DVec3, &Triangle { v0, e1, e2 }: &Triangle) -> Option<f64> {
     let pv = d.cross(e2);
     let det = e1.dot(pv);
     if det == 0.0 || !det.is_finite() {
-        return false; // parallel (or degenerate): measure zero
+        return None; // parallel (or degenerate): measure zero
     }
     let inv = 1.0 / det;
-    let tv = a - v0;
+    let tv = o - v0;
     let u = tv.dot(pv) * inv;
     if !(0.0..=1.0).contains(&u) {
-        return false;
+        return None;
     }
     let qv = tv.cross(e1);
     let w = d.dot(qv) * inv;
     if w < 0.0 || u + w > 1.0 {
-        return false;
+        return None;
     }
-    let s = e2.dot(qv) * inv;
-    (0.0..=1.0).contains(&s)
+    Some(e2.dot(qv) * inv)
 }
 
 /// Any occluder the reference knows.

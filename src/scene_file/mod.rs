@@ -3,7 +3,7 @@
 //!
 //! [`SceneDescription::load`] reads, validates and builds everything: the scene types
 //! ([`Camera`], [`Light`], [`Medium`], [`Mesh`], [`LightTexture`]) are constructed, so a
-//! loaded scene is ready to render. Every problem is an [`Error::SceneFile`] naming the file,
+//! loaded scene is ready to render. Every problem is an [`Error::SceneFile`] ([`SceneFileError`]) naming the file,
 //! the field (a path such as `lights[1].cone_angle_degrees`) and what is wrong; no input
 //! panics.
 //!
@@ -101,13 +101,14 @@
 //!   "sigma_spatial" (> 0), "sigma_depth" (> 0)}}`.
 
 mod glass;
-mod json;
 mod parse;
+mod spec;
 
 use std::path::Path;
 
-use glam::{DMat4, DVec3, Mat4, Vec3};
+use glam::{DVec3, Mat4, Vec3};
 
+pub use crate::error::SceneFileError;
 use crate::error::{Error, Result};
 use crate::load::{Budget, LoadOptions};
 use crate::nodes::{MarchMethod, MarchSettings, Scale, UpsampleFilter};
@@ -224,15 +225,15 @@ impl Default for Method {
 }
 
 impl Method {
-    /// `Hybrid { steps: 64, scale: Full, upsample: DepthAware3x3, bisections: 0,
-    /// texture_steps: 32 }`.
+    /// `Hybrid` with the defaults of [`MarchSettings`] at full resolution.
     pub fn hybrid_default() -> Self {
+        let m = MarchSettings::default();
         Method::Hybrid {
-            steps: 64,
+            steps: m.steps,
             scale: Scale::Full,
             upsample: UpsampleFilter::DepthAware3x3,
-            bisections: 0,
-            texture_steps: 32,
+            bisections: m.bisections,
+            texture_steps: m.texture_steps,
         }
     }
 
@@ -347,10 +348,13 @@ impl SceneDescription {
     pub fn load_with(path: impl AsRef<Path>, options: &LoadOptions) -> Result<Self> {
         let path = path.as_ref();
         let shown = path.display().to_string();
-        let unreadable = |problem: String| Error::SceneFile {
-            path: shown.clone(),
-            field: "(file)".to_owned(),
-            problem: format!("cannot read the file: {problem}"),
+        let unreadable = |problem: String| {
+            SceneFileError {
+                path: shown.clone(),
+                field: "(file)".to_owned(),
+                problem: format!("cannot read the file: {problem}"),
+            }
+            .into()
         };
         let mut budget = Budget::new(options);
         let bytes = budget.read(path).map_err(|e| match e {
@@ -391,24 +395,37 @@ impl SceneDescription {
         shown: &str,
         budget: Budget,
     ) -> Result<Self> {
-        let value: serde_json::Value =
-            serde_json::from_str(text).map_err(|e| Error::SceneFile {
+        let at = |field: String, problem: String| -> Error {
+            SceneFileError {
                 path: shown.to_owned(),
-                field: "(json)".to_owned(),
-                problem: format!("invalid JSON: {e}"),
-            })?;
+                field,
+                problem,
+            }
+            .into()
+        };
+        // Through a `Value`, as serde_json keeps the last of duplicate keys there.
+        let value: serde_json::Value = serde_json::from_str(text)
+            .map_err(|e| at("(json)".to_owned(), format!("invalid JSON: {e}")))?;
+        let spec: spec::Scene = serde_path_to_error::deserialize(value).map_err(|e| {
+            let message = e.inner().to_string();
+            let (field, problem) = spec::located(e.path().iter(), message);
+            at(
+                if field.is_empty() {
+                    "(root)".to_owned()
+                } else {
+                    field
+                },
+                problem,
+            )
+        })?;
         let mut ctx = parse::Ctx {
             folder,
             file: shown,
             budget,
         };
-        parse::scene(&value, &mut ctx).map_err(|p| match p.error {
+        parse::scene(spec, &mut ctx).map_err(|p| match p.error {
             Some(e) => *e,
-            None => Error::SceneFile {
-                path: shown.to_owned(),
-                field: p.field,
-                problem: p.problem,
-            },
+            None => at(p.field, p.problem),
         })
     }
 
@@ -416,47 +433,30 @@ impl SceneDescription {
     /// nearest triangle of any object (receivers included), in world units, or
     /// `f64::INFINITY` when it hits none (or `dir` is zero or not finite).
     ///
-    /// Exact f64 Möller–Trumbore on the world-space triangles (object positions in f64 through
-    /// the f64 transform, as [`reference_occluders`](Self::reference_occluders) places them),
-    /// both sides, edges included, hits at distance > 0 only. Objects whose world-space bounding
-    /// box the ray misses, or meets only beyond the nearest hit so far, are skipped.
+    /// Builds the objects' bounding volume hierarchies on every call: for many rays, use
+    /// [`ray_caster`](Self::ray_caster) once.
     pub fn ray_distance(&self, origin: DVec3, dir: DVec3) -> f64 {
-        let len = dir.length();
-        if !(len.is_finite() && len > 0.0 && origin.is_finite()) {
-            return f64::INFINITY;
-        }
-        let d = dir / len;
-        let mut best = f64::INFINITY;
-        for object in &self.objects {
-            let m = object.transform.as_dmat4();
-            let (lo, hi) = world_bounds(m, object.mesh.bounds());
-            match ray_box(origin, d, lo, hi) {
-                Some(enter) if enter < best => {}
-                _ => continue,
+        self.ray_caster()(origin, dir)
+    }
+
+    /// [`ray_distance`](Self::ray_distance) for many rays: exact f64 Möller–Trumbore on the
+    /// world-space triangles (object positions in f64 through the f64 transform, as
+    /// [`reference_occluders`](Self::reference_occluders) places them), both sides, edges
+    /// included, hits at distance > 0 only, through each object's
+    /// [`TriangleMesh::ray_distance`].
+    pub fn ray_caster(&self) -> impl Fn(DVec3, DVec3) -> f64 + Send + Sync {
+        let meshes: Vec<TriangleMesh> = self.objects.iter().map(world_mesh).collect();
+        move |origin, dir| {
+            let len = dir.length();
+            if !(len.is_finite() && len > 0.0 && origin.is_finite()) {
+                return f64::INFINITY;
             }
-            // The ray in object space: an affine map keeps the ray parameter, so `t` is still
-            // the world distance along the unit `d`.
-            let inverse = m.inverse();
-            let (o_local, d_local) = (
-                inverse.transform_point3(origin),
-                inverse.transform_vector3(d),
-            );
-            let positions = object.mesh.positions();
-            let local = |i: u32| positions[i as usize].as_dvec3();
-            for tri in object.mesh.indices().chunks_exact(3) {
-                let t = ray_triangle(
-                    o_local,
-                    d_local,
-                    [local(tri[0]), local(tri[1]), local(tri[2])],
-                );
-                if let Some(t) = t {
-                    if t > 0.0 && t < best {
-                        best = t;
-                    }
-                }
-            }
+            let d = dir / len;
+            meshes
+                .iter()
+                .map(|m| m.ray_distance(origin, d))
+                .fold(f64::INFINITY, f64::min)
         }
-        best
     }
 
     /// Every shadow-casting object as a world-space [`TriangleMesh`] occluder for
@@ -465,78 +465,12 @@ impl SceneDescription {
         self.objects
             .iter()
             .filter(|o| o.casts_shadow)
-            .map(|o| {
-                Occluder::Mesh(TriangleMesh::from_indexed(
-                    o.mesh.positions(),
-                    o.mesh.indices(),
-                    o.transform.as_dmat4(),
-                ))
-            })
+            .map(|o| Occluder::Mesh(world_mesh(o)))
             .collect()
     }
 }
 
-/// World-space bounds of an object-space box, padded by a relative 1e-9 so that rounding in
-/// the transform cannot put a triangle outside them.
-fn world_bounds(m: DMat4, (lo, hi): (Vec3, Vec3)) -> (DVec3, DVec3) {
-    let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
-    let mut wlo = DVec3::splat(f64::INFINITY);
-    let mut whi = DVec3::splat(f64::NEG_INFINITY);
-    for k in 0..8 {
-        let corner = DVec3::new(
-            if k & 1 == 0 { lo.x } else { hi.x },
-            if k & 2 == 0 { lo.y } else { hi.y },
-            if k & 4 == 0 { lo.z } else { hi.z },
-        );
-        let w = m.transform_point3(corner);
-        wlo = wlo.min(w);
-        whi = whi.max(w);
-    }
-    let pad = 1e-9
-        * (whi - wlo)
-            .max_element()
-            .max(wlo.abs().max(whi.abs()).max_element())
-        + f64::MIN_POSITIVE;
-    (wlo - DVec3::splat(pad), whi + DVec3::splat(pad))
-}
-
-/// Slab test: the distance at which the ray enters the box (0 when it starts inside), or `None`
-/// when it misses it or the box is behind.
-fn ray_box(o: DVec3, d: DVec3, lo: DVec3, hi: DVec3) -> Option<f64> {
-    let (mut enter, mut exit) = (0.0f64, f64::INFINITY);
-    for axis in 0..3 {
-        if d[axis] == 0.0 {
-            if o[axis] < lo[axis] || o[axis] > hi[axis] {
-                return None;
-            }
-            continue;
-        }
-        let inv = 1.0 / d[axis];
-        let (t0, t1) = ((lo[axis] - o[axis]) * inv, (hi[axis] - o[axis]) * inv);
-        enter = enter.max(t0.min(t1));
-        exit = exit.min(t0.max(t1));
-    }
-    (enter <= exit).then_some(enter)
-}
-
-/// Möller–Trumbore, both sides, edges included: the ray parameter of the hit, if any.
-fn ray_triangle(o: DVec3, d: DVec3, [v0, v1, v2]: [DVec3; 3]) -> Option<f64> {
-    let (e1, e2) = (v1 - v0, v2 - v0);
-    let p = d.cross(e2);
-    let det = e1.dot(p);
-    if det == 0.0 || !det.is_finite() {
-        return None;
-    }
-    let inv = 1.0 / det;
-    let s = o - v0;
-    let u = s.dot(p) * inv;
-    if !(0.0..=1.0).contains(&u) {
-        return None;
-    }
-    let q = s.cross(e1);
-    let v = d.dot(q) * inv;
-    if v < 0.0 || u + v > 1.0 {
-        return None;
-    }
-    Some(e2.dot(q) * inv)
+/// An object's triangles in world space, in f64.
+fn world_mesh(o: &SceneObject) -> TriangleMesh {
+    TriangleMesh::from_indexed(o.mesh.positions(), o.mesh.indices(), o.transform.as_dmat4())
 }

@@ -67,7 +67,7 @@ pub fn cached_reference(
 pub fn reference_sources() -> Vec<std::path::PathBuf> {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut files = Vec::new();
-    for dir in ["src/reference", "src/scene", "src/scene_file"] {
+    for dir in ["src/reference", "src/scene", "src/scene_file", "src/gltf"] {
         if let Ok(entries) = std::fs::read_dir(root.join(dir)) {
             files.extend(
                 entries
@@ -77,7 +77,6 @@ pub fn reference_sources() -> Vec<std::path::PathBuf> {
         }
     }
     for file in [
-        "src/gltf.rs",
         "src/load.rs",
         "src/error.rs",
         "examples/common/render_scene.rs",
