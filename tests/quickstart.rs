@@ -8,7 +8,7 @@ mod quickstart;
 mod common;
 
 use glam::DVec3;
-use volshadow::reference::{self, Occluder, Sphere};
+use volshadow::reference;
 use volshadow::{HeadlessGpu, Settings};
 
 const W: u32 = 128;
@@ -23,23 +23,9 @@ fn quickstart_matches_the_reference() {
         .iter()
         .all(|p| p.iter().all(|v| v.is_finite())));
     let (camera, light, medium) = quickstart::scene(W, H).unwrap();
-    let spheres: Vec<Occluder> = quickstart::SPHERES
-        .iter()
-        .map(|&(c, r)| Occluder::Sphere(Sphere::new(c.as_dvec3(), f64::from(r))))
-        .collect();
+    let spheres = quickstart::reference_occluders();
     // The app's depth: ground plane and the analytic spheres it ray-casts.
-    let distance = |o: DVec3, d: DVec3| {
-        let mut t = if d.y < 0.0 { -o.y / d.y } else { f64::INFINITY };
-        for &(c, r) in &quickstart::SPHERES {
-            let oc = o - c.as_dvec3();
-            let b = oc.dot(d);
-            let disc = b * b - (oc.length_squared() - f64::from(r * r));
-            if disc >= 0.0 && -b - disc.sqrt() > 0.0 {
-                t = t.min(-b - disc.sqrt());
-            }
-        }
-        t
-    };
+    let distance = quickstart::surface_distance;
     let shadowed = reference::inscatter_image(&camera, W, H, distance, &medium, &light, &spheres);
     let open = reference::inscatter_image(&camera, W, H, distance, &medium, &light, &[]);
     // The light's own pixels: there the GPU clamps the singular 1/h by the pixel footprint on

@@ -4,7 +4,8 @@
 //! part of it.
 #![allow(dead_code)]
 
-use volshadow::glam::Vec3;
+use volshadow::glam::{DVec3, Vec3};
+use volshadow::reference::{Occluder, Sphere};
 use volshadow::scene::shapes;
 use volshadow::{Camera, Medium, OccluderMesh, PhaseFunction, PointLight};
 
@@ -57,6 +58,29 @@ pub fn sphere_meshes(device: &wgpu::Device) -> Vec<OccluderMesh> {
         .iter()
         .map(|&(c, r)| OccluderMesh::new(device, &shapes::uv_sphere(c, r, 48, 24).expect("valid sphere")))
         .collect()
+}
+
+/// The spheres as the f64 reference's exact occluders.
+pub fn reference_occluders() -> Vec<Occluder> {
+    SPHERES
+        .iter()
+        .map(|&(c, r)| Occluder::Sphere(Sphere::new(c.as_dvec3(), f64::from(r))))
+        .collect()
+}
+
+/// Distance along the ray `o + t·d` to the first surface the app draws (the ground plane or a
+/// sphere), ∞ for the sky: where the reference's rays end.
+pub fn surface_distance(o: DVec3, d: DVec3) -> f64 {
+    let mut t = if d.y < 0.0 { -o.y / d.y } else { f64::INFINITY };
+    for &(c, r) in &SPHERES {
+        let oc = o - c.as_dvec3();
+        let b = oc.dot(d);
+        let disc = b * b - (oc.length_squared() - f64::from(r * r));
+        if disc >= 0.0 && -b - disc.sqrt() > 0.0 {
+            t = t.min(-b - disc.sqrt());
+        }
+    }
+    t
 }
 
 /// The parameters of `quickstart_scene.wgsl`.

@@ -31,7 +31,7 @@ use std::time::{Duration, Instant};
 use volshadow::glam::{DVec3, Mat4, Vec3};
 use volshadow::gpu::PassTime;
 use volshadow::nodes::{MarchMethod, Scale};
-use volshadow::reference::{self, Sphere};
+use volshadow::reference;
 use volshadow::{
     Cache, Camera, Frame, FrameLight, Light, Medium, Occluder, OccluderMesh, PointLight, Settings,
     VolumetricShadows,
@@ -49,7 +49,7 @@ mod fullscreen;
 mod quickstart_scene;
 
 use fullscreen::texture_desc;
-use quickstart_scene::{camera, ScenePass, EYE, LIGHT_INTENSITY, LIGHT_POSITION, SPHERES};
+use quickstart_scene::{camera, ScenePass, EYE, LIGHT_INTENSITY, LIGHT_POSITION};
 
 /// Offscreen colour format: the app's frame, and volshadow's output.
 const HDR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
@@ -152,31 +152,16 @@ impl ReferenceState {
 /// The reference's in-scatter for `job`: the spheres as exact occluders, the app's ground
 /// plane and spheres as the surfaces that end each ray.
 fn reference_inscatter(job: &ReferenceJob) -> Vec<DVec3> {
-    let occluders: Vec<reference::Occluder> = if job.shadows {
-        SPHERES
-            .iter()
-            .map(|&(c, r)| reference::Occluder::Sphere(Sphere::new(c.as_dvec3(), f64::from(r))))
-            .collect()
+    let occluders = if job.shadows {
+        quickstart_scene::reference_occluders()
     } else {
         Vec::new()
-    };
-    let distance = |o: DVec3, d: DVec3| {
-        let mut t = if d.y < 0.0 { -o.y / d.y } else { f64::INFINITY };
-        for &(c, r) in &SPHERES {
-            let oc = o - c.as_dvec3();
-            let b = oc.dot(d);
-            let disc = b * b - (oc.length_squared() - f64::from(r * r));
-            if disc >= 0.0 && -b - disc.sqrt() > 0.0 {
-                t = t.min(-b - disc.sqrt());
-            }
-        }
-        t
     };
     reference::inscatter_image(
         &job.camera,
         job.size.0,
         job.size.1,
-        distance,
+        quickstart_scene::surface_distance,
         &job.medium,
         &job.light,
         &occluders,

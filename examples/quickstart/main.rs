@@ -19,7 +19,7 @@ mod headless_env;
 mod quickstart_scene;
 
 use fullscreen::texture_desc;
-pub use quickstart_scene::{scene, SPHERES};
+pub use quickstart_scene::{reference_occluders, scene, surface_distance};
 use volshadow::glam::Mat4;
 use volshadow::{Frame, HeadlessGpu, Light, Occluder, Settings, VolumetricShadows};
 
