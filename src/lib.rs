@@ -199,7 +199,7 @@ pub use gpu::Cache;
 pub use gpu::{Occluder, OccluderMesh};
 pub use load::{Limit, LoadOptions};
 pub use plan::Plan;
-pub use scene::{Camera, Light, Medium, PhaseFunction, PointLight, SpotLight};
+pub use scene::{Camera, DirectionalLight, Light, Medium, PhaseFunction, PointLight, SpotLight};
 
 pub use glam;
 pub use wgpu;

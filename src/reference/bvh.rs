@@ -218,6 +218,12 @@ impl Bvh {
         self.traverse(a, b - a, -PARAM_SLACK, 1.0 + PARAM_SLACK, hit)
     }
 
+    /// Whether `hit` accepts any triangle whose box the half-line `e + s·d`, `s ≥ 0`, may meet
+    /// (stops at the first).
+    pub fn any_on_ray(&self, e: DVec3, d: DVec3, hit: impl FnMut(&Triangle) -> bool) -> bool {
+        self.traverse(e, d, -PARAM_SLACK, f64::INFINITY, hit)
+    }
+
     /// Visits every triangle whose box the ray `e + x·v`, `x ≥ 0`, may meet.
     pub fn each_on_ray(&self, e: DVec3, v: DVec3, mut visit: impl FnMut(&Triangle)) {
         // The slack before the start is relative to the ray's distance scale (`v` is unit).

@@ -68,6 +68,20 @@
 //!   light's closed form over the cone's intervals: the integrand inside is the same.)
 //! * [`inscatter_image`] does a whole frame for a [`Camera`], for per-pixel comparisons.
 //!
+//! A [`DirectionalLight`](crate::DirectionalLight) travelling along the unit direction `d` delivers the irradiance `E`
+//! at every point that sees it (it is at infinity, with no attenuation on the light path), so
+//! the scattering angle is the same at every point of the ray and
+//!
+//! ```text
+//! L_sctr = ∫₀^ds V(x) · σs · p(μ) · E · exp(−σt·x) dx,   μ = cos θ = −v·d,
+//! ```
+//!
+//! with `V(x) = 1` iff the half-line from `X` towards `−d` meets no occluder. Over a lit
+//! interval `[x₀, x₁]` this is `σs·p(μ)·E·(e^{−σt·x₀} − e^{−σt·x₁})/σt` per channel.
+//! [`inscatter_directional`] integrates this over the exact [`directional_lit_intervals`] by
+//! quadrature, [`inscatter_directional_closed_form`] evaluates the unshadowed value in closed
+//! form (the two check each other) and [`inscatter_image_directional`] does a whole frame.
+//!
 //! All results are finite for finite input, except where a ray passes exactly through the light
 //! (distance `h = 0` from the light and the light within `[0, ds]`): the integral diverges there
 //! and the channels with `σs·I0 > 0` are `+∞`.
@@ -77,6 +91,7 @@
 
 mod bvh;
 mod cone;
+mod directional;
 mod occluder;
 mod phase;
 pub(crate) mod quadrature;
@@ -89,6 +104,10 @@ use glam::{DVec2, DVec3, DVec4};
 
 use crate::scene::{Camera, Light, LightTexture, Medium, PhaseFunction, PointLight, SpotLight};
 
+pub use directional::{
+    directional_lit_intervals, inscatter_directional, inscatter_directional_closed_form,
+    inscatter_image_directional,
+};
 pub use occluder::{Cuboid, Occluder, Sphere, TriangleMesh};
 pub use phase::phase;
 pub use texture::{bilinear, texture_axes, TexturedSpot};
@@ -615,6 +634,20 @@ pub fn inscatter_image(
 ) -> Vec<DVec3> {
     let texture = light.texture();
     let light = light.light();
+    render(camera, width, height, |eye, dir| {
+        let ds = distance(eye, dir);
+        inscatter_light(eye, dir, ds, medium, light, texture, occluders)
+    })
+}
+
+/// `pixel(eye, dir)` for the ray of every pixel (see [`inscatter_image`]), rows shared among
+/// threads.
+fn render(
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    pixel: impl Fn(DVec3, DVec3) -> DVec3 + Sync,
+) -> Vec<DVec3> {
     let (w, h) = (width as usize, height as usize);
     let mut image = vec![DVec3::ZERO; w * h];
     if w == 0 || h == 0 {
@@ -629,8 +662,7 @@ pub fn inscatter_image(
         let Some((py, row)) = next else { break };
         for (px, out) in row.iter_mut().enumerate() {
             let (eye, dir) = camera_ray(camera, pixel_ndc(width, height, px as u32, py as u32));
-            let ds = distance(eye, dir);
-            *out = inscatter_light(eye, dir, ds, medium, light, texture, occluders);
+            *out = pixel(eye, dir);
         }
     };
     std::thread::scope(|scope| {

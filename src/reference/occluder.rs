@@ -13,6 +13,14 @@ use glam::{DMat4, DQuat, DVec3, Vec3};
 
 use super::bvh::{Bvh, Triangle};
 
+/// Where a light is, for visibility: at a point, or infinitely far in the unit direction
+/// `Towards(l)` (a directional light, `l` opposite to its direction of travel).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Source {
+    At(DVec3),
+    Towards(DVec3),
+}
+
 /// A sphere, `|X − center| = radius` (the radius' sign is ignored).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sphere {
@@ -46,9 +54,23 @@ impl Sphere {
         (fa + d * s).length_squared() <= r2
     }
 
-    /// Ray distances where the visibility of `p` from `e + x·v` (`v` unit) can change: the
-    /// ray's crossings of the sphere and of the tangent cone from `p`.
-    fn candidates(&self, e: DVec3, v: DVec3, p: DVec3, out: &mut Vec<f64>) {
+    /// Whether the half-line `a + s·direction`, `s ≥ 0` (`direction` non-zero, any length),
+    /// meets the sphere's surface: always from inside.
+    pub fn ray_blocked(&self, a: DVec3, direction: DVec3) -> bool {
+        let f = a - self.center;
+        let dd = direction.length_squared();
+        let s = if dd > 0.0 {
+            (-f.dot(direction) / dd).max(0.0)
+        } else {
+            0.0
+        };
+        (f + direction * s).length_squared() <= self.radius * self.radius
+    }
+
+    /// Ray distances where the visibility of the light from `e + x·v` (`v` unit) can change:
+    /// the ray's crossings of the sphere and of the tangent cone from a point light `p`, or of
+    /// the shadow cylinder (the sphere's radius, along `l`) for a light towards `l`.
+    fn candidates(&self, e: DVec3, v: DVec3, source: Source, out: &mut Vec<f64>) {
         let r = self.radius.abs();
         // The sphere itself.
         let f = e - self.center;
@@ -59,6 +81,15 @@ impl Sphere {
             let s = disc.sqrt();
             out.extend([-b - s, -b + s]);
         }
+        let p = match source {
+            Source::At(p) => p,
+            Source::Towards(l) => {
+                // |(f + x v)⊥|² = r², ⊥ removing the component along l.
+                let (fp, vp) = (f - l * f.dot(l), v - l * v.dot(l));
+                out.extend(quadratic_roots(vp.dot(vp), fp.dot(vp), fp.dot(fp) - r * r));
+                return;
+            }
+        };
         // The tangent cone (apex p, axis towards the centre, sin α = r / L) exists when p is
         // outside the sphere.
         let axis = self.center - p;
@@ -192,9 +223,20 @@ impl Cuboid {
         if inside(la) && inside(lb) {
             return false;
         }
-        // Slab clipping of s ∈ [0, 1] against the solid box.
-        let d = lb - la;
-        let (mut s0, mut s1) = (0.0f64, 1.0f64);
+        self.clip(la, lb - la, 1.0)
+    }
+
+    /// Whether the half-line `a + s·direction`, `s ≥ 0` (`direction` non-zero, any length),
+    /// meets the box's surface: always from inside.
+    pub fn ray_blocked(&self, a: DVec3, direction: DVec3) -> bool {
+        let d = self.rotation().inverse() * direction;
+        self.clip(self.local_point(a), d, f64::INFINITY)
+    }
+
+    /// Slab clipping of `la + s·d`, `s ∈ [0, s_max]` (box frame), against the solid box.
+    fn clip(&self, la: DVec3, d: DVec3, s_max: f64) -> bool {
+        let h = self.half_extents.abs();
+        let (mut s0, mut s1) = (0.0f64, s_max);
         for k in 0..3 {
             if d[k] == 0.0 {
                 if la[k].abs() > h[k] {
@@ -213,14 +255,15 @@ impl Cuboid {
         true
     }
 
-    fn candidates(&self, e: DVec3, v: DVec3, p: DVec3, out: &mut Vec<f64>) {
+    fn candidates(&self, e: DVec3, v: DVec3, source: Source, out: &mut Vec<f64>) {
         // Work in the box's frame: a rotation keeps distances along the ray.
         let h = self.half_extents.abs();
-        let (o, d, pl) = (
-            self.local_point(e),
-            self.rotation().inverse() * v,
-            self.local_point(p),
-        );
+        let inv = self.rotation().inverse();
+        let (o, d) = (self.local_point(e), inv * v);
+        let local = match source {
+            Source::At(p) => Source::At(self.local_point(p)),
+            Source::Towards(l) => Source::Towards(inv * l),
+        };
         // Face planes, where the crossing lies on the face.
         for k in 0..3 {
             if d[k] == 0.0 {
@@ -237,7 +280,7 @@ impl Cuboid {
                 }
             }
         }
-        // Planes through the light and each of the 12 edges.
+        // Planes through each of the 12 edges and the light (or its direction).
         let corner = |i: usize| {
             DVec3::new(
                 if i & 1 == 0 { -h.x } else { h.x },
@@ -249,21 +292,23 @@ impl Cuboid {
             for bit in [1, 2, 4] {
                 let j = i ^ bit;
                 if i < j {
-                    edge_candidate(o, d, pl, corner(i), corner(j), out);
+                    Wedge::new(local, corner(i), corner(j)).candidate(o, d, out);
                 }
             }
         }
     }
 }
 
-/// The plane through the light `p` and an edge `[vi, vj]`, with what
-/// [`candidate`](Self::candidate) needs of it computed once (for a mesh, once per light
-/// position and silhouette edge).
+/// The plane through the light `p` and an edge `[vi, vj]` (for a light towards `l`: through
+/// the edge and along `l`), with what [`candidate`](Self::candidate) needs of it computed once
+/// (for a mesh, once per light and silhouette edge).
 #[derive(Debug, Clone, Copy)]
 struct Wedge {
-    /// `vi − p`.
+    /// The plane's origin: `p`, or `vi` for a light towards `l`.
+    o: DVec3,
+    /// `vi − p`, or `vj − vi`.
     a: DVec3,
-    /// `vj − p`.
+    /// `vj − p`, or `−l·|vj − vi|` (the direction of travel, at the edge's scale).
     b: DVec3,
     /// `a × b`, the plane's normal.
     n: DVec3,
@@ -272,13 +317,19 @@ struct Wedge {
     bb: f64,
     /// `aa·bb − ab²`.
     det: f64,
+    /// Whether the light is towards a direction.
+    directional: bool,
 }
 
 impl Wedge {
-    fn new(p: DVec3, vi: DVec3, vj: DVec3) -> Self {
-        let (a, b) = (vi - p, vj - p);
+    fn new(source: Source, vi: DVec3, vj: DVec3) -> Self {
+        let (o, a, b, directional) = match source {
+            Source::At(p) => (p, vi - p, vj - p, false),
+            Source::Towards(l) => (vi, vj - vi, -l * (vj - vi).length(), true),
+        };
         let (aa, ab, bb) = (a.dot(a), a.dot(b), b.dot(b));
         Self {
+            o,
             a,
             b,
             n: a.cross(b),
@@ -286,13 +337,15 @@ impl Wedge {
             ab,
             bb,
             det: aa * bb - ab * ab,
+            directional,
         }
     }
 
-    /// The ray's crossing of the plane, kept if the segment from the light `p` to the crossing
-    /// point can touch the edge there.
-    fn candidate(&self, e: DVec3, v: DVec3, p: DVec3, out: &mut Vec<f64>) {
+    /// The ray's crossing of the plane, kept if the segment (half-line) from the crossing point
+    /// to the light can touch the edge there.
+    fn candidate(&self, e: DVec3, v: DVec3, out: &mut Vec<f64>) {
         let Self {
+            o,
             a,
             b,
             n,
@@ -300,34 +353,35 @@ impl Wedge {
             ab,
             bb,
             det,
+            directional,
         } = *self;
         let nv = n.dot(v);
         if nv == 0.0 {
             return;
         }
-        let x = n.dot(p - e) / nv;
+        let x = n.dot(o - e) / nv;
         if !x.is_finite() {
             return;
         }
-        // y = X − p = α a + β b; the segment p → X meets the edge iff α, β ≥ 0 and α + β ≥ 1.
-        let y = e + v * x - p;
+        // y = X − o = α a + β b; the segment p → X meets the edge iff α, β ≥ 0 and α + β ≥ 1;
+        // the half-line from X towards l iff 0 ≤ α ≤ 1 and β ≥ 0.
+        let y = e + v * x - o;
         if det > 1e-20 * aa * bb {
             let (ay, by) = (a.dot(y), b.dot(y));
             let alpha = (bb * ay - ab * by) / det;
             let beta = (aa * by - ab * ay) / det;
             const SLACK: f64 = 1e-6;
-            if alpha < -SLACK || beta < -SLACK || alpha + beta < 1.0 - SLACK {
+            let far = if directional {
+                alpha > 1.0 + SLACK
+            } else {
+                alpha + beta < 1.0 - SLACK
+            };
+            if alpha < -SLACK || beta < -SLACK || far {
                 return;
             }
         }
         out.push(x);
     }
-}
-
-/// The ray's crossing of the plane through the light `p` and the edge `[vi, vj]`, kept if the
-/// segment from the light to the crossing point can touch the edge there.
-fn edge_candidate(e: DVec3, v: DVec3, p: DVec3, vi: DVec3, vj: DVec3, out: &mut Vec<f64>) {
-    Wedge::new(p, vi, vj).candidate(e, v, p, out);
 }
 
 /// An edge of a [`TriangleMesh`] after welding: its end points (in the order of one of its
@@ -342,15 +396,15 @@ struct Edge {
     sides: Option<[DVec3; 2]>,
 }
 
-/// The wedges of a mesh's silhouette edges as seen from one light position.
+/// The wedges of a mesh's silhouette edges as seen from one light.
 #[derive(Debug)]
 struct Silhouette {
-    /// The light position, as bits (an exact match decides a cache hit).
-    light: [u64; 3],
+    /// The light (an exact match decides a cache hit).
+    light: Source,
     wedges: Vec<Wedge>,
 }
 
-/// The last [`Silhouette`] computed (a whole image uses one light position); shared by the
+/// The last [`Silhouette`] computed (a whole image uses one light); shared by the
 /// threads of [`inscatter_image`](super::inscatter_image). A clone starts empty.
 #[derive(Debug, Default)]
 struct SilhouetteCache(Mutex<Option<Arc<Silhouette>>>);
@@ -498,9 +552,16 @@ impl TriangleMesh {
         best
     }
 
-    /// The wedges of the silhouette edges seen from `p` (cached for the last `p`).
-    fn silhouette(&self, p: DVec3) -> Arc<Silhouette> {
-        let light = p.to_array().map(f64::to_bits);
+    /// Whether the half-line `a + s·direction`, `s ≥ 0` (`direction` non-zero, any length),
+    /// meets any triangle.
+    pub fn ray_blocked(&self, a: DVec3, direction: DVec3) -> bool {
+        self.bvh.any_on_ray(a, direction, |t| {
+            ray_hits_triangle(a, direction, t).is_some_and(|s| s >= 0.0)
+        })
+    }
+
+    /// The wedges of the silhouette edges seen from `light` (cached for the last one).
+    fn silhouette(&self, light: Source) -> Arc<Silhouette> {
         let mut cache = self
             .silhouette
             .0
@@ -513,17 +574,17 @@ impl TriangleMesh {
             .edges
             .iter()
             .filter_map(|edge| {
-                let w = Wedge::new(p, edge.vi, edge.vj);
+                let w = Wedge::new(light, edge.vi, edge.vj);
                 // A zero or non-finite normal never gives a crossing (`Wedge::candidate`).
                 if w.n == DVec3::ZERO || !w.n.is_finite() {
                     return None;
                 }
                 if let Some([c1, c2]) = edge.sides {
-                    // orient3d(p, vi, vj, c) by a float determinant: its error is a small
-                    // multiple of ε·|a|·|b|·|c − p| (each difference is exact to ε), far below
+                    // orient3d(o, vi, vj, c) by a float determinant: its error is a small
+                    // multiple of ε·|a|·|b|·|c − o| (each difference is exact to ε), far below
                     // this margin.
                     let margin = 1e-9 * (w.aa * w.bb).sqrt();
-                    let (q1, q2) = (c1 - p, c2 - p);
+                    let (q1, q2) = (c1 - w.o, c2 - w.o);
                     let (s1, s2) = (w.n.dot(q1), w.n.dot(q2));
                     let (m1, m2) = (margin * q1.length(), margin * q2.length());
                     if (s1 > m1 && s2 < -m2) || (s1 < -m1 && s2 > m2) {
@@ -538,9 +599,9 @@ impl TriangleMesh {
         s
     }
 
-    fn candidates(&self, e: DVec3, v: DVec3, p: DVec3, out: &mut Vec<f64>) {
-        for wedge in &self.silhouette(p).wedges {
-            wedge.candidate(e, v, p, out);
+    fn candidates(&self, e: DVec3, v: DVec3, light: Source, out: &mut Vec<f64>) {
+        for wedge in &self.silhouette(light).wedges {
+            wedge.candidate(e, v, out);
         }
         // The triangles' own planes, where the crossing lies in the triangle.
         self.bvh.each_on_ray(e, v, |&Triangle { v0, e1, e2 }| {
@@ -677,13 +738,31 @@ impl Occluder {
         }
     }
 
-    /// Appends every ray distance `x` at which the visibility of `p` from `e + x·v` (`v` unit)
-    /// can change because of this occluder (a superset: extra candidates are harmless).
-    pub(crate) fn candidates(&self, e: DVec3, v: DVec3, p: DVec3, out: &mut Vec<f64>) {
+    /// Whether the half-line `a + s·direction`, `s ≥ 0` (`direction` non-zero, any length),
+    /// meets the occluder's surface (exact, f64); from inside a closed occluder it always does.
+    pub fn ray_blocked(&self, a: DVec3, direction: DVec3) -> bool {
         match self {
-            Occluder::Sphere(s) => s.candidates(e, v, p, out),
-            Occluder::Cuboid(c) => c.candidates(e, v, p, out),
-            Occluder::Mesh(m) => m.candidates(e, v, p, out),
+            Occluder::Sphere(s) => s.ray_blocked(a, direction),
+            Occluder::Cuboid(c) => c.ray_blocked(a, direction),
+            Occluder::Mesh(m) => m.ray_blocked(a, direction),
+        }
+    }
+
+    /// Whether the occluder hides `light` from `x`.
+    pub(crate) fn hides(&self, x: DVec3, light: Source) -> bool {
+        match light {
+            Source::At(p) => self.segment_blocked(x, p),
+            Source::Towards(l) => self.ray_blocked(x, l),
+        }
+    }
+
+    /// Appends every ray distance `x` at which the visibility of `light` from `e + x·v` (`v`
+    /// unit) can change because of this occluder (a superset: extra candidates are harmless).
+    pub(crate) fn candidates(&self, e: DVec3, v: DVec3, light: Source, out: &mut Vec<f64>) {
+        match self {
+            Occluder::Sphere(s) => s.candidates(e, v, light, out),
+            Occluder::Cuboid(c) => c.candidates(e, v, light, out),
+            Occluder::Mesh(m) => m.candidates(e, v, light, out),
         }
     }
 }

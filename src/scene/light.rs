@@ -118,6 +118,62 @@ impl SpotLight {
     }
 }
 
+/// A directional light (the sun): parallel rays travelling along `direction`, delivering the
+/// RGB irradiance `irradiance` (`E`, power per unit area perpendicular to the rays) everywhere.
+///
+/// The light is at infinity and `E` is the irradiance *arriving in the medium*: there is no
+/// attenuation on the light path, so a point `X` that sees the light (the half-line from `X`
+/// towards `−direction` meets no occluder) receives exactly `E`, and the in-scattered radiance
+/// along a camera ray is `∫ V(x) · σs · p(cos θ) · E · exp(−σt·x) dx`, with the scattering angle
+/// `θ` the same at every point of the ray. A caller that wants a fog layer of extinction `σt`
+/// and thickness `T` between the light and the scene passes `E·exp(−σt·T)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DirectionalLight {
+    direction: Vec3,
+    irradiance: Vec3,
+}
+
+impl DirectionalLight {
+    /// A directional light whose rays travel along `direction` (any non-zero finite length; it
+    /// is normalised), with irradiance `irradiance` (finite, non-negative, non-zero in some
+    /// channel).
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NonFinite`] (direction or irradiance), [`Error::Negative`] (irradiance),
+    /// [`Error::DegenerateDirection`] for a direction that cannot be normalised,
+    /// [`Error::ZeroIntensity`] when every channel of the irradiance is zero.
+    pub fn new(direction: Vec3, irradiance: Vec3) -> Result<Self> {
+        finite("directional_light.direction", &direction.to_array())?;
+        non_negative("directional_light.irradiance", &irradiance.to_array())?;
+        // Rescaled first, so that tiny or huge finite vectors normalise too.
+        let largest = direction.abs().max_element();
+        let direction = (direction / largest).normalize_or_zero();
+        if largest == 0.0 || direction == Vec3::ZERO {
+            return Err(Error::DegenerateDirection {
+                field: "directional_light.direction",
+            });
+        }
+        if irradiance.max_element() <= 0.0 {
+            return Err(Error::ZeroIntensity {
+                field: "directional_light.irradiance",
+            });
+        }
+        Ok(Self {
+            direction,
+            irradiance,
+        })
+    }
+    /// Unit direction of travel of the light (from the light into the scene).
+    pub fn direction(&self) -> Vec3 {
+        self.direction
+    }
+    /// Irradiance arriving in the medium, RGB.
+    pub fn irradiance(&self) -> Vec3 {
+        self.irradiance
+    }
+}
+
 /// Any light the crate renders.
 ///
 /// Used in the [crate-level example](crate#example).

@@ -9,7 +9,7 @@ mod mesh;
 pub mod shapes;
 
 pub use camera::Camera;
-pub use light::{Light, PointLight, SpotLight};
+pub use light::{DirectionalLight, Light, PointLight, SpotLight};
 pub use light_texture::LightTexture;
 pub use medium::{Medium, PhaseFunction};
 pub(crate) use mesh::{check_object_transform, TransformProblem};
