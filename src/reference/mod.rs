@@ -80,6 +80,7 @@ mod cone;
 mod occluder;
 mod phase;
 pub(crate) mod quadrature;
+pub mod soft;
 mod texture;
 mod visibility;
 
@@ -91,6 +92,7 @@ use crate::scene::{Camera, Light, LightTexture, Medium, PhaseFunction, PointLigh
 
 pub use occluder::{Cuboid, Occluder, Sphere, TriangleMesh};
 pub use phase::phase;
+pub use soft::{inscatter_image_soft, inscatter_soft, visible_fraction};
 pub use texture::{bilinear, texture_axes, TexturedSpot};
 pub use visibility::{light_intervals, lit_intervals};
 
