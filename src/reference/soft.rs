@@ -424,8 +424,8 @@ fn soft_light(
         let (a, b) = (cuts[i], if i == n - 2 { ds } else { cuts[i + 1] });
         let test = if b.is_finite() { 0.5 * (a + b) } else { end };
         match f(test) {
-            (k, true) if k == 0.0 => {}
-            (k, true) if k == 1.0 => match lit.last_mut() {
+            (0.0, true) => {}
+            (1.0, true) => match lit.last_mut() {
                 Some(prev) if prev.1 == a => prev.1 = b,
                 _ => lit.push((a, b)),
             },
