@@ -70,9 +70,9 @@ pub const SAMPLES_PER_SIDE: u32 = 16;
 /// Relative tolerance of the quadrature where `f` is fractional and exact (spheres).
 pub const SOFT_TOLERANCE: f64 = 1e-9;
 /// Relative tolerance of the quadrature where `f` is sampled.
-pub const SAMPLED_TOLERANCE: f64 = 1e-5;
+pub const SAMPLED_TOLERANCE: f64 = 1e-4;
 /// Most bisections of one sampled piece's quadrature.
-pub const SAMPLED_BISECTIONS: usize = 200;
+pub const SAMPLED_BISECTIONS: usize = 40;
 
 /// An occluder with its bounding sphere (exact for a sphere).
 struct Bound<'a> {
