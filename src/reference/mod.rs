@@ -95,6 +95,7 @@ mod directional;
 mod occluder;
 mod phase;
 pub(crate) mod quadrature;
+pub mod soft;
 mod texture;
 mod visibility;
 
@@ -110,6 +111,7 @@ pub use directional::{
 };
 pub use occluder::{Cuboid, Occluder, Sphere, TriangleMesh};
 pub use phase::phase;
+pub use soft::{inscatter_image_soft, inscatter_soft, visible_fraction};
 pub use texture::{bilinear, texture_axes, TexturedSpot};
 pub use visibility::{light_intervals, lit_intervals};
 

@@ -6,11 +6,23 @@ use crate::error::{finite, non_negative, Error, Result};
 
 /// An isotropic point light: radiant intensity `intensity` (RGB, per steradian) at `position`.
 ///
+/// # Radius (soft shadows)
+///
+/// A light may have a [`radius`](Self::radius) (0 by default: a point, hard shadows). It is then
+/// a sphere of that radius around `position`. At a point `X` of the medium, its visibility is
+/// the fraction of the light's disc, as seen from `X`, that no occluder hides (measured as the
+/// fraction of the solid angle of the cone from `X` tangent to the light); the in-scattered
+/// integrand is the point light's (same `intensity`, distance and scattering angle measured
+/// to the centre) times that fraction. This is an approximation for a radius much smaller than
+/// the distances to the light; a point inside the sphere sees all of it. See
+/// [`reference::visible_fraction`](crate::reference::visible_fraction).
+///
 /// Used in the [crate-level example](crate#example).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PointLight {
     position: Vec3,
     intensity: Vec3,
+    radius: f32,
 }
 
 impl PointLight {
@@ -34,7 +46,18 @@ impl PointLight {
         Ok(Self {
             position,
             intensity,
+            radius: 0.0,
         })
+    }
+    /// The same light as a sphere of `radius` (world units; 0, the default, is a point and
+    /// gives hard shadows). See [Radius](Self#radius-soft-shadows).
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NonFinite`] for a non-finite radius, [`Error::Negative`] for a negative one.
+    pub fn with_radius(self, radius: f32) -> Result<Self> {
+        let radius = checked_radius("point_light.radius", radius)?;
+        Ok(Self { radius, ..self })
     }
     /// World-space position.
     pub fn position(&self) -> Vec3 {
@@ -44,10 +67,25 @@ impl PointLight {
     pub fn intensity(&self) -> Vec3 {
         self.intensity
     }
+    /// Radius of the light's sphere (0: a point).
+    pub fn radius(&self) -> f32 {
+        self.radius
+    }
+}
+
+/// `radius` if finite and ≥ 0, with `-0.0` read as `0.0`.
+fn checked_radius(field: &'static str, radius: f32) -> Result<f32> {
+    finite(field, &[radius])?;
+    non_negative(field, &[radius])?;
+    Ok(if radius == 0.0 { 0.0 } else { radius })
 }
 
 /// A spot light: a point light whose emission is limited to a cone around `direction`, with a
 /// hard edge at half the apex angle `cone_angle`. Its shadows come from a 2D shadow map.
+///
+/// A spot light may have a [`radius`](Self::radius), with the same model as a
+/// [`PointLight`'s](PointLight#radius-soft-shadows); the cone stays the one from `position`,
+/// with its hard edge.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SpotLight {
     position: Vec3,
@@ -55,6 +93,7 @@ pub struct SpotLight {
     cos_half_angle: f32,
     cone_angle: f32,
     intensity: Vec3,
+    radius: f32,
 }
 
 impl SpotLight {
@@ -93,7 +132,18 @@ impl SpotLight {
             cos_half_angle: (0.5 * cone_angle).cos(),
             cone_angle,
             intensity,
+            radius: 0.0,
         })
+    }
+    /// The same light as a sphere of `radius` (world units; 0, the default, is a point and
+    /// gives hard shadows). See [`PointLight`'s radius](PointLight#radius-soft-shadows).
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NonFinite`] for a non-finite radius, [`Error::Negative`] for a negative one.
+    pub fn with_radius(self, radius: f32) -> Result<Self> {
+        let radius = checked_radius("spot_light.radius", radius)?;
+        Ok(Self { radius, ..self })
     }
     /// World-space position.
     pub fn position(&self) -> Vec3 {
@@ -115,6 +165,10 @@ impl SpotLight {
     /// Radiant intensity inside the cone, RGB.
     pub fn intensity(&self) -> Vec3 {
         self.intensity
+    }
+    /// Radius of the light's sphere (0: a point).
+    pub fn radius(&self) -> f32 {
+        self.radius
     }
 }
 
@@ -199,6 +253,13 @@ impl Light {
         match self {
             Light::Point(l) => l.intensity(),
             Light::Spot(l) => l.intensity(),
+        }
+    }
+    /// Radius of the light's sphere (0: a point; see [`PointLight::with_radius`]).
+    pub fn radius(&self) -> f32 {
+        match self {
+            Light::Point(l) => l.radius(),
+            Light::Spot(l) => l.radius(),
         }
     }
 }
