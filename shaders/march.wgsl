@@ -286,7 +286,7 @@ fn march_textbook(ray: PixelRay, r: AirRay, x_end: f32, n: u32) -> Textbook {
         sup = cone_support(air, mp.spot, ray.dir, x_cap);
     }
     // The pixel footprint at the light bounds 1/d² as the closed form's prefactor is bounded.
-    let d_min = d_light * max(air.pixel_radius, 1.0e-6);
+    let d_min = d_light * max(air.pixel_radius * ray.footprint, 1.0e-6);
     for (var i = 0u; i < sup.count; i++) {
         let x0 = sup.x[i].x;
         let x1 = min(sup.x[i].y, x_cap);
@@ -324,7 +324,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
     let under = min(vec2<u32>((vec2<f32>(gid.xy) + 0.5) * vec2<f32>(full) / view.size.xy), full - 1u);
     let depth = textureLoad(scene_depth, under, 0);
     let ray = pixel_ray(view, vec2<f32>(gid.xy) + 0.5, depth);
-    let r = air_ray(air, ray.dir);
+    let r = air_ray(air, ray);
     let x_end = select(FAR, ray.distance, ray.distance >= 0.0);
 
     let sup = support_s(air, r, mp.spot, ray.dir, x_end);

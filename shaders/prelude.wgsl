@@ -20,7 +20,7 @@ struct Airlight {
     light_pos: vec3<f32>,
     distance: f32,          // D = |P − E|
     eye: vec3<f32>,
-    pixel_radius: f32,      // the pixel's angular radius (radians)
+    pixel_radius: f32,      // angular radius of a pixel at the image centre (radians)
     intensity: vec3<f32>,   // I0
     hg_g: f32,              // Henyey–Greenstein g
     sigma_s: vec3<f32>,
@@ -69,7 +69,8 @@ struct AirRay {
     prefactor: vec3<f32>,  // I0 σs exp(−σt D) w / (D sin γ), sin γ clamped by the pixel footprint
 }
 
-fn air_ray(a: Airlight, dir: vec3<f32>) -> AirRay {
+fn air_ray(a: Airlight, ray: PixelRay) -> AirRay {
+    let dir = ray.dir;
     let to_light = a.light_pos - a.eye;
     let d = a.distance;
     var r: AirRay;
@@ -84,7 +85,7 @@ fn air_ray(a: Airlight, dir: vec3<f32>) -> AirRay {
     var sin_gamma = r.c / d;
     var ratio = 1.0;
     if (r.gamma < 0.5 * PI) {
-        sin_gamma = max(sin_gamma, a.pixel_radius);
+        sin_gamma = max(sin_gamma, a.pixel_radius * ray.footprint);
         ratio = r.w / sin_gamma;
     } else if (sin_gamma > 1.0e-30) {
         ratio = r.w / sin_gamma;
@@ -291,6 +292,10 @@ struct PixelRay {
     // World distance along the ray per unit of view depth (−z): converts view depths to
     // distances for any view matrix, rigid or scaled.
     depth_to_distance: f32,
+    // This pixel's angular radius relative to the image centre's: cos^1.5 of its angle to the
+    // view axis (a rectilinear pixel's solid angle falls as cos³), so a 175° view does not
+    // blur the light's glow over the whole image.
+    footprint: f32,
 }
 
 fn pixel_ray(v: View, pixel: vec2<f32>, depth: f32) -> PixelRay {
@@ -304,6 +309,8 @@ fn pixel_ray(v: View, pixel: vec2<f32>, depth: f32) -> PixelRay {
     out.dir = normalize(m * dir_view);
     out.distance = -1.0;
     out.depth_to_distance = length(m * dir_view) / max(-dir_view.z, 1.0e-30);
+    let cos_axis = clamp(-dir_view.z / length(dir_view), 0.0, 1.0);
+    out.footprint = cos_axis * sqrt(cos_axis);
     if (depth != far_depth) {
         let p = v.view_from_clip * vec4<f32>(ndc, depth, 1.0);
         // Behind the far end (w of the wrong sign or zero) reads as sky too.

@@ -28,7 +28,7 @@ struct Upsample {
 // Unshadowed airlight of an output pixel, analytic at full resolution.
 fn airlight_full(p: vec2<u32>) -> vec4<f32> {
     let ray = pixel_ray(view, vec2<f32>(p) + 0.5, textureLoad(scene_depth, p, 0));
-    let r = air_ray(air, ray.dir);
+    let r = air_ray(air, ray);
     let x_end = select(FAR, ray.distance, ray.distance >= 0.0);
     let sup = support_s(air, r, spot, ray.dir, x_end);
     return vec4<f32>(r.prefactor * unshadowed_t(table, air, r, sup), ray.distance);

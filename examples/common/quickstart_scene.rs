@@ -56,7 +56,12 @@ pub fn scene(width: u32, height: u32) -> volshadow::Result<(Camera, PointLight, 
 pub fn sphere_meshes(device: &wgpu::Device) -> Vec<OccluderMesh> {
     SPHERES
         .iter()
-        .map(|&(c, r)| OccluderMesh::new(device, &shapes::uv_sphere(c, r, 48, 24).expect("valid sphere")))
+        .map(|&(c, r)| {
+            OccluderMesh::new(
+                device,
+                &shapes::uv_sphere(c, r, 48, 24).expect("valid sphere"),
+            )
+        })
         .collect()
 }
 

@@ -386,7 +386,7 @@ fn soft_light(
     let v = geo.v / geo.v.length();
     let mut raw = Vec::new();
     for o in occluders {
-        o.candidates(origin, v, p, &mut raw);
+        o.candidates(origin, v, super::occluder::Source::At(p), &mut raw);
     }
     if let Some(cone) = &cone {
         cone.candidates(origin, v, &mut raw);

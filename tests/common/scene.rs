@@ -155,7 +155,17 @@ impl std::fmt::Display for Errors {
 /// 1/h by the pixel footprint on purpose while the reference integrates the centre ray.
 pub fn near_light(camera: &Camera, light: &Light, width: u32, height: u32, i: usize) -> bool {
     let (o, d) = super::pixel_ray(camera, width, height, i as u32 % width, i as u32 / width);
-    let pixel_angle = 2.0 * f64::from(camera.pixel_angular_radius(height));
+    // A rectilinear pixel's angular size falls as cos^1.5 of its angle to the view axis (its
+    // solid angle as cos³), as the GPU's clamp does: a 175° view's edge pixels are small.
+    let forward = -camera
+        .view()
+        .as_dmat4()
+        .inverse()
+        .z_axis
+        .truncate()
+        .normalize();
+    let cos_axis = d.normalize().dot(forward).clamp(0.0, 1.0);
+    let pixel_angle = 2.0 * f64::from(camera.pixel_angular_radius(height)) * cos_axis.powf(1.5);
     d.angle_between(light.position().as_dvec3() - o) < 1.5 * pixel_angle
 }
 
