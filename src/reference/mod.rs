@@ -77,6 +77,7 @@
 
 mod bvh;
 mod cone;
+mod iss;
 mod occluder;
 mod phase;
 pub(crate) mod quadrature;
@@ -89,6 +90,10 @@ use glam::{DVec2, DVec3, DVec4};
 
 use crate::scene::{Camera, Light, LightTexture, Medium, PhaseFunction, PointLight, SpotLight};
 
+pub use iss::{
+    iss_table_coords, iss_table_point, surface_inscatter, surface_inscatter_normalised,
+    surface_inscatter_scale, ISS_TABLE_TAU,
+};
 pub use occluder::{Cuboid, Occluder, Sphere, TriangleMesh};
 pub use phase::phase;
 pub use texture::{bilinear, texture_axes, TexturedSpot};
