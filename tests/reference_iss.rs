@@ -7,7 +7,8 @@ use std::f64::consts::{FRAC_PI_2, PI};
 
 use glam::{DVec3, Vec3};
 use volshadow::reference::{
-    inscatter_closed_form, surface_inscatter, surface_inscatter_normalised, surface_inscatter_scale,
+    inscatter_closed_form, iss_table_point, surface_inscatter, surface_inscatter_normalised,
+    surface_inscatter_scale,
 };
 use volshadow::{Medium, PhaseFunction, PointLight};
 
@@ -25,22 +26,16 @@ fn normal_at(l: DVec3, alpha: f64) -> DVec3 {
 }
 
 /// Brute force: midpoint rule in `(γ, φ)` about the direction to the light over the whole
-/// sphere, with `γ = π·u²` (cells graded towards the light's integrable 1/γ peak), the
-/// closed-form airlight along every direction, and `weight(ω·n)` (the cosine's positive part
-/// for the term itself; the broken variants pass other weights).
-fn brute(
-    p: DVec3,
-    n: DVec3,
-    medium: &Medium,
-    light: &PointLight,
-    cells: usize,
-    weight: impl Fn(f64) -> f64,
-) -> DVec3 {
+/// sphere, `cells × 2·cells`, with `γ = π·u²` (cells graded towards the light's integrable 1/γ
+/// peak) and the closed-form airlight along every direction. Returns the sums weighted by
+/// `(ω·n)₊` (the term itself) and by two broken variants' weights: `[ω·n > 0]` (the cosine
+/// dropped) and `|ω·n|` (the whole sphere).
+fn brute(p: DVec3, n: DVec3, medium: &Medium, light: &PointLight, cells: usize) -> [DVec3; 3] {
     let l = (light.position().as_dvec3() - p).normalize();
     let e1 = l.any_orthonormal_vector();
     let e2 = l.cross(e1);
     let (nu, nf) = (cells, 2 * cells);
-    let mut sum = DVec3::ZERO;
+    let mut sums = [DVec3::ZERO; 3];
     for i in 0..nu {
         let u = (i as f64 + 0.5) / nu as f64;
         let g = PI * u * u;
@@ -48,18 +43,19 @@ fn brute(
         for j in 0..nf {
             let f = (j as f64 + 0.5) / nf as f64 * 2.0 * PI;
             let w = l * g.cos() + (e1 * f.cos() + e2 * f.sin()) * g.sin();
-            let k = weight(w.dot(n));
-            if k != 0.0 {
-                sum += inscatter_closed_form(p, w, f64::INFINITY, medium, light) * (k * jac);
+            let c = w.dot(n);
+            let value = inscatter_closed_form(p, w, f64::INFINITY, medium, light) * jac;
+            let weights = [c.max(0.0), if c > 0.0 { 1.0 } else { 0.0 }, c.abs()];
+            for (sum, k) in sums.iter_mut().zip(weights) {
+                *sum += value * k;
             }
         }
     }
-    sum
+    sums
 }
 
-fn cosine(c: f64) -> f64 {
-    c.max(0.0)
-}
+/// The brute force's finer grid (its coarser one is half of it).
+const CELLS: usize = 240;
 
 struct Case {
     name: &'static str,
@@ -116,15 +112,18 @@ fn cases() -> Vec<Case> {
     ]
 }
 
-/// (a) and (d): the nested adaptive integral against the brute-force midpoint rule on 400 × 800
-/// cells (its own error, measured as the change from 200 × 400, is below 1e-4 relative in every
-/// case: the bound 1e-3 leaves a factor of ten); every value finite and non-negative. The same
-/// brute force without the cosine, or over the whole sphere with `|ω·n|`, misses by far more.
+/// (a) and (d): the nested adaptive integral against the brute-force midpoint rule on 240 × 480
+/// cells (its error is about a third of its change from 120 × 240, which must stay ≤ 5e-4
+/// relative: the bound 1e-3 leaves a factor of six); every value finite and non-negative.
+/// The same brute force without the cosine, or over the whole sphere with `|ω·n|`, must miss
+/// by more than that bound in at least one case each (they miss by 0.1–2 where the back
+/// hemisphere matters).
 #[test]
 fn a_hemisphere_integral_against_brute_force() {
     let p = DVec3::new(0.3, -1.2, 2.0);
     let dir = DVec3::new(0.2, 0.9, -0.4).normalize();
     let mut failures = Vec::new();
+    let mut caught = [false; 2];
     for c in cases() {
         let light =
             PointLight::new((p + dir * c.distance).as_vec3(), Vec3::new(5.0, 4.0, 3.0)).unwrap();
@@ -132,18 +131,10 @@ fn a_hemisphere_integral_against_brute_force() {
         let l = (light.position().as_dvec3() - p).normalize();
         let n = normal_at(l, c.alpha);
         let value = surface_inscatter(p, n, &c.medium, &light);
-        let coarse = brute(p, n, &c.medium, &light, 200, cosine);
-        let fine = brute(p, n, &c.medium, &light, 400, cosine);
+        let [coarse, no_cos, sphere] = brute(p, n, &c.medium, &light, CELLS / 2);
+        let [fine, ..] = brute(p, n, &c.medium, &light, CELLS);
         let rel = ((value - fine) / fine).abs().max_element();
         let own = ((fine - coarse) / fine).abs().max_element();
-        let no_cos = brute(p, n, &c.medium, &light, 200, |k| {
-            if k > 0.0 {
-                1.0
-            } else {
-                0.0
-            }
-        });
-        let sphere = brute(p, n, &c.medium, &light, 200, f64::abs);
         let miss = |b: DVec3| ((b - value) / value).abs().max_element();
         println!(
             "{}: {value:.6} brute {fine:.6} rel {rel:.1e} (brute's own change {own:.1e}); \
@@ -152,12 +143,16 @@ fn a_hemisphere_integral_against_brute_force() {
             miss(no_cos),
             miss(sphere)
         );
-        let ok = value.is_finite() && value.min_element() >= 0.0 && rel <= 1e-3 && own <= 1e-4;
-        let broken_caught = miss(no_cos) > 1e-2 && miss(sphere) > 1e-2;
-        if !ok || !broken_caught {
+        if !(value.is_finite() && value.min_element() >= 0.0 && rel <= 1e-3 && own <= 5e-4) {
             failures.push(c.name);
         }
+        caught[0] |= miss(no_cos) > 1e-3;
+        caught[1] |= miss(sphere) > 1e-3;
     }
+    assert!(
+        caught == [true, true],
+        "a broken variant passes every case: {caught:?}"
+    );
     assert!(failures.is_empty(), "failed: {failures:?}");
 }
 
@@ -240,113 +235,68 @@ fn c_isotropic_thin_medium_limit() {
     assert!(worst <= 1e-9 && world <= 1e-6, "{worst:e} {world:e}");
 }
 
-/// Table coordinates of a candidate parameterisation: `u` linear in `ln τ` over
-/// `[1e-3, 50]`; `v` either `α/π` (`warp = None`) or
-/// `½ − asinh(s·cos α)/(2·asinh s)` with `s = s0 + s1·τ` (samples gathered about `α = π/2`,
-/// where `G` falls over a width `~1/τ`).
-#[derive(Debug, Clone, Copy)]
-enum Axes {
-    Angle,
-    Warp(f64, f64),
-}
-
-const TAU_RANGE: (f64, f64) = (1e-3, 50.0);
-
-impl Axes {
-    fn point(self, u: f64, v: f64) -> (f64, f64) {
-        let (lo, hi) = (TAU_RANGE.0.ln(), TAU_RANGE.1.ln());
-        let tau = (lo + u * (hi - lo)).exp();
-        let alpha = match self {
-            Axes::Angle => v * PI,
-            Axes::Warp(s0, s1) => {
-                let s = s0 + s1 * tau;
-                let cos = ((1.0 - 2.0 * v) * s.asinh()).sinh() / s;
-                cos.clamp(-1.0, 1.0).acos()
-            }
-        };
-        (tau, alpha)
-    }
-}
-
-/// Max relative error of an f32 `nu × nv` table of `G` (nodes at `u = i/(nu − 1)`,
-/// `v = j/(nv − 1)`), bilinear in f32, at every cell centre and edge midpoint, over the
-/// points where `G` is above 1e-6 of its maximum; and the count of non-finite entries.
-fn table_error(nu: usize, nv: usize, axes: Axes, phase: &PhaseFunction) -> (f64, usize) {
-    let g = |u: f64, v: f64| {
-        let (tau, alpha) = axes.point(u, v);
-        surface_inscatter_normalised(tau, alpha, phase).x
-    };
-    let table: Vec<f32> = (0..nu * nv)
-        .map(|k| {
-            g(
-                (k % nu) as f64 / (nu - 1) as f64,
-                (k / nu) as f64 / (nv - 1) as f64,
-            ) as f32
-        })
-        .collect();
-    let bad = table.iter().filter(|t| !t.is_finite()).count();
-    let max = table.iter().fold(0.0f32, |m, &t| m.max(t)) as f64;
-    let lookup = |x: f32, y: f32| {
-        let (fx, fy) = (x * (nu - 1) as f32, y * (nv - 1) as f32);
-        let (i, j) = ((fx as usize).min(nu - 2), (fy as usize).min(nv - 2));
-        let (tx, ty) = (fx - i as f32, fy - j as f32);
-        let at = |a: usize, b: usize| table[b * nu + a];
-        let top = at(i, j) * (1.0 - tx) + at(i + 1, j) * tx;
-        let bottom = at(i, j + 1) * (1.0 - tx) + at(i + 1, j + 1) * tx;
-        top * (1.0 - ty) + bottom * ty
-    };
-    let mut worst = 0.0f64;
-    for i in 0..2 * nu - 1 {
-        for j in 0..2 * nv - 1 {
-            if i % 2 == 0 && j % 2 == 0 {
-                continue; // a node
-            }
-            let (u, v) = (
-                i as f64 / (2 * nu - 2) as f64,
-                j as f64 / (2 * nv - 2) as f64,
-            );
-            let exact = g(u, v);
-            if exact > 1e-6 * max {
-                let t = lookup(u as f32, v as f32) as f64;
-                worst = worst.max(if t.is_finite() {
-                    (t - exact).abs() / exact
-                } else {
-                    f64::INFINITY
-                });
-            }
-        }
-    }
-    (worst, bad)
-}
-
-/// The table-size study (run with `--ignored --nocapture`): prints the max relative error of
-/// each parameterisation and size for isotropic, HG 0.8 and Rayleigh.
+/// The table-size study (run with `--ignored --nocapture`; minutes). `G` is evaluated on a fine
+/// 65 × 65 grid of [`iss_table_coords`]; each coarser table (every `su`-th node in `τ`, every
+/// `sv`-th in `α`, stored in f32, bilinear in f32) is checked at every fine node it does not
+/// hold (cell centres and edge midpoints), over the values above 1e-6 of the maximum, storing
+/// `G` or `ln G`.
 #[test]
 #[ignore]
 fn table_size_study() {
-    let phases = [PhaseFunction::Isotropic, HG, PhaseFunction::Rayleigh];
-    let configs = [
-        (Axes::Angle, 64, 64),
-        (Axes::Angle, 128, 128),
-        (Axes::Warp(1e-6, 0.0), 64, 64),
-        (Axes::Warp(4.0, 1.0), 64, 64),
-        (Axes::Warp(8.0, 2.0), 64, 64),
-        (Axes::Warp(4.0, 1.0), 128, 64),
-        (Axes::Warp(4.0, 1.0), 64, 128),
-        (Axes::Warp(4.0, 1.0), 128, 128),
-    ];
-    for (axes, nu, nv) in configs {
+    const N: usize = 65;
+    for (name, phase) in [
+        ("isotropic", PhaseFunction::Isotropic),
+        ("HG 0.8", HG),
+        ("Rayleigh", PhaseFunction::Rayleigh),
+    ] {
         let t = std::time::Instant::now();
-        let errs: Vec<String> = phases
-            .iter()
-            .map(|p| {
-                let (e, bad) = table_error(nu, nv, axes, p);
-                format!("{e:.1e}{}", if bad > 0 { " NON-FINITE" } else { "" })
+        let fine: Vec<f64> = (0..N * N)
+            .map(|k| {
+                let (tau, alpha) = iss_table_point(
+                    (k % N) as f64 / (N - 1) as f64,
+                    (k / N) as f64 / (N - 1) as f64,
+                );
+                surface_inscatter_normalised(tau, alpha, &phase).x
             })
             .collect();
-        println!(
-            "{axes:?} {nu}×{nv} (τ × α): iso / HG 0.8 / Rayleigh max rel {errs:?} ({:.1?})",
-            t.elapsed()
-        );
+        let bad = fine.iter().filter(|g| !g.is_finite() || **g < 0.0).count();
+        let max = fine.iter().fold(0.0f64, |m, &g| m.max(g));
+        let mut line = format!("{name}: {bad} non-finite or negative; max G {max:.4}");
+        let mut where_ = (0, 0);
+        for log in [false, true] {
+            line += if log {
+                "\n  ln G stored:"
+            } else {
+                "\n  G stored:"
+            };
+            let stored = |g: f64| if log { g.ln() as f32 } else { g as f32 };
+            for (su, sv) in [(4, 4), (2, 4), (4, 2), (2, 2), (1, 2), (2, 1)] {
+                let (nu, nv) = ((N - 1) / su + 1, (N - 1) / sv + 1);
+                let table: Vec<f32> = (0..nu * nv)
+                    .map(|k| stored(fine[(k / nu) * sv * N + (k % nu) * su]))
+                    .collect();
+                let mut worst = 0.0f64;
+                for (k, &exact) in fine.iter().enumerate() {
+                    let (i, j) = (k % N, k / N);
+                    if (i % su == 0 && j % sv == 0) || exact <= 1e-6 * max {
+                        continue;
+                    }
+                    let (fx, fy) = ((i as f32) / su as f32, (j as f32) / sv as f32);
+                    let (a, b) = ((fx as usize).min(nu - 2), (fy as usize).min(nv - 2));
+                    let (tx, ty) = (fx - a as f32, fy - b as f32);
+                    let at = |x: usize, y: usize| table[y * nu + x];
+                    let top = at(a, b) * (1.0 - tx) + at(a + 1, b) * tx;
+                    let bottom = at(a, b + 1) * (1.0 - tx) + at(a + 1, b + 1) * tx;
+                    let mixed = top * (1.0 - ty) + bottom * ty;
+                    let value = if log { mixed.exp() } else { mixed } as f64;
+                    if (value - exact).abs() / exact > worst {
+                        worst = (value - exact).abs() / exact;
+                        where_ = (i, j);
+                    }
+                }
+                line += &format!(" {nu}×{nv}: {worst:.1e} at {where_:?};");
+            }
+        }
+        println!("{line} ({:.0?})", t.elapsed());
     }
 }

@@ -19,7 +19,7 @@
 //!
 //! Let `D = |L − P|` (light at `L`, intensity `I0`), `l = (L − P)/D`, `γ` the angle between
 //! `ω` and `l`, and `α` the angle between `n` and `l`. The closed form of
-//! [`inscatter_closed_form`](super::inscatter_closed_form) along the ray from `P` (distance of
+//! [`inscatter_closed_form`] along the ray from `P` (distance of
 //! the light from its line `h = D·sin γ`) is, with `ds = ∞`,
 //!
 //! ```text
@@ -51,7 +51,13 @@
 //! `G` is smooth in `log τ` and in `α` except along `α = π/2`, where the horizon passes
 //! through the peak towards the light: there `∂²G/∂α²` has a logarithmic singularity and, for
 //! large `τ`, `G` drops over a width of about `1/τ` in `α`. [`iss_table_coords`] maps
-//! `(τ, α)` to table coordinates that resolve it.
+//! `(τ, α)` to table coordinates that resolve it. Measured (`tests/reference_iss.rs`,
+//! `table_size_study`: f32 tables, f32 bilinear, checked at every cell centre and edge
+//! midpoint over `τ ∈ [1e-3, 50]`, `α ∈ [0, π]`), max relative error for isotropic / HG 0.8 /
+//! Rayleigh: storing `G`, 33 × 65 nodes (`τ × α`): 1.5e-2 / 1.3e-2 / 1.4e-2; storing `ln G`,
+//! 33 × 33: 3.2e-3 / 7.9e-3 / 8.0e-3, 65 × 33: 3.2e-3 / 7.6e-3 / 8.0e-3, 33 × 65: 3.1e-3 /
+//! 2.6e-3 / 2.8e-3. The error is dominated by the `α` axis at large `τ` and falls as the
+//! square of its spacing.
 //!
 //! # The reference
 //!
@@ -59,7 +65,7 @@
 //! adaptive Gauss–Kronrod quadrature, outer in `γ` (breakpoints where the visible arc changes
 //! shape and on a ladder `k/τ` near the light's direction), inner in `φ` over the visible arc
 //! `|φ| < φ₀`, evaluating the airlight along each world-space direction: the closed form for a
-//! point light, [`inscatter`](super::inscatter) with the cone (and texture) and no occluders
+//! point light, [`inscatter`] with the cone (and texture) and no occluders
 //! for a spot light, whose term is then limited to its cone.
 
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
@@ -83,6 +89,9 @@ const INNER_TOLERANCE: f64 = 1e-10;
 /// the radiance `L_iss`; see the [module docs](self)), from `light` (`&PointLight`,
 /// `&SpotLight`, `&Light` or `&TexturedSpot`), unshadowed, by nested adaptive quadrature over
 /// the hemisphere of `n` with the direction to the light on the pole.
+///
+/// Accuracy: within 1e-10 relative of `scale · G` (`tests/reference_iss.rs`: 2.5e-13 worst over
+/// random scenes) and 2e-13 from the same integral at ten times tighter tolerances.
 ///
 /// `n` need not be unit length. Returns zero for a zero or non-finite `n` or non-finite
 /// positions, and `+∞` in the channels with `σs·I0 > 0` when `p` is the light's position.
@@ -114,7 +123,13 @@ pub(crate) fn surface_inscatter_to(
         );
     };
     let (cos_a, sin_a) = (n.dot(axis), n.cross(axis).length());
-    let e1 = unit(n - axis * cos_a).unwrap_or_else(|| axis.any_orthonormal_vector());
+    // `e1`: `n`'s part across the axis, orthogonalised twice (with `n` nearly (anti)parallel
+    // to the axis, one pass leaves round-off along it); any normal when `sin α` is round-off.
+    let perp = n - axis * cos_a;
+    let e1 = match unit(perp - axis * perp.dot(axis)) {
+        Some(e1) if sin_a > 1e-12 => e1,
+        _ => axis.any_orthonormal_vector(),
+    };
     let e2 = axis.cross(e1);
     let point = match (source, light.texture()) {
         (Light::Point(point), None) => Some(point),

@@ -77,7 +77,7 @@
 
 mod bvh;
 mod cone;
-mod iss;
+pub mod iss;
 mod occluder;
 mod phase;
 pub(crate) mod quadrature;
