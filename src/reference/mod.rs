@@ -92,6 +92,7 @@
 mod bvh;
 mod cone;
 mod directional;
+pub mod iss;
 mod occluder;
 mod phase;
 pub(crate) mod quadrature;
@@ -108,6 +109,10 @@ use crate::scene::{Camera, Light, LightTexture, Medium, PhaseFunction, PointLigh
 pub use directional::{
     directional_lit_intervals, inscatter_directional, inscatter_directional_closed_form,
     inscatter_image_directional,
+};
+pub use iss::{
+    iss_table_coords, iss_table_point, surface_inscatter, surface_inscatter_normalised,
+    surface_inscatter_scale, ISS_TABLE_TAU,
 };
 pub use occluder::{Cuboid, Occluder, Sphere, TriangleMesh};
 pub use phase::phase;
