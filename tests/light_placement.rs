@@ -15,20 +15,33 @@ use volshadow::{Cache, Light, Medium, PhaseFunction, PointLight, SpotLight};
 const EXACT_P95: f64 = 0.005;
 const EXACT_RMSE: f64 = 0.005;
 
-#[test]
-fn a_wide_spot_cone_keeps_an_occluder_near_its_edge_in_the_shadow_map() {
-    let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+fn exact() -> MarchSettings {
+    MarchSettings {
+        method: MarchMethod::Exact,
+        ..MarchSettings::default()
+    }
+}
+
+/// Hazy air (HG 0.3) over a ground plane `y = 0` that casts no shadow.
+fn haze_over_ground() -> (Medium, MeshScene) {
     let medium = Medium::new(
         Vec3::new(0.25, 0.27, 0.30),
         Vec3::splat(0.03),
         PhaseFunction::HenyeyGreenstein { g: 0.3 },
     )
     .unwrap();
-    let mut scene = MeshScene {
+    let scene = MeshScene {
         ground: Some(0.0),
         ..Default::default()
     };
+    (medium, scene)
+}
+
+#[test]
+fn a_wide_spot_cone_keeps_an_occluder_near_its_edge_in_the_shadow_map() {
+    let gpu = common::gpu();
+    let cache = Cache::new(&gpu.device);
+    let (medium, mut scene) = haze_over_ground();
     // Seen from the light, 84° off the cone's axis and 0.3 units below the light: along the
     // axis its nearest point is 0.4 units *behind* the light's plane, its farthest 1.0 ahead.
     scene.add(shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.7, 48, 24).unwrap());
@@ -38,10 +51,7 @@ fn a_wide_spot_cone_keeps_an_occluder_near_its_edge_in_the_shadow_map() {
         60.0,
         1.0,
     );
-    let exact = MarchSettings {
-        method: MarchMethod::Exact,
-        ..MarchSettings::default()
-    };
+    let exact = exact();
     for cone_degrees in [165.0f32, 178.0] {
         let light: Light = SpotLight::new(
             Vec3::new(-3.0, 2.3, 0.0),
@@ -90,16 +100,7 @@ fn a_wide_spot_cone_keeps_an_occluder_near_its_edge_in_the_shadow_map() {
 fn a_light_a_millionth_above_a_sphere_keeps_its_shadow() {
     let gpu = common::gpu();
     let cache = Cache::new(&gpu.device);
-    let medium = Medium::new(
-        Vec3::new(0.25, 0.27, 0.30),
-        Vec3::splat(0.03),
-        PhaseFunction::HenyeyGreenstein { g: 0.3 },
-    )
-    .unwrap();
-    let mut scene = MeshScene {
-        ground: Some(0.0),
-        ..Default::default()
-    };
+    let (medium, mut scene) = haze_over_ground();
     scene.add(shapes::uv_sphere(Vec3::new(0.0, 1.0, 0.0), 1.0, 48, 24).unwrap());
     let camera = common::look_at(
         Vec3::new(0.0, 1.5, 6.0),
@@ -107,10 +108,7 @@ fn a_light_a_millionth_above_a_sphere_keeps_its_shadow() {
         60.0,
         1.0,
     );
-    let exact = MarchSettings {
-        method: MarchMethod::Exact,
-        ..MarchSettings::default()
-    };
+    let exact = exact();
     let p = Vec3::new(0.0, 2.0 + 1e-6, 0.0);
     let intensity = Vec3::new(30.0, 28.0, 25.0);
     let lights: [(&str, Light); 2] = [
@@ -154,16 +152,7 @@ fn a_light_a_millionth_above_a_sphere_keeps_its_shadow() {
 fn a_175_degree_view_clamps_the_glow_by_each_pixel_footprint() {
     let gpu = common::gpu();
     let cache = Cache::new(&gpu.device);
-    let medium = Medium::new(
-        Vec3::new(0.25, 0.27, 0.30),
-        Vec3::splat(0.03),
-        PhaseFunction::HenyeyGreenstein { g: 0.3 },
-    )
-    .unwrap();
-    let mut scene = MeshScene {
-        ground: Some(0.0),
-        ..Default::default()
-    };
+    let (medium, mut scene) = haze_over_ground();
     scene.add(shapes::uv_sphere(Vec3::new(2.0, 1.5, 3.0), 0.5, 48, 24).unwrap());
     let eye = Vec3::new(0.0, 1.5, 6.0);
     let camera = common::look_at(eye, Vec3::new(0.0, 1.5, 0.0), 175.0, 1.0);
@@ -173,10 +162,7 @@ fn a_175_degree_view_clamps_the_glow_by_each_pixel_footprint() {
     let light: Light = PointLight::new(light_pos, Vec3::new(30.0, 28.0, 25.0))
         .unwrap()
         .into();
-    let exact = MarchSettings {
-        method: MarchMethod::Exact,
-        ..MarchSettings::default()
-    };
+    let exact = exact();
     let shot = Shot::new(&scene, &camera, &light, &medium, 64);
     let reference = shot.reference();
     let m = shot.measure(&gpu, &cache, exact, &reference);

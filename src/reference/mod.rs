@@ -649,7 +649,7 @@ pub fn inscatter_image(
 
 /// `pixel(eye, dir)` for the ray of every pixel (see [`inscatter_image`]), rows shared among
 /// threads.
-fn render(
+pub(crate) fn render(
     camera: &Camera,
     width: u32,
     height: u32,

@@ -55,14 +55,12 @@
 //! [`SAMPLED_TOLERANCE`], at most [`SAMPLED_BISECTIONS`] bisections: `f` is then a step function
 //! in steps of `1/N²`).
 
-use std::sync::Mutex;
-
 use glam::DVec3;
 
 use super::cone::Cone;
 use super::quadrature::integrate;
 use super::texture::Projection;
-use super::{camera_ray, pixel_ndc, Integrand, LightSource, Occluder, RayLight, MAX_BISECTIONS};
+use super::{Integrand, LightSource, Occluder, RayLight, MAX_BISECTIONS};
 use crate::scene::{Camera, Light, Medium};
 
 /// Strata per side of the sampled light disc (`N`; `N²` directions).
@@ -460,24 +458,8 @@ pub fn inscatter_image_soft(
 ) -> Vec<DVec3> {
     let (texture, light) = (light.texture(), light.light());
     let bounds = bounds(occluders);
-    let w = width as usize;
-    let mut image = vec![DVec3::ZERO; w * height as usize];
-    let rows = Mutex::new(image.chunks_mut(w.max(1)).enumerate());
-    let work = || loop {
-        let next = rows.lock().map(|mut it| it.next()).unwrap_or(None);
-        let Some((py, row)) = next else { break };
-        for (px, out) in row.iter_mut().enumerate() {
-            let (eye, dir) = camera_ray(camera, pixel_ndc(width, height, px as u32, py as u32));
-            let ds = distance(eye, dir);
-            *out = soft_light(eye, dir, ds, medium, light, texture, occluders, &bounds);
-        }
-    };
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-    std::thread::scope(|scope| {
-        for _ in 1..threads {
-            scope.spawn(work);
-        }
-        work();
-    });
-    image
+    super::render(camera, width, height, |eye, dir| {
+        let ds = distance(eye, dir);
+        soft_light(eye, dir, ds, medium, light, texture, occluders, &bounds)
+    })
 }
