@@ -662,3 +662,41 @@ fn a_mesh_beyond_the_buffer_size_limit_is_a_typed_error() {
     );
     assert!(error.is_none(), "validation error: {error:?}");
 }
+
+/// A light with a radius is integrated by the reference only: the facade refuses it with a
+/// typed error naming the radius instead of drawing hard shadows (was `Ok`, hard shadows).
+#[test]
+fn a_light_with_a_radius_is_refused_until_soft_shadows_render() {
+    let rig = rig(16);
+    let medium = medium();
+    let soft = Light::from(
+        PointLight::new(Vec3::new(0.0, 3.0, 0.0), Vec3::splat(30.0))
+            .unwrap()
+            .with_radius(0.2)
+            .unwrap(),
+    );
+    let lights = [FrameLight::from(soft)];
+    let f = frame(&rig, &lights, &medium, &[]);
+    let mut vs =
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
+    let err = vs.prepare(&rig.gpu.device, &rig.gpu.queue, &f).err();
+    assert!(
+        matches!(
+            err,
+            Some(volshadow::Error::InvalidSetting {
+                field: "lights[].radius",
+                ..
+            })
+        ),
+        "{err:?}"
+    );
+    // Radius 0 is today's hard light and works.
+    let hard = [point(Vec3::new(0.0, 3.0, 0.0))];
+    assert!(vs
+        .prepare(
+            &rig.gpu.device,
+            &rig.gpu.queue,
+            &frame(&rig, &hard, &medium, &[])
+        )
+        .is_ok());
+}
