@@ -56,22 +56,7 @@ fn rig() -> Rig {
         })
         .collect();
     let depth = common::depth_texture(&gpu, SIZE, SIZE, &depths);
-    let tex = |format, usage| {
-        gpu.device.create_texture(&wgpu::TextureDescriptor {
-            label: None,
-            size: wgpu::Extent3d {
-                width: SIZE,
-                height: SIZE,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format,
-            usage,
-            view_formats: &[],
-        })
-    };
+    let tex = |format, usage| common::texture(&gpu, format, usage, (SIZE, SIZE, 1), 1);
     let color = tex(
         wgpu::TextureFormat::Rgba32Float,
         wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,

@@ -22,28 +22,7 @@ struct Rig {
     size: u32,
 }
 
-fn texture(
-    gpu: &HeadlessGpu,
-    format: wgpu::TextureFormat,
-    usage: wgpu::TextureUsages,
-    size: (u32, u32, u32),
-    mips: u32,
-) -> wgpu::Texture {
-    gpu.device.create_texture(&wgpu::TextureDescriptor {
-        label: None,
-        size: wgpu::Extent3d {
-            width: size.0,
-            height: size.1,
-            depth_or_array_layers: size.2,
-        },
-        mip_level_count: mips,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage,
-        view_formats: &[],
-    })
-}
+use common::texture;
 
 fn output(gpu: &HeadlessGpu, size: u32, mips: u32) -> wgpu::Texture {
     texture(

@@ -176,20 +176,13 @@ fn invalid_spot_and_texture_inputs_are_errors() {
         wgpu::TextureFormat::R32Uint,
         wgpu::TextureFormat::Rgba32Float,
     ] {
-        let t = gpu.device.create_texture(&wgpu::TextureDescriptor {
-            label: None,
-            size: wgpu::Extent3d {
-                width: 4,
-                height: 4,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
+        let t = common::texture(
+            &gpu,
             format,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        });
+            wgpu::TextureUsages::TEXTURE_BINDING,
+            (4, 4, 1),
+            1,
+        );
         let err = node.prepare(&gpu.device, &gpu.queue, &t).err();
         assert!(
             matches!(

@@ -256,22 +256,7 @@ fn bad_textures_are_typed_errors_not_validation_errors() {
     let camera = Camera::new(view(), projection()).unwrap();
     let light = volshadow::Light::from(PointLight::new(Vec3::Y, Vec3::ONE).unwrap());
     let medium = Medium::new(Vec3::splat(0.1), Vec3::ZERO, PhaseFunction::Isotropic).unwrap();
-    let tex = |format, usage, w, h| {
-        gpu.device.create_texture(&wgpu::TextureDescriptor {
-            label: None,
-            size: wgpu::Extent3d {
-                width: w,
-                height: h,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format,
-            usage,
-            view_formats: &[],
-        })
-    };
+    let tex = |format, usage, w, h| common::texture(&gpu, format, usage, (w, h, 1), 1);
     let sampled = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::RENDER_ATTACHMENT;
     let table = AirlightTableNode::new(&gpu.device, &cache, TableSize::default()).unwrap();
     let mut march = MarchNode::new(&gpu.device, &cache, MarchSettings::default()).unwrap();

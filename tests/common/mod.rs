@@ -38,6 +38,31 @@ pub fn pixel_ray(camera: &Camera, width: u32, height: u32, px: u32, py: u32) -> 
 
 /// A `Depth32Float` texture holding `values` (row-major, top row first), written by a
 /// fullscreen pass through `frag_depth` (buffer → depth copies are not in the core feature set).
+/// A 2D texture of `size.2` layers and `mips` mip levels, for tests that need a specific
+/// format, usage or shape.
+pub fn texture(
+    gpu: &HeadlessGpu,
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+    size: (u32, u32, u32),
+    mips: u32,
+) -> wgpu::Texture {
+    gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: None,
+        size: wgpu::Extent3d {
+            width: size.0,
+            height: size.1,
+            depth_or_array_layers: size.2,
+        },
+        mip_level_count: mips,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    })
+}
+
 pub fn depth_texture(gpu: &HeadlessGpu, width: u32, height: u32, values: &[f32]) -> wgpu::Texture {
     depth_texture_with_format(
         gpu,
@@ -62,16 +87,13 @@ pub fn depth_texture_with_format(
         height,
         depth_or_array_layers: 1,
     };
-    let source = device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("depth values"),
-        size,
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::R32Float,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
+    let source = texture(
+        gpu,
+        wgpu::TextureFormat::R32Float,
+        wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        (width, height, 1),
+        1,
+    );
     gpu.queue.write_texture(
         source.as_image_copy(),
         bytemuck::cast_slice(values),
@@ -82,16 +104,13 @@ pub fn depth_texture_with_format(
         },
         size,
     );
-    let depth = device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("test depth"),
-        size,
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
+    let depth = texture(
+        gpu,
         format,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::RENDER_ATTACHMENT,
-        view_formats: &[],
-    });
+        wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::RENDER_ATTACHMENT,
+        (width, height, 1),
+        1,
+    );
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("depth writer"),
         source: wgpu::ShaderSource::Wgsl(
