@@ -254,6 +254,19 @@ fn glb_two_instances_under_a_parent() {
     }
 }
 
+/// A `.glb` whose JSON chunk is followed by a chunk of unknown type (and no BIN chunk) loads:
+/// readers must ignore unknown chunks (glTF 2.0, GLB file format). Was `Malformed`.
+#[test]
+fn glb_with_an_unknown_chunk_after_the_json_loads() {
+    let doc = Doc::cube(&data_uri(&cube_bin(&cube_positions())));
+    let mut bytes = glb(&doc.json(), &[0u8; 8]);
+    let bin_type = bytes.len() - 8 - 4;
+    bytes[bin_type..bin_type + 4].copy_from_slice(b"XTRA");
+    let meshes = gltf::load_slice(&bytes).unwrap();
+    assert_eq!(meshes.len(), 1);
+    assert_cube(&meshes[0]);
+}
+
 #[test]
 fn data_uri_gltf() {
     let doc = Doc::cube(&data_uri(&cube_bin(&cube_positions())))

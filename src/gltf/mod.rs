@@ -254,16 +254,40 @@ fn read_glb(bytes: &[u8]) -> std::result::Result<gltf::Glb<'_>, Problem> {
             format!("binary glTF header gives a length of {length} bytes, less than itself"),
         ));
     }
-    gltf::Glb::from_slice(bytes.get(..length).unwrap_or(bytes)).map_err(|e| {
-        use gltf::binary::Error as B;
-        let kind = match &e {
-            gltf::Error::Binary(B::Version(_)) => ErrorKind::Unsupported,
-            gltf::Error::Binary(B::Io(_) | B::Length { .. } | B::ChunkLength { .. }) => {
-                ErrorKind::Truncated
+    let bytes = bytes.get(..length).unwrap_or(bytes);
+    gltf::Glb::from_slice(bytes)
+        .or_else(|e| match e {
+            // The spec asks readers to ignore chunks of unknown type; the crate rejects one
+            // straight after the JSON chunk (where a BIN chunk would be), so read the JSON alone.
+            gltf::Error::Binary(gltf::binary::Error::UnknownChunkType(_)) => {
+                json_only(bytes).ok_or(e)
             }
-            _ => ErrorKind::Malformed,
-        };
-        (kind, format!("binary glTF: {e}"))
+            e => Err(e),
+        })
+        .map_err(|e| {
+            use gltf::binary::Error as B;
+            let kind = match &e {
+                gltf::Error::Binary(B::Version(_)) => ErrorKind::Unsupported,
+                gltf::Error::Binary(B::Io(_) | B::Length { .. } | B::ChunkLength { .. }) => {
+                    ErrorKind::Truncated
+                }
+                _ => ErrorKind::Malformed,
+            };
+            (kind, format!("binary glTF: {e}"))
+        })
+}
+
+/// A `.glb` whose second chunk has an unknown type, as its JSON chunk alone (no BIN chunk).
+fn json_only(bytes: &[u8]) -> Option<gltf::Glb<'_>> {
+    let json_length = u32::from_le_bytes(bytes.get(12..16)?.try_into().ok()?) as usize;
+    Some(gltf::Glb {
+        header: gltf::binary::Header {
+            magic: *b"glTF",
+            version: 2,
+            length: bytes.len() as u32,
+        },
+        json: bytes.get(20..20usize.checked_add(json_length)?)?.into(),
+        bin: None,
     })
 }
 
