@@ -50,7 +50,9 @@ impl PointLight {
         })
     }
     /// The same light as a sphere of `radius` (world units; 0, the default, is a point and
-    /// gives hard shadows). See [Radius](Self#radius-soft-shadows).
+    /// gives hard shadows). See [Radius](Self#radius-soft-shadows). Only
+    /// [`crate::reference`] integrates soft shadows so far: `VolumetricShadows::prepare`
+    /// refuses a light with a radius (`Error::InvalidSetting` naming `lights[].radius`).
     ///
     /// # Errors
     ///
@@ -136,7 +138,8 @@ impl SpotLight {
         })
     }
     /// The same light as a sphere of `radius` (world units; 0, the default, is a point and
-    /// gives hard shadows). See [`PointLight`'s radius](PointLight#radius-soft-shadows).
+    /// gives hard shadows). See [`PointLight`'s radius](PointLight#radius-soft-shadows). As
+    /// for [`PointLight::with_radius`], only the reference renders it so far.
     ///
     /// # Errors
     ///
@@ -181,6 +184,9 @@ impl SpotLight {
 /// along a camera ray is `∫ V(x) · σs · p(cos θ) · E · exp(−σt·x) dx`, with the scattering angle
 /// `θ` the same at every point of the ray. A caller that wants a fog layer of extinction `σt`
 /// and thickness `T` between the light and the scene passes `E·exp(−σt·T)`.
+///
+/// So far only [`crate::reference`] integrates it (`inscatter_directional` and friends); it is
+/// not yet a [`Light`] the facade renders.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DirectionalLight {
     direction: Vec3,
