@@ -15,6 +15,10 @@ use volshadow::{Cache, Light, Medium, PhaseFunction, PointLight, SpotLight};
 const EXACT_P95: f64 = 0.005;
 const EXACT_RMSE: f64 = 0.005;
 
+/// The camera of every case: level with the spheres, looking along −z.
+const EYE: Vec3 = Vec3::new(0.0, 1.5, 6.0);
+const TARGET: Vec3 = Vec3::new(0.0, 1.5, 0.0);
+
 fn exact() -> MarchSettings {
     MarchSettings {
         method: MarchMethod::Exact,
@@ -45,12 +49,7 @@ fn a_wide_spot_cone_keeps_an_occluder_near_its_edge_in_the_shadow_map() {
     // Seen from the light, 84° off the cone's axis and 0.3 units below the light: along the
     // axis its nearest point is 0.4 units *behind* the light's plane, its farthest 1.0 ahead.
     scene.add(shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.7, 48, 24).unwrap());
-    let camera = common::look_at(
-        Vec3::new(0.0, 1.5, 6.0),
-        Vec3::new(0.0, 1.5, 0.0),
-        60.0,
-        1.0,
-    );
+    let camera = common::look_at(EYE, TARGET, 60.0, 1.0);
     let exact = exact();
     for cone_degrees in [165.0f32, 178.0] {
         let light: Light = SpotLight::new(
@@ -102,12 +101,7 @@ fn a_light_a_millionth_above_a_sphere_keeps_its_shadow() {
     let cache = Cache::new(&gpu.device);
     let (medium, mut scene) = haze_over_ground();
     scene.add(shapes::uv_sphere(Vec3::new(0.0, 1.0, 0.0), 1.0, 48, 24).unwrap());
-    let camera = common::look_at(
-        Vec3::new(0.0, 1.5, 6.0),
-        Vec3::new(0.0, 1.5, 0.0),
-        60.0,
-        1.0,
-    );
+    let camera = common::look_at(EYE, TARGET, 60.0, 1.0);
     let exact = exact();
     let p = Vec3::new(0.0, 2.0 + 1e-6, 0.0);
     let intensity = Vec3::new(30.0, 28.0, 25.0);
@@ -154,11 +148,10 @@ fn a_175_degree_view_clamps_the_glow_by_each_pixel_footprint() {
     let cache = Cache::new(&gpu.device);
     let (medium, mut scene) = haze_over_ground();
     scene.add(shapes::uv_sphere(Vec3::new(2.0, 1.5, 3.0), 0.5, 48, 24).unwrap());
-    let eye = Vec3::new(0.0, 1.5, 6.0);
-    let camera = common::look_at(eye, Vec3::new(0.0, 1.5, 0.0), 175.0, 1.0);
+    let camera = common::look_at(EYE, TARGET, 175.0, 1.0);
     // 70° to the right of the view axis, level with the eye.
     let off_axis = 70f32.to_radians();
-    let light_pos = eye + 3.0 * Vec3::new(off_axis.sin(), 0.0, -off_axis.cos());
+    let light_pos = EYE + 3.0 * Vec3::new(off_axis.sin(), 0.0, -off_axis.cos());
     let light: Light = PointLight::new(light_pos, Vec3::new(30.0, 28.0, 25.0))
         .unwrap()
         .into();
