@@ -28,12 +28,13 @@ struct VolumeVertex {
 // Mirrors `ExtrudeUniform` in src/nodes/extents.rs.
 struct Extrude {
     world_from_object: mat4x4<f32>,
-    light: vec3<f32>,        // light position
+    light: vec3<f32>,        // light position (directional: its direction of travel)
     mirror: f32,             // −1 if the transform mirrors (flips the winding), else 1
     edges: u32,
     triangles: u32,
     closed: u32,             // 1 if the mesh is closed
     capacity: u32,           // volume vertices the buffer holds
+    directional: u32,        // 1: a directional light, volumes extruded along `light`
 }
 
 @group(0) @binding(0) var<storage, read> ex: Extrude;
@@ -61,7 +62,15 @@ fn faces_light(face: u32) -> bool {
     let b = world(indices[3u * face + 1u]);
     let c = world(indices[3u * face + 2u]);
     let n = cross(b - a, c - a) * ex.mirror;
-    return dot(n, ex.light - a) > 0.0;
+    return dot(n, towards_light(a)) > 0.0;
+}
+
+// From a point towards the light.
+fn towards_light(a: vec3<f32>) -> vec3<f32> {
+    if (ex.directional == 1u) {
+        return -ex.light;
+    }
+    return ex.light - a;
 }
 
 fn emit(vertices: array<vec4<f32>, 6>, count: u32) {
@@ -77,6 +86,11 @@ fn emit(vertices: array<vec4<f32>, 6>, count: u32) {
 }
 
 fn at_infinity(p: vec3<f32>) -> vec4<f32> {
+    if (ex.directional == 1u) {
+        // Every point goes to the same point at infinity: the volume is a prism along the
+        // light's direction, and its cap at infinity is that point (nothing to draw).
+        return vec4<f32>(ex.light, 0.0);
+    }
     return vec4<f32>(p - ex.light, 0.0);
 }
 
@@ -120,11 +134,11 @@ fn extrude(@builtin(global_invocation_id) gid: vec3<u32>) {
             b = t;
         }
         let zero = vec4<f32>(0.0);
-        let lit = dot(cross(b - a, c - a), ex.light - a) > 0.0;
+        let lit = dot(cross(b - a, c - a), towards_light(a)) > 0.0;
         if (lit || ex.closed != 1u) {
             emit(array<vec4<f32>, 6>(vec4<f32>(a, 1.0), vec4<f32>(b, 1.0), vec4<f32>(c, 1.0), zero, zero, zero), 3u);
         }
-        if (!lit || ex.closed != 1u) {
+        if ((!lit || ex.closed != 1u) && ex.directional != 1u) {
             emit(array<vec4<f32>, 6>(at_infinity(a), at_infinity(b), at_infinity(c), zero, zero, zero), 3u);
         }
     }

@@ -70,6 +70,9 @@ struct MarchParams {
 // eye–point–light triangle: x = D sin δ / sin β, δ = s w, β = (1 − s) w). sin β is taken as
 // sin(γ + δ) when β is near π, where it is small and f32 would lose it.
 fn x_of_s(r: AirRay, s: f32) -> f32 {
+    if (DIRECTIONAL) {
+        return directional_x(air, s);
+    }
     let sc = min(s, 1.0 - 1.0e-6);
     let beta = (1.0 - sc) * r.w;
     // sin β = sin(γ + δ): the same angle's supplement, taken where it is the smaller one.
@@ -81,7 +84,7 @@ fn x_of_s(r: AirRay, s: f32) -> f32 {
 fn visibility(p: vec3<f32>) -> f32 {
     let rel = p - air.light_pos;
     var face = 0u;
-    if (!SPOT) {
+    if (!SPOT && !DIRECTIONAL) {
         let m = abs(rel);
         if (m.x >= m.y && m.x >= m.z) {
             face = select(1u, 0u, rel.x > 0.0);
@@ -102,7 +105,12 @@ fn visibility(p: vec3<f32>) -> f32 {
     let uv = vec2<f32>(0.5 + 0.5 * ndc.x, 0.5 - 0.5 * ndc.y);
     // Reversed Z: depth = near / distance; nearer than the occluder ⇔ larger depth. The bias
     // is relative, so it means the same at every scene scale.
-    let reference = ndc.z / (1.0 - mp.depth_bias);
+    var z = ndc.z;
+    if (DIRECTIONAL) {
+        // Orthographic: beyond the far plane (z < 0) is behind every occluder in the map.
+        z = max(z, 0.0);
+    }
+    let reference = z / (1.0 - mp.depth_bias);
     return textureSampleCompareLevel(shadow_map, shadow_sampler, uv, i32(face), reference);
 }
 
@@ -273,6 +281,9 @@ struct Textbook {
 }
 
 fn march_textbook(ray: PixelRay, r: AirRay, x_end: f32, n: u32) -> Textbook {
+    if (DIRECTIONAL) {
+        return march_textbook_directional(ray, r, x_end, n);
+    }
     var out: Textbook;
     out.lit = vec3<f32>(0.0);
     out.open = vec3<f32>(0.0);
@@ -308,6 +319,24 @@ fn march_textbook(ray: PixelRay, r: AirRay, x_end: f32, n: u32) -> Textbook {
             out.open += f;
             out.lit += f * visibility(p);
         }
+    }
+    return out;
+}
+
+// The same for a directional light: σs·p(θ)·E·V·e^{−σt x} (θ constant along the ray), up to
+// the surface, to transmittance 1e-4, or (a clear medium's sky) 100 L.
+fn march_textbook_directional(ray: PixelRay, r: AirRay, x_end: f32, n: u32) -> Textbook {
+    var out: Textbook;
+    out.lit = vec3<f32>(0.0);
+    out.open = vec3<f32>(0.0);
+    let sigma_min = min(air.sigma_t.x, min(air.sigma_t.y, air.sigma_t.z));
+    let x_cap = min(x_end, select(100.0 * air.distance, TEXTBOOK_DEPTH / sigma_min, sigma_min > 0.0));
+    let dx = x_cap / f32(n);
+    for (var k = 0u; k < n; k++) {
+        let x = (f32(k) + 0.5) * dx;
+        let f = r.prefactor * exp(-air.sigma_t * x) * dx;
+        out.open += f;
+        out.lit += f * visibility(air.eye + x * ray.dir);
     }
     return out;
 }

@@ -5,6 +5,10 @@
 // start away from the eye) rather than a point light (support from the eye, where T = 0).
 // Set per pipeline so that a point light's pixels do not pay for the cone.
 override SPOT: bool = false;
+// Pipeline constant: the light is directional (parallel rays along a direction of travel d).
+// Then `Airlight` holds d in `light_pos`, the irradiance E in `intensity`, and in `distance`
+// the length L of the ray parameter s = x / (x + L); no F′ table is read: T is in closed form.
+override DIRECTIONAL: bool = false;
 
 const PI: f32 = 3.14159265358979;
 const INV_4PI: f32 = 0.0795774715459477;
@@ -70,6 +74,9 @@ struct AirRay {
 }
 
 fn air_ray(a: Airlight, ray: PixelRay) -> AirRay {
+    if (DIRECTIONAL) {
+        return air_ray_directional(a, ray);
+    }
     let dir = ray.dir;
     let to_light = a.light_pos - a.eye;
     let d = a.distance;
@@ -94,6 +101,59 @@ fn air_ray(a: Airlight, ray: PixelRay) -> AirRay {
     // I0 · exp(−σt D) may still be a visible radiance. log(0) = −inf gives exp = 0, no NaN.
     r.prefactor = exp(log(a.intensity) + log(a.sigma_s) - a.sigma_t * d) * (ratio / d);
     return r;
+}
+
+// A directional light's ray: the scattering angle θ is the same at every point, so the
+// prefactor is σs·p(cos θ)·E and T(x) = ∫₀ˣ e^{−σt x'} dx' (see `directional_t`). With d the
+// direction of travel, cos θ = −v·d; 1 ∓ cos θ = |v ± d|²/2 keep their relative precision.
+fn air_ray_directional(a: Airlight, ray: PixelRay) -> AirRay {
+    let v = ray.dir;
+    let d = a.light_pos;
+    var r: AirRay;
+    r.gamma = 0.0;
+    r.w = 1.0;
+    r.sin_half_gamma = 0.0;
+    r.c = 0.0;
+    r.dotv = 0.0;
+    let one_minus_mu = 0.5 * dot(v + d, v + d);
+    let one_plus_mu = 0.5 * dot(v - d, v - d);
+    r.prefactor = a.sigma_s * phase(a, one_minus_mu, one_plus_mu) * a.intensity;
+    return r;
+}
+
+// (1 − e^{−z}) / z for z ≥ 0 per channel, to f32 precision: its alternating Taylor series below
+// z = 1 (no cancellation, and exactly 1 at z = 0), the direct form above.
+fn one_minus_exp_ratio(z: vec3<f32>) -> vec3<f32> {
+    var f = vec3<f32>(1.0);
+    for (var k = 11.0; k >= 2.0; k -= 1.0) {
+        f = 1.0 - z / k * f;
+    }
+    return select(f, (1.0 - exp(-z)) / max(z, vec3<f32>(1.0e-30)), z >= vec3<f32>(1.0));
+}
+
+// A directional light's T(x) = ∫₀ˣ e^{−σt x'} dx' = (1 − e^{−σt x}) / σt per channel: x at
+// σt = 0, 1/σt at x = ∞ (x = FAR), finite for any σt·x (σt·FAR may overflow to ∞: then 1/σt).
+fn directional_t(a: Airlight, x: f32) -> vec3<f32> {
+    let z = a.sigma_t * x;
+    let small = x * one_minus_exp_ratio(min(z, vec3<f32>(1.0)));
+    let large = (1.0 - exp(-z)) / max(a.sigma_t, vec3<f32>(1.0e-38));
+    return select(small, large, z >= vec3<f32>(1.0));
+}
+
+// A directional light's ray parameter: s = x / (x + L) maps [0, ∞] onto [0, 1] (the sky is
+// s = 1), and its inverse.
+fn directional_s(a: Airlight, x: f32) -> f32 {
+    if (x >= FAR) {
+        return 1.0;
+    }
+    return x / (x + a.distance);
+}
+
+fn directional_x(a: Airlight, s: f32) -> f32 {
+    if (s >= 1.0) {
+        return FAR;
+    }
+    return min(a.distance * s / (1.0 - s), FAR);
 }
 
 // The bounded integrand of form (2) in the normalised scattering angle s = (2ξ − γ)/(π − γ):
@@ -141,6 +201,9 @@ fn table_row_mix(table: texture_2d<f32>, a: Airlight, gamma: f32, j: u32) -> vec
 // would be wrong exactly where the image is brightest (steep rise near the light, optically
 // deep media); the partial cell costs three integrand evaluations and removes that error.
 fn table_t(table: texture_2d<f32>, a: Airlight, r: AirRay, s: f32) -> vec3<f32> {
+    if (DIRECTIONAL) {
+        return directional_t(a, directional_x(a, s));
+    }
     let n = a.table_along;
     let ts = s * f32(n - 1u);
     let j = min(u32(ts), n - 1u);
@@ -232,6 +295,9 @@ fn cone_support(air: Airlight, spot: vec4<f32>, dir: vec3<f32>, x_end: f32) -> S
 }
 
 fn s_of_x(a: Airlight, r: AirRay, x: f32) -> f32 {
+    if (DIRECTIONAL) {
+        return directional_s(a, x);
+    }
     if (x >= FAR) {
         return 1.0;
     }

@@ -352,6 +352,7 @@ impl VolumetricShadows {
             facts.lights.push(LightFacts {
                 textured: fl.texture.is_some(),
                 occluders: light_kept.len(),
+                directional: matches!(fl.light, Light::Directional(_)),
             });
             kept.push(light_kept);
         }
@@ -368,7 +369,12 @@ impl VolumetricShadows {
                 },
                 Pass::ShadowMap => {
                     let inputs = ShadowMapInputs { light, occluders };
-                    slot.shadow.prepare(device, queue, &inputs)?
+                    match light {
+                        Light::Directional(_) => slot
+                            .shadow
+                            .prepare_directional(device, queue, &inputs, camera)?,
+                        _ => slot.shadow.prepare(device, queue, &inputs)?,
+                    }
                 }
                 Pass::Extents => slot.extents.prepare(
                     device,

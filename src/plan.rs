@@ -69,6 +69,9 @@ pub enum Reason {
     /// Under an error target a textured spot's scattering runs at full resolution: its
     /// projected texture's detail does not survive reduced-resolution scattering.
     TexturedUnderErrorTarget,
+    /// A directional light's airlight is in closed form (the scattering angle is the same
+    /// along a ray): no F′ table is built.
+    ClosedFormAirlight,
 }
 
 impl fmt::Display for Reason {
@@ -83,6 +86,7 @@ impl fmt::Display for Reason {
             Reason::TexturedUnderErrorTarget => {
                 "error target: a textured spot scatters at full resolution"
             }
+            Reason::ClosedFormAirlight => "directional light: the airlight is in closed form",
         })
     }
 }
@@ -215,6 +219,8 @@ pub(crate) struct LightFacts {
     pub textured: bool,
     /// Occluders left after culling.
     pub occluders: usize,
+    /// A directional light (no F′ table).
+    pub directional: bool,
 }
 
 /// What the planner knows about the frame.
@@ -314,7 +320,11 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
                 skip(Pass::Extents, light, Reason::BruteForce);
             }
         }
-        run(Pass::AirlightTable, light, "rebuilt".into());
+        if l.directional {
+            skip(Pass::AirlightTable, light, Reason::ClosedFormAirlight);
+        } else {
+            run(Pass::AirlightTable, light, "rebuilt".into());
+        }
         let method = match (shadowed, facts.method) {
             (false, _) => "analytic".to_string(),
             (true, MarchMethod::Hybrid) => format!("hybrid, {} steps", facts.steps),
@@ -362,7 +372,9 @@ pub(crate) fn occluder_bound(
     if !matches!(light, crate::scene::Light::Point(_)) {
         return f64::INFINITY;
     }
-    let p = light.position();
+    let Some(p) = light.position() else {
+        return f64::INFINITY;
+    };
     let r = f64::from(p.clamp(bounds.0, bounds.1).distance(p));
     let e = f64::from(eye.clamp(bounds.0, bounds.1).distance(eye));
     let d = f64::from(p.distance(eye));

@@ -59,10 +59,12 @@ fn look_at(eye: Vec3, target: Vec3, fov: f32) -> Camera {
 }
 
 fn eye_in_shadow(scene: &MeshScene, camera: &Camera, light: &Light) -> bool {
-    scene
-        .reference_occluders()
-        .iter()
-        .any(|o| o.segment_blocked(camera.eye().as_dvec3(), light.position().as_dvec3()))
+    scene.reference_occluders().iter().any(|o| {
+        o.segment_blocked(
+            camera.eye().as_dvec3(),
+            light.position().unwrap().as_dvec3(),
+        )
+    })
 }
 
 /// Renders `shot` with the exact method, the hybrid and without occluders, prints the three
@@ -171,7 +173,10 @@ fn b_eye_inside_two_overlapping_volumes() {
     let light = point_light(Vec3::new(0.1, 6.0, 0.0));
     let camera = look_at(Vec3::new(0.1, 1.0, 0.0), Vec3::new(3.0, 0.7, 2.0), 70.0);
     let occ = scene.reference_occluders();
-    let (e, l) = (camera.eye().as_dvec3(), light.position().as_dvec3());
+    let (e, l) = (
+        camera.eye().as_dvec3(),
+        light.position().unwrap().as_dvec3(),
+    );
     assert!(
         occ[0].segment_blocked(e, l)
             && occ[1].segment_blocked(e, l)
@@ -206,7 +211,7 @@ fn c_thick_fog_light_behind_eye_in_shadow_near_the_edge() {
     .unwrap();
     let camera = look_at(Vec3::new(-0.05, 1.0, 0.0), Vec3::new(0.6, 0.8, -5.0), 60.0);
     let optical_depth = f64::from(medium.sigma_t().min_element())
-        * f64::from(light.position().distance(camera.eye()));
+        * f64::from(light.position().unwrap().distance(camera.eye()));
     assert!(
         optical_depth >= STIFF_OPTICAL_DEPTH,
         "σt·D = {optical_depth}"

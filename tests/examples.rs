@@ -147,7 +147,7 @@ fn light_pixels(scene: &Path) -> Vec<usize> {
         .lights
         .iter()
         .filter_map(|l| {
-            let clip = clip_from_world * l.light.position().extend(1.0);
+            let clip = clip_from_world * l.light.position()?.extend(1.0);
             let (x, y) = (clip.x / clip.w, clip.y / clip.w);
             let px = ((x + 1.0) * 0.5 * SIZE as f32).floor();
             let py = ((1.0 - y) * 0.5 * SIZE as f32).floor();

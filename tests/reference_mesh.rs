@@ -652,7 +652,7 @@ fn spring_image_timing() {
         panic!("the spring is a mesh");
     };
     let tris: Vec<[DVec3; 3]> = mesh.triangle_vertices().collect();
-    let p = light.position().as_dvec3();
+    let p = light.position().unwrap().as_dvec3();
     let rays: Vec<_> = (0..h)
         .step_by(8)
         .flat_map(|y| (0..w).step_by(8).map(move |x| (x, y)))

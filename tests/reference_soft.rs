@@ -363,7 +363,7 @@ fn midpoint(
     m: usize,
 ) -> DVec3 {
     let v = dir.normalize();
-    let p = light.position().as_dvec3();
+    let p = light.position().unwrap().as_dvec3();
     let r = f64::from(light.radius());
     let (ss, st) = (medium.sigma_s().as_dvec3(), medium.sigma_t().as_dvec3());
     let i0 = light.intensity().as_dvec3();

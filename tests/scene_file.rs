@@ -158,7 +158,7 @@ fn stiff_fog_optical_depth() {
     let d = scene
         .camera
         .eye()
-        .distance(scene.lights[0].light.position());
+        .distance(scene.lights[0].light.position().unwrap());
     let sigma_t = scene.medium.sigma_t();
     for c in 0..3 {
         let tau = sigma_t[c] * d;
@@ -207,7 +207,7 @@ fn round_trip_values() {
     assert!((p.y_axis.y / p.x_axis.x - 1.6).abs() < 1e-5);
 
     assert_eq!(s.lights.len(), 2);
-    assert_eq!(s.lights[0].light.position(), Vec3::new(0.0, 5.0, 1.0));
+    assert_eq!(s.lights[0].light.position(), Some(Vec3::new(0.0, 5.0, 1.0)));
     assert_eq!(s.lights[0].light.intensity(), Vec3::new(10.0, 20.0, 30.0));
     assert!(s.lights[0].texture.is_none());
     match s.lights[1].light {

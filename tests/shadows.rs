@@ -155,7 +155,7 @@ fn render_upsampled(
                 o,
                 d,
                 scene.distance(o, d),
-                light.position().as_dvec3(),
+                light.position().unwrap().as_dvec3(),
                 &ref_occ,
             )
             .len()
@@ -213,7 +213,7 @@ fn render_upsampled(
 fn near_light(camera: &Camera, light: &Light, i: usize) -> bool {
     let (o, d) = common::pixel_ray(camera, SIZE, SIZE, i as u32 % SIZE, i as u32 / SIZE);
     let pixel_angle = 2.0 * f64::from(camera.pixel_angular_radius(SIZE));
-    d.angle_between(light.position().as_dvec3() - o) < 1.5 * pixel_angle
+    d.angle_between(light.position().unwrap().as_dvec3() - o) < 1.5 * pixel_angle
 }
 
 fn look_at(eye: Vec3, target: Vec3) -> Camera {
@@ -510,8 +510,10 @@ fn eye_inside_the_shadow_volume() {
     let scene = sphere_scene();
     let light = point_light(Vec3::new(0.4, 4.2, -0.3));
     let camera = look_at(Vec3::new(0.05, 0.9, 0.1), Vec3::new(2.0, 0.6, 3.0));
-    let eye_in_shadow = scene.reference_occluders()[0]
-        .segment_blocked(camera.eye().as_dvec3(), light.position().as_dvec3());
+    let eye_in_shadow = scene.reference_occluders()[0].segment_blocked(
+        camera.eye().as_dvec3(),
+        light.position().unwrap().as_dvec3(),
+    );
     assert!(eye_in_shadow, "the eye must be inside the shadow volume");
     check_no_missing_shadow("eye inside", &camera, &light, &scene);
 }

@@ -95,7 +95,10 @@ pub fn default_ambient(camera: &Camera, lights: &[DrawLight], medium: &Medium) -
     lights
         .iter()
         .map(|l| {
-            let d = l.light.position().distance(camera.eye()).max(1e-6);
+            let Some(p) = l.light.position() else {
+                return l.light.intensity(); // a directional light's irradiance
+            };
+            let d = p.distance(camera.eye()).max(1e-6);
             l.light.intensity() * (-medium.sigma_t() * d).exp() / (d * d)
         })
         .sum::<Vec3>()
@@ -182,8 +185,15 @@ pub fn draw_app_frame(
                 frame: spot.texture_frame().to_cols_array(),
                 params: [(0.5 * spot.cone_angle()).tan(), 0.0, 0.0, 0.0],
             },
+            Light::Directional(sun) => LightUniform {
+                position: (-sun.direction()).extend(2.0).to_array(),
+                intensity: sun.irradiance().extend(0.0).to_array(),
+                direction: [0.0, -1.0, 0.0, -1.0],
+                frame: Mat4::IDENTITY.to_cols_array(),
+                params: [1.0, 0.0, 0.0, 0.0],
+            },
             other => LightUniform {
-                position: other.position().extend(0.0).to_array(),
+                position: other.position().unwrap_or_default().extend(0.0).to_array(),
                 intensity: other.intensity().extend(0.0).to_array(),
                 direction: [0.0, -1.0, 0.0, -1.0],
                 frame: Mat4::IDENTITY.to_cols_array(),

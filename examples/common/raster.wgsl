@@ -50,7 +50,9 @@ fn light_texel(i: u32, uv: vec2<f32>) -> vec3<f32> {
     var irradiance = vec3<f32>(0.0);
     for (var i = 0u; i < scene.light_count.x; i++) {
         let light = scene.lights[i];
-        let to_light = light.position.xyz - in.world;
+        var to_light = light.position.xyz - in.world;
+        let directional = light.position.w > 1.5; // xyz: unit, towards the light
+        if (directional) { to_light = light.position.xyz; }
         let d = max(length(to_light), 1e-6);
         let l = to_light / d;
         var emitted = light.intensity.rgb;
@@ -62,7 +64,9 @@ fn light_texel(i: u32, uv: vec2<f32>) -> vec3<f32> {
                 emitted *= light_texel(i, vec2<f32>(0.5 + v.x * s, 0.5 - v.y * s));
             }
         }
-        irradiance += emitted * max(dot(n, l), 0.0) / (d * d) * exp(-scene.sigma_t.xyz * d);
+        var falloff = exp(-scene.sigma_t.xyz * d) / (d * d);
+        if (directional) { falloff = vec3<f32>(1.0); } // E arrives in the medium
+        irradiance += emitted * max(dot(n, l), 0.0) * falloff;
     }
     let radiance = in.albedo / 3.14159265 * irradiance + in.albedo * scene.ambient.xyz;
     return vec4<f32>(radiance, 1.0);

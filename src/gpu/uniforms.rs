@@ -48,6 +48,18 @@ fn phase_lobes(phase: PhaseFunction) -> ([Vec3; 5], f32) {
 /// airlight is infinite and the ray's angle to the light undefined.
 const MIN_EYE_LIGHT_DISTANCE: f32 = 1e-6;
 
+/// The length `L` of a directional light's ray parameter `s = x / (x + L)`: one extinction
+/// length of the densest channel (steps uniform in `s` then follow the attenuation), 1 in a
+/// clear medium.
+pub(crate) fn directional_length(medium: &Medium) -> f32 {
+    let sigma = medium.sigma_t().max_element();
+    if sigma > 0.0 && (1.0 / sigma).is_finite() {
+        1.0 / sigma
+    } else {
+        1.0
+    }
+}
+
 impl AirlightUniform {
     pub fn new(
         eye: Vec3,
@@ -56,12 +68,19 @@ impl AirlightUniform {
         pixel_angular_radius: f32,
         table: crate::nodes::TableSize,
     ) -> Self {
-        let mut light_pos = light.position();
-        let min_d = MIN_EYE_LIGHT_DISTANCE * eye.abs().max_element().max(1.0);
-        if light_pos.distance(eye) < min_d {
-            light_pos = eye + Vec3::Y * min_d;
-        }
-        let d = light_pos.distance(eye);
+        let (light_pos, d) = match light {
+            // A directional light: its direction of travel, and the length of the ray
+            // parameter s = x / (x + L) (see `shaders/prelude.wgsl`).
+            Light::Directional(l) => (l.direction(), directional_length(medium)),
+            _ => {
+                let mut light_pos = light.position().unwrap_or(eye);
+                let min_d = MIN_EYE_LIGHT_DISTANCE * eye.abs().max_element().max(1.0);
+                if light_pos.distance(eye) < min_d {
+                    light_pos = eye + Vec3::Y * min_d;
+                }
+                (light_pos, light_pos.distance(eye))
+            }
+        };
         let (lobes, g) = phase_lobes(medium.phase());
         let rgb = |v: Vec3| v.extend(0.0).to_array();
         Self {

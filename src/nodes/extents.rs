@@ -157,6 +157,9 @@ struct ExtrudeUniform {
     triangles: u32,
     closed: u32,
     capacity: u32,
+    /// 1: `light` is a directional light's direction of travel.
+    directional: u32,
+    _pad: [u32; 3],
 }
 
 #[repr(C)]
@@ -334,7 +337,18 @@ impl ExtentsNode {
 
         // The camera's projection with its depth row replaced: depth = near / view depth
         // (reversed Z, infinite), keeping x and y (and any jitter or asymmetry) as they are.
-        let eye_light = light.position().distance(camera.eye()).max(1e-20);
+        let eye_light = match light.position() {
+            Some(p) => p.distance(camera.eye()),
+            // A directional light: the scene's size seen from the eye instead.
+            None => occluders
+                .iter()
+                .map(|o| {
+                    let (lo, hi) = o.world_bounds();
+                    (camera.eye() - 0.5 * (lo + hi)).length() + 0.5 * (hi - lo).length()
+                })
+                .fold(0.0, f32::max),
+        }
+        .max(1e-20);
         self.near = EXTENTS_NEAR * eye_light;
         let mut proj = camera.projection();
         let w_row = proj.row(3);
@@ -389,12 +403,18 @@ impl ExtentsNode {
         for (i, o) in occluders.iter().enumerate() {
             let uniform = ExtrudeUniform {
                 world_from_object: o.transform.to_cols_array(),
-                light: light.position().to_array(),
+                light: match light {
+                    Light::Directional(l) => l.direction(),
+                    _ => light.position().unwrap_or_default(),
+                }
+                .to_array(),
                 mirror: o.transform.determinant().signum(),
                 edges: o.mesh.edge_count,
                 triangles: o.mesh.triangle_count,
                 closed: u32::from(o.mesh.is_closed()),
                 capacity: capacity as u32,
+                directional: u32::from(matches!(light, Light::Directional(_))),
+                _pad: [0; 3],
             };
             queue.write_buffer(
                 extrude_buffer,

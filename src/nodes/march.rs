@@ -85,6 +85,7 @@ struct Variant {
     spot: bool,
     textured: bool,
     bisections: u32,
+    directional: bool,
 }
 
 /// The march's layout and its pipelines, one per [`Variant`] built on first use; held by the
@@ -119,6 +120,7 @@ impl Pipelines {
                 ("SPOT", flag(v.spot)),
                 ("TEXTURED", flag(v.textured)),
                 ("BISECTIONS", f64::from(v.bisections)),
+                ("DIRECTIONAL", flag(v.directional)),
             ];
             let label = "volshadow march";
             compute_pipeline(
@@ -296,6 +298,14 @@ struct MarchUniform {
     _pad: [u32; 3],
 }
 
+/// Half the width of an orthographic shadow map's square, from its `clip_from_world` (`None`
+/// when it is not a finite positive length).
+fn ortho_half_width(m: &glam::Mat4) -> Option<f32> {
+    let row = m.row(0).truncate().length();
+    let half = 1.0 / row;
+    (half.is_finite() && half > 0.0).then_some(half)
+}
+
 /// What the exact method met in a frame, counted by the march (see
 /// [`MarchNode::stats_buffer`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -460,7 +470,7 @@ impl MarchNode {
         if let Some(shadows) = &inputs.shadows {
             let expected = match inputs.light {
                 Light::Point(_) => 6,
-                Light::Spot(_) => 1,
+                _ => 1,
             };
             check_depth_layers("shadow_map", shadows.shadow_map.texture, expected)?;
             if shadows.shadow_map.faces.len() != expected as usize {
@@ -594,16 +604,20 @@ impl MarchNode {
         }
 
         let camera = inputs.camera;
-        self.airlight.write(
-            queue,
-            AirlightUniform::new(
-                camera.eye(),
-                inputs.light,
-                inputs.medium,
-                camera.pixel_angular_radius(height),
-                table.size(),
-            ),
+        let mut airlight = AirlightUniform::new(
+            camera.eye(),
+            inputs.light,
+            inputs.medium,
+            camera.pixel_angular_radius(height),
+            table.size(),
         );
+        if let (Light::Directional(_), Some(s)) = (inputs.light, &inputs.shadows) {
+            // Steps uniform in s = x / (x + L) reach at least across the shadow map's region.
+            if let Some(radius) = s.shadow_map.faces.first().and_then(ortho_half_width) {
+                airlight.distance = airlight.distance.min(radius);
+            }
+        }
+        self.airlight.write(queue, airlight);
         self.view
             .write(queue, ViewUniform::new(camera, width, height));
 
@@ -628,7 +642,7 @@ impl MarchNode {
         };
         let spot = match inputs.light {
             Light::Spot(s) => s.direction().extend(s.cos_half_angle()).to_array(),
-            Light::Point(_) => [0.0; 4],
+            _ => [0.0; 4],
         };
         let (tex_frame, [tan_half_angle, tex_width, tex_mips]) =
             match (inputs.light, inputs.light_texture) {
@@ -666,6 +680,7 @@ impl MarchNode {
                 mode,
                 spot: matches!(inputs.light, Light::Spot(_)),
                 textured: inputs.light_texture.is_some(),
+                directional: matches!(inputs.light, Light::Directional(_)),
                 bisections: if mode == Mode::Analytic {
                     0
                 } else {

@@ -5,6 +5,14 @@
 //! ([`ShadowMapNode::face_matrices`]): depth = near / (distance along the face's axis), so the
 //! nearest occluder has the largest depth and nothing is clipped far away.
 //!
+//! A directional light gets one orthographic face ([`ShadowMapNode::directional_matrix`],
+//! rendered by [`ShadowMapNode::prepare_directional`]) fitted to the bounding sphere of what
+//! the camera sees up to the light's shadow distance, so its size does not change as the
+//! camera turns, and with its centre snapped to whole texels in the light's frame, so that
+//! a moving camera does not make the shadows' edges shimmer. Its depth is reversed and linear
+//! along the light's direction (1 at the side towards the light) and spans the sphere and
+//! every occluder. Points outside the square count as lit.
+//!
 //! # Output
 //! [`ShadowMap`]: a `Depth32Float` 2D array texture, `resolution²`, 6 layers (point) or 1
 //! (spot), usages `RENDER_ATTACHMENT | TEXTURE_BINDING`, cleared to 0 (nothing); plus the
@@ -17,7 +25,7 @@ use crate::error::{finite, Error, Result};
 use crate::gpu::cache::{bind_group, depth_pipeline, layout, module, Binding};
 use crate::gpu::{Cache, GpuTimer, Occluder};
 use crate::plan::Pass;
-use crate::scene::Light;
+use crate::scene::{Camera, DirectionalLight, Light};
 
 /// The binding table: `@binding(i)` of `shaders/shadow_map.wgsl` is entry `i`.
 const BINDINGS: [Binding; 2] = [
@@ -178,10 +186,13 @@ impl ShadowMapNode {
 
     /// The face matrices this node uses for `light`, with near plane `near`: reversed-Z
     /// infinite perspective per face (90° cube faces, or the spot cone plus a small margin).
+    /// None for a directional light, whose face depends on the camera
+    /// ([`directional_matrix`](Self::directional_matrix)).
     pub fn face_matrices(light: &Light, near: f32) -> Vec<Mat4> {
         use glam::camera::rh::{proj::directx::perspective_infinite_reverse, view::look_to_mat4};
-        let p = light.position();
+        let p = light.position().unwrap_or_default();
         match light {
+            Light::Directional(_) => Vec::new(),
             Light::Point(_) => {
                 let proj = perspective_infinite_reverse(std::f32::consts::FRAC_PI_2, 1.0, near);
                 [
@@ -203,6 +214,60 @@ impl ShadowMapNode {
         }
     }
 
+    /// A directional light's `clip_from_world` for a square map of `resolution²` texels:
+    /// orthographic, in a basis built from the light's direction alone, covering the bounding
+    /// sphere of the camera's view pyramid from the eye to view depth `distance` (the sphere's
+    /// radius depends only on the projection and `distance`, and is rounded up to 1/16 of an
+    /// octave so that rounding noise cannot change it), with the centre snapped to whole
+    /// texels. Depth is `(t_far − t)/(t_far − t_near)` for `t` the coordinate along the
+    /// direction, with `[t_near, t_far]` the sphere's range widened to `occluder_range`.
+    pub fn directional_matrix(
+        light: &DirectionalLight,
+        camera: &Camera,
+        distance: f32,
+        resolution: u32,
+        occluder_range: (f32, f32),
+    ) -> Mat4 {
+        let d = light.direction();
+        let (right, up) = d.any_orthonormal_pair();
+        // The view pyramid's far corners at view depth `distance`.
+        let eye = camera.eye();
+        let view = camera.view();
+        let mut far = [Vec3::ZERO; 4];
+        for (k, corner) in far.iter_mut().enumerate() {
+            let x = if k & 1 == 0 { -1.0 } else { 1.0 };
+            let y = if k & 2 == 0 { -1.0 } else { 1.0 };
+            let dir = camera.ray_direction(x, y);
+            let depth_per_unit = (-view.transform_vector3(dir).z).max(1e-6);
+            *corner = eye + dir * (distance / depth_per_unit);
+        }
+        let mid = 0.25 * far.iter().copied().sum::<Vec3>();
+        let axis_len = mid.distance(eye);
+        let half = far.iter().map(|c| c.distance(mid)).fold(0.0, f32::max);
+        // The smallest sphere around the pyramid with its centre on the axis.
+        let (centre, radius) = if half < axis_len && axis_len > 0.0 {
+            let t = (axis_len * axis_len + half * half) / (2.0 * axis_len);
+            (eye + (mid - eye) * (t / axis_len), t)
+        } else {
+            (mid, half.max(axis_len))
+        };
+        let radius = (radius.max(1e-6).log2() * 16.0).ceil() / 16.0;
+        let radius = radius.exp2();
+        let texel = 2.0 * radius / resolution as f32;
+        let snap = |v: f32| (v / texel).round() * texel;
+        let (cx, cy, ct) = (snap(centre.dot(right)), snap(centre.dot(up)), centre.dot(d));
+        let t_near = (ct - radius).min(occluder_range.0);
+        let t_far = (ct + radius).max(occluder_range.1);
+        let depth = 1.0 / (t_far - t_near).max(1e-20);
+        Mat4::from_cols(
+            (right / radius).extend(-cx / radius),
+            (up / radius).extend(-cy / radius),
+            (-d * depth).extend(t_far * depth),
+            glam::Vec4::W,
+        )
+        .transpose()
+    }
+
     /// A spot map's field of view: the cone inscribed in the square frustum, with a texel of
     /// margin.
     fn spot_fov(spot: &crate::scene::SpotLight) -> f32 {
@@ -216,6 +281,7 @@ impl ShadowMapNode {
         let half_tan = match light {
             Light::Point(_) => 1.0,
             Light::Spot(spot) => (0.5 * Self::spot_fov(spot)).tan(),
+            Light::Directional(_) => 1.0,
         };
         1.0 / (1.0 + 2.0 * half_tan * half_tan).sqrt()
     }
@@ -232,13 +298,57 @@ impl ShadowMapNode {
         queue: &wgpu::Queue,
         inputs: &ShadowMapInputs<'_>,
     ) -> Result<bool> {
+        if matches!(inputs.light, Light::Directional(_)) {
+            return Err(Error::InvalidSetting {
+                field: "light",
+                problem: "a directional light's map is fitted to the camera: \
+                          use ShadowMapNode::prepare_directional"
+                    .into(),
+            });
+        }
+        self.prepare_for(device, queue, inputs, None)
+    }
+
+    /// [`prepare`](Self::prepare) for a directional light: its orthographic map is fitted to
+    /// what `camera` sees up to the light's
+    /// [shadow distance](DirectionalLight::with_shadow_distance), or, without one, up to the
+    /// farthest corner of the occluders' bounds (see [`directional_matrix`](Self::directional_matrix)).
+    /// Re-renders only when the fitted map moved by a texel, the light or an occluder changed.
+    ///
+    /// # Errors
+    ///
+    /// As [`prepare`](Self::prepare), and [`Error::InvalidSetting`] naming `light` for a light
+    /// that is not directional.
+    pub fn prepare_directional(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        inputs: &ShadowMapInputs<'_>,
+        camera: &Camera,
+    ) -> Result<bool> {
+        if !matches!(inputs.light, Light::Directional(_)) {
+            return Err(Error::InvalidSetting {
+                field: "light",
+                problem: "prepare_directional needs a directional light".into(),
+            });
+        }
+        self.prepare_for(device, queue, inputs, Some(camera))
+    }
+
+    fn prepare_for(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        inputs: &ShadowMapInputs<'_>,
+        camera: Option<&Camera>,
+    ) -> Result<bool> {
         let ShadowMapInputs { light, occluders } = *inputs;
         for occluder in occluders {
             occluder.validate()?;
         }
         let layers = match light {
             Light::Point(_) => 6,
-            Light::Spot(_) => 1,
+            _ => 1,
         };
         let resolution = self.settings.resolution;
         let recreate = self
@@ -265,7 +375,17 @@ impl ShadowMapNode {
 
         // Re-render only when something the map depends on changed.
         let bits = |v: &[f32]| v.iter().map(|f| f.to_bits()).collect::<Vec<u32>>();
-        let mut key = bits(&light.position().to_array());
+        let directional = match (light, camera) {
+            (Light::Directional(l), Some(camera)) => {
+                Some(self.directional_face(l, camera, occluders))
+            }
+            _ => None,
+        };
+        let mut key = match (light.position(), &directional) {
+            (Some(p), _) => bits(&p.to_array()),
+            (None, Some(face)) => bits(&face.to_cols_array()),
+            (None, None) => Vec::new(),
+        };
         if let Light::Spot(s) = light {
             key.extend(bits(&s.direction().to_array()));
             key.push(s.cone_angle().to_bits());
@@ -289,20 +409,24 @@ impl ShadowMapNode {
         // it past a small occluder next to the light). When the light is inside an occluder's
         // bounds the distance is 0; then a floor of about one f32 step of the light's
         // coordinates (nothing nearer can be placed) keeps the projection finite.
-        let p = light.position();
-        let along_axis = (0.9 * Self::corner_cosine(light)).min(0.5);
-        let mut near = f32::INFINITY;
-        for o in occluders {
-            let (lo, hi) = o.world_bounds();
-            near = near.min(along_axis * p.clamp(lo, hi).distance(p));
-        }
-        let floor = 1e-7 * p.abs().max_element().max(1e-3);
-        let near = if near.is_finite() {
-            near.max(floor)
+        if let Some(face) = directional {
+            self.faces = vec![face];
         } else {
-            floor
-        };
-        self.faces = Self::face_matrices(light, near);
+            let p = light.position().unwrap_or_default();
+            let along_axis = (0.9 * Self::corner_cosine(light)).min(0.5);
+            let mut near = f32::INFINITY;
+            for o in occluders {
+                let (lo, hi) = o.world_bounds();
+                near = near.min(along_axis * p.clamp(lo, hi).distance(p));
+            }
+            let floor = 1e-7 * p.abs().max_element().max(1e-3);
+            let near = if near.is_finite() {
+                near.max(floor)
+            } else {
+                floor
+            };
+            self.faces = Self::face_matrices(light, near);
+        }
         for (i, face) in self.faces.iter().enumerate() {
             queue.write_buffer(&self.face_buffer, i as u64 * SLOT, bytemuck::bytes_of(face));
         }
@@ -346,6 +470,43 @@ impl ShadowMapNode {
         }
         self.pending = true;
         Ok(true)
+    }
+
+    /// The directional map's face for this camera and these occluders.
+    fn directional_face(
+        &self,
+        light: &DirectionalLight,
+        camera: &Camera,
+        occluders: &[Occluder<'_>],
+    ) -> Mat4 {
+        let d = light.direction();
+        let eye = camera.eye();
+        let (mut t_near, mut t_far) = (f32::INFINITY, f32::NEG_INFINITY);
+        let mut farthest = 0.0f32;
+        for o in occluders {
+            let (lo, hi) = o.world_bounds();
+            for i in 0..8 {
+                let corner = Vec3::new(
+                    if i & 1 == 0 { lo.x } else { hi.x },
+                    if i & 2 == 0 { lo.y } else { hi.y },
+                    if i & 4 == 0 { lo.z } else { hi.z },
+                );
+                t_near = t_near.min(corner.dot(d));
+                t_far = t_far.max(corner.dot(d));
+                farthest = farthest.max(corner.distance(eye));
+            }
+        }
+        let distance =
+            light
+                .shadow_distance()
+                .unwrap_or(if farthest > 0.0 { farthest } else { 1.0 });
+        Self::directional_matrix(
+            light,
+            camera,
+            distance,
+            self.settings.resolution,
+            (t_near, t_far),
+        )
     }
 
     /// Records the render of every face, if [`prepare`](Self::prepare) found a change.

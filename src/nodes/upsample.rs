@@ -139,8 +139,8 @@ type EntryPoints = [wgpu::ComputePipeline; 3];
 pub(crate) struct Pipelines {
     layout: wgpu::BindGroupLayout,
     module: wgpu::ShaderModule,
-    /// Keyed by "the light is a spot".
-    lights: Arc<Mutex<HashMap<bool, EntryPoints>>>,
+    /// Keyed by "the light is a spot" and "the light is directional".
+    lights: Arc<Mutex<HashMap<(bool, bool), EntryPoints>>>,
 }
 
 impl Pipelines {
@@ -154,9 +154,10 @@ impl Pipelines {
         }
     }
 
-    fn for_light(&self, device: &wgpu::Device, spot: bool) -> EntryPoints {
-        cached(&self.lights, spot, || {
-            let constants = [("SPOT", if spot { 1.0 } else { 0.0 })];
+    fn for_light(&self, device: &wgpu::Device, spot: bool, directional: bool) -> EntryPoints {
+        cached(&self.lights, (spot, directional), || {
+            let flag = |b: bool| if b { 1.0 } else { 0.0 };
+            let constants = [("SPOT", flag(spot)), ("DIRECTIONAL", flag(directional))];
             ["upsample", "separable_h", "separable_v"].map(|entry| {
                 let label = "volshadow upsample";
                 compute_pipeline(device, label, &self.layout, &self.module, entry, &constants)
@@ -390,10 +391,11 @@ impl UpsampleNode {
             crate::scene::Light::Spot(s) => {
                 (s.direction().extend(s.cos_half_angle()).to_array(), true)
             }
-            crate::scene::Light::Point(_) => ([0.0; 4], false),
+            _ => ([0.0; 4], false),
         };
+        let directional = matches!(inputs.light, crate::scene::Light::Directional(_));
         self.spot.write(queue, spot);
-        self.entry_points = Some(self.pipelines.for_light(device, is_spot));
+        self.entry_points = Some(self.pipelines.for_light(device, is_spot, directional));
         self.size = (w, h);
         self.low_height = lh;
         Ok(true)

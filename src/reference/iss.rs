@@ -108,7 +108,12 @@ pub(crate) fn surface_inscatter_to(
     [tol, inner_tol]: [f64; 2],
 ) -> DVec3 {
     let source = light.light();
-    let to_light = source.position().as_dvec3() - p;
+    let to_light = match (source, source.position()) {
+        // The direction towards a directional light.
+        (Light::Directional(sun), _) => -sun.direction().as_dvec3(),
+        (_, Some(q)) => q.as_dvec3() - p,
+        (_, None) => DVec3::NAN,
+    };
     let coef = medium.sigma_s().as_dvec3() * source.intensity().as_dvec3();
     let Some(n) = unit(n) else {
         return DVec3::ZERO;

@@ -162,6 +162,12 @@ impl LightSource for SpotLight {
     }
 }
 
+impl LightSource for crate::scene::DirectionalLight {
+    fn light(&self) -> Light {
+        Light::Directional(*self)
+    }
+}
+
 impl LightSource for Light {
     fn light(&self) -> Light {
         *self
@@ -467,7 +473,13 @@ fn inscatter_light(
     texture: Option<&LightTexture>,
     occluders: &[Occluder],
 ) -> DVec3 {
-    let Some(geo) = RayLight::new(origin, dir, light.position().as_dvec3()) else {
+    let position = match light {
+        Light::Directional(sun) => {
+            return inscatter_directional(origin, dir, ds, medium, &sun, occluders);
+        }
+        _ => light.position().unwrap_or_default(),
+    };
+    let Some(geo) = RayLight::new(origin, dir, position.as_dvec3()) else {
         return DVec3::ZERO;
     };
     if !(ds > 0.0) {

@@ -365,7 +365,13 @@ fn soft_light(
     occluders: &[Occluder],
     bounds: &[Bound],
 ) -> DVec3 {
-    let p = light.position().as_dvec3();
+    let p = match light {
+        // No radius: the hard-shadowed integral.
+        Light::Directional(sun) => {
+            return super::inscatter_directional(origin, dir, ds, medium, &sun, occluders);
+        }
+        _ => light.position().unwrap_or_default().as_dvec3(),
+    };
     let r = f64::from(light.radius());
     let Some(geo) = RayLight::new(origin, dir, p) else {
         return DVec3::ZERO;

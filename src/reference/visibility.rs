@@ -74,6 +74,9 @@ pub fn light_intervals(
                 occluders,
             )
         }
+        Light::Directional(sun) => {
+            super::directional_lit_intervals(origin, dir, ds, &sun, occluders)
+        }
     }
 }
 

@@ -185,12 +185,14 @@ impl SpotLight {
 /// `θ` the same at every point of the ray. A caller that wants a fog layer of extinction `σt`
 /// and thickness `T` between the light and the scene passes `E·exp(−σt·T)`.
 ///
-/// So far only [`crate::reference`] integrates it (`inscatter_directional` and friends); it is
-/// not yet a [`Light`] the facade renders.
+/// Its shadows come from one orthographic shadow map fitted to what the camera sees within
+/// the [shadow distance](Self::with_shadow_distance); [`crate::reference`] integrates it with
+/// exact visibility (`inscatter_directional` and friends).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DirectionalLight {
     direction: Vec3,
     irradiance: Vec3,
+    shadow_distance: Option<f32>,
 }
 
 impl DirectionalLight {
@@ -222,7 +224,36 @@ impl DirectionalLight {
         Ok(Self {
             direction,
             irradiance,
+            shadow_distance: None,
         })
+    }
+    /// The same light whose shadow map covers what the camera sees up to `distance` from the
+    /// eye (world units, finite and positive). Without it, the map covers up to the farthest
+    /// corner of the occluders' bounds. Beyond the shadow distance, points outside the map
+    /// count as lit. A shorter distance spends the map's texels on a smaller region: sharper
+    /// shafts near the camera.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NonFinite`] for a non-finite distance, [`Error::InvalidSetting`] naming
+    /// `directional_light.shadow_distance` for one that is not positive.
+    pub fn with_shadow_distance(self, distance: f32) -> Result<Self> {
+        finite("directional_light.shadow_distance", &[distance])?;
+        if !(distance > 0.0) {
+            return Err(Error::InvalidSetting {
+                field: "directional_light.shadow_distance",
+                problem: format!("must be positive, got {distance}"),
+            });
+        }
+        Ok(Self {
+            shadow_distance: Some(distance),
+            ..self
+        })
+    }
+    /// The shadow distance set by [`with_shadow_distance`](Self::with_shadow_distance)
+    /// (`None`: from the occluders' bounds).
+    pub fn shadow_distance(&self) -> Option<f32> {
+        self.shadow_distance
     }
     /// Unit direction of travel of the light (from the light into the scene).
     pub fn direction(&self) -> Vec3 {
@@ -244,28 +275,35 @@ pub enum Light {
     Point(PointLight),
     /// Cone-limited; shadows from a 2D shadow map.
     Spot(SpotLight),
+    /// Parallel rays (the sun); shadows from an orthographic shadow map.
+    Directional(DirectionalLight),
 }
 
 impl Light {
-    /// World-space position.
-    pub fn position(&self) -> Vec3 {
+    /// World-space position (`None` for a directional light, which is at infinity).
+    pub fn position(&self) -> Option<Vec3> {
         match self {
-            Light::Point(l) => l.position(),
-            Light::Spot(l) => l.position(),
+            Light::Point(l) => Some(l.position()),
+            Light::Spot(l) => Some(l.position()),
+            Light::Directional(_) => None,
         }
     }
-    /// Radiant intensity (inside the cone for a spot light), RGB.
+    /// Radiant intensity (inside the cone for a spot light), RGB; for a directional light its
+    /// irradiance.
     pub fn intensity(&self) -> Vec3 {
         match self {
             Light::Point(l) => l.intensity(),
             Light::Spot(l) => l.intensity(),
+            Light::Directional(l) => l.irradiance(),
         }
     }
-    /// Radius of the light's sphere (0: a point; see [`PointLight::with_radius`]).
+    /// Radius of the light's sphere (0: a point; see [`PointLight::with_radius`]; 0 for a
+    /// directional light).
     pub fn radius(&self) -> f32 {
         match self {
             Light::Point(l) => l.radius(),
             Light::Spot(l) => l.radius(),
+            Light::Directional(_) => 0.0,
         }
     }
 }
@@ -278,6 +316,16 @@ impl From<PointLight> for Light {
 impl From<SpotLight> for Light {
     fn from(l: SpotLight) -> Self {
         Light::Spot(l)
+    }
+}
+impl From<DirectionalLight> for Light {
+    fn from(l: DirectionalLight) -> Self {
+        Light::Directional(l)
+    }
+}
+impl From<&DirectionalLight> for Light {
+    fn from(l: &DirectionalLight) -> Self {
+        Light::Directional(*l)
     }
 }
 impl From<&PointLight> for Light {

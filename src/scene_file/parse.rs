@@ -12,7 +12,8 @@ use crate::error::Error;
 use crate::load::{Budget, Limit};
 use crate::nodes::{MarchSettings, Scale, UpsampleFilter};
 use crate::scene::{
-    shapes, Camera, Light, LightTexture, Medium, Mesh, PhaseFunction, PointLight, SpotLight,
+    shapes, Camera, DirectionalLight, Light, LightTexture, Medium, Mesh, PhaseFunction, PointLight,
+    SpotLight,
 };
 
 /// A problem with one field of the file, before the file path is attached.
@@ -315,6 +316,30 @@ fn light(l: spec::Light, path: &str, ctx: &mut Ctx) -> P<SceneLight> {
             Ok(SceneLight {
                 light: Light::Spot(light),
                 texture,
+            })
+        }
+        spec::Light::Directional {
+            direction: Floats(direction),
+            irradiance: e,
+            shadow_distance,
+        } => {
+            let direction = Vec3::from_array(direction);
+            ensure(
+                direction.length().is_finite() && direction.length() > 0.0,
+                &at("direction"),
+                || format!("must be a non-zero finite vector, got {direction}"),
+            )?;
+            let e = intensity(e, &at("irradiance"))?;
+            let mut light = DirectionalLight::new(direction, e).map_err(from_error(path))?;
+            if let Some(Num(d)) = shadow_distance {
+                ensure(d.is_finite() && d > 0.0, &at("shadow_distance"), || {
+                    format!("must be a positive finite distance, got {d}")
+                })?;
+                light = light.with_shadow_distance(d).map_err(from_error(path))?;
+            }
+            Ok(SceneLight {
+                light: Light::Directional(light),
+                texture: None,
             })
         }
     }

@@ -321,11 +321,16 @@ pub(super) enum Light {
         intensity: Rgb,
         texture: Option<Texture>,
     },
+    Directional {
+        direction: Floats<3>,
+        irradiance: Rgb,
+        shadow_distance: Option<Num>,
+    },
 }
 
 impl Kind for Light {
     const KIND: &'static str = "light";
-    const TYPES: &'static [&'static str] = &["point", "spot"];
+    const TYPES: &'static [&'static str] = &["point", "spot", "directional"];
 }
 
 #[derive(Deserialize)]

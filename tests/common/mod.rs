@@ -372,13 +372,14 @@ pub fn shadow_frame(gpu: &HeadlessGpu, cache: &Cache, passes: &ShadowPasses) -> 
     let mut march = MarchNode::new(&gpu.device, cache, settings).unwrap();
     let mut timer = GpuTimer::new(&gpu.device, &gpu.queue, 32);
 
-    shadow
-        .prepare(
-            &gpu.device,
-            &gpu.queue,
-            &volshadow::nodes::ShadowMapInputs { light, occluders },
-        )
-        .unwrap();
+    let shadow_inputs = volshadow::nodes::ShadowMapInputs { light, occluders };
+    match light {
+        Light::Directional(_) => {
+            shadow.prepare_directional(&gpu.device, &gpu.queue, &shadow_inputs, camera)
+        }
+        _ => shadow.prepare(&gpu.device, &gpu.queue, &shadow_inputs),
+    }
+    .unwrap();
     extents
         .prepare(
             &gpu.device,

@@ -166,7 +166,10 @@ pub fn near_light(camera: &Camera, light: &Light, width: u32, height: u32, i: us
         .normalize();
     let cos_axis = d.normalize().dot(forward).clamp(0.0, 1.0);
     let pixel_angle = 2.0 * f64::from(camera.pixel_angular_radius(height)) * cos_axis.powf(1.5);
-    d.angle_between(light.position().as_dvec3() - o) < 1.5 * pixel_angle
+    // A directional light has no glow to leave out.
+    light
+        .position()
+        .is_some_and(|p| d.angle_between(p.as_dvec3() - o) < 1.5 * pixel_angle)
 }
 
 /// Compares `gpu` with `reference` (same layout), leaving out the light's own pixels.

@@ -18,7 +18,11 @@ pub fn keep_mask(
         .map(|i| {
             let (eye, dir) = camera_ray(camera, pixel_ndc(w, h, i % w, i / w));
             scene.lights.iter().all(|l| {
-                let to_light = l.light.position().as_dvec3() - eye;
+                // A directional light has no glow to leave out.
+                let Some(p) = l.light.position() else {
+                    return true;
+                };
+                let to_light = p.as_dvec3() - eye;
                 dir.angle_between(to_light) >= 1.5 * pixel_angle
             })
         })
