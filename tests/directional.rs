@@ -10,9 +10,13 @@
 
 mod common;
 
+use common::scene::{MeshScene, Shot};
 use glam::{DVec3, Vec3};
-use volshadow::nodes::{AirlightTableNode, MarchInputs, MarchNode, MarchSettings, TableSize};
+use volshadow::nodes::{
+    AirlightTableNode, MarchInputs, MarchMethod, MarchNode, MarchSettings, ShadowMapNode, TableSize,
+};
 use volshadow::reference;
+use volshadow::scene::shapes;
 use volshadow::{Cache, Camera, DirectionalLight, HeadlessGpu, Light, Medium, PhaseFunction};
 
 /// The closed form's bar (the issue's): relative error per channel.
@@ -170,4 +174,209 @@ fn closed_form_matches_reference_on_unshadowed_rays() {
     let naive = relative(naive_f32(sigma, x), exact);
     eprintln!("naive f32 closed form at sigma_t = 1e-6/size, x = 10: relative error {naive:.2e}");
     assert!(naive > CLOSED_FORM_TOLERANCE, "naive form error {naive:e}");
+}
+
+/// The window scene's bars (the issue's): exact mode at 128².
+const WINDOW_SIZE: u32 = 128;
+const WINDOW_P95: f64 = 0.01;
+const WINDOW_RMSE: f64 = 0.005;
+/// The shimmer bar: largest change between consecutive frames, pixels away from edges.
+const SHIMMER: f64 = 0.005;
+/// The shimmer test's shadow distance (the room in view is about 12 units deep).
+const SHIMMER_DISTANCE: f32 = 14.0;
+
+/// A dusty room lit by the sun through a window with a cross-shaped frame: a wall at z = 0
+/// (40 × 20, 0.3 thick) with a 3 × 3 opening from y = 2 to 5, cut into four panes by two
+/// bars; the floor y = 0 receives but casts no shadow. The sun shines in from z < 0.
+fn window_room() -> (MeshScene, DirectionalLight, Medium) {
+    let mut scene = MeshScene {
+        ground: Some(0.0),
+        ..Default::default()
+    };
+    let wall = |lo: Vec3, hi: Vec3| shapes::cuboid(0.5 * (lo + hi), 0.5 * (hi - lo)).unwrap();
+    let (t0, t1) = (-0.15, 0.15);
+    scene
+        .add(wall(Vec3::new(-20.0, 0.0, t0), Vec3::new(-1.5, 20.0, t1)))
+        .add(wall(Vec3::new(1.5, 0.0, t0), Vec3::new(20.0, 20.0, t1)))
+        .add(wall(Vec3::new(-1.5, 0.0, t0), Vec3::new(1.5, 2.0, t1)))
+        .add(wall(Vec3::new(-1.5, 5.0, t0), Vec3::new(1.5, 20.0, t1)))
+        .add(wall(Vec3::new(-0.08, 2.0, t0), Vec3::new(0.08, 5.0, t1)))
+        .add(wall(Vec3::new(-1.5, 3.42, t0), Vec3::new(1.5, 3.58, t1)));
+    let sun = DirectionalLight::new(Vec3::new(0.35, -0.55, 1.0), Vec3::new(4.0, 3.6, 3.0)).unwrap();
+    let dust = Medium::new(
+        Vec3::splat(0.12),
+        Vec3::splat(0.02),
+        PhaseFunction::HenyeyGreenstein { g: 0.5 },
+    )
+    .unwrap();
+    (scene, sun, dust)
+}
+
+/// Inside the room, looking across the shafts towards the window.
+fn window_camera(offset: Vec3) -> Camera {
+    let eye = Vec3::new(-3.5, 1.7, 8.0) + offset;
+    camera(eye, Vec3::new(0.8, 1.6, 2.0) + offset, 60.0)
+}
+
+fn exact() -> MarchSettings {
+    MarchSettings {
+        method: MarchMethod::Exact,
+        ..MarchSettings::default()
+    }
+}
+
+#[test]
+fn window_scene_exact_mode_matches_reference() {
+    let gpu = common::gpu();
+    let cache = Cache::new(&gpu.device);
+    let (scene, sun, dust) = window_room();
+    let camera = window_camera(Vec3::ZERO);
+    let light = Light::from(sun);
+    let shot = Shot::new(&scene, &camera, &light, &dust, WINDOW_SIZE);
+    let started = std::time::Instant::now();
+    let reference = shot.reference();
+    let reference_s = started.elapsed().as_secs_f64();
+    let m = shot.measure(&gpu, &cache, exact(), &reference);
+    let hybrid = shot.measure(
+        &gpu,
+        &cache,
+        MarchSettings {
+            method: MarchMethod::Hybrid,
+            ..MarchSettings::default()
+        },
+        &reference,
+    );
+    // The shadows matter: without occluders (the sun everywhere) the error is large.
+    let open = MeshScene {
+        occluders: Vec::new(),
+        ..scene.clone()
+    };
+    let lit = Shot {
+        scene: &open,
+        ..shot
+    }
+    .measure(&gpu, &cache, exact(), &reference);
+    eprintln!(
+        "window {WINDOW_SIZE}²: exact {}\n  hybrid {}\n  shadows ignored {}\n  crossings {:?}; reference {reference_s:.1} s",
+        m.errors, hybrid.errors, lit.errors, m.frame.stats
+    );
+    assert_eq!(m.errors.non_finite, 0, "NaN, Inf or negative in-scatter");
+    assert!(
+        m.errors.counted > 1000,
+        "too few bright pixels: {}",
+        m.errors
+    );
+    assert!(m.errors.p95 <= WINDOW_P95, "exact p95: {}", m.errors);
+    assert!(m.errors.rmse <= WINDOW_RMSE, "exact RMSE: {}", m.errors);
+    assert!(
+        lit.errors.p95 > WINDOW_P95 && lit.errors.rmse > WINDOW_RMSE,
+        "the scene does not test shadows: {}",
+        lit.errors
+    );
+}
+
+/// Pixels whose in-scatter is within 5% of each of its eight neighbours' and above 1% of the
+/// image's 99th percentile: away from the shafts' edges in the image.
+fn away_from_edges(image: &[[f32; 4]], size: u32) -> Vec<usize> {
+    let value = |i: usize| f64::from(image[i][0].max(image[i][1]).max(image[i][2]));
+    let mut sorted: Vec<f64> = (0..image.len()).map(value).collect();
+    sorted.sort_by(f64::total_cmp);
+    let p99 = sorted[(sorted.len() - 1) * 99 / 100];
+    let n = size as i64;
+    (0..image.len())
+        .filter(|&i| {
+            let (x, y) = (i as i64 % n, i as i64 / n);
+            let v = value(i);
+            v > 0.01 * p99
+                && (x > 0 && x < n - 1 && y > 0 && y < n - 1)
+                && (-1..=1).all(|dy| {
+                    (-1..=1).all(|dx| {
+                        let j = ((y + dy) * n + x + dx) as usize;
+                        (value(j) - v).abs() <= 0.05 * v
+                    })
+                })
+        })
+        .collect()
+}
+
+#[test]
+fn moving_camera_does_not_make_shafts_shimmer() {
+    let gpu = common::gpu();
+    let cache = Cache::new(&gpu.device);
+    let (scene, sun, dust) = window_room();
+    // A shadow distance that covers the room in view: texels of about 2 cm.
+    let sun = sun.with_shadow_distance(SHIMMER_DISTANCE).unwrap();
+    let light = Light::from(sun);
+    let size = 96;
+    const RESOLUTION: u32 = 1024;
+    // The map's texel for this view (the sphere's size does not change as the camera moves).
+    let face = ShadowMapNode::directional_matrix(
+        &sun,
+        &window_camera(Vec3::ZERO),
+        SHIMMER_DISTANCE,
+        RESOLUTION,
+        (0.0, 0.0),
+    );
+    let texel = 2.0 / face.row(0).truncate().length() / RESOLUTION as f32;
+    // 0.37 of a texel per frame, sideways and a little up: every sub-texel phase occurs.
+    let step = Vec3::new(0.8, 0.2, -0.3).normalize() * (0.37 * texel);
+    // The true change of each frame, from the reference.
+    let references: Vec<Vec<DVec3>> = (0..16)
+        .map(|k| {
+            let camera = window_camera(step * k as f32);
+            Shot::new(&scene, &camera, &light, &dust, size).reference()
+        })
+        .collect();
+    for (name, method) in [
+        ("exact", MarchMethod::Exact),
+        ("hybrid", MarchMethod::Hybrid),
+        ("brute force", MarchMethod::BruteForce),
+    ] {
+        let settings = MarchSettings {
+            method,
+            ..MarchSettings::default()
+        };
+        let mut frames = Vec::new();
+        for k in 0..16 {
+            let camera = window_camera(step * k as f32);
+            let shot = Shot {
+                shadow_resolution: RESOLUTION,
+                ..Shot::new(&scene, &camera, &light, &dust, size)
+            };
+            frames.push(shot.measure(&gpu, &cache, settings, &[]).frame.inscatter);
+        }
+        // Per pair of frames: pixels away from edges in both (the image moves by several
+        // pixels over the 16 frames).
+        let (mut worst, mut true_change, mut spurious) = (0.0f64, 0.0f64, 0.0f64);
+        let mut kept = usize::MAX;
+        for (k, pair) in frames.windows(2).enumerate() {
+            let next = away_from_edges(&pair[1], size);
+            let both: Vec<usize> = away_from_edges(&pair[0], size)
+                .into_iter()
+                .filter(|i| next.contains(i))
+                .collect();
+            kept = kept.min(both.len());
+            for &i in &both {
+                for c in 0..3 {
+                    let (a, b) = (f64::from(pair[0][i][c]), f64::from(pair[1][i][c]));
+                    worst = worst.max((b - a).abs() / a.max(1e-30));
+                    let (ra, rb) = (references[k][i][c], references[k + 1][i][c]);
+                    true_change = true_change.max((rb - ra).abs() / ra.max(1e-30));
+                    spurious = spurious.max(((b - a) - (rb - ra)).abs() / ra.max(1e-30));
+                }
+            }
+        }
+        eprintln!(
+            "shimmer, {name}: texel {texel:.4}, step {:.4}, {} pixels away from edges, largest change between frames {:.3}% (the reference's {:.3}%; GPU change less the reference's {:.3}%)",
+            step.length(),
+            kept,
+            100.0 * worst,
+            100.0 * true_change,
+            100.0 * spurious
+        );
+        assert!(kept > 200, "{name}: too few pixels away from edges");
+        if method == MarchMethod::Exact {
+            assert!(worst <= SHIMMER, "{name}: in-scatter changes by {worst}");
+        }
+    }
 }
