@@ -380,3 +380,187 @@ fn moving_camera_does_not_make_shafts_shimmer() {
         }
     }
 }
+
+/// The facade mixes a point light and the sun: the planner builds no F′ table for the sun
+/// (and says why), and the sun's in-scatter matches the reference.
+#[test]
+fn facade_mixes_point_and_directional_lights() {
+    use volshadow::plan::{Pass, Reason};
+    use volshadow::{Frame, FrameLight, Occluder, OccluderMesh, PointLight, Settings};
+    const SIZE: u32 = 48;
+    let gpu = common::gpu();
+    let cache = Cache::new(&gpu.device);
+    let camera = camera(Vec3::new(0.0, 1.5, 6.0), Vec3::new(0.0, 1.0, 0.0), 60.0);
+    let mut rays = Vec::new();
+    let depths: Vec<f32> = (0..SIZE * SIZE)
+        .map(|i| {
+            let (o, d) = common::pixel_ray(&camera, SIZE, SIZE, i % SIZE, i / SIZE);
+            let ds = floor_distance(o, d);
+            rays.push((o, d, ds));
+            if ds.is_finite() {
+                common::ndc_depth(&camera, o + ds * d)
+            } else {
+                camera.far_depth()
+            }
+        })
+        .collect();
+    let depth = common::depth_texture(&gpu, SIZE, SIZE, &depths);
+    let tex = |format, usage| common::texture(&gpu, format, usage, (SIZE, SIZE, 1), 1);
+    let color = tex(
+        wgpu::TextureFormat::Rgba32Float,
+        wgpu::TextureUsages::TEXTURE_BINDING,
+    );
+    let output = tex(
+        wgpu::TextureFormat::Rgba16Float,
+        wgpu::TextureUsages::RENDER_ATTACHMENT,
+    );
+    // A board above the floor: the sun casts its shadow through the fog.
+    let board = shapes::cuboid(Vec3::new(0.0, 2.0, 0.0), Vec3::new(1.0, 0.05, 1.0)).unwrap();
+    let mesh = OccluderMesh::new(&gpu.device, &board);
+    let occluders = [Occluder {
+        mesh: &mesh,
+        transform: glam::Mat4::IDENTITY,
+    }];
+    let sun = DirectionalLight::new(Vec3::new(0.3, -1.0, -0.4), Vec3::new(2.0, 1.8, 1.5)).unwrap();
+    let point = PointLight::new(Vec3::new(2.0, 3.0, -2.0), Vec3::splat(20.0)).unwrap();
+    let medium = Medium::new(
+        Vec3::splat(0.1),
+        Vec3::splat(0.02),
+        PhaseFunction::HenyeyGreenstein { g: 0.4 },
+    )
+    .unwrap();
+    let lights = [
+        FrameLight::from(Light::from(point)),
+        FrameLight::from(Light::from(sun)),
+    ];
+    let frame = Frame {
+        camera: &camera,
+        lights: &lights,
+        medium: &medium,
+        occluders: &occluders,
+        scene_color: &color,
+        scene_depth: &depth,
+    };
+    for (name, settings) in [
+        ("predictable", Settings::PREDICTABLE),
+        ("default", Settings::default()),
+    ] {
+        let mut vs =
+            volshadow::VolumetricShadows::new(&gpu.device, &gpu.queue, &cache, settings).unwrap();
+        let plan = vs.prepare(&gpu.device, &gpu.queue, &frame).unwrap().clone();
+        eprintln!("{name}:\n{plan}");
+        assert!(plan.runs(Pass::AirlightTable, Some(0)));
+        assert!(!plan.runs(Pass::AirlightTable, Some(1)));
+        assert_eq!(
+            plan.skip_reason(Pass::AirlightTable, Some(1)),
+            Some(&Reason::ClosedFormAirlight)
+        );
+        assert!(plan.runs(Pass::ShadowMap, Some(1)));
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        vs.encode(&mut encoder, &output).unwrap();
+        gpu.submit_and_wait(encoder).unwrap();
+        let image = gpu.read_rgba32f(vs.inscatter(1).unwrap()).unwrap();
+        let occ = [reference::Occluder::Mesh(
+            reference::TriangleMesh::from_indexed(
+                board.positions(),
+                board.indices(),
+                glam::DMat4::IDENTITY,
+            ),
+        )];
+        let reference: Vec<DVec3> = rays
+            .iter()
+            .map(|&(o, d, ds)| reference::inscatter_directional(o, d, ds, &medium, &sun, &occ))
+            .collect();
+        let errors =
+            common::scene::errors(&image, &reference, &camera, &Light::from(sun), (SIZE, SIZE));
+        eprintln!("facade, {name}, the sun's in-scatter: {errors}");
+        assert_eq!(errors.non_finite, 0);
+        // Exact at full resolution: the window scene's bar; half resolution (a 24² march)
+        // with the 3×3 upsample: the 3% RMSE bound of the reduced-resolution tests.
+        if settings.march.scale == volshadow::nodes::Scale::Full {
+            assert!(errors.p95 <= WINDOW_P95, "{name}: {errors}");
+        } else {
+            assert!(errors.rmse <= 0.03, "{name}: {errors}");
+        }
+    }
+    // The board's shadow is in view: the unshadowed in-scatter fails the bar.
+    let open: Vec<[f32; 4]> = rays
+        .iter()
+        .map(|&(o, d, ds)| {
+            let v = reference::inscatter_directional(o, d, ds, &medium, &sun, &[]);
+            [v.x as f32, v.y as f32, v.z as f32, 0.0]
+        })
+        .collect();
+    let occ = [reference::Occluder::Mesh(
+        reference::TriangleMesh::from_indexed(
+            board.positions(),
+            board.indices(),
+            glam::DMat4::IDENTITY,
+        ),
+    )];
+    let shadowed: Vec<DVec3> = rays
+        .iter()
+        .map(|&(o, d, ds)| reference::inscatter_directional(o, d, ds, &medium, &sun, &occ))
+        .collect();
+    let ignored = common::scene::errors(&open, &shadowed, &camera, &Light::from(sun), (SIZE, SIZE));
+    eprintln!("facade, the board's shadow ignored: {ignored}");
+    assert!(
+        ignored.p95 > WINDOW_P95,
+        "the shadow is not in view: {ignored}"
+    );
+}
+
+/// Scene files: a directional light is read with its fields' names, and bad values name them.
+#[test]
+fn scene_file_directional_light() {
+    use volshadow::scene_file::SceneDescription;
+    let window = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/window.json");
+    let scene = SceneDescription::load(&window).unwrap();
+    match scene.lights[0].light {
+        Light::Directional(sun) => {
+            assert!((sun.direction().length() - 1.0).abs() < 1e-6);
+            assert_eq!(sun.irradiance(), Vec3::new(4.0, 3.6, 3.0));
+            assert_eq!(sun.shadow_distance(), None);
+        }
+        other => panic!("expected a directional light, got {other:?}"),
+    }
+    let text = std::fs::read_to_string(&window).unwrap();
+    let light = r#"{ "type": "directional", "direction": [0.35, -0.55, 1.0], "irradiance": [4.0, 3.6, 3.0] }"#;
+    assert!(text.contains(light));
+    for (bad, field) in [
+        (
+            r#""direction": [0.0, 0.0, 0.0], "irradiance": 1.0"#,
+            "direction",
+        ),
+        (
+            r#""direction": [0.0, -1.0, 0.0], "irradiance": [0.0, 0.0, 0.0]"#,
+            "irradiance",
+        ),
+        (
+            r#""direction": [0.0, -1.0, 0.0], "irradiance": -1.0"#,
+            "irradiance",
+        ),
+        (
+            r#""direction": [0.0, -1.0, 0.0], "irradiance": 1.0, "shadow_distance": -2.0"#,
+            "shadow_distance",
+        ),
+    ] {
+        let broken = text.replace(light, &format!(r#"{{ "type": "directional", {bad} }}"#));
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("window.json");
+        std::fs::write(&path, broken).unwrap();
+        let err = SceneDescription::load(&path).unwrap_err().to_string();
+        assert!(err.contains(field), "{bad}: {err}");
+    }
+    let set = DirectionalLight::new(Vec3::NEG_Y, Vec3::ONE)
+        .unwrap()
+        .with_shadow_distance(12.0)
+        .unwrap();
+    assert_eq!(set.shadow_distance(), Some(12.0));
+    for bad in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+        assert!(DirectionalLight::new(Vec3::NEG_Y, Vec3::ONE)
+            .unwrap()
+            .with_shadow_distance(bad)
+            .is_err());
+    }
+}
