@@ -239,7 +239,7 @@ impl DirectionalLight {
     /// `directional_light.shadow_distance` for one that is not positive.
     pub fn with_shadow_distance(self, distance: f32) -> Result<Self> {
         finite("directional_light.shadow_distance", &[distance])?;
-        if !(distance > 0.0) {
+        if distance <= 0.0 {
             return Err(Error::InvalidSetting {
                 field: "directional_light.shadow_distance",
                 problem: format!("must be positive, got {distance}"),
