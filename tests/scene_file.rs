@@ -86,6 +86,7 @@ fn every_standard_scene_loads() {
         "fence",
         "stained_glass",
         "stiff_fog",
+        "window",
     ] {
         assert!(
             names.iter().any(|n| n == expected),
