@@ -182,6 +182,11 @@ const WINDOW_P95: f64 = 0.01;
 const WINDOW_RMSE: f64 = 0.005;
 /// The shimmer bar: largest change between consecutive frames, pixels away from edges.
 const SHIMMER: f64 = 0.005;
+/// Map-based marching (brute force at 1024 steps with 4 bisections) on the same frames: the
+/// change beyond the reference's. Measured 1.6% with texel snapping (the residual is the
+/// fixed staircase of texels the moving rays cross) and 4.0% without it (the staircase moves
+/// with the camera): the bound lies between, so removing the snapping fails it.
+const SHIMMER_MAP: f64 = 0.025;
 /// The shimmer test's shadow distance (the room in view is about 12 units deep).
 const SHIMMER_DISTANCE: f32 = 14.0;
 
@@ -389,6 +394,12 @@ fn moving_camera_does_not_make_shafts_shimmer() {
         assert!(kept > 200, "{name}: too few pixels away from edges");
         if method == MarchMethod::Exact {
             assert!(worst <= SHIMMER, "{name}: in-scatter changes by {worst}");
+        }
+        if steps == 1024 {
+            assert!(
+                spurious <= SHIMMER_MAP,
+                "{name}: spurious change {spurious}"
+            );
         }
     }
 }
