@@ -1,7 +1,10 @@
 //! The shadow-volume extents node: per pixel, where along the view ray the shadow
 //! volumes of the occluders begin and end.
 //!
-//! A compute pass finds silhouette edges and extrudes them away from the light to infinity,
+//! A compute pass finds silhouette edges and extrudes them away from the light to infinity
+//! (for a directional light: edges between a face turned towards the light and one turned
+//! away, extruded along its direction, so each volume is a prism closed at one point at
+//! infinity),
 //! writing the volumes and an indirect draw (no CPU readback); three depth-only passes then
 //! rasterise them with the camera's view and a reversed-Z infinite projection
 //! (depth = [`EXTENTS_NEAR`] / view depth):

@@ -12,6 +12,11 @@
 //! from the light (Wyman and Ramsey 2008, Fig. 4). A spot light contributes only inside its cone, whose entry
 //! and exit along each ray are found analytically.
 //!
+//! A directional light reads no table: the scattering angle is the same along a ray, so the
+//! airlight over `[0, x]` is `σs·p(cos θ)·E·(1 − e^{−σt x})/σt` per channel, evaluated in a form
+//! exact at `σt → 0`, for large `σt·x` and for sky rays; its steps are uniform in
+//! `s = x/(x + L)`, with `L` one extinction length (at most the shadow map's half width).
+//!
 //! # Inputs
 //! * `scene_depth`: the caller's depth buffer, any depth format (`Depth16Unorm`, `Depth24Plus`,
 //!   `Depth24PlusStencil8`, `Depth32Float`, …), single-sampled, usage `TEXTURE_BINDING`; its
@@ -267,7 +272,8 @@ pub struct MarchInputs<'a> {
     pub light: &'a Light,
     /// The medium.
     pub medium: &'a Medium,
-    /// The F′ table, prepared for the same eye, light and medium.
+    /// The F′ table, prepared for the same eye, light and medium (not read for a directional
+    /// light: any table node will do, prepared or not).
     pub table: &'a AirlightTableNode,
     /// The caller's depth buffer (see the module docs).
     pub scene_depth: &'a wgpu::Texture,

@@ -107,9 +107,11 @@ impl Default for ShadowMapSettings {
 /// A shadow map as the march reads it.
 #[derive(Clone, Copy)]
 pub struct ShadowMap<'a> {
-    /// Depth 2D array texture: 6 layers (cube faces +X, −X, +Y, −Y, +Z, −Z) or 1 (spot).
+    /// Depth 2D array texture: 6 layers (cube faces +X, −X, +Y, −Y, +Z, −Z) or 1 (spot,
+    /// directional).
     pub texture: &'a wgpu::Texture,
-    /// clip_from_world of each layer, reversed-Z infinite perspective (see the module docs).
+    /// clip_from_world of each layer, reversed-Z infinite perspective, or for a directional
+    /// light reversed-Z orthographic (see the module docs).
     pub faces: &'a [Mat4],
     /// Relative depth bias.
     pub depth_bias: f32,

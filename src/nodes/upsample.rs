@@ -177,7 +177,8 @@ pub struct UpsampleInputs<'a> {
     /// The reduced-scale march output ([`MarchNode::output`](crate::nodes::MarchNode::output)):
     /// `Rgba32Float`, rgb = lit fraction, a = eye distance (−1 sky).
     pub low: &'a wgpu::Texture,
-    /// The frame's F′ table, for the full-resolution analytic airlight.
+    /// The frame's F′ table, for the full-resolution analytic airlight (not read for a
+    /// directional light, whose airlight is in closed form).
     pub table: &'a crate::nodes::AirlightTableNode,
     /// The light.
     pub light: &'a crate::scene::Light,
