@@ -293,7 +293,9 @@ impl ShadowMapNode {
     ///
     /// # Errors
     ///
-    /// [`Error::NonFinite`] or [`Error::SingularMatrix`] for an occluder's transform.
+    /// [`Error::NonFinite`] or [`Error::SingularMatrix`] for an occluder's transform;
+    /// [`Error::InvalidSetting`] naming `light` for a directional light, whose map is fitted to
+    /// the camera ([`prepare_directional`](Self::prepare_directional)).
     pub fn prepare(
         &mut self,
         device: &wgpu::Device,
