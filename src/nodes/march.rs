@@ -85,6 +85,7 @@ struct Variant {
     spot: bool,
     textured: bool,
     bisections: u32,
+    soft: bool,
 }
 
 /// The march's layout and its pipelines, one per [`Variant`] built on first use; held by the
@@ -119,6 +120,7 @@ impl Pipelines {
                 ("SPOT", flag(v.spot)),
                 ("TEXTURED", flag(v.textured)),
                 ("BISECTIONS", f64::from(v.bisections)),
+                ("SOFT", flag(v.soft)),
             ];
             let label = "volshadow march";
             compute_pipeline(
@@ -294,6 +296,45 @@ struct MarchUniform {
     tex_width: f32,
     tex_mips: f32,
     _pad: [u32; 3],
+    soft: [f32; 4],
+    spheres: [[f32; 4]; MAX_SOFT_SPHERES],
+}
+
+/// Most occluder bounding spheres the soft march tests each ray against; more are merged into
+/// one sphere around them all.
+const MAX_SOFT_SPHERES: usize = 8;
+
+/// The soft march's constants: `[radius, least distance from the light to an occluder's
+/// bounding sphere, number of spheres, 0]` and the spheres (see [`ShadowMap::bounds`]).
+fn soft_params(light: &Light, bounds: &[glam::Vec4]) -> ([f32; 4], [[f32; 4]; MAX_SOFT_SPHERES]) {
+    let mut spheres = [[0.0; 4]; MAX_SOFT_SPHERES];
+    let p = light.position();
+    let nearest = bounds
+        .iter()
+        .map(|b| (b.truncate().distance(p) - b.w).max(0.0))
+        .fold(f32::INFINITY, f32::min);
+    let count = if bounds.len() <= MAX_SOFT_SPHERES {
+        for (slot, b) in spheres.iter_mut().zip(bounds) {
+            *slot = b.to_array();
+        }
+        bounds.len()
+    } else {
+        let lo = bounds
+            .iter()
+            .fold(glam::Vec3::INFINITY, |a, b| a.min(b.truncate() - b.w));
+        let hi = bounds
+            .iter()
+            .fold(glam::Vec3::NEG_INFINITY, |a, b| a.max(b.truncate() + b.w));
+        let c = 0.5 * (lo + hi);
+        let r = bounds
+            .iter()
+            .map(|b| b.truncate().distance(c) + b.w)
+            .fold(0.0, f32::max);
+        spheres[0] = c.extend(r).to_array();
+        1
+    };
+    let nearest = if nearest.is_finite() { nearest } else { 0.0 };
+    ([light.radius(), nearest, count as f32, 0.0], spheres)
 }
 
 /// What the exact method met in a frame, counted by the march (see
@@ -608,6 +649,8 @@ impl MarchNode {
             .write(queue, ViewUniform::new(camera, width, height));
 
         let mut faces = [[0.0; 16]; 6];
+        let soft = inputs.light.radius() > 0.0;
+        let (mut soft_consts, mut spheres) = ([0.0; 4], [[0.0; 4]; MAX_SOFT_SPHERES]);
         let (mut depth_bias, mut extents_near) = (0.0, 0.0);
         let mode = match &inputs.shadows {
             None if self.settings.method == MarchMethod::Textbook => Mode::Textbook,
@@ -617,6 +660,9 @@ impl MarchNode {
                     *slot = face.to_cols_array();
                 }
                 depth_bias = s.shadow_map.depth_bias;
+                if soft {
+                    (soft_consts, spheres) = soft_params(inputs.light, s.shadow_map.bounds);
+                }
                 extents_near = s.extents.map_or(0.0, |e| e.near);
                 match (self.settings.method, s.extents) {
                     (MarchMethod::Hybrid, Some(e)) if e.crossings.is_none() => Mode::Hybrid,
@@ -658,6 +704,8 @@ impl MarchNode {
                 tex_width,
                 tex_mips,
                 _pad: [0; 3],
+                soft: soft_consts,
+                spheres,
             },
         );
         self.pipeline = Some(self.pipelines.variant(
@@ -666,11 +714,12 @@ impl MarchNode {
                 mode,
                 spot: matches!(inputs.light, Light::Spot(_)),
                 textured: inputs.light_texture.is_some(),
-                bisections: if mode == Mode::Analytic {
+                bisections: if mode == Mode::Analytic || soft {
                     0
                 } else {
                     self.settings.bisections
                 },
+                soft: soft && !matches!(mode, Mode::Analytic | Mode::Textbook),
             },
         ));
         Ok(true)
