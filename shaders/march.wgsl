@@ -214,11 +214,18 @@ fn visibility_soft(p: vec3<f32>) -> f32 {
     var width = min(radius * (1.0 / max(dist * sum, nearest) - 1.0 / dist), search);
     // Once more over the directions the filter will cover: the blockers nearest to where the
     // lines from p to the disc graze them (a convex occluder's outline) decide.
+    var blocked = 0u;
     for (var k = 0u; k < SOFT_SEARCH_TAPS; k++) {
         let b = blocker_ratio(soft_tap(u, e1, e2, dist, width, k, SOFT_SEARCH_TAPS));
         if (b < 1.0) {
             sum = max(sum, b);
+            blocked++;
         }
+    }
+    // Every tap of both rounds blocked: the umbra (the filter covers no more than the second
+    // round did).
+    if (blocked == SOFT_SEARCH_TAPS && count == f32(SOFT_SEARCH_TAPS + 1u)) {
+        return 0.0;
     }
     width = min(radius * (1.0 / max(dist * sum, nearest) - 1.0 / dist), search);
     var lit = 0.0;
