@@ -125,9 +125,9 @@ const GOLDEN_ANGLE: f32 = 2.39996322972865;
 
 // The point at the distance of `p` from the light, in the direction from the light tilted by
 // `t` (tangent of the angle) along the tap `k` of `n` on the unit disc in the frame (e1, e2).
-fn soft_tap(u: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>, dist: f32, t: f32, k: u32, n: u32) -> vec3<f32> {
+fn soft_tap(u: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>, dist: f32, t: f32, k: u32, n: u32, turn: f32) -> vec3<f32> {
     let rho = sqrt((f32(k) + 0.5) / f32(n));
-    let phi = GOLDEN_ANGLE * f32(k);
+    let phi = GOLDEN_ANGLE * f32(k) + turn;
     let d = normalize(u + (t * rho) * (cos(phi) * e1 + sin(phi) * e2));
     return air.light_pos + dist * d;
 }
@@ -191,13 +191,16 @@ fn visibility_soft(p: vec3<f32>) -> f32 {
     let fb = u.x * u.y * fa;
     let e1 = vec3<f32>(1.0 + sgn * u.x * u.x * fa, sgn * fb, -sgn * u.x);
     let e2 = vec3<f32>(fb, sgn + u.y * u.y * fa, -u.y);
+    // The spiral turned by a hash of the point: along a ray the steps see different taps, so
+    // the pattern's error averages out in the integral instead of adding up.
+    let turn = 2.0 * PI * fract(sin(dot(p, vec3<f32>(12.9898, 78.233, 37.719))) * 43758.5453);
     // A line from p to the light's point at lateral offset radius·w meets the sphere of
     // distance b around the light in the direction tilted by radius·(1/b − 1/dist)·w.
     let search = radius * (1.0 / nearest - 1.0 / dist);
     var sum = 0.0;
     var count = 0.0;
     for (var k = 0u; k < SOFT_SEARCH_TAPS; k++) {
-        let b = blocker_ratio(soft_tap(u, e1, e2, dist, search, k, SOFT_SEARCH_TAPS));
+        let b = blocker_ratio(soft_tap(u, e1, e2, dist, search, k, SOFT_SEARCH_TAPS, turn));
         if (b < 1.0) {
             sum = max(sum, b);
             count += 1.0;
@@ -216,7 +219,7 @@ fn visibility_soft(p: vec3<f32>) -> f32 {
     // lines from p to the disc graze them (a convex occluder's outline) decide.
     var blocked = 0u;
     for (var k = 0u; k < SOFT_SEARCH_TAPS; k++) {
-        let b = blocker_ratio(soft_tap(u, e1, e2, dist, width, k, SOFT_SEARCH_TAPS));
+        let b = blocker_ratio(soft_tap(u, e1, e2, dist, width, k, SOFT_SEARCH_TAPS, turn));
         if (b < 1.0) {
             sum = max(sum, b);
             blocked++;
@@ -230,7 +233,7 @@ fn visibility_soft(p: vec3<f32>) -> f32 {
     width = min(radius * (1.0 / max(dist * sum, nearest) - 1.0 / dist), search);
     var lit = 0.0;
     for (var k = 0u; k < SOFT_FILTER_TAPS; k++) {
-        lit += visibility(soft_tap(u, e1, e2, dist, width, k, SOFT_FILTER_TAPS));
+        lit += visibility(soft_tap(u, e1, e2, dist, width, k, SOFT_FILTER_TAPS, turn));
     }
     return lit / f32(SOFT_FILTER_TAPS);
 }

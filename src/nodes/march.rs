@@ -377,7 +377,10 @@ impl MarchStats {
 /// distance is the *farthest* one found, in two search rounds (the second over the filter's
 /// own footprint): for a convex occluder the lines graze its outline, and the mean
 /// front-surface distance made the penumbra up to 12% too wide (on the sphere scene of
-/// `tests/soft.rs`, p95 5.9% against the reference, 2.2% with the farthest blocker). Shifted
+/// `tests/soft.rs`, p95 5.9% against the reference, 2.2% with the farthest blocker). The taps
+/// lie on a golden-angle spiral turned by a hash of the point, so that successive steps of a
+/// ray see different taps and the pattern's error averages out along the ray (p95 1.9%; with
+/// a fixed spiral 2.2%, and with 16 filter taps 3.2% fixed, 2.6% turned). Shifted
 /// shadow maps from several points of the light (the alternative the SoftBiF-VS paper uses)
 /// were not implemented: each point costs a shadow-map render and a lookup per step, and
 /// the visible fraction then moves in steps of one over their count.
