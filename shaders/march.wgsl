@@ -181,8 +181,8 @@ fn visibility_soft(p: vec3<f32>) -> f32 {
         return 1.0; // inside the light's sphere: all of it is visible (as the reference)
     }
     let nearest = max(mp.soft.y, 1.0e-3 * radius);
-    if (!(dist > nearest)) {
-        return 1.0; // nearer than every occluder
+    if (!(dist > nearest) || !may_be_hidden(p)) {
+        return 1.0; // nearer than every occluder, or outside every penumbra cone
     }
     let u = rel / dist;
     // An orthonormal frame around u (Duff et al., "Building an Orthonormal Basis, Revisited", 2017).
@@ -236,6 +236,30 @@ fn visibility_soft(p: vec3<f32>) -> f32 {
         lit += visibility(soft_tap(u, e1, e2, dist, width, k, SOFT_FILTER_TAPS, turn));
     }
     return lit / f32(SOFT_FILTER_TAPS);
+}
+
+// Whether p lies in one of the cones of `penumbra_cone` (all of space without bounds).
+fn may_be_hidden(p: vec3<f32>) -> bool {
+    let count = u32(mp.soft.z);
+    if (count == 0u) {
+        return true;
+    }
+    let radius = mp.soft.x;
+    for (var i = 0u; i < count; i++) {
+        let to_c = mp.spheres[i].xyz - air.light_pos;
+        let rho = mp.spheres[i].w;
+        let l = length(to_c);
+        let sin_t = 1.05 * (radius + rho) / max(l, 1.0e-30);
+        if (sin_t >= 0.999) {
+            return true;
+        }
+        let axis = to_c / l;
+        let rel = p - (air.light_pos + axis * (l * radius / (radius + rho)));
+        if (dot(axis, rel) >= sqrt(1.0 - sin_t * sin_t) * length(rel)) {
+            return true;
+        }
+    }
+    return false;
 }
 
 // The cone of lines tangent to both the light's sphere and the sphere (c, rho) that cross
