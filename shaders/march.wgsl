@@ -20,6 +20,7 @@
 override MODE: u32 = 0u;           // 0 analytic, 1 hybrid, 2 brute force, 3 exact, 4 textbook (and the prelude's SPOT)
 override TEXTURED: bool = false;   // textured spot
 override BISECTIONS: u32 = 0u;     // bisection steps per lit/shadow transition
+override SOFT: bool = false;       // the light has a radius: fractional visibility (soft shadows)
 
 // Most transitions a marched interval records before it evaluates T at them (more just take
 // another round of the step loop).
@@ -41,6 +42,10 @@ struct MarchParams {
     tan_half_angle: f32,     // textured spot: tan(half apex angle)
     tex_width: f32,          // textured spot: texture width (texels)
     tex_mips: f32,           // textured spot: mip levels
+    // Soft shadows (SOFT pipelines): light radius, the least distance from the light of any
+    // occluder's bounding sphere, the number of bounding spheres in `spheres`.
+    soft: vec4<f32>,
+    spheres: array<vec4<f32>, 8>,  // occluders' world bounding spheres (centre, radius)
 }
 
 @group(0) @binding(0) var<storage, read> air: Airlight;
@@ -115,7 +120,235 @@ fn visibility(p: vec3<f32>) -> f32 {
 }
 
 fn vis_at(ray: PixelRay, r: AirRay, s: f32) -> f32 {
+    if (SOFT) {
+        return visibility_soft(air.eye + x_of_s(r, s) * ray.dir);
+    }
     return visibility(air.eye + x_of_s(r, s) * ray.dir);
+}
+
+// Soft shadows. Taps on a disc: golden-angle spiral, equal areas (Vogel 1979).
+const SOFT_SEARCH_TAPS: u32 = 16u;
+const SOFT_FILTER_TAPS: u32 = 32u;
+const GOLDEN_ANGLE: f32 = 2.39996322972865;
+
+// The point at the distance of `p` from the light, in the direction from the light tilted by
+// `t` (tangent of the angle) along the tap `k` of `n` on the unit disc in the frame (e1, e2).
+fn soft_tap(u: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>, dist: f32, t: f32, k: u32, n: u32, turn: f32) -> vec3<f32> {
+    let rho = sqrt((f32(k) + 0.5) / f32(n));
+    let phi = GOLDEN_ANGLE * f32(k) + turn;
+    let d = normalize(u + (t * rho) * (cos(phi) * e1 + sin(phi) * e2));
+    return air.light_pos + dist * d;
+}
+
+// The distance from the light of the nearest occluder in the shadow map towards `q`, as a
+// fraction of |q − light| (≥ 1, or 2 where nothing is in front of q).
+fn blocker_ratio(q: vec3<f32>) -> f32 {
+    let rel = q - air.light_pos;
+    var face = 0u;
+    if (!SPOT) {
+        let m = abs(rel);
+        if (m.x >= m.y && m.x >= m.z) {
+            face = select(1u, 0u, rel.x > 0.0);
+        } else if (m.y >= m.z) {
+            face = select(3u, 2u, rel.y > 0.0);
+        } else {
+            face = select(5u, 4u, rel.z > 0.0);
+        }
+    }
+    let clip = mp.faces[face] * vec4<f32>(q, 1.0);
+    if (clip.w <= 0.0) {
+        return 2.0;
+    }
+    let ndc = clip.xyz / clip.w;
+    if (any(abs(ndc.xy) > vec2<f32>(1.0))) {
+        return 2.0;
+    }
+    let size = vec2<f32>(textureDimensions(shadow_map));
+    let uv = vec2<f32>(0.5 + 0.5 * ndc.x, 0.5 - 0.5 * ndc.y);
+    let texel = vec2<i32>(clamp(uv * size, vec2<f32>(0.0), size - 1.0));
+    let depth = textureLoad(shadow_map, texel, i32(face), 0);
+    // Reversed Z: depth = near / distance along the face's axis, so the ratio of distances
+    // along one direction is the inverse ratio of depths.
+    if (depth * (1.0 - mp.depth_bias) > ndc.z) {
+        return ndc.z / depth;
+    }
+    return 2.0;
+}
+
+// The fraction of the light's disc visible from `p` (percentage-closer soft shadows, Fernando
+// 2005, in the one shadow map): a blocker search over the directions, seen from the light,
+// where a line from `p` to the disc can meet an occluder, then the mean of the hard
+// visibility over the directions where the lines from `p` to the disc cross the blockers'
+// mean distance. Taps are points at the distance of `p`, so a cube map's faces are chosen
+// per tap.
+fn visibility_soft(p: vec3<f32>) -> f32 {
+    let radius = mp.soft.x;
+    let rel = p - air.light_pos;
+    let dist = length(rel);
+    if (dist <= radius) {
+        return 1.0; // inside the light's sphere: all of it is visible (as the reference)
+    }
+    let nearest = max(mp.soft.y, 1.0e-3 * radius);
+    if (!(dist > nearest) || !may_be_hidden(p)) {
+        return 1.0; // nearer than every occluder, or outside every penumbra cone
+    }
+    let u = rel / dist;
+    // An orthonormal frame around u (Duff et al., "Building an Orthonormal Basis, Revisited", 2017).
+    let sgn = select(-1.0, 1.0, u.z >= 0.0);
+    let fa = -1.0 / (sgn + u.z);
+    let fb = u.x * u.y * fa;
+    let e1 = vec3<f32>(1.0 + sgn * u.x * u.x * fa, sgn * fb, -sgn * u.x);
+    let e2 = vec3<f32>(fb, sgn + u.y * u.y * fa, -u.y);
+    // The spiral turned by a hash of the point: along a ray the steps see different taps, so
+    // the pattern's error averages out in the integral instead of adding up.
+    let turn = 2.0 * PI * fract(sin(dot(p, vec3<f32>(12.9898, 78.233, 37.719))) * 43758.5453);
+    // A line from p to the light's point at lateral offset radius·w meets the sphere of
+    // distance b around the light in the direction tilted by radius·(1/b − 1/dist)·w.
+    let search = radius * (1.0 / nearest - 1.0 / dist);
+    var sum = 0.0;
+    var count = 0.0;
+    for (var k = 0u; k < SOFT_SEARCH_TAPS; k++) {
+        let b = blocker_ratio(soft_tap(u, e1, e2, dist, search, k, SOFT_SEARCH_TAPS, turn));
+        if (b < 1.0) {
+            sum = max(sum, b);
+            count += 1.0;
+        }
+    }
+    let centre = blocker_ratio(p);
+    if (centre < 1.0) {
+        sum = max(sum, centre);
+        count += 1.0;
+    }
+    if (count == 0.0) {
+        return 1.0;
+    }
+    var width = min(radius * (1.0 / max(dist * sum, nearest) - 1.0 / dist), search);
+    // Once more over the directions the filter will cover: the blockers nearest to where the
+    // lines from p to the disc graze them (a convex occluder's outline) decide.
+    var blocked = 0u;
+    for (var k = 0u; k < SOFT_SEARCH_TAPS; k++) {
+        let b = blocker_ratio(soft_tap(u, e1, e2, dist, width, k, SOFT_SEARCH_TAPS, turn));
+        if (b < 1.0) {
+            sum = max(sum, b);
+            blocked++;
+        }
+    }
+    // Every tap of both rounds blocked: the umbra (the filter covers no more than the second
+    // round did).
+    if (blocked == SOFT_SEARCH_TAPS && count == f32(SOFT_SEARCH_TAPS + 1u)) {
+        return 0.0;
+    }
+    width = min(radius * (1.0 / max(dist * sum, nearest) - 1.0 / dist), search);
+    var lit = 0.0;
+    for (var k = 0u; k < SOFT_FILTER_TAPS; k++) {
+        lit += visibility(soft_tap(u, e1, e2, dist, width, k, SOFT_FILTER_TAPS, turn));
+    }
+    return lit / f32(SOFT_FILTER_TAPS);
+}
+
+// Whether p lies in one of the cones of `penumbra_cone` (all of space without bounds).
+fn may_be_hidden(p: vec3<f32>) -> bool {
+    let count = u32(mp.soft.z);
+    if (count == 0u) {
+        return true;
+    }
+    let radius = mp.soft.x;
+    for (var i = 0u; i < count; i++) {
+        let to_c = mp.spheres[i].xyz - air.light_pos;
+        let rho = mp.spheres[i].w;
+        let l = length(to_c);
+        let sin_t = 1.05 * (radius + rho) / max(l, 1.0e-30);
+        if (sin_t >= 0.999) {
+            return true;
+        }
+        let axis = to_c / l;
+        let rel = p - (air.light_pos + axis * (l * radius / (radius + rho)));
+        if (dot(axis, rel) >= sqrt(1.0 - sin_t * sin_t) * length(rel)) {
+            return true;
+        }
+    }
+    return false;
+}
+
+// The cone of lines tangent to both the light's sphere and the sphere (c, rho) that cross
+// between them, beyond its apex: the only points from which the sphere can hide part of the
+// light. Its pieces along the ray as cone_support finds them (up to two intervals).
+fn penumbra_cone(dir: vec3<f32>, x_end: f32, c: vec3<f32>, rho: f32) -> vec2<f32> {
+    let radius = mp.soft.x;
+    let to_c = c - air.light_pos;
+    let l = length(to_c);
+    // A relative margin of 5% on the cone's opening covers the filter's estimate of the
+    // blockers' distance (the front surface, nearer than where the lines graze the occluder).
+    let sin_t = 1.05 * (radius + rho) / max(l, 1.0e-30);
+    if (sin_t >= 0.999) {
+        return vec2<f32>(0.0, x_end); // the spheres (nearly) touch: anywhere
+    }
+    let axis = to_c / l;
+    let apex = air.light_pos + axis * (l * radius / (radius + rho));
+    let c2 = 1.0 - sin_t * sin_t;
+    let w0 = air.eye - apex;
+    let av = dot(axis, dir);
+    let aw = dot(axis, w0);
+    let qa = av * av - c2;
+    let qb = 2.0 * (av * aw - c2 * dot(dir, w0));
+    let qc = aw * aw - c2 * dot(w0, w0);
+    var roots = array<f32, 2>(-1.0, -1.0);
+    if (abs(qa) > 1.0e-12 * max(abs(qb), abs(qc))) {
+        let disc = qb * qb - 4.0 * qa * qc;
+        if (disc >= 0.0) {
+            let q = -0.5 * (qb + select(-1.0, 1.0, qb >= 0.0) * sqrt(disc));
+            let r0 = q / qa;
+            let r1 = select(r0, qc / q, q != 0.0);
+            roots = array<f32, 2>(min(r0, r1), max(r0, r1));
+        }
+    } else if (qb != 0.0) {
+        roots[0] = -qc / qb;
+    }
+    var cuts = array<f32, 4>(0.0, x_end, x_end, x_end);
+    var k = 1u;
+    for (var i = 0u; i < 2u; i++) {
+        if (roots[i] > 0.0 && roots[i] < x_end) {
+            cuts[k] = roots[i];
+            k++;
+        }
+    }
+    cuts[k] = x_end;
+    var hull = vec2<f32>(FAR, -1.0);
+    let cos_t = sqrt(c2);
+    for (var i = 0u; i < k; i++) {
+        let a = cuts[i];
+        let b = cuts[i + 1u];
+        var mid = 0.5 * (a + b);
+        if (b >= FAR) {
+            mid = a + 1.0 + 2.0 * abs(a) + 1.0e3 * air.distance;
+        }
+        let rel = air.eye + mid * dir - apex;
+        if (b > a && dot(axis, rel) >= cos_t * length(rel)) {
+            hull = vec2<f32>(min(hull.x, a), max(hull.y, b));
+        }
+    }
+    return hull;
+}
+
+// Where a soft shadow may be along the ray, in s: the hull of the occluders' penumbra cones
+// (empty: (1, 0)). Brute force marches all of it, and so does a shadow map without bounds.
+fn soft_extents(ray: PixelRay, r: AirRay, x_end: f32) -> vec2<f32> {
+    if (MODE == 2u) {
+        return vec2<f32>(0.0, 1.0);
+    }
+    let count = u32(mp.soft.z);
+    if (count == 0u) {
+        return vec2<f32>(0.0, 1.0); // no bounds given: anywhere
+    }
+    var hull = vec2<f32>(FAR, -1.0);
+    for (var i = 0u; i < count; i++) {
+        let h = penumbra_cone(ray.dir, x_end, mp.spheres[i].xyz, mp.spheres[i].w);
+        hull = vec2<f32>(min(hull.x, h.x), max(hull.y, h.y));
+    }
+    if (!(hull.x <= hull.y)) {
+        return vec2<f32>(1.0, 0.0);
+    }
+    return vec2<f32>(s_of_x(air, r, hull.x * 0.999), s_of_x(air, r, min(hull.y * 1.001, FAR)));
 }
 
 // The lit/shadow transition in [lo, hi] located by BISECTIONS halvings; `lo` is on the side
@@ -379,7 +612,11 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
     var list_base = 0u;
     // Volumes around the eye, counted back from the far end; < 0: not known (open meshes).
     var around_eye = -1;
-    if (MODE == 1u) {
+    if (SOFT) {
+        // Soft shadows: the shadow volumes bound the hard shadow, not the penumbra; march
+        // inside the penumbra cones instead.
+        ext = soft_extents(ray, r, x_end);
+    } else if (MODE == 1u) {
         let front = textureLoad(extent_front, gid.xy, 0);
         let back_near = textureLoad(extent_back_near, gid.xy, 0);
         let back_far = textureLoad(extent_back_far, gid.xy, 0);

@@ -256,8 +256,7 @@ impl VolumetricShadows {
     ///
     /// Nothing is recorded and the previous plan is kept on any error:
     ///
-    /// * [`Error::InvalidSetting`] naming `lights` for more than [`MAX_LIGHTS`](crate::nodes::MAX_LIGHTS) lights,
-    ///   and naming `lights[].radius` for a light with a radius (soft shadows are reference-only so far);
+    /// * [`Error::InvalidSetting`] naming `lights` for more than [`MAX_LIGHTS`](crate::nodes::MAX_LIGHTS) lights;
     /// * [`Error::InvalidTexture`] naming `scene_color`, `scene_depth` or a light texture for a
     ///   wrong format, usage, layer count or size (colour and depth must be the same size);
     /// * [`Error::InvalidSize`] for a frame larger than the device's texture limits;
@@ -292,14 +291,6 @@ impl VolumetricShadows {
             return Err(Error::InvalidSetting {
                 field: "lights",
                 problem: format!("{} lights, at most {MAX_LIGHTS}", frame.lights.len()),
-            });
-        }
-        // Lights with a radius are integrated by the f64 reference only so far; drawing them
-        // hard here would be silently wrong.
-        if frame.lights.iter().any(|l| l.light.radius() > 0.0) {
-            return Err(Error::InvalidSetting {
-                field: "lights[].radius",
-                problem: "soft shadows (a radius > 0) are not rendered on the GPU yet".into(),
             });
         }
         while self.slots.len() < frame.lights.len() {

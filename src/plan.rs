@@ -363,6 +363,9 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
 /// `σs·p_max·I0·exp(−σt (r + e))·π/r`, while the first `l = min(e, D)/2` of that ray gather at
 /// least `l·σs·p_min·I0·exp(−σt (D + 2l))/(D + l)²`. Returns ∞ when no bound applies (the eye or
 /// the light inside the occluder's bounds, a spot light whose cone may exclude that segment).
+/// For a light of radius `R` a point it partially shadows is beyond the occluder on a line from
+/// a point of the light, so at least `r − 2R` from the centre: `r` is reduced by `2R` (∞ when
+/// that leaves nothing).
 pub(crate) fn occluder_bound(
     eye: glam::Vec3,
     light: &crate::scene::Light,
@@ -375,7 +378,7 @@ pub(crate) fn occluder_bound(
     let Some(p) = light.position() else {
         return f64::INFINITY;
     };
-    let r = f64::from(p.clamp(bounds.0, bounds.1).distance(p));
+    let r = f64::from(p.clamp(bounds.0, bounds.1).distance(p)) - 2.0 * f64::from(light.radius());
     let e = f64::from(eye.clamp(bounds.0, bounds.1).distance(eye));
     let d = f64::from(p.distance(eye));
     if r <= 0.0 || e <= 0.0 || d <= 0.0 {
@@ -499,4 +502,32 @@ pub fn for_error_target(p95: f32) -> Result<MeasuredConfig> {
                 ),
             }
         })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::occluder_bound;
+    use crate::scene::{Light, Medium, PhaseFunction, PointLight};
+    use glam::Vec3;
+
+    /// A light's radius widens where an occluder can shadow: an occluder far to the side of a
+    /// point light in thick fog is culled at the default threshold (1e-3), the same occluder
+    /// under a light of radius 7 is not, and once the light reaches within `2R` of its bounds
+    /// no bound applies (was the point light's bound whatever the radius, so a penumbra could
+    /// be culled).
+    #[test]
+    fn a_radius_loosens_the_cull_bound() {
+        let medium = Medium::new(Vec3::splat(1.0), Vec3::ZERO, PhaseFunction::Isotropic).unwrap();
+        let eye = Vec3::new(0.0, 0.0, 10.0);
+        let bounds = (Vec3::new(-0.5, 19.5, -0.5), Vec3::new(0.5, 20.5, 0.5)); // r = 19.5
+        let point = PointLight::new(Vec3::ZERO, Vec3::ONE).unwrap();
+        let bound = |radius: f32| {
+            let light = Light::from(point.with_radius(radius).unwrap());
+            occluder_bound(eye, &light, &medium, bounds)
+        };
+        let (hard, soft, reaching) = (bound(0.0), bound(7.0), bound(9.75));
+        eprintln!("cull bounds: radius 0 {hard:e}, 7 {soft:e}, 9.75 {reaching:e}");
+        assert!(hard < 1e-3 && soft > 1e-3, "{hard} {soft}");
+        assert_eq!(reaching, f64::INFINITY);
+    }
 }

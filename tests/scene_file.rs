@@ -416,6 +416,28 @@ fn error_bad_cone_angle() {
     );
 }
 
+/// A light's `radius` is read (soft shadows), defaults to 0, and a negative one is an error
+/// naming it (was: an unknown field).
+#[test]
+fn light_radius() {
+    let text = with(
+        r#""lights": [{"type": "point", "position": [0,1,0], "intensity": 1, "radius": 0.25},
+                      {"type": "spot", "position": [0,5,0], "direction": [0,-1,0], "cone_angle_degrees": 40, "intensity": 1, "radius": 0.5},
+                      {"type": "point", "position": [0,2,0], "intensity": 1}]"#,
+    );
+    let s = parse(&text).unwrap();
+    let radii: Vec<f32> = s.lights.iter().map(|l| l.light.radius()).collect();
+    assert_eq!(radii, [0.25, 0.5, 0.0]);
+    let text = with(
+        r#""lights": [{"type": "spot", "position": [0,5,0], "direction": [0,-1,0], "cone_angle_degrees": 40, "intensity": 1, "radius": -1}]"#,
+    );
+    let message = expect_error(&text, "lights[0].radius", &["-1"]);
+    assert_eq!(
+        message,
+        "<string>: lights[0].radius: must be finite and at least 0, got -1"
+    );
+}
+
 #[test]
 fn error_asymmetry_out_of_range() {
     for g in ["1", "-1", "1.5"] {

@@ -450,6 +450,15 @@ pub fn reference_inscatter(
                     &occluders,
                 )
             }
+            (light, _) if light.radius() > 0.0 => reference::inscatter_image_soft(
+                camera,
+                width,
+                height,
+                &ds,
+                &scene.medium,
+                &light,
+                &soft_occluders(scene),
+            ),
             (light, _) => reference::inscatter_image(
                 camera,
                 width,
@@ -466,6 +475,42 @@ pub fn reference_inscatter(
             .for_each(|(sum, v)| *sum += v);
     }
     inscatter
+}
+
+/// The occluders for a light with a radius: an object whose world-space vertices all lie on
+/// one sphere (to 1e-4 of its radius: a tessellated sphere) is that exact sphere, whose
+/// visible fraction the reference computes in closed form; any other is its mesh, sampled
+/// (about a second per pixel and far slower than the sphere, which makes the soft scene's
+/// reference affordable at the report's sizes).
+fn soft_occluders(scene: &SceneDescription) -> Vec<reference::Occluder> {
+    let mut out = Vec::new();
+    for (o, mesh) in scene
+        .objects
+        .iter()
+        .filter(|o| o.casts_shadow)
+        .zip(scene.reference_occluders())
+    {
+        let t = o.transform.as_dmat4();
+        let p: Vec<DVec3> = o
+            .mesh
+            .positions()
+            .iter()
+            .map(|v| t.transform_point3(v.as_dvec3()))
+            .collect();
+        let lo = p.iter().fold(DVec3::INFINITY, |a, &b| a.min(b));
+        let hi = p.iter().fold(DVec3::NEG_INFINITY, |a, &b| a.max(b));
+        let c = 0.5 * (lo + hi);
+        let (near, far) = p.iter().fold((f64::INFINITY, 0.0f64), |(n, f), q| {
+            let d = q.distance(c);
+            (n.min(d), f.max(d))
+        });
+        out.push(if far > 0.0 && far - near <= 1e-4 * far {
+            reference::Sphere::new(c, far).into()
+        } else {
+            mesh
+        });
+    }
+    out
 }
 
 /// What [`render`] produced.

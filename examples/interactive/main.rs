@@ -12,7 +12,8 @@
 //! Controls: the mouse moves the light (in a plane behind the spheres); M switches the march
 //! method (hybrid / brute force); Up / Down double / halve the steps (4 ..= 512); R cycles the
 //! scattering resolution (full, 1/2, 1/4); S toggles shadows (no occluders: the planner skips
-//! the shadow map and extents); V cycles the view: the frame, a split screen (left: the current
+//! the shadow map and extents); L cycles the light's radius (0: a point, hard shadows; 0.1,
+//! 0.25, 0.5: a sphere, soft shadows); V cycles the view: the frame, a split screen (left: the current
 //! method; right: the f64 reference), and the difference (per-pixel relative error of the
 //! in-scatter against the reference: black 0, blue 2%, yellow 5%, red 10% or more); Escape
 //! quits. The reference (`volshadow::reference`, exact sphere visibility) is computed in a
@@ -96,8 +97,8 @@ impl View {
     }
 }
 
-/// What a reference image was computed for: light position, shadows, window size.
-type ReferenceKey = ([u32; 3], bool, (u32, u32));
+/// What a reference image was computed for: light position and radius, shadows, window size.
+type ReferenceKey = ([u32; 4], bool, (u32, u32));
 
 /// A reference computation for the background thread.
 struct ReferenceJob {
@@ -149,7 +150,8 @@ impl ReferenceState {
     }
 }
 
-/// The reference's in-scatter for `job`: the spheres as exact occluders, the app's ground
+/// The reference's in-scatter for `job` (soft shadows for a light with a radius; the same as
+/// the hard reference for radius 0): the spheres as exact occluders, the app's ground
 /// plane and spheres as the surfaces that end each ray.
 fn reference_inscatter(job: &ReferenceJob) -> Vec<DVec3> {
     let occluders = if job.shadows {
@@ -157,7 +159,7 @@ fn reference_inscatter(job: &ReferenceJob) -> Vec<DVec3> {
     } else {
         Vec::new()
     };
-    reference::inscatter_image(
+    reference::inscatter_image_soft(
         &job.camera,
         job.size.0,
         job.size.1,
@@ -226,6 +228,7 @@ impl ApplicationHandler for App {
                         "m" => state.toggle_method(),
                         "r" => state.cycle_scale(),
                         "s" => state.shadows = !state.shadows,
+                        "l" => state.cycle_radius(),
                         "v" => state.view = state.view.next(),
                         _ => {}
                     },
@@ -263,6 +266,8 @@ struct State {
     volumetric: VolumetricShadows,
     medium: Medium,
     light_position: Vec3,
+    /// The light's radius (L cycles it).
+    light_radius: f32,
     shadows: bool,
     stats: Stats,
 }
@@ -380,6 +385,7 @@ impl State {
             volumetric,
             medium,
             light_position: LIGHT_POSITION,
+            light_radius: 0.0,
             shadows: true,
             stats: Stats {
                 passes_run: 0,
@@ -468,6 +474,15 @@ impl State {
         });
     }
 
+    fn cycle_radius(&mut self) {
+        self.light_radius = match self.light_radius {
+            r if r < 0.1 => 0.1,
+            r if r < 0.25 => 0.25,
+            r if r < 0.5 => 0.5,
+            _ => 0.0,
+        };
+    }
+
     fn cycle_scale(&mut self) {
         self.update_settings(|s| {
             s.march.scale = match s.march.scale {
@@ -504,7 +519,9 @@ impl State {
                 return;
             }
         };
-        let light = match PointLight::new(self.light_position, LIGHT_INTENSITY) {
+        let light = match PointLight::new(self.light_position, LIGHT_INTENSITY)
+            .and_then(|l| l.with_radius(self.light_radius))
+        {
             Ok(l) => l,
             Err(e) => return self.report(&e),
         };
@@ -678,7 +695,10 @@ impl State {
         }
         let window = (self.config.width, self.config.height);
         let key = (
-            self.light_position.to_array().map(f32::to_bits),
+            self.light_position
+                .extend(self.light_radius)
+                .to_array()
+                .map(f32::to_bits),
             self.shadows,
             window,
         );
@@ -733,11 +753,12 @@ impl State {
             (view, false) => format!(" | view: {} (reference computing)", view.name()),
         };
         let title = format!(
-            "volshadow: {}, {} steps, 1/{} res, shadows {}{view} | {} passes run, {} skipped | {time}",
+            "volshadow: {}, {} steps, 1/{} res, shadows {}, light radius {}{view} | {} passes run, {} skipped | {time}",
             s.march.method,
             s.march.steps,
             s.march.scale.divisor(),
             if self.shadows { "on" } else { "off" },
+            self.light_radius,
             self.stats.passes_run,
             self.stats.passes_skipped,
         );

@@ -91,6 +91,7 @@ struct Variant {
     textured: bool,
     bisections: u32,
     directional: bool,
+    soft: bool,
 }
 
 /// The march's layout and its pipelines, one per [`Variant`] built on first use; held by the
@@ -126,6 +127,7 @@ impl Pipelines {
                 ("TEXTURED", flag(v.textured)),
                 ("BISECTIONS", f64::from(v.bisections)),
                 ("DIRECTIONAL", flag(v.directional)),
+                ("SOFT", flag(v.soft)),
             ];
             let label = "volshadow march";
             compute_pipeline(
@@ -302,6 +304,45 @@ struct MarchUniform {
     tex_width: f32,
     tex_mips: f32,
     _pad: [u32; 3],
+    soft: [f32; 4],
+    spheres: [[f32; 4]; MAX_SOFT_SPHERES],
+}
+
+/// Most occluder bounding spheres the soft march tests each ray against; more are merged into
+/// one sphere around them all.
+const MAX_SOFT_SPHERES: usize = 8;
+
+/// The soft march's constants: `[radius, least distance from the light to an occluder's
+/// bounding sphere, number of spheres, 0]` and the spheres (see [`ShadowMap::bounds`]).
+fn soft_params(light: &Light, bounds: &[glam::Vec4]) -> ([f32; 4], [[f32; 4]; MAX_SOFT_SPHERES]) {
+    let mut spheres = [[0.0; 4]; MAX_SOFT_SPHERES];
+    let p = light.position().unwrap_or_default();
+    let nearest = bounds
+        .iter()
+        .map(|b| (b.truncate().distance(p) - b.w).max(0.0))
+        .fold(f32::INFINITY, f32::min);
+    let count = if bounds.len() <= MAX_SOFT_SPHERES {
+        for (slot, b) in spheres.iter_mut().zip(bounds) {
+            *slot = b.to_array();
+        }
+        bounds.len()
+    } else {
+        let lo = bounds
+            .iter()
+            .fold(glam::Vec3::INFINITY, |a, b| a.min(b.truncate() - b.w));
+        let hi = bounds
+            .iter()
+            .fold(glam::Vec3::NEG_INFINITY, |a, b| a.max(b.truncate() + b.w));
+        let c = 0.5 * (lo + hi);
+        let r = bounds
+            .iter()
+            .map(|b| b.truncate().distance(c) + b.w)
+            .fold(0.0, f32::max);
+        spheres[0] = c.extend(r).to_array();
+        1
+    };
+    let nearest = if nearest.is_finite() { nearest } else { 0.0 };
+    ([light.radius(), nearest, count as f32, 0.0], spheres)
 }
 
 /// Half the width of an orthographic shadow map's square, from its `clip_from_world` (`None`
@@ -340,6 +381,34 @@ impl MarchStats {
 }
 
 /// Computes in-scattered radiance per pixel into its own `Rgba32Float` texture.
+///
+/// # Soft shadows
+///
+/// For a light with a [`radius`](crate::scene::PointLight::radius) (see its model there),
+/// visibility is the fraction of the light's disc seen from a point, estimated from the one
+/// shadow map by percentage-closer soft shadows (Fernando, "Percentage-Closer Soft Shadows",
+/// 2005): a blocker search over the directions (seen from the light) where a line from the
+/// point to the disc can meet an occluder, then the mean of 32 hard 2×2-filtered lookups over
+/// the directions where the lines from the point to the disc cross the blockers. The blockers'
+/// distance is the *farthest* one found, in two search rounds (the second over the filter's
+/// own footprint): for a convex occluder the lines graze its outline, and the mean
+/// front-surface distance made the penumbra up to 12% too wide (on the sphere scene of
+/// `tests/soft.rs`, p95 5.9% against the reference, 2.2% with the farthest blocker). The taps
+/// lie on a golden-angle spiral turned by a hash of the point, so that successive steps of a
+/// ray see different taps and the pattern's error averages out along the ray (p95 1.9%; with
+/// a fixed spiral 2.2%, and with 16 filter taps 3.2% fixed, 2.6% turned). Shifted
+/// shadow maps from several points of the light (the alternative the SoftBiF-VS paper uses)
+/// were not implemented: each point costs a shadow-map render and a lookup per step, and
+/// the visible fraction then moves in steps of one over their count.
+///
+/// Rays are marched with `steps` steps (bisections off: the visibility is not a step) only
+/// where a penumbra can be: inside the cones of lines tangent to the light's sphere and to an
+/// occluder's bounding sphere ([`ShadowMap::bounds`]) that cross between them (with a 5%
+/// margin on their opening), and integrated in closed form outside them, where nothing hides
+/// any part of the light. This replaces the shadow-volume crossings of [`MarchMethod::Exact`]
+/// and the extents of [`MarchMethod::Hybrid`] for such a light (they bound the hard shadow,
+/// not the penumbra); [`MarchMethod::BruteForce`] marches the whole ray, and the textbook
+/// march stays hard. A radius of 0 runs exactly the code of a point light.
 pub struct MarchNode {
     settings: MarchSettings,
     pipelines: Pipelines,
@@ -628,6 +697,8 @@ impl MarchNode {
             .write(queue, ViewUniform::new(camera, width, height));
 
         let mut faces = [[0.0; 16]; 6];
+        let soft = inputs.light.radius() > 0.0;
+        let (mut soft_consts, mut spheres) = ([0.0; 4], [[0.0; 4]; MAX_SOFT_SPHERES]);
         let (mut depth_bias, mut extents_near) = (0.0, 0.0);
         let mode = match &inputs.shadows {
             None if self.settings.method == MarchMethod::Textbook => Mode::Textbook,
@@ -637,6 +708,9 @@ impl MarchNode {
                     *slot = face.to_cols_array();
                 }
                 depth_bias = s.shadow_map.depth_bias;
+                if soft {
+                    (soft_consts, spheres) = soft_params(inputs.light, s.shadow_map.bounds);
+                }
                 extents_near = s.extents.map_or(0.0, |e| e.near);
                 match (self.settings.method, s.extents) {
                     (MarchMethod::Hybrid, Some(e)) if e.crossings.is_none() => Mode::Hybrid,
@@ -678,6 +752,8 @@ impl MarchNode {
                 tex_width,
                 tex_mips,
                 _pad: [0; 3],
+                soft: soft_consts,
+                spheres,
             },
         );
         self.pipeline = Some(self.pipelines.variant(
@@ -687,11 +763,12 @@ impl MarchNode {
                 spot: matches!(inputs.light, Light::Spot(_)),
                 textured: inputs.light_texture.is_some(),
                 directional: matches!(inputs.light, Light::Directional(_)),
-                bisections: if mode == Mode::Analytic {
+                bisections: if mode == Mode::Analytic || soft {
                     0
                 } else {
                     self.settings.bisections
                 },
+                soft: soft && !matches!(mode, Mode::Analytic | Mode::Textbook),
             },
         ));
         Ok(true)

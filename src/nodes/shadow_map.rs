@@ -19,7 +19,7 @@
 //! face matrices and the depth bias. A shadow map the caller renders itself can be passed to the
 //! march instead, in the same layout and convention (any depth format that can be sampled).
 
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Vec3, Vec4};
 
 use crate::error::{finite, Error, Result};
 use crate::gpu::cache::{bind_group, depth_pipeline, layout, module, Binding};
@@ -115,6 +115,10 @@ pub struct ShadowMap<'a> {
     pub faces: &'a [Mat4],
     /// Relative depth bias.
     pub depth_bias: f32,
+    /// The occluders' world-space bounding spheres (centre, radius), which bound where a light
+    /// with a radius can cast a penumbra. Empty (a shadow map rendered by the caller without
+    /// them): a soft light's rays are marched whole.
+    pub bounds: &'a [Vec4],
 }
 
 /// Renders the occluders' depth from the light. Re-renders only when the light, an occluder or
@@ -124,6 +128,7 @@ pub struct ShadowMapNode {
     pipelines: Pipelines,
     texture: Option<wgpu::Texture>,
     faces: Vec<Mat4>,
+    bounds: Vec<Vec4>,
     face_buffer: wgpu::Buffer,
     instance_buffer: Option<wgpu::Buffer>,
     bind_group: Option<wgpu::BindGroup>,
@@ -172,6 +177,7 @@ impl ShadowMapNode {
             pipelines: cache.shadow_map.clone(),
             texture: None,
             faces: Vec::new(),
+            bounds: Vec::new(),
             face_buffer: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("volshadow shadow faces"),
                 size: 6 * SLOT,
@@ -431,6 +437,13 @@ impl ShadowMapNode {
             };
             self.faces = Self::face_matrices(light, near);
         }
+        self.bounds = occluders
+            .iter()
+            .map(|o| {
+                let (lo, hi) = o.world_bounds();
+                (0.5 * (lo + hi)).extend(0.5 * (hi - lo).length())
+            })
+            .collect();
         for (i, face) in self.faces.iter().enumerate() {
             queue.write_buffer(&self.face_buffer, i as u64 * SLOT, bytemuck::bytes_of(face));
         }
@@ -572,6 +585,7 @@ impl ShadowMapNode {
             texture: self.texture.as_ref()?,
             faces: &self.faces,
             depth_bias: self.settings.depth_bias,
+            bounds: &self.bounds,
         })
     }
 }

@@ -50,9 +50,9 @@ impl PointLight {
         })
     }
     /// The same light as a sphere of `radius` (world units; 0, the default, is a point and
-    /// gives hard shadows). See [Radius](Self#radius-soft-shadows). Only
-    /// [`crate::reference`] integrates soft shadows so far: `VolumetricShadows::prepare`
-    /// refuses a light with a radius (`Error::InvalidSetting` naming `lights[].radius`).
+    /// gives hard shadows). See [Radius](Self#radius-soft-shadows); the march node documents
+    /// how the GPU estimates the visible fraction
+    /// ([`nodes::march`](crate::nodes::MarchNode#soft-shadows)).
     ///
     /// # Errors
     ///
@@ -138,8 +138,7 @@ impl SpotLight {
         })
     }
     /// The same light as a sphere of `radius` (world units; 0, the default, is a point and
-    /// gives hard shadows). See [`PointLight`'s radius](PointLight#radius-soft-shadows). As
-    /// for [`PointLight::with_radius`], only the reference renders it so far.
+    /// gives hard shadows). See [`PointLight`'s radius](PointLight#radius-soft-shadows).
     ///
     /// # Errors
     ///

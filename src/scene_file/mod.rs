@@ -57,6 +57,8 @@
 //!     RGB >= 0), `{"stained_glass": {"size", "cells", "seed"}}` (see [`stained_glass`]; size
 //!     1..=4096, cells 1..=size) or `{"file": "window.png"}` (feature `image`; relative to the
 //!     scene file's folder, and inside it: see [`crate::load`]).
+//!   * both: optional `radius` (finite, >= 0, default 0): the light is a sphere of that radius
+//!     and casts soft shadows (see [`PointLight`](crate::PointLight#radius-soft-shadows)).
 //! * `medium` (required): `sigma_s` (RGB or one number, >= 0; required unless the phase is
 //!   `hoffman_preetham`, which sets it and forbids it), `sigma_a` (default 0), `phase` (default
 //!   `"isotropic"`): `"isotropic"`, `"rayleigh"`, `"mie_hazy"`, `"mie_murky"`,

@@ -275,16 +275,29 @@ fn intensity(i: Rgb, path: &str) -> P<Vec3> {
     Ok(i)
 }
 
+/// A light's radius: finite and ≥ 0, 0 when left out (a point: hard shadows).
+fn light_radius(r: Option<spec::Num>, path: &str) -> P<f32> {
+    let r = r.map_or(0.0, |spec::Num(r)| r);
+    ensure(r.is_finite() && r >= 0.0, path, || {
+        format!("must be finite and at least 0, got {r}")
+    })?;
+    Ok(r)
+}
+
 fn light(l: spec::Light, path: &str, ctx: &mut Ctx) -> P<SceneLight> {
     let at = |key| join(path, key);
     match l {
         spec::Light::Point {
             position,
             intensity: i,
+            radius: r,
         } => {
             let position = point(position, &at("position"))?;
             let i = intensity(i, &at("intensity"))?;
-            let light = PointLight::new(position, i).map_err(from_error(path))?;
+            let r = light_radius(r, &at("radius"))?;
+            let light = PointLight::new(position, i)
+                .and_then(|l| l.with_radius(r))
+                .map_err(from_error(path))?;
             Ok(SceneLight {
                 light: Light::Point(light),
                 texture: None,
@@ -296,6 +309,7 @@ fn light(l: spec::Light, path: &str, ctx: &mut Ctx) -> P<SceneLight> {
             cone_angle_degrees: Num(cone),
             intensity: i,
             texture: t,
+            radius: r,
         } => {
             let position = point(position, &at("position"))?;
             let direction = Vec3::from_array(direction);
@@ -311,7 +325,9 @@ fn light(l: spec::Light, path: &str, ctx: &mut Ctx) -> P<SceneLight> {
             )?;
             let i = intensity(i, &at("intensity"))?;
             let texture = t.map(|t| texture(t, &at("texture"), ctx)).transpose()?;
+            let r = light_radius(r, &at("radius"))?;
             let light = SpotLight::new(position, direction, cone.to_radians(), i)
+                .and_then(|l| l.with_radius(r))
                 .map_err(from_error(path))?;
             Ok(SceneLight {
                 light: Light::Spot(light),

@@ -313,6 +313,7 @@ pub(super) enum Light {
     Point {
         position: Floats<3>,
         intensity: Rgb,
+        radius: Option<Num>,
     },
     Spot {
         position: Floats<3>,
@@ -320,6 +321,7 @@ pub(super) enum Light {
         cone_angle_degrees: Num,
         intensity: Rgb,
         texture: Option<Texture>,
+        radius: Option<Num>,
     },
     Directional {
         direction: Floats<3>,

@@ -302,13 +302,18 @@ pub fn write_outputs(
     Ok(files)
 }
 
-/// Hybrid configurations over the scenes with untextured lights (under an error target a
-/// textured spot scatters at full resolution): the worst p95 and the mean cost relative to
+/// Hybrid configurations over the scenes with untextured lights without a radius (under an
+/// error target a textured spot scatters at full resolution, and a light with a radius marches
+/// its penumbra whatever the method): the worst p95 and the mean cost relative to
 /// each scene's analytic floor, Pareto-optimal ones only, as rows of `volshadow::plan`'s table.
 /// Only configurations measured on every such scene count (a sweep that stopped early on one
 /// scene leaves its later step counts out).
 pub fn error_table(rows: &[Row]) -> String {
-    let rows: Vec<Row> = rows.iter().filter(|r| !r.textured).cloned().collect();
+    let rows: Vec<Row> = rows
+        .iter()
+        .filter(|r| !r.textured && !r.soft)
+        .cloned()
+        .collect();
     let rows = rows.as_slice();
     let mut groups: BTreeMap<ConfigKey, Vec<&Row>> = BTreeMap::new();
     for r in rows
