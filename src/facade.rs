@@ -428,7 +428,7 @@ impl VolumetricShadows {
                     };
                     slot.upsample.prepare(device, queue, &inputs)?
                 }
-                Pass::Composite => true,
+                Pass::Composite | Pass::IssTable => true,
             };
             if !work {
                 unchanged.push(index);
@@ -562,6 +562,7 @@ impl VolumetricShadows {
             Pass::March => slot.march.encode(encoder, timer),
             Pass::Upsample => slot.upsample.encode(encoder, timer),
             Pass::Composite => self.composite.encode(encoder, output, timer),
+            Pass::IssTable => Ok(()),
         }
     }
 

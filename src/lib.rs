@@ -204,6 +204,16 @@ pub use scene::{Camera, DirectionalLight, Light, Medium, PhaseFunction, PointLig
 pub use glam;
 pub use wgpu;
 
+/// A self-contained WGSL module for a caller's surface shader: `volshadow_iss(table, p, n,
+/// light_pos, intensity, sigma_s, sigma_t) -> vec3<f32>` returns the irradiance `E(P)` the
+/// medium scatters onto a Lambertian surface point (unshadowed, the medium extending to
+/// infinity around it) from a point light; multiply by the surface's `kd` (`ρ/π` for an albedo
+/// `ρ`) for the radiance it adds. `table` is [`nodes::IssTableNode::view`] (a
+/// `texture_2d<f32>`, non-filterable: read with `textureLoad`, no sampler). All names start
+/// with `volshadow_iss` / `VOLSHADOW_ISS`. See [`nodes::IssTableNode`] for the maths and the
+/// table's measured accuracy.
+pub const ISS_WGSL: &str = include_str!("../shaders/iss.wgsl");
+
 /// The README's usage snippet, compiled (not run) by `cargo test --doc`.
 #[doc = include_str!("../README.md")]
 #[cfg(doctest)]

@@ -26,6 +26,8 @@ pub enum Pass {
     Upsample,
     /// Attenuated scene plus in-scattered light into the caller's target.
     Composite,
+    /// The indirect single scattering table (light the medium scatters onto surfaces).
+    IssTable,
 }
 
 impl Pass {
@@ -39,6 +41,7 @@ impl Pass {
             Pass::March => "march",
             Pass::Upsample => "upsample",
             Pass::Composite => "composite",
+            Pass::IssTable => "ISS table",
         }
     }
 }
@@ -69,6 +72,9 @@ pub enum Reason {
     /// Under an error target a textured spot's scattering runs at full resolution: its
     /// projected texture's detail does not survive reduced-resolution scattering.
     TexturedUnderErrorTarget,
+    /// No surface input (normals and albedo) was given: the light the medium scatters onto
+    /// surfaces is not added.
+    NoSurfaceInput,
 }
 
 impl fmt::Display for Reason {
@@ -82,6 +88,9 @@ impl fmt::Display for Reason {
             Reason::BruteForce => "this method marches the whole ray",
             Reason::TexturedUnderErrorTarget => {
                 "error target: a textured spot scatters at full resolution"
+            }
+            Reason::NoSurfaceInput => {
+                "no surface normals and albedo given: no light scattered onto surfaces"
             }
         })
     }

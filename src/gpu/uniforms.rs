@@ -83,6 +83,24 @@ impl AirlightUniform {
         }
     }
 
+    /// Only the phase function's lobes and a table size (`along` × `across`): what the
+    /// indirect single scattering table depends on (every other field zero).
+    pub fn phase_only(medium: &Medium, along: u32, across: u32) -> Self {
+        let (lobes, g) = phase_lobes(medium.phase());
+        let rgb = |v: Vec3| v.extend(0.0).to_array();
+        Self {
+            hg_g: g,
+            table_along: along,
+            table_across: across,
+            w_iso: rgb(lobes[0]),
+            w_rayleigh: rgb(lobes[1]),
+            w_hg: rgb(lobes[2]),
+            w_hazy: rgb(lobes[3]),
+            w_murky: rgb(lobes[4]),
+            ..Self::zeroed()
+        }
+    }
+
     /// The part of the uniform the F′ table depends on: D, σt, the phase and the table size.
     /// Eye and light may move freely as long as their distance stays the same.
     pub fn table_key(&self) -> Self {

@@ -18,6 +18,7 @@
 pub(crate) mod airlight_table;
 pub(crate) mod composite;
 pub(crate) mod extents;
+pub(crate) mod iss_table;
 pub(crate) mod light_texture;
 pub(crate) mod march;
 pub(crate) mod shadow_map;
@@ -29,6 +30,7 @@ pub use extents::{
     Crossings, CrossingsRequest, Extents, ExtentsInputs, ExtentsNode, EXTENTS_NEAR,
     MAX_CROSSINGS_PER_PIXEL,
 };
+pub use iss_table::{IssTableNode, IssTableSize, ISS_TAU_RANGE};
 pub use light_texture::LightTextureNode;
 pub use march::{
     MarchInputs, MarchMethod, MarchNode, MarchSettings, MarchStats, Shadows, DEFAULT_CROSSINGS,
