@@ -142,6 +142,7 @@
 //!             occluders: &occluders,
 //!             scene_color: &color,
 //!             scene_depth: &depth,
+//!             surfaces: None,
 //!         },
 //!     )?;
 //!     println!("{plan}"); // what runs, and why the rest does not
@@ -193,7 +194,7 @@ pub mod scene_file;
 #[cfg(feature = "gltf")]
 pub use error::GltfError;
 pub use error::{Error, Result, SceneFileError};
-pub use facade::{Frame, FrameLight, Settings, VolumetricShadows};
+pub use facade::{Frame, FrameLight, Settings, Surfaces, VolumetricShadows};
 pub use gpu::headless::HeadlessGpu;
 pub use gpu::Cache;
 pub use gpu::{Occluder, OccluderMesh};

@@ -239,6 +239,8 @@ pub(crate) struct FrameFacts {
     pub filter: UpsampleFilter,
     pub culled: Vec<Culled>,
     pub error_target: Option<f32>,
+    /// Surface normals and albedo were given (the indirect single scattering term).
+    pub surfaces: bool,
 }
 
 /// The resolution a light's scattering runs at. Without shadows the analytic airlight is
@@ -346,6 +348,13 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
         } else {
             run(Pass::Upsample, light, format!("{:?}", facts.filter));
         }
+    }
+    if !facts.surfaces {
+        skip(Pass::IssTable, None, Reason::NoSurfaceInput);
+    } else if !facts.scatters {
+        skip(Pass::IssTable, None, Reason::NoScattering);
+    } else {
+        run(Pass::IssTable, None, "rebuilt".into());
     }
     run(
         Pass::Composite,

@@ -224,6 +224,7 @@ pub fn render(options: &Options) -> Result<Rendered, BoxError> {
         occluders: &occluders,
         scene_color: &app.color,
         scene_depth: &app.depth,
+        surfaces: None,
     };
     let stats = render_frames(&gpu, &mut volumetric, &frame, &output)?;
     let radiance: Vec<DVec3> = gpu.read_rgba32f(&output)?.iter().map(rgb).collect();

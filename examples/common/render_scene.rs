@@ -412,6 +412,7 @@ impl<'a> GpuScene<'a> {
             occluders,
             scene_color: &self.app.color,
             scene_depth: &self.app.depth,
+            surfaces: None,
         }
     }
 

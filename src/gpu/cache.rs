@@ -351,7 +351,10 @@ mod tests {
             ),
             (
                 "composite.wgsl",
-                include_str!("../../shaders/composite.wgsl"),
+                concat!(
+                    include_str!("../../shaders/iss.wgsl"),
+                    include_str!("../../shaders/composite.wgsl")
+                ),
             ),
             ("extents.wgsl", include_str!("../../shaders/extents.wgsl")),
             (

@@ -145,3 +145,47 @@ pub(crate) struct CompositeUniform {
     pub sigma_t: [f32; 3],
     pub count: u32,
 }
+
+/// One light of WGSL `Surfaces`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub(crate) struct SurfaceLightUniform {
+    pub position: [f32; 3],
+    pub cos_half: f32,
+    pub intensity: [f32; 3],
+    pub spot: u32,
+    pub direction: [f32; 3],
+    pub _pad: f32,
+}
+
+/// WGSL `Surfaces` (the composite's indirect single scattering term).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub(crate) struct SurfacesUniform {
+    pub sigma_s: [f32; 3],
+    pub count: u32,
+    pub lights: [SurfaceLightUniform; 4],
+}
+
+impl SurfacesUniform {
+    pub fn new(medium: &Medium, lights: &[Light]) -> Self {
+        let mut out = Self {
+            sigma_s: medium.sigma_s().to_array(),
+            count: lights.len().min(4) as u32,
+            ..Self::zeroed()
+        };
+        for (slot, light) in out.lights.iter_mut().zip(lights) {
+            *slot = SurfaceLightUniform {
+                position: light.position().to_array(),
+                intensity: light.intensity().to_array(),
+                ..SurfaceLightUniform::zeroed()
+            };
+            if let Light::Spot(spot) = light {
+                slot.spot = 1;
+                slot.cos_half = spot.cos_half_angle();
+                slot.direction = spot.direction().to_array();
+            }
+        }
+        out
+    }
+}

@@ -25,7 +25,7 @@ pub(crate) mod shadow_map;
 pub(crate) mod upsample;
 
 pub use airlight_table::{AirlightTableNode, TableInputs, TableSize};
-pub use composite::{CompositeInputs, CompositeNode, OutputTarget, MAX_LIGHTS};
+pub use composite::{CompositeInputs, CompositeNode, CompositeSurfaces, OutputTarget, MAX_LIGHTS};
 pub use extents::{
     Crossings, CrossingsRequest, Extents, ExtentsInputs, ExtentsNode, EXTENTS_NEAR,
     MAX_CROSSINGS_PER_PIXEL,
