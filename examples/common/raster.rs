@@ -45,14 +45,20 @@ pub struct DrawLight<'a> {
     pub texture: Option<&'a wgpu::Texture>,
 }
 
-/// The app's frame: colour (`Rgba32Float`, linear radiance, alpha 1) and depth
-/// (`Depth32Float`, cleared to `camera.far_depth()` where nothing was drawn). Both have usage
+/// The app's frame: colour (`Rgba32Float`, linear radiance, alpha 1), depth
+/// (`Depth32Float`, cleared to `camera.far_depth()` where nothing was drawn), and the surfaces'
+/// world-space normals (facing the eye) and albedo (`Rgba16Float`, zero where nothing was
+/// drawn: what `volshadow::Surfaces` takes). All have usage
 /// `RENDER_ATTACHMENT | TEXTURE_BINDING | COPY_SRC`.
 pub struct AppFrame {
     /// Shaded colour.
     pub color: wgpu::Texture,
     /// Depth buffer.
     pub depth: wgpu::Texture,
+    /// Unit normals, facing the eye.
+    pub normal: wgpu::Texture,
+    /// Diffuse albedo ρ.
+    pub albedo: wgpu::Texture,
 }
 
 #[repr(C)]
@@ -137,6 +143,14 @@ pub fn draw_app_frame(
         wgpu::TextureFormat::Depth32Float,
         usage,
     ));
+    let [normal, albedo] = ["app normal", "app albedo"].map(|label| {
+        device.create_texture(&texture_desc(
+            label,
+            (width, height),
+            wgpu::TextureFormat::Rgba16Float,
+            usage,
+        ))
+    });
 
     // World-space triangles with flat normals, one vertex buffer for the whole scene.
     let mut vertices: Vec<Vertex> = Vec::new();
@@ -282,7 +296,11 @@ pub fn draw_app_frame(
             module: &module,
             entry_point: Some("fs"),
             compilation_options: Default::default(),
-            targets: &[Some(wgpu::TextureFormat::Rgba32Float.into())],
+            targets: &[
+                Some(wgpu::TextureFormat::Rgba32Float.into()),
+                Some(wgpu::TextureFormat::Rgba16Float.into()),
+                Some(wgpu::TextureFormat::Rgba16Float.into()),
+            ],
         }),
         multiview_mask: None,
         cache: None,
@@ -311,10 +329,11 @@ pub fn draw_app_frame(
     {
         let color_view = color.create_view(&Default::default());
         let depth_view = depth.create_view(&Default::default());
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("app raster"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &color_view,
+        let normal_view = normal.create_view(&Default::default());
+        let albedo_view = albedo.create_view(&Default::default());
+        let attachment = |view, a| {
+            Some(wgpu::RenderPassColorAttachment {
+                view,
                 depth_slice: None,
                 resolve_target: None,
                 ops: wgpu::Operations {
@@ -322,11 +341,19 @@ pub fn draw_app_frame(
                         r: 0.0,
                         g: 0.0,
                         b: 0.0,
-                        a: 1.0,
+                        a,
                     }),
                     store: wgpu::StoreOp::Store,
                 },
-            })],
+            })
+        };
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("app raster"),
+            color_attachments: &[
+                attachment(&color_view, 1.0),
+                attachment(&normal_view, 0.0),
+                attachment(&albedo_view, 0.0),
+            ],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                 view: &depth_view,
                 depth_ops: Some(wgpu::Operations {
@@ -347,5 +374,10 @@ pub fn draw_app_frame(
         }
     }
     gpu.submit_and_wait(encoder)?;
-    Ok(AppFrame { color, depth })
+    Ok(AppFrame {
+        color,
+        depth,
+        normal,
+        albedo,
+    })
 }

@@ -44,7 +44,13 @@ fn light_texel(i: u32, uv: vec2<f32>) -> vec3<f32> {
     return textureSampleLevel(texture3, linear, uv, 0.0).rgb;
 }
 
-@fragment fn fs(in: Varyings) -> @location(0) vec4<f32> {
+struct Targets {
+    @location(0) color: vec4<f32>,
+    @location(1) normal: vec4<f32>,   // unit world-space normal, facing the eye
+    @location(2) albedo: vec4<f32>,
+}
+
+@fragment fn fs(in: Varyings) -> Targets {
     var n = in.normal;
     if (dot(n, scene.eye.xyz - in.world) < 0.0) { n = -n; }
     var irradiance = vec3<f32>(0.0);
@@ -65,5 +71,5 @@ fn light_texel(i: u32, uv: vec2<f32>) -> vec3<f32> {
         irradiance += emitted * max(dot(n, l), 0.0) / (d * d) * exp(-scene.sigma_t.xyz * d);
     }
     let radiance = in.albedo / 3.14159265 * irradiance + in.albedo * scene.ambient.xyz;
-    return vec4<f32>(radiance, 1.0);
+    return Targets(vec4<f32>(radiance, 1.0), vec4<f32>(normalize(n), 0.0), vec4<f32>(in.albedo, 1.0));
 }
