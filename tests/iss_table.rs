@@ -579,3 +579,80 @@ fn planner_runs_the_table_only_with_surfaces_and_scattering() {
     assert!(centre[2] > centre[0] * 1.05, "{centre:?}");
     assert_eq!(centre[2], centre[3]);
 }
+
+/// Surfaces the composite cannot use are typed errors naming the input, from `prepare`, and
+/// leave nothing half-prepared: a normal texture of another size than the frame, an albedo
+/// texture without `TEXTURE_BINDING`, an integer-format normal texture.
+#[test]
+fn bad_surface_textures_are_typed_errors() {
+    use volshadow::{Error, Frame, Settings, Surfaces, VolumetricShadows};
+    let gpu = common::gpu();
+    let cache = Cache::new(&gpu.device);
+    let camera = common::look_at(
+        Vec3::new(0.0, 0.0, 1.0),
+        Vec3::new(0.0, 0.0, -2.0),
+        50.0,
+        1.0,
+    );
+    let fog = Medium::new(
+        Vec3::splat(0.3),
+        Vec3::splat(0.05),
+        PhaseFunction::Isotropic,
+    )
+    .unwrap();
+    let light = PointLight::new(Vec3::new(0.0, 0.0, -1.5), Vec3::splat(5.0)).unwrap();
+    let lights = [Light::from(light).into()];
+    let depth = common::depth_texture(&gpu, 16, 16, &[0.5; 256]);
+    let color = rgba_texture(&gpu, 16, 16, &[[0.0; 4]; 256]);
+    let good = rgba_texture(&gpu, 16, 16, &[[0.0, 0.0, 1.0, 0.0]; 256]);
+    let small = rgba_texture(&gpu, 8, 8, &[[0.0, 0.0, 1.0, 0.0]; 64]);
+    let no_binding = common::texture(
+        &gpu,
+        wgpu::TextureFormat::Rgba16Float,
+        wgpu::TextureUsages::COPY_DST,
+        (16, 16, 1),
+        1,
+    );
+    let integer = common::texture(
+        &gpu,
+        wgpu::TextureFormat::Rgba8Uint,
+        wgpu::TextureUsages::TEXTURE_BINDING,
+        (16, 16, 1),
+        1,
+    );
+    let mut vs =
+        VolumetricShadows::new(&gpu.device, &gpu.queue, &cache, Settings::PREDICTABLE).unwrap();
+    for (normal, albedo, field) in [
+        (&small, &good, "surface_normal"),
+        (&good, &no_binding, "surface_albedo"),
+        (&integer, &good, "surface_normal"),
+    ] {
+        let frame = Frame {
+            camera: &camera,
+            lights: &lights,
+            medium: &fog,
+            occluders: &[],
+            scene_color: &color,
+            scene_depth: &depth,
+            surfaces: Some(Surfaces { normal, albedo }),
+        };
+        let err = vs.prepare(&gpu.device, &gpu.queue, &frame).err();
+        eprintln!("{field}: {err:?}");
+        assert!(
+            matches!(err, Some(Error::InvalidTexture { field: f, .. }) if f == field),
+            "{err:?}"
+        );
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        let output = common::texture(
+            &gpu,
+            wgpu::TextureFormat::Rgba16Float,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+            (16, 16, 1),
+            1,
+        );
+        assert!(matches!(
+            vs.encode(&mut encoder, &output),
+            Err(Error::NotPrepared { .. })
+        ));
+    }
+}
