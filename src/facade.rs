@@ -655,6 +655,19 @@ impl VolumetricShadows {
         self.slots.get(light)?.inscatter(&self.plan, light)
     }
 
+    /// The shadow map of `light` rendered by the last frame that planned one (`None` when
+    /// none was, e.g. for a light without occluders), for shadowing surfaces with
+    /// [`SHADOW_WGSL`](crate::SHADOW_WGSL): record the frame's shadow-map steps
+    /// ([`encode_step`](Self::encode_step)) before the surfaces that sample it.
+    pub fn shadow_map(&self, light: usize) -> Option<crate::nodes::ShadowMap<'_>> {
+        let planned = self.plan.runs(Pass::ShadowMap, Some(light))
+            || self.plan.skip_reason(Pass::ShadowMap, Some(light))
+                == Some(&plan::Reason::Unchanged);
+        planned
+            .then(|| self.slots.get(light)?.shadow.shadow_map())
+            .flatten()
+    }
+
     /// March steps per pixel of a light's last march (`R32Uint`, at the march's resolution).
     pub fn step_counts(&self, light: usize) -> Option<&wgpu::Texture> {
         self.slots.get(light)?.march.step_counts()

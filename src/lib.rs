@@ -215,6 +215,16 @@ pub use wgpu;
 /// table's measured accuracy.
 pub const ISS_WGSL: &str = include_str!("../shaders/iss.wgsl");
 
+/// A self-contained WGSL module for shadowing a caller's surfaces with the shadow maps volshadow
+/// renders for its volumetric shadows: `volshadow_shadow(map, cmp, params, p, n) -> f32`, the
+/// visibility in `[0, 1]` of a surface point (2×2 percentage-closer filtered), with a normal
+/// offset and the maps' relative depth bias. `map` is a shadow map's texture
+/// ([`nodes::ShadowMap`], from [`VolumetricShadows::shadow_map`]) as a
+/// `texture_depth_2d_array`, `cmp` a comparison sampler (`GreaterEqual`, linear filtering),
+/// `params` [`nodes::ShadowMap::params`] uploaded as a buffer. The module's comments document
+/// the layout and the bias.
+pub const SHADOW_WGSL: &str = include_str!("../shaders/shadow.wgsl");
+
 /// The README's usage snippet, compiled (not run) by `cargo test --doc`.
 #[doc = include_str!("../README.md")]
 #[cfg(doctest)]

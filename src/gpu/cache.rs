@@ -367,6 +367,7 @@ mod tests {
                 include_str!("../../shaders/shadow_map.wgsl"),
             ),
             ("upsample.wgsl", include_str!("../../shaders/upsample.wgsl")),
+            ("shadow.wgsl", include_str!("../../shaders/shadow.wgsl")),
             (
                 "iss_table.wgsl",
                 concat!(

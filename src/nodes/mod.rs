@@ -35,5 +35,5 @@ pub use light_texture::LightTextureNode;
 pub use march::{
     MarchInputs, MarchMethod, MarchNode, MarchSettings, MarchStats, Shadows, DEFAULT_CROSSINGS,
 };
-pub use shadow_map::{ShadowMap, ShadowMapInputs, ShadowMapNode, ShadowMapSettings};
+pub use shadow_map::{ShadowMap, ShadowMapInputs, ShadowMapNode, ShadowMapSettings, ShadowParams};
 pub use upsample::{Scale, UpsampleFilter, UpsampleInputs, UpsampleNode};

@@ -107,6 +107,48 @@ pub struct ShadowMap<'a> {
     pub depth_bias: f32,
 }
 
+impl ShadowMap<'_> {
+    /// The parameters [`SHADOW_WGSL`](crate::SHADOW_WGSL)'s `volshadow_shadow` takes (its
+    /// `VolshadowShadow` struct), for a light at `light_position`, with a normal offset of
+    /// `normal_offset` × the distance from the light (`None`: two texels' angular size at
+    /// this map's resolution, which keeps lit surfaces free of self-shadowing acne down to
+    /// grazing angles of about 25°).
+    pub fn params(&self, light_position: Vec3, normal_offset: Option<f32>) -> ShadowParams {
+        let mut faces = [[0.0; 16]; 6];
+        for (slot, m) in faces.iter_mut().zip(self.faces) {
+            *slot = m.to_cols_array();
+        }
+        let texels = self.texture.width().max(1) as f32;
+        ShadowParams {
+            faces,
+            light_position: light_position.to_array(),
+            depth_bias: self.depth_bias,
+            layers: self.faces.len() as u32,
+            normal_offset: normal_offset.unwrap_or(4.0 / texels),
+            _pad: [0.0; 2],
+        }
+    }
+}
+
+/// WGSL `VolshadowShadow` of [`SHADOW_WGSL`](crate::SHADOW_WGSL), byte for byte (upload it with
+/// `bytemuck::bytes_of`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct ShadowParams {
+    /// clip_from_world of each layer, column-major (unused layers zero).
+    pub faces: [[f32; 16]; 6],
+    /// The light's position.
+    pub light_position: [f32; 3],
+    /// Relative depth bias.
+    pub depth_bias: f32,
+    /// 6 (point light, cube) or 1 (spot light).
+    pub layers: u32,
+    /// Offset along the normal, relative to the distance from the light.
+    pub normal_offset: f32,
+    /// Padding.
+    pub _pad: [f32; 2],
+}
+
 /// Renders the occluders' depth from the light. Re-renders only when the light, an occluder or
 /// a transform changed since the last render.
 pub struct ShadowMapNode {
