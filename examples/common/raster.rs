@@ -12,13 +12,14 @@
 //!
 //! with `d` the distance to the light, `exp(−σt·d)` the fog between light and surface (the
 //! fog between surface and eye is volshadow's composite's job), `I0(ω)` zero outside a spot
-//! light's cone and multiplied by its projected texture when it has one. There are **no
-//! surface shadows**: the examples are about the shadows *in the fog*, and an app would bring
-//! its own shadow maps for surfaces.
+//! light's cone and multiplied by its projected texture when it has one, and by the surface's
+//! visibility from the light where the light has a shadow map ([`surface_shadow_maps`]:
+//! volshadow's shadow-map node, sampled with `volshadow::SHADOW_WGSL`).
 
 use volshadow::glam::{Mat4, Vec3};
+use volshadow::nodes::{ShadowMap, ShadowMapInputs, ShadowMapNode, ShadowMapSettings};
 use volshadow::scene::Mesh;
-use volshadow::{Camera, HeadlessGpu, Light, Medium};
+use volshadow::{Cache, Camera, HeadlessGpu, Light, Medium, Occluder};
 
 pub use super::fullscreen::texture_desc;
 
@@ -43,6 +44,37 @@ pub struct DrawLight<'a> {
     pub light: Light,
     /// A filterable float texture, or `None` for white.
     pub texture: Option<&'a wgpu::Texture>,
+    /// The light's shadow map (from [`surface_shadow_maps`]), or `None` for unshadowed.
+    pub shadow: Option<ShadowMap<'a>>,
+}
+
+/// Renders one shadow map per light with volshadow's shadow-map node (default settings: 1024²,
+/// the depth bias the volumetric shadows use) for the app's surfaces; `None` for a light
+/// without occluders.
+pub fn surface_shadow_maps(
+    gpu: &HeadlessGpu,
+    lights: &[Light],
+    occluders: &[Occluder],
+) -> Result<Vec<Option<ShadowMapNode>>, Box<dyn std::error::Error>> {
+    let cache = Cache::new(&gpu.device);
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    let mut nodes = Vec::new();
+    for light in lights {
+        if occluders.is_empty() {
+            nodes.push(None);
+            continue;
+        }
+        let mut node = ShadowMapNode::new(&gpu.device, &cache, ShadowMapSettings::default())?;
+        node.prepare(
+            &gpu.device,
+            &gpu.queue,
+            &ShadowMapInputs { light, occluders },
+        )?;
+        node.encode(&mut encoder, None)?;
+        nodes.push(Some(node));
+    }
+    gpu.submit_and_wait(encoder)?;
+    Ok(nodes)
 }
 
 /// The app's frame: colour (`Rgba32Float`, linear radiance, alpha 1), depth
@@ -93,6 +125,13 @@ struct SceneUniform {
     ambient: [f32; 4],
     light_count: [u32; 4],
     lights: [LightUniform; MAX_LIGHTS],
+}
+
+/// `VolshadowShadow` of each light slot.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct ShadowUniform {
+    lights: [volshadow::nodes::ShadowParams; MAX_LIGHTS],
 }
 
 /// A small ambient radiance per unit albedo for a scene: 3% of what a white surface facing
@@ -188,20 +227,21 @@ pub fn draw_app_frame(
     };
     for (slot, l) in uniform.lights.iter_mut().zip(lights) {
         let textured = if l.texture.is_some() { 1.0 } else { 0.0 };
+        let shadowed = if l.shadow.is_some() { 1.0 } else { 0.0 };
         *slot = match l.light {
             Light::Spot(spot) => LightUniform {
                 position: spot.position().extend(1.0).to_array(),
                 intensity: spot.intensity().extend(textured).to_array(),
                 direction: spot.direction().extend(spot.cos_half_angle()).to_array(),
                 frame: spot.texture_frame().to_cols_array(),
-                params: [(0.5 * spot.cone_angle()).tan(), 0.0, 0.0, 0.0],
+                params: [(0.5 * spot.cone_angle()).tan(), shadowed, 0.0, 0.0],
             },
             other => LightUniform {
                 position: other.position().extend(0.0).to_array(),
                 intensity: other.intensity().extend(0.0).to_array(),
                 direction: [0.0, -1.0, 0.0, -1.0],
                 frame: Mat4::IDENTITY.to_cols_array(),
-                params: [1.0, 0.0, 0.0, 0.0],
+                params: [1.0, shadowed, 0.0, 0.0],
             },
         };
     }
@@ -260,9 +300,61 @@ pub fn draw_app_frame(
         ..Default::default()
     });
 
+    // Surface shadows: each light's shadow map (a 1-layer placeholder where it has none) and
+    // its parameters, sampled by volshadow's helper.
+    let placeholder = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("app no shadow map"),
+        size: wgpu::Extent3d {
+            width: 1,
+            height: 1,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Depth32Float,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING,
+        view_formats: &[],
+    });
+    let mut shadow_uniform: ShadowUniform = bytemuck::Zeroable::zeroed();
+    let shadow_views: Vec<wgpu::TextureView> = (0..MAX_LIGHTS)
+        .map(|i| {
+            let shadow = lights.get(i).and_then(|l| l.shadow.as_ref());
+            if let (Some(s), Some(l)) = (shadow, lights.get(i)) {
+                shadow_uniform.lights[i] = s.params(l.light.position(), None);
+            }
+            shadow
+                .map_or(&placeholder, |s| s.texture)
+                .create_view(&wgpu::TextureViewDescriptor {
+                    dimension: Some(wgpu::TextureViewDimension::D2Array),
+                    ..Default::default()
+                })
+        })
+        .collect();
+    let shadow_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("app shadows"),
+        size: std::mem::size_of::<ShadowUniform>() as u64,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    gpu.queue
+        .write_buffer(&shadow_buffer, 0, bytemuck::bytes_of(&shadow_uniform));
+    let shadow_sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+        label: Some("app shadow compare"),
+        mag_filter: wgpu::FilterMode::Linear,
+        min_filter: wgpu::FilterMode::Linear,
+        compare: Some(wgpu::CompareFunction::GreaterEqual),
+        ..Default::default()
+    });
+
+    let source = format!(
+        "{}\n{}",
+        volshadow::SHADOW_WGSL,
+        include_str!("raster.wgsl")
+    );
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("app raster"),
-        source: wgpu::ShaderSource::Wgsl(include_str!("raster.wgsl").into()),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
     });
     // Nearer is smaller with standard Z, larger with reversed Z.
     let compare = if camera.far_depth() == 1.0 {
@@ -318,6 +410,20 @@ pub fn draw_app_frame(
     entries.push(wgpu::BindGroupEntry {
         binding: 1 + MAX_LIGHTS as u32,
         resource: wgpu::BindingResource::Sampler(&sampler),
+    });
+    for (i, view) in shadow_views.iter().enumerate() {
+        entries.push(wgpu::BindGroupEntry {
+            binding: 6 + i as u32,
+            resource: wgpu::BindingResource::TextureView(view),
+        });
+    }
+    entries.push(wgpu::BindGroupEntry {
+        binding: 10,
+        resource: wgpu::BindingResource::Sampler(&shadow_sampler),
+    });
+    entries.push(wgpu::BindGroupEntry {
+        binding: 11,
+        resource: shadow_buffer.as_entire_binding(),
     });
     let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("app raster"),

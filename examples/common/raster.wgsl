@@ -19,6 +19,21 @@ struct Scene {
 @group(0) @binding(3) var texture2: texture_2d<f32>;
 @group(0) @binding(4) var texture3: texture_2d<f32>;
 @group(0) @binding(5) var linear: sampler;
+// Surface shadows (volshadow::SHADOW_WGSL precedes this file): light i is shadowed when
+// lights[i].params.y = 1.
+@group(0) @binding(6) var shadow0: texture_depth_2d_array;
+@group(0) @binding(7) var shadow1: texture_depth_2d_array;
+@group(0) @binding(8) var shadow2: texture_depth_2d_array;
+@group(0) @binding(9) var shadow3: texture_depth_2d_array;
+@group(0) @binding(10) var shadow_cmp: sampler_comparison;
+@group(0) @binding(11) var<storage, read> shadows: array<VolshadowShadow, 4>;
+
+fn surface_visibility(i: u32, p: vec3<f32>, n: vec3<f32>) -> f32 {
+    if (i == 0u) { return volshadow_shadow(shadow0, shadow_cmp, shadows[0], p, n); }
+    if (i == 1u) { return volshadow_shadow(shadow1, shadow_cmp, shadows[1], p, n); }
+    if (i == 2u) { return volshadow_shadow(shadow2, shadow_cmp, shadows[2], p, n); }
+    return volshadow_shadow(shadow3, shadow_cmp, shadows[3], p, n);
+}
 
 struct Varyings {
     @builtin(position) clip: vec4<f32>,
@@ -67,6 +82,9 @@ struct Targets {
                 let s = 0.5 / (-v.z * light.params.x);
                 emitted *= light_texel(i, vec2<f32>(0.5 + v.x * s, 0.5 - v.y * s));
             }
+        }
+        if (light.params.y > 0.5) {
+            emitted *= surface_visibility(i, in.world, n);
         }
         irradiance += emitted * max(dot(n, l), 0.0) / (d * d) * exp(-scene.sigma_t.xyz * d);
     }

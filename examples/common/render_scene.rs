@@ -33,7 +33,8 @@
 //! 0 on sky), the difference from the same frame without it.
 //!
 //! The app's own frame is drawn by [`draw_app_frame`]: every object of the scene, receivers
-//! included, lit without surface shadows.
+//! included, lit with surface shadows from the shadow casters (volshadow's shadow-map node and
+//! `volshadow::SHADOW_WGSL`), whatever the method.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -49,7 +50,8 @@ use volshadow::{
 };
 
 use super::raster::{
-    default_ambient, draw_app_frame, texture_desc, AppFrame, DrawLight, DrawObject,
+    default_ambient, draw_app_frame, surface_shadow_maps, texture_desc, AppFrame, DrawLight,
+    DrawObject,
 };
 use super::{
     auto_exposure, eye_distances, parse_size, read_depth, read_inscatter, render_frames, rgb,
@@ -342,13 +344,32 @@ impl<'a> GpuScene<'a> {
                     .map(|t| t.upload(&gpu.device, &gpu.queue))
             })
             .collect();
+        // The shadow casters, uploaded once: the app's surface shadows always use them; the
+        // volumetric shadows only when `shadows`.
+        let meshes: Vec<(OccluderMesh, volshadow::glam::Mat4)> = scene
+            .objects
+            .iter()
+            .filter(|o| o.casts_shadow)
+            .map(|o| (OccluderMesh::new(&gpu.device, &o.mesh), o.transform))
+            .collect();
+        let occluders: Vec<Occluder> = meshes
+            .iter()
+            .map(|(mesh, transform)| Occluder {
+                mesh,
+                transform: *transform,
+            })
+            .collect();
+        let lights: Vec<Light> = scene.lights.iter().map(|l| l.light).collect();
+        let maps = surface_shadow_maps(gpu, &lights, &occluders)?;
         let draw_lights: Vec<DrawLight> = scene
             .lights
             .iter()
             .zip(&textures)
-            .map(|(l, t)| DrawLight {
+            .zip(&maps)
+            .map(|((l, t), m)| DrawLight {
                 light: l.light,
                 texture: t.as_ref(),
+                shadow: m.as_ref().and_then(|m| m.shadow_map()),
             })
             .collect();
         let objects: Vec<DrawObject> = scene
@@ -370,12 +391,9 @@ impl<'a> GpuScene<'a> {
             &scene.medium,
             ambient,
         )?;
-        let casters = scene
-            .objects
-            .iter()
-            .filter(|o| o.casts_shadow && shadows)
-            .map(|o| (OccluderMesh::new(&gpu.device, &o.mesh), o.transform))
-            .collect();
+        drop(draw_lights);
+        drop(occluders);
+        let casters = if shadows { meshes } else { Vec::new() };
         Ok(Self {
             scene,
             camera,
