@@ -281,8 +281,9 @@ impl VolumetricShadows {
     ///
     /// * [`Error::InvalidSetting`] naming `lights` for more than [`MAX_LIGHTS`](crate::nodes::MAX_LIGHTS) lights,
     ///   and naming `lights[].radius` for a light with a radius (soft shadows are reference-only so far);
-    /// * [`Error::InvalidTexture`] naming `scene_color`, `scene_depth` or a light texture for a
-    ///   wrong format, usage, layer count or size (colour and depth must be the same size);
+    /// * [`Error::InvalidTexture`] naming `scene_color`, `scene_depth`, a light texture,
+    ///   `surface_normal` or `surface_albedo` for a wrong format, usage, layer count or size
+    ///   (all must be the colour's size);
     /// * [`Error::InvalidSize`] for a frame larger than the device's texture limits;
     /// * [`Error::NonFinite`], [`Error::SingularMatrix`] or [`Error::InvalidTransform`] for an
     ///   occluder's transform;
