@@ -1,4 +1,5 @@
-// Composite node: L = Ls · exp(−σt ds) + Σ L_sctr (one per light) into the caller's target
+// Composite node: L = (Ls + kd·E) · exp(−σt ds) + Σ L_sctr (one per light; kd·E the light the
+// medium scatters onto the surface, when normals and albedo are given) into the caller's target
 // (the prelude's fullscreen triangle).
 
 // Mirrors `CompositeUniform` in src/gpu/uniforms.rs.
@@ -15,6 +16,49 @@ struct Composite {
 @group(0) @binding(5) var inscatter1: texture_2d<f32>;
 @group(0) @binding(6) var inscatter2: texture_2d<f32>;
 @group(0) @binding(7) var inscatter3: texture_2d<f32>;
+
+// The surface term (indirect single scattering, shaders/iss.wgsl precedes this file).
+// Mirrors `SurfacesUniform` in src/gpu/uniforms.rs.
+struct SurfaceLight {
+    position: vec3<f32>,
+    cos_half: f32,        // a spot's cos(half apex angle)
+    intensity: vec3<f32>,
+    spot: u32,            // 1: limited to the cone
+    direction: vec3<f32>, // a spot's unit axis
+    pad: f32,
+}
+struct Surfaces {
+    sigma_s: vec3<f32>,
+    count: u32,           // lights (0: no surface term)
+    lights: array<SurfaceLight, 4>,
+}
+@group(0) @binding(8) var<storage, read> surf: Surfaces;
+@group(0) @binding(9) var surface_normal: texture_2d<f32>;
+@group(0) @binding(10) var surface_albedo: texture_2d<f32>;
+@group(0) @binding(11) var iss_table: texture_2d<f32>;
+
+// (ρ/π)·E(P) at the pixel's surface point, summed over the lights; 0 on sky.
+fn surface_term(pixel: vec2<u32>, ray: PixelRay) -> vec3<f32> {
+    if (surf.count == 0u || ray.distance < 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let n = textureLoad(surface_normal, pixel, 0).xyz;
+    let kd = textureLoad(surface_albedo, pixel, 0).xyz * (1.0 / PI);
+    if (all(kd == vec3<f32>(0.0)) || !all(abs(n) < vec3<f32>(FAR))) {
+        return vec3<f32>(0.0);
+    }
+    let p = view.world_from_view[3].xyz + ray.dir * ray.distance;
+    var e = vec3<f32>(0.0);
+    for (var i = 0u; i < min(surf.count, 4u); i++) {
+        let l = surf.lights[i];
+        let rel = p - l.position;
+        if (l.spot != 0u && dot(l.direction, rel) < l.cos_half * length(rel)) {
+            continue;
+        }
+        e += volshadow_iss(iss_table, p, n, l.position, l.intensity, surf.sigma_s, comp.sigma_t);
+    }
+    return clamp_radiance(kd * e);
+}
 
 @fragment
 fn fs_composite(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
@@ -34,5 +78,6 @@ fn fs_composite(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     if (n > 1u) { sctr += textureLoad(inscatter1, pixel, 0).xyz; }
     if (n > 2u) { sctr += textureLoad(inscatter2, pixel, 0).xyz; }
     if (n > 3u) { sctr += textureLoad(inscatter3, pixel, 0).xyz; }
-    return vec4<f32>(clamp_radiance(color.xyz * transmittance + sctr), color.w);
+    let surface = color.xyz + surface_term(pixel, ray);
+    return vec4<f32>(clamp_radiance(surface * transmittance + sctr), color.w);
 }

@@ -3,10 +3,11 @@
 use crate::error::{Error, Result};
 use crate::gpu::{Cache, GpuTimer, Occluder, PassTime};
 use crate::nodes::{
-    AirlightTableNode, CompositeInputs, CompositeNode, CrossingsRequest, ExtentsInputs,
-    ExtentsNode, LightTextureNode, MarchInputs, MarchMethod, MarchNode, MarchSettings,
-    OutputTarget, Scale, ShadowMapInputs, ShadowMapNode, ShadowMapSettings, Shadows, TableInputs,
-    TableSize, UpsampleFilter, UpsampleInputs, UpsampleNode, MAX_LIGHTS,
+    AirlightTableNode, CompositeInputs, CompositeNode, CompositeSurfaces, CrossingsRequest,
+    ExtentsInputs, ExtentsNode, IssTableNode, IssTableSize, LightTextureNode, MarchInputs,
+    MarchMethod, MarchNode, MarchSettings, OutputTarget, Scale, ShadowMapInputs, ShadowMapNode,
+    ShadowMapSettings, Shadows, TableInputs, TableSize, UpsampleFilter, UpsampleInputs,
+    UpsampleNode, MAX_LIGHTS,
 };
 use crate::plan::{self, Culled, FrameFacts, LightFacts, Pass, Plan};
 use crate::scene::{Camera, Light, Medium};
@@ -149,6 +150,25 @@ pub struct Frame<'a> {
     pub scene_color: &'a wgpu::Texture,
     /// The caller's depth buffer (any depth format, `TEXTURE_BINDING`), the output's size.
     pub scene_depth: &'a wgpu::Texture,
+    /// The surfaces' normals and albedo: when given (and the medium scatters), the composite
+    /// adds the light the medium scatters onto them (see [`Surfaces`]); `None` leaves it out.
+    pub surfaces: Option<Surfaces<'a>>,
+}
+
+/// Normals and albedo of the frame's surfaces, for the light the medium scatters onto them
+/// (indirect single scattering, [`nodes::IssTableNode`](crate::nodes::IssTableNode)): each
+/// surface pixel gets `(ρ/π)·E(P)` added to its colour before the medium attenuates it, `E(P)`
+/// summed over the frame's point and spot lights (a spot's limited to its cone; see
+/// [`CompositeSurfaces`](crate::nodes::CompositeSurfaces)), unshadowed. Sky pixels get none.
+#[derive(Clone, Copy)]
+pub struct Surfaces<'a> {
+    /// World-space normals in rgb (any length; zero: no term), any format with a float sample
+    /// type (`Rgba16Float`, `Rgba32Float`, `Rgba8Snorm`, …), usage `TEXTURE_BINDING`, the
+    /// output's size.
+    pub normal: &'a wgpu::Texture,
+    /// Diffuse albedo `ρ` in rgb (zero: no term), any format with a float sample type, usage
+    /// `TEXTURE_BINDING`, the output's size.
+    pub albedo: &'a wgpu::Texture,
 }
 
 /// The nodes of one light.
@@ -179,6 +199,8 @@ pub struct VolumetricShadows {
     settings: Settings,
     slots: Vec<LightSlot>,
     composite: CompositeNode,
+    /// The indirect single scattering table, made by the first frame with surfaces.
+    iss: Option<IssTableNode>,
     plan: Plan,
     timer: Option<GpuTimer>,
     /// `None` when the last `prepare` succeeded and nothing dropped its frame since; otherwise
@@ -213,6 +235,7 @@ impl VolumetricShadows {
             composite: CompositeNode::new(device, cache, settings.output_format)?,
             settings,
             slots: Vec::new(),
+            iss: None,
             plan: Plan::default(),
             timer,
             unprepared: Some("no frame has been prepared yet"),
@@ -257,8 +280,9 @@ impl VolumetricShadows {
     /// Nothing is recorded and the previous plan is kept on any error:
     ///
     /// * [`Error::InvalidSetting`] naming `lights` for more than [`MAX_LIGHTS`](crate::nodes::MAX_LIGHTS) lights;
-    /// * [`Error::InvalidTexture`] naming `scene_color`, `scene_depth` or a light texture for a
-    ///   wrong format, usage, layer count or size (colour and depth must be the same size);
+    /// * [`Error::InvalidTexture`] naming `scene_color`, `scene_depth`, a light texture,
+    ///   `surface_normal` or `surface_albedo` for a wrong format, usage, layer count or size
+    ///   (all must be the colour's size);
     /// * [`Error::InvalidSize`] for a frame larger than the device's texture limits;
     /// * [`Error::NonFinite`], [`Error::SingularMatrix`] or [`Error::InvalidTransform`] for an
     ///   occluder's transform;
@@ -316,6 +340,7 @@ impl VolumetricShadows {
             filter: self.settings.upsample,
             culled: Vec::new(),
             error_target: self.settings.error_target,
+            surfaces: frame.surfaces.is_some(),
         };
         let mut kept: Vec<Vec<Occluder<'_>>> = Vec::new();
         for (i, fl) in frame.lights.iter().enumerate() {
@@ -349,7 +374,19 @@ impl VolumetricShadows {
         }
         let mut plan = plan::plan(&facts);
         let mut unchanged = Vec::new();
+        if plan.runs(Pass::IssTable, None) && self.iss.is_none() {
+            self.iss = Some(IssTableNode::new(
+                device,
+                &self.cache,
+                IssTableSize::default(),
+            )?);
+        }
         for (index, step) in plan.steps.iter().enumerate() {
+            if let (Pass::IssTable, Some(iss)) = (step.pass, self.iss.as_mut()) {
+                if !iss.prepare(device, queue, frame.medium)? {
+                    unchanged.push(index);
+                }
+            }
             let Some(i) = step.light else { continue };
             let (fl, slot, occluders) = (&frame.lights[i], &mut self.slots[i], &kept[i]);
             let (camera, light, medium) = (frame.camera, &fl.light, frame.medium);
@@ -425,7 +462,7 @@ impl VolumetricShadows {
                     };
                     slot.upsample.prepare(device, queue, &inputs)?
                 }
-                Pass::Composite => true,
+                Pass::Composite | Pass::IssTable => true,
             };
             if !work {
                 unchanged.push(index);
@@ -442,6 +479,18 @@ impl VolumetricShadows {
         } else {
             Vec::new()
         };
+        let lights: Vec<Light> = frame.lights.iter().map(|l| l.light).collect();
+        let surfaces = match (frame.surfaces, &self.iss) {
+            (Some(s), Some(table)) if scatters => Some(CompositeSurfaces {
+                normal: s.normal,
+                albedo: s.albedo,
+                table,
+                lights: &lights,
+            }),
+            _ => None,
+        };
+        self.composite
+            .set_surfaces(queue, frame.medium, surfaces.as_ref())?;
         self.composite.prepare(
             device,
             queue,
@@ -542,7 +591,13 @@ impl VolumetricShadows {
             t.light = step.light;
         }
         let Some(i) = step.light else {
-            return self.composite.encode(encoder, output, timer);
+            return match (step.pass, self.iss.as_mut()) {
+                (Pass::IssTable, Some(iss)) => iss.encode(encoder, timer),
+                (Pass::IssTable, None) => Err(Error::NotPrepared {
+                    reason: "the plan names the ISS table, which has no resources",
+                }),
+                _ => self.composite.encode(encoder, output, timer),
+            };
         };
         // Slots and plan are built together by a successful prepare; a stale plan is refused
         // by `check_prepared`, never indexed.
@@ -559,6 +614,7 @@ impl VolumetricShadows {
             Pass::March => slot.march.encode(encoder, timer),
             Pass::Upsample => slot.upsample.encode(encoder, timer),
             Pass::Composite => self.composite.encode(encoder, output, timer),
+            Pass::IssTable => Ok(()), // a frame step, recorded above
         }
     }
 
@@ -568,6 +624,7 @@ impl VolumetricShadows {
     /// see. The next `encode` needs a `prepare` first.
     pub fn invalidate(&mut self) {
         self.slots.clear();
+        self.iss = None;
         self.unprepared = Some("invalidate() dropped the prepared frame");
     }
 
@@ -594,6 +651,19 @@ impl VolumetricShadows {
     /// debugging and tests.
     pub fn inscatter(&self, light: usize) -> Option<&wgpu::Texture> {
         self.slots.get(light)?.inscatter(&self.plan, light)
+    }
+
+    /// The shadow map of `light` rendered by the last frame that planned one (`None` when
+    /// none was, e.g. for a light without occluders), for shadowing surfaces with
+    /// [`SHADOW_WGSL`](crate::SHADOW_WGSL): record the frame's shadow-map steps
+    /// ([`encode_step`](Self::encode_step)) before the surfaces that sample it.
+    pub fn shadow_map(&self, light: usize) -> Option<crate::nodes::ShadowMap<'_>> {
+        let planned = self.plan.runs(Pass::ShadowMap, Some(light))
+            || self.plan.skip_reason(Pass::ShadowMap, Some(light))
+                == Some(&plan::Reason::Unchanged);
+        planned
+            .then(|| self.slots.get(light)?.shadow.shadow_map())
+            .flatten()
     }
 
     /// March steps per pixel of a light's last march (`R32Uint`, at the march's resolution).

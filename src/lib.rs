@@ -142,6 +142,7 @@
 //!             occluders: &occluders,
 //!             scene_color: &color,
 //!             scene_depth: &depth,
+//!             surfaces: None,
 //!         },
 //!     )?;
 //!     println!("{plan}"); // what runs, and why the rest does not
@@ -193,7 +194,7 @@ pub mod scene_file;
 #[cfg(feature = "gltf")]
 pub use error::GltfError;
 pub use error::{Error, Result, SceneFileError};
-pub use facade::{Frame, FrameLight, Settings, VolumetricShadows};
+pub use facade::{Frame, FrameLight, Settings, Surfaces, VolumetricShadows};
 pub use gpu::headless::HeadlessGpu;
 pub use gpu::Cache;
 pub use gpu::{Occluder, OccluderMesh};
@@ -203,6 +204,26 @@ pub use scene::{Camera, DirectionalLight, Light, Medium, PhaseFunction, PointLig
 
 pub use glam;
 pub use wgpu;
+
+/// A self-contained WGSL module for a caller's surface shader: `volshadow_iss(table, p, n,
+/// light_pos, intensity, sigma_s, sigma_t) -> vec3<f32>` returns the irradiance `E(P)` the
+/// medium scatters onto a Lambertian surface point (unshadowed, the medium extending to
+/// infinity around it) from a point light; multiply by the surface's `kd` (`ρ/π` for an albedo
+/// `ρ`) for the radiance it adds. `table` is [`nodes::IssTableNode::view`] (a
+/// `texture_2d<f32>`, non-filterable: read with `textureLoad`, no sampler). All names start
+/// with `volshadow_iss` / `VOLSHADOW_ISS`. See [`nodes::IssTableNode`] for the maths and the
+/// table's measured accuracy.
+pub const ISS_WGSL: &str = include_str!("../shaders/iss.wgsl");
+
+/// A self-contained WGSL module for shadowing a caller's surfaces with the shadow maps volshadow
+/// renders for its volumetric shadows: `volshadow_shadow(map, cmp, params, p, n) -> f32`, the
+/// visibility in `[0, 1]` of a surface point (2×2 percentage-closer filtered), with a normal
+/// offset and the maps' relative depth bias. `map` is a shadow map's texture
+/// ([`nodes::ShadowMap`], from [`VolumetricShadows::shadow_map`]) as a
+/// `texture_depth_2d_array`, `cmp` a comparison sampler (`GreaterEqual`, linear filtering),
+/// `params` [`nodes::ShadowMap::params`] uploaded as a buffer. The module's comments document
+/// the layout and the bias.
+pub const SHADOW_WGSL: &str = include_str!("../shaders/shadow.wgsl");
 
 /// The README's usage snippet, compiled (not run) by `cargo test --doc`.
 #[doc = include_str!("../README.md")]

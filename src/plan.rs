@@ -26,6 +26,8 @@ pub enum Pass {
     Upsample,
     /// Attenuated scene plus in-scattered light into the caller's target.
     Composite,
+    /// The indirect single scattering table (light the medium scatters onto surfaces).
+    IssTable,
 }
 
 impl Pass {
@@ -39,6 +41,7 @@ impl Pass {
             Pass::March => "march",
             Pass::Upsample => "upsample",
             Pass::Composite => "composite",
+            Pass::IssTable => "ISS table",
         }
     }
 }
@@ -72,6 +75,9 @@ pub enum Reason {
     /// A directional light's airlight is in closed form (the scattering angle is the same
     /// along a ray): no F′ table is built.
     ClosedFormAirlight,
+    /// No surface input (normals and albedo) was given: the light the medium scatters onto
+    /// surfaces is not added.
+    NoSurfaceInput,
 }
 
 impl fmt::Display for Reason {
@@ -87,6 +93,9 @@ impl fmt::Display for Reason {
                 "error target: a textured spot scatters at full resolution"
             }
             Reason::ClosedFormAirlight => "directional light: the airlight is in closed form",
+            Reason::NoSurfaceInput => {
+                "no surface normals and albedo given: no light scattered onto surfaces"
+            }
         })
     }
 }
@@ -236,6 +245,8 @@ pub(crate) struct FrameFacts {
     pub filter: UpsampleFilter,
     pub culled: Vec<Culled>,
     pub error_target: Option<f32>,
+    /// Surface normals and albedo were given (the indirect single scattering term).
+    pub surfaces: bool,
 }
 
 /// The resolution a light's scattering runs at. Without shadows the analytic airlight is
@@ -347,6 +358,13 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
         } else {
             run(Pass::Upsample, light, format!("{:?}", facts.filter));
         }
+    }
+    if !facts.surfaces {
+        skip(Pass::IssTable, None, Reason::NoSurfaceInput);
+    } else if !facts.scatters {
+        skip(Pass::IssTable, None, Reason::NoScattering);
+    } else {
+        run(Pass::IssTable, None, "rebuilt".into());
     }
     run(
         Pass::Composite,

@@ -463,6 +463,7 @@ fn facade_mixes_point_and_directional_lights() {
         occluders: &occluders,
         scene_color: &color,
         scene_depth: &depth,
+        surfaces: None,
     };
     for (name, settings) in [
         ("predictable", Settings::PREDICTABLE),

@@ -275,6 +275,67 @@ fn render_parses_every_method() {
     }
 }
 
+/// `render --surface-scatter` on the lamp-and-wall scene: `OUT.surface.exr` is finite and
+/// non-negative, zero on sky, positive on the surfaces near the lamp, and it is exactly what
+/// the term adds: `OUT.exr` minus the same render without the option, within f32 rounding
+/// (1e-5 of the largest radiance). Without the surfaces passed (or the term not added) the
+/// difference is zero and the test fails on the positive-pixel count.
+#[test]
+fn render_surface_scatter_writes_the_added_radiance() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/lamp_wall.json");
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let mut list = vec![
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--size",
+            "64x64",
+            "--method",
+            "analytic",
+        ];
+        list.extend(extra);
+        render_scene::run(&args(&list)).unwrap();
+        out
+    };
+    let with = run("with", &["--surface-scatter"]);
+    let without = run("without", &[]);
+    let path = |out: &Path, suffix: &str| {
+        let mut s = out.as_os_str().to_owned();
+        s.push(suffix);
+        PathBuf::from(s)
+    };
+    let surface = read_exr(&path(&with, ".surface.exr"));
+    let (a, b) = (
+        read_exr(&path(&with, ".exr")),
+        read_exr(&path(&without, ".exr")),
+    );
+    let depth = read_exr(&path(&with, ".depth.exr"));
+    let sky = |k: usize| depth[k][0] >= common_examples::SKY_DISTANCE;
+    let max = a.iter().flatten().fold(0.0f32, |m, &v| m.max(v));
+    let mut worst = 0.0f32;
+    let mut positive = 0;
+    for k in 0..surface.len() {
+        for c in 0..3 {
+            assert!(surface[k][c] >= 0.0, "pixel {k}: {:?}", surface[k]);
+            if sky(k) {
+                assert_eq!(surface[k][c], 0.0, "sky pixel {k}");
+            }
+            worst = worst.max((a[k][c] - b[k][c] - surface[k][c]).abs());
+        }
+        positive += usize::from(surface[k][0] > 1e-3 * max);
+    }
+    println!(
+        "surface term above 1e-3 of the max in {positive} pixels; difference off by {worst:e}"
+    );
+    assert!(worst <= 1e-5 * max, "{worst:e}");
+    assert!(
+        positive > surface.len() / 4,
+        "{positive} pixels gain the term"
+    );
+}
+
 #[test]
 fn render_rejects_bad_arguments_and_files() {
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sphere.json");
@@ -294,6 +355,7 @@ fn render_rejects_bad_arguments_and_files() {
         vec![scene, "--size", "64"],
         vec![scene, "--bogus"],
         vec![scene, "-o"],
+        vec![scene, "--method", "reference", "--surface-scatter"],
     ] {
         let result = render_scene::run(&args(&bad));
         assert!(result.is_err(), "{bad:?} should be an error");

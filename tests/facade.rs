@@ -106,6 +106,7 @@ fn render(
         occluders,
         scene_color: &rig.color,
         scene_depth: &rig.depth,
+        surfaces: None,
     };
     let plan = vs
         .prepare(&rig.gpu.device, &rig.gpu.queue, &frame)
@@ -462,6 +463,7 @@ fn too_many_lights_and_bad_settings_are_errors() {
         occluders: &[],
         scene_color: &rig.color,
         scene_depth: &rig.depth,
+        surfaces: None,
     };
     assert!(matches!(
         vs.prepare(&rig.gpu.device, &rig.gpu.queue, &frame),
@@ -553,6 +555,7 @@ fn passes_recorded_one_by_one_give_the_same_image_and_invalidate_rebuilds_everyt
         occluders: &occluders,
         scene_color: &rig.color,
         scene_depth: &rig.depth,
+        surfaces: None,
     };
     let plan = vs
         .prepare(&rig.gpu.device, &rig.gpu.queue, &frame)

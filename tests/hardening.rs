@@ -119,6 +119,7 @@ fn frame<'a>(
         occluders,
         scene_color: &rig.color,
         scene_depth: &rig.depth,
+        surfaces: None,
     }
 }
 

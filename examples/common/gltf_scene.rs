@@ -32,7 +32,9 @@ use volshadow::{
     PhaseFunction, PointLight, Settings, VolumetricShadows,
 };
 
-use super::raster::{default_ambient, draw_app_frame, texture_desc, DrawLight, DrawObject};
+use super::raster::{
+    default_ambient, draw_app_frame, surface_shadow_maps, texture_desc, DrawLight, DrawObject,
+};
 use super::{
     auto_exposure, parse_size, read_inscatter, render_frames, rgb, tone_map, write_exr, write_png,
     BoxError, FrameStats,
@@ -176,28 +178,7 @@ pub fn render(options: &Options) -> Result<Rendered, BoxError> {
         transform: m.transform,
         albedo: Vec3::new(0.75, 0.7, 0.65),
     }));
-    let draw_lights = [DrawLight {
-        light,
-        texture: None,
-    }];
-    let ambient = default_ambient(&camera, &draw_lights, &medium);
-    let app = draw_app_frame(
-        &gpu,
-        &camera,
-        options.size,
-        &objects,
-        &draw_lights,
-        &medium,
-        ambient,
-    )?;
-
-    // volshadow: every mesh an occluder, uploaded once.
-    let cache = Cache::new(&gpu.device);
-    let settings = Settings {
-        output_format: wgpu::TextureFormat::Rgba32Float,
-        ..Settings::default()
-    };
-    let mut volumetric = VolumetricShadows::new(&gpu.device, &gpu.queue, &cache, settings)?;
+    // Every mesh an occluder, uploaded once: for the surfaces' shadows and for volshadow.
     let uploaded: Vec<OccluderMesh> = meshes
         .iter()
         .map(|m| OccluderMesh::new(&gpu.device, &m.mesh))
@@ -210,6 +191,30 @@ pub fn render(options: &Options) -> Result<Rendered, BoxError> {
             transform: m.transform,
         })
         .collect();
+    let maps = surface_shadow_maps(&gpu, &[light], &occluders)?;
+    let draw_lights = [DrawLight {
+        light,
+        texture: None,
+        shadow: maps[0].as_ref().and_then(|m| m.shadow_map()),
+    }];
+    let ambient = default_ambient(&camera, &draw_lights, &medium);
+    let app = draw_app_frame(
+        &gpu,
+        &camera,
+        options.size,
+        &objects,
+        &draw_lights,
+        &medium,
+        ambient,
+    )?;
+
+    // volshadow.
+    let cache = Cache::new(&gpu.device);
+    let settings = Settings {
+        output_format: wgpu::TextureFormat::Rgba32Float,
+        ..Settings::default()
+    };
+    let mut volumetric = VolumetricShadows::new(&gpu.device, &gpu.queue, &cache, settings)?;
     let output = gpu.device.create_texture(&texture_desc(
         "output",
         options.size,
@@ -224,6 +229,7 @@ pub fn render(options: &Options) -> Result<Rendered, BoxError> {
         occluders: &occluders,
         scene_color: &app.color,
         scene_depth: &app.depth,
+        surfaces: None,
     };
     let stats = render_frames(&gpu, &mut volumetric, &frame, &output)?;
     let radiance: Vec<DVec3> = gpu.read_rgba32f(&output)?.iter().map(rgb).collect();

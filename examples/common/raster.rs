@@ -12,13 +12,14 @@
 //!
 //! with `d` the distance to the light, `exp(−σt·d)` the fog between light and surface (the
 //! fog between surface and eye is volshadow's composite's job), `I0(ω)` zero outside a spot
-//! light's cone and multiplied by its projected texture when it has one. There are **no
-//! surface shadows**: the examples are about the shadows *in the fog*, and an app would bring
-//! its own shadow maps for surfaces.
+//! light's cone and multiplied by its projected texture when it has one, and by the surface's
+//! visibility from the light where the light has a shadow map ([`surface_shadow_maps`]:
+//! volshadow's shadow-map node, sampled with `volshadow::SHADOW_WGSL`).
 
 use volshadow::glam::{Mat4, Vec3};
+use volshadow::nodes::{ShadowMap, ShadowMapInputs, ShadowMapNode, ShadowMapSettings};
 use volshadow::scene::Mesh;
-use volshadow::{Camera, HeadlessGpu, Light, Medium};
+use volshadow::{Cache, Camera, HeadlessGpu, Light, Medium, Occluder};
 
 pub use super::fullscreen::texture_desc;
 
@@ -43,16 +44,53 @@ pub struct DrawLight<'a> {
     pub light: Light,
     /// A filterable float texture, or `None` for white.
     pub texture: Option<&'a wgpu::Texture>,
+    /// The light's shadow map (from [`surface_shadow_maps`]), or `None` for unshadowed.
+    pub shadow: Option<ShadowMap<'a>>,
 }
 
-/// The app's frame: colour (`Rgba32Float`, linear radiance, alpha 1) and depth
-/// (`Depth32Float`, cleared to `camera.far_depth()` where nothing was drawn). Both have usage
+/// Renders one shadow map per light with volshadow's shadow-map node (default settings: 1024²,
+/// the depth bias the volumetric shadows use) for the app's surfaces; `None` for a light
+/// without occluders.
+pub fn surface_shadow_maps(
+    gpu: &HeadlessGpu,
+    lights: &[Light],
+    occluders: &[Occluder],
+) -> Result<Vec<Option<ShadowMapNode>>, Box<dyn std::error::Error>> {
+    let cache = Cache::new(&gpu.device);
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    let mut nodes = Vec::new();
+    for light in lights {
+        if occluders.is_empty() {
+            nodes.push(None);
+            continue;
+        }
+        let mut node = ShadowMapNode::new(&gpu.device, &cache, ShadowMapSettings::default())?;
+        node.prepare(
+            &gpu.device,
+            &gpu.queue,
+            &ShadowMapInputs { light, occluders },
+        )?;
+        node.encode(&mut encoder, None)?;
+        nodes.push(Some(node));
+    }
+    gpu.submit_and_wait(encoder)?;
+    Ok(nodes)
+}
+
+/// The app's frame: colour (`Rgba32Float`, linear radiance, alpha 1), depth
+/// (`Depth32Float`, cleared to `camera.far_depth()` where nothing was drawn), and the surfaces'
+/// world-space normals (facing the eye) and albedo (`Rgba16Float`, zero where nothing was
+/// drawn: what `volshadow::Surfaces` takes). All have usage
 /// `RENDER_ATTACHMENT | TEXTURE_BINDING | COPY_SRC`.
 pub struct AppFrame {
     /// Shaded colour.
     pub color: wgpu::Texture,
     /// Depth buffer.
     pub depth: wgpu::Texture,
+    /// Unit normals, facing the eye.
+    pub normal: wgpu::Texture,
+    /// Diffuse albedo ρ.
+    pub albedo: wgpu::Texture,
 }
 
 #[repr(C)]
@@ -87,6 +125,13 @@ struct SceneUniform {
     ambient: [f32; 4],
     light_count: [u32; 4],
     lights: [LightUniform; MAX_LIGHTS],
+}
+
+/// `VolshadowShadow` of each light slot.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct ShadowUniform {
+    lights: [volshadow::nodes::ShadowParams; MAX_LIGHTS],
 }
 
 /// A small ambient radiance per unit albedo for a scene: 3% of what a white surface facing
@@ -140,6 +185,14 @@ pub fn draw_app_frame(
         wgpu::TextureFormat::Depth32Float,
         usage,
     ));
+    let [normal, albedo] = ["app normal", "app albedo"].map(|label| {
+        device.create_texture(&texture_desc(
+            label,
+            (width, height),
+            wgpu::TextureFormat::Rgba16Float,
+            usage,
+        ))
+    });
 
     // World-space triangles with flat normals, one vertex buffer for the whole scene.
     let mut vertices: Vec<Vertex> = Vec::new();
@@ -177,13 +230,14 @@ pub fn draw_app_frame(
     };
     for (slot, l) in uniform.lights.iter_mut().zip(lights) {
         let textured = if l.texture.is_some() { 1.0 } else { 0.0 };
+        let shadowed = if l.shadow.is_some() { 1.0 } else { 0.0 };
         *slot = match l.light {
             Light::Spot(spot) => LightUniform {
                 position: spot.position().extend(1.0).to_array(),
                 intensity: spot.intensity().extend(textured).to_array(),
                 direction: spot.direction().extend(spot.cos_half_angle()).to_array(),
                 frame: spot.texture_frame().to_cols_array(),
-                params: [(0.5 * spot.cone_angle()).tan(), 0.0, 0.0, 0.0],
+                params: [(0.5 * spot.cone_angle()).tan(), shadowed, 0.0, 0.0],
             },
             Light::Directional(sun) => LightUniform {
                 position: (-sun.direction()).extend(2.0).to_array(),
@@ -197,7 +251,7 @@ pub fn draw_app_frame(
                 intensity: other.intensity().extend(0.0).to_array(),
                 direction: [0.0, -1.0, 0.0, -1.0],
                 frame: Mat4::IDENTITY.to_cols_array(),
-                params: [1.0, 0.0, 0.0, 0.0],
+                params: [1.0, shadowed, 0.0, 0.0],
             },
         };
     }
@@ -256,9 +310,61 @@ pub fn draw_app_frame(
         ..Default::default()
     });
 
+    // Surface shadows: each light's shadow map (a 1-layer placeholder where it has none) and
+    // its parameters, sampled by volshadow's helper.
+    let placeholder = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("app no shadow map"),
+        size: wgpu::Extent3d {
+            width: 1,
+            height: 1,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Depth32Float,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING,
+        view_formats: &[],
+    });
+    let mut shadow_uniform: ShadowUniform = bytemuck::Zeroable::zeroed();
+    let shadow_views: Vec<wgpu::TextureView> = (0..MAX_LIGHTS)
+        .map(|i| {
+            let shadow = lights.get(i).and_then(|l| l.shadow.as_ref());
+            if let (Some(s), Some(l)) = (shadow, lights.get(i)) {
+                shadow_uniform.lights[i] = s.params(&l.light, None);
+            }
+            shadow
+                .map_or(&placeholder, |s| s.texture)
+                .create_view(&wgpu::TextureViewDescriptor {
+                    dimension: Some(wgpu::TextureViewDimension::D2Array),
+                    ..Default::default()
+                })
+        })
+        .collect();
+    let shadow_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("app shadows"),
+        size: std::mem::size_of::<ShadowUniform>() as u64,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    gpu.queue
+        .write_buffer(&shadow_buffer, 0, bytemuck::bytes_of(&shadow_uniform));
+    let shadow_sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+        label: Some("app shadow compare"),
+        mag_filter: wgpu::FilterMode::Linear,
+        min_filter: wgpu::FilterMode::Linear,
+        compare: Some(wgpu::CompareFunction::GreaterEqual),
+        ..Default::default()
+    });
+
+    let source = format!(
+        "{}\n{}",
+        volshadow::SHADOW_WGSL,
+        include_str!("raster.wgsl")
+    );
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("app raster"),
-        source: wgpu::ShaderSource::Wgsl(include_str!("raster.wgsl").into()),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
     });
     // Nearer is smaller with standard Z, larger with reversed Z.
     let compare = if camera.far_depth() == 1.0 {
@@ -292,7 +398,11 @@ pub fn draw_app_frame(
             module: &module,
             entry_point: Some("fs"),
             compilation_options: Default::default(),
-            targets: &[Some(wgpu::TextureFormat::Rgba32Float.into())],
+            targets: &[
+                Some(wgpu::TextureFormat::Rgba32Float.into()),
+                Some(wgpu::TextureFormat::Rgba16Float.into()),
+                Some(wgpu::TextureFormat::Rgba16Float.into()),
+            ],
         }),
         multiview_mask: None,
         cache: None,
@@ -311,6 +421,20 @@ pub fn draw_app_frame(
         binding: 1 + MAX_LIGHTS as u32,
         resource: wgpu::BindingResource::Sampler(&sampler),
     });
+    for (i, view) in shadow_views.iter().enumerate() {
+        entries.push(wgpu::BindGroupEntry {
+            binding: 6 + i as u32,
+            resource: wgpu::BindingResource::TextureView(view),
+        });
+    }
+    entries.push(wgpu::BindGroupEntry {
+        binding: 10,
+        resource: wgpu::BindingResource::Sampler(&shadow_sampler),
+    });
+    entries.push(wgpu::BindGroupEntry {
+        binding: 11,
+        resource: shadow_buffer.as_entire_binding(),
+    });
     let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("app raster"),
         layout: &pipeline.get_bind_group_layout(0),
@@ -321,10 +445,11 @@ pub fn draw_app_frame(
     {
         let color_view = color.create_view(&Default::default());
         let depth_view = depth.create_view(&Default::default());
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("app raster"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &color_view,
+        let normal_view = normal.create_view(&Default::default());
+        let albedo_view = albedo.create_view(&Default::default());
+        let attachment = |view, a| {
+            Some(wgpu::RenderPassColorAttachment {
+                view,
                 depth_slice: None,
                 resolve_target: None,
                 ops: wgpu::Operations {
@@ -332,11 +457,19 @@ pub fn draw_app_frame(
                         r: 0.0,
                         g: 0.0,
                         b: 0.0,
-                        a: 1.0,
+                        a,
                     }),
                     store: wgpu::StoreOp::Store,
                 },
-            })],
+            })
+        };
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("app raster"),
+            color_attachments: &[
+                attachment(&color_view, 1.0),
+                attachment(&normal_view, 0.0),
+                attachment(&albedo_view, 0.0),
+            ],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                 view: &depth_view,
                 depth_ops: Some(wgpu::Operations {
@@ -357,5 +490,10 @@ pub fn draw_app_frame(
         }
     }
     gpu.submit_and_wait(encoder)?;
-    Ok(AppFrame { color, depth })
+    Ok(AppFrame {
+        color,
+        depth,
+        normal,
+        albedo,
+    })
 }

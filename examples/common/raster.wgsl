@@ -19,6 +19,21 @@ struct Scene {
 @group(0) @binding(3) var texture2: texture_2d<f32>;
 @group(0) @binding(4) var texture3: texture_2d<f32>;
 @group(0) @binding(5) var linear: sampler;
+// Surface shadows (volshadow::SHADOW_WGSL precedes this file): light i is shadowed when
+// lights[i].params.y = 1.
+@group(0) @binding(6) var shadow0: texture_depth_2d_array;
+@group(0) @binding(7) var shadow1: texture_depth_2d_array;
+@group(0) @binding(8) var shadow2: texture_depth_2d_array;
+@group(0) @binding(9) var shadow3: texture_depth_2d_array;
+@group(0) @binding(10) var shadow_cmp: sampler_comparison;
+@group(0) @binding(11) var<storage, read> shadows: array<VolshadowShadow, 4>;
+
+fn surface_visibility(i: u32, p: vec3<f32>, n: vec3<f32>) -> f32 {
+    if (i == 0u) { return volshadow_shadow(shadow0, shadow_cmp, shadows[0], p, n); }
+    if (i == 1u) { return volshadow_shadow(shadow1, shadow_cmp, shadows[1], p, n); }
+    if (i == 2u) { return volshadow_shadow(shadow2, shadow_cmp, shadows[2], p, n); }
+    return volshadow_shadow(shadow3, shadow_cmp, shadows[3], p, n);
+}
 
 struct Varyings {
     @builtin(position) clip: vec4<f32>,
@@ -44,7 +59,13 @@ fn light_texel(i: u32, uv: vec2<f32>) -> vec3<f32> {
     return textureSampleLevel(texture3, linear, uv, 0.0).rgb;
 }
 
-@fragment fn fs(in: Varyings) -> @location(0) vec4<f32> {
+struct Targets {
+    @location(0) color: vec4<f32>,
+    @location(1) normal: vec4<f32>,   // unit world-space normal, facing the eye
+    @location(2) albedo: vec4<f32>,
+}
+
+@fragment fn fs(in: Varyings) -> Targets {
     var n = in.normal;
     if (dot(n, scene.eye.xyz - in.world) < 0.0) { n = -n; }
     var irradiance = vec3<f32>(0.0);
@@ -64,10 +85,13 @@ fn light_texel(i: u32, uv: vec2<f32>) -> vec3<f32> {
                 emitted *= light_texel(i, vec2<f32>(0.5 + v.x * s, 0.5 - v.y * s));
             }
         }
+        if (light.params.y > 0.5) {
+            emitted *= surface_visibility(i, in.world, n);
+        }
         var falloff = exp(-scene.sigma_t.xyz * d) / (d * d);
         if (directional) { falloff = vec3<f32>(1.0); } // E arrives in the medium
         irradiance += emitted * max(dot(n, l), 0.0) * falloff;
     }
     let radiance = in.albedo / 3.14159265 * irradiance + in.albedo * scene.ambient.xyz;
-    return vec4<f32>(radiance, 1.0);
+    return Targets(vec4<f32>(radiance, 1.0), vec4<f32>(normalize(n), 0.0), vec4<f32>(in.albedo, 1.0));
 }

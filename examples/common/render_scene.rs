@@ -1,7 +1,7 @@
 //! The `render` example: a JSON scene file rendered headless to EXR, PNG and a JSON report.
 //!
 //! ```text
-//! render SCENE.json [-o OUT] [--method METHOD] [--size WxH] [--exposure E]
+//! render SCENE.json [-o OUT] [--method METHOD] [--size WxH] [--exposure E] [--surface-scatter]
 //! ```
 //!
 //! Writes `OUT.exr` (linear RGB radiance: attenuated surfaces plus in-scatter), `OUT.png`
@@ -26,9 +26,15 @@
 //! culled below 1e-3 of the in-scatter; `march_settings()`' 32 texture steps outside the extents).
 //! `--size` overrides the file's size (the camera keeps its vertical field of view);
 //! `--exposure` replaces the automatic exposure ([`auto_exposure`]) of the PNG.
+//! `--surface-scatter` (GPU methods) passes the app's normals and albedo (the objects'
+//! `albedo`) as `Frame::surfaces`, so the composite adds the light the fog scatters onto the
+//! surfaces, and also writes `OUT.surface.exr`: the radiance that term adds to `OUT.exr` alone
+//! (linear, attenuated by the fog between surface and eye as the rest of the surface colour,
+//! 0 on sky), the difference from the same frame without it.
 //!
 //! The app's own frame is drawn by [`draw_app_frame`]: every object of the scene, receivers
-//! included, lit without surface shadows.
+//! included, lit with surface shadows from the shadow casters (volshadow's shadow-map node and
+//! `volshadow::SHADOW_WGSL`), whatever the method.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -40,11 +46,12 @@ use volshadow::reference::{self, TexturedSpot};
 use volshadow::scene_file::{Method, SceneDescription};
 use volshadow::{
     Cache, Camera, Frame, FrameLight, HeadlessGpu, Light, Occluder, OccluderMesh, Settings,
-    VolumetricShadows,
+    Surfaces, VolumetricShadows,
 };
 
 use super::raster::{
-    default_ambient, draw_app_frame, texture_desc, AppFrame, DrawLight, DrawObject,
+    default_ambient, draw_app_frame, surface_shadow_maps, texture_desc, AppFrame, DrawLight,
+    DrawObject,
 };
 use super::{
     auto_exposure, eye_distances, parse_size, read_depth, read_inscatter, render_frames, rgb,
@@ -54,7 +61,7 @@ use super::{
 /// The command line, for error messages.
 pub const USAGE: &str = "usage: render SCENE.json [-o OUT] \
 [--method reference|analytic|brute[:STEPS[:SCALE[:BISECTIONS]]]|hybrid[:STEPS[:SCALE[:FILTER[:BISECTIONS]]]]] \
-[--size WxH] [--exposure E]";
+[--size WxH] [--exposure E] [--surface-scatter]";
 
 /// How to compute the in-scatter.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -243,6 +250,8 @@ pub struct Options {
     pub size: Option<(u32, u32)>,
     /// `None`: [`auto_exposure`].
     pub exposure: Option<f64>,
+    /// Add the light scattered onto surfaces and write `OUT.surface.exr`.
+    pub surface_scatter: bool,
 }
 
 impl Options {
@@ -250,6 +259,7 @@ impl Options {
     pub fn parse(args: &[String]) -> Result<Self, BoxError> {
         let mut scene = None;
         let (mut out, mut method, mut size, mut exposure) = (None, None, None, None);
+        let mut surface_scatter = false;
         let mut parser = lexopt::Parser::from_args(args);
         while let Some(arg) = parser.next()? {
             match arg {
@@ -263,6 +273,7 @@ impl Options {
                     }
                     exposure = Some(e);
                 }
+                Long("surface-scatter") => surface_scatter = true,
                 Short('h') | Long("help") => return Err(USAGE.into()),
                 Value(path) if scene.is_none() => scene = Some(PathBuf::from(path)),
                 _ => return Err(format!("{}\n{USAGE}", arg.unexpected()).into()),
@@ -283,6 +294,7 @@ impl Options {
             method,
             size,
             exposure,
+            surface_scatter,
         })
     }
 
@@ -309,6 +321,8 @@ pub struct GpuScene<'a> {
     pub app: AppFrame,
     /// Shadow casters: GPU mesh and object → world (none for the analytic floor).
     pub casters: Vec<(OccluderMesh, volshadow::glam::Mat4)>,
+    /// [`frame`](Self::frame) passes the app's normals and albedo (`Frame::surfaces`).
+    pub surfaces: bool,
 }
 
 impl<'a> GpuScene<'a> {
@@ -330,13 +344,32 @@ impl<'a> GpuScene<'a> {
                     .map(|t| t.upload(&gpu.device, &gpu.queue))
             })
             .collect();
+        // The shadow casters, uploaded once: the app's surface shadows always use them; the
+        // volumetric shadows only when `shadows`.
+        let meshes: Vec<(OccluderMesh, volshadow::glam::Mat4)> = scene
+            .objects
+            .iter()
+            .filter(|o| o.casts_shadow)
+            .map(|o| (OccluderMesh::new(&gpu.device, &o.mesh), o.transform))
+            .collect();
+        let occluders: Vec<Occluder> = meshes
+            .iter()
+            .map(|(mesh, transform)| Occluder {
+                mesh,
+                transform: *transform,
+            })
+            .collect();
+        let lights: Vec<Light> = scene.lights.iter().map(|l| l.light).collect();
+        let maps = surface_shadow_maps(gpu, &lights, &occluders)?;
         let draw_lights: Vec<DrawLight> = scene
             .lights
             .iter()
             .zip(&textures)
-            .map(|(l, t)| DrawLight {
+            .zip(&maps)
+            .map(|((l, t), m)| DrawLight {
                 light: l.light,
                 texture: t.as_ref(),
+                shadow: m.as_ref().and_then(|m| m.shadow_map()),
             })
             .collect();
         let objects: Vec<DrawObject> = scene
@@ -358,12 +391,9 @@ impl<'a> GpuScene<'a> {
             &scene.medium,
             ambient,
         )?;
-        let casters = scene
-            .objects
-            .iter()
-            .filter(|o| o.casts_shadow && shadows)
-            .map(|o| (OccluderMesh::new(&gpu.device, &o.mesh), o.transform))
-            .collect();
+        drop(draw_lights);
+        drop(occluders);
+        let casters = if shadows { meshes } else { Vec::new() };
         Ok(Self {
             scene,
             camera,
@@ -371,6 +401,7 @@ impl<'a> GpuScene<'a> {
             textures,
             app,
             casters,
+            surfaces: false,
         })
     }
 
@@ -412,6 +443,10 @@ impl<'a> GpuScene<'a> {
             occluders,
             scene_color: &self.app.color,
             scene_depth: &self.app.depth,
+            surfaces: self.surfaces.then_some(Surfaces {
+                normal: &self.app.normal,
+                albedo: &self.app.albedo,
+            }),
         }
     }
 
@@ -550,14 +585,21 @@ pub fn render(options: &Options) -> Result<Rendered, BoxError> {
     );
     println!("adapter: {}", gpu.adapter_summary());
 
-    let gpu_scene = GpuScene::new(
+    if options.surface_scatter && method == RenderMethod::Reference {
+        return Err(
+            "--surface-scatter needs a GPU method (the reference has no surface term)".into(),
+        );
+    }
+    let mut gpu_scene = GpuScene::new(
         &gpu,
         &scene,
         &camera,
         size,
         method != RenderMethod::Analytic,
     )?;
+    gpu_scene.surfaces = options.surface_scatter;
     let app = &gpu_scene.app;
+    let mut surface = None;
     let distances = eye_distances(&camera, size, &read_depth(&gpu, &app.depth)?);
 
     let (radiance, inscatter, plan, timings, wall_ms) = match method {
@@ -603,6 +645,30 @@ pub fn render(options: &Options) -> Result<Rendered, BoxError> {
             let stats = render_frames(&gpu, &mut volumetric, &frame, &output)?;
             let radiance: Vec<DVec3> = gpu.read_rgba32f(&output)?.iter().map(rgb).collect();
             let inscatter = read_inscatter(&gpu, &volumetric, &frame)?;
+            if options.surface_scatter {
+                // The same frame without the term: the difference is what it adds.
+                let without = Frame {
+                    surfaces: None,
+                    ..frame
+                };
+                volumetric.prepare(&gpu.device, &gpu.queue, &without)?;
+                let mut encoder = gpu.device.create_command_encoder(&Default::default());
+                volumetric.encode(&mut encoder, &output)?;
+                gpu.submit_and_wait(encoder)?;
+                let base = gpu.read_rgba32f(&output)?;
+                let added = radiance.iter().zip(&base).zip(&distances);
+                surface = Some(
+                    added
+                        .map(|((r, b), d)| {
+                            if d.is_finite() {
+                                *r - rgb(b)
+                            } else {
+                                DVec3::ZERO
+                            }
+                        })
+                        .collect::<Vec<DVec3>>(),
+                );
+            }
             (
                 radiance,
                 inscatter,
@@ -634,6 +700,9 @@ pub fn render(options: &Options) -> Result<Rendered, BoxError> {
         })
         .collect();
     write_exr(&files[3], size, &depth)?;
+    if let Some(surface) = &surface {
+        write_exr(&options.path(".surface.exr"), size, surface)?;
+    }
     let (passes, gpu_ms) = timings_json(&timings);
     let name = |p: &Path| p.display().to_string();
     let report = serde_json::json!({

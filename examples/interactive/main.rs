@@ -557,6 +557,7 @@ impl State {
             occluders: &occluders,
             scene_color: &targets.color,
             scene_depth: &targets.depth,
+            surfaces: None,
         };
         let output = &targets.output;
         let counts = match self.volumetric.prepare(&self.device, &self.queue, &frame) {

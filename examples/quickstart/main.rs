@@ -91,6 +91,7 @@ pub fn run(
         occluders: &occluders,
         scene_color: &color,
         scene_depth: &depth,
+        surfaces: None,
     };
     for frame_index in 0..frames {
         let start = Instant::now();

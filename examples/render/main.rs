@@ -6,9 +6,10 @@
 //! ```
 //!
 //! The example plays the application: it rasterises the scene's objects into its own colour
-//! and depth targets (lit, without surface shadows), then records volshadow's passes through
-//! `VolumetricShadows` into its encoder — or, with `--method reference`, computes the
-//! in-scatter with the f64 CPU reference. The options, methods and outputs are documented in
+//! and depth targets (lit, surfaces shadowed with volshadow's shadow maps through
+//! `volshadow::SHADOW_WGSL`), then records volshadow's passes through `VolumetricShadows` into
+//! its encoder — or, with `--method reference`, computes the in-scatter with the f64 CPU
+//! reference. The options, methods and outputs are documented in
 //! `examples/common/render_scene.rs`. Bad arguments or files print the error and exit with
 //! status 1.
 

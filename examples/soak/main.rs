@@ -476,6 +476,7 @@ pub fn run(gpu: &HeadlessGpu, options: &Options) -> Result<Summary, BoxError> {
                 occluders: &occluders,
                 scene_color: &targets.color,
                 scene_depth: &targets.depth,
+                surfaces: None,
             },
         )?;
         let plan: Vec<String> = vs

@@ -22,6 +22,7 @@ pub struct Cache {
     pub(crate) march: nodes::march::Pipelines,
     pub(crate) upsample: nodes::upsample::Pipelines,
     pub(crate) composite: nodes::composite::Pipelines,
+    pub(crate) iss_table: nodes::iss_table::Pipelines,
 }
 
 impl Cache {
@@ -39,6 +40,7 @@ impl Cache {
             march: nodes::march::Pipelines::new(device),
             upsample: nodes::upsample::Pipelines::new(device),
             composite: nodes::composite::Pipelines::new(device),
+            iss_table: nodes::iss_table::Pipelines::new(device),
         }
     }
 }
@@ -349,7 +351,10 @@ mod tests {
             ),
             (
                 "composite.wgsl",
-                include_str!("../../shaders/composite.wgsl"),
+                concat!(
+                    include_str!("../../shaders/iss.wgsl"),
+                    include_str!("../../shaders/composite.wgsl")
+                ),
             ),
             ("extents.wgsl", include_str!("../../shaders/extents.wgsl")),
             (
@@ -362,6 +367,14 @@ mod tests {
                 include_str!("../../shaders/shadow_map.wgsl"),
             ),
             ("upsample.wgsl", include_str!("../../shaders/upsample.wgsl")),
+            ("shadow.wgsl", include_str!("../../shaders/shadow.wgsl")),
+            (
+                "iss_table.wgsl",
+                concat!(
+                    include_str!("../../shaders/iss.wgsl"),
+                    include_str!("../../shaders/iss_table.wgsl")
+                ),
+            ),
         ] {
             if let Err(e) = check(file, source) {
                 panic!("{e}");

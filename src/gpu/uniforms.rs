@@ -102,6 +102,24 @@ impl AirlightUniform {
         }
     }
 
+    /// Only the phase function's lobes and a table size (`along` × `across`): what the
+    /// indirect single scattering table depends on (every other field zero).
+    pub fn phase_only(medium: &Medium, along: u32, across: u32) -> Self {
+        let (lobes, g) = phase_lobes(medium.phase());
+        let rgb = |v: Vec3| v.extend(0.0).to_array();
+        Self {
+            hg_g: g,
+            table_along: along,
+            table_across: across,
+            w_iso: rgb(lobes[0]),
+            w_rayleigh: rgb(lobes[1]),
+            w_hg: rgb(lobes[2]),
+            w_hazy: rgb(lobes[3]),
+            w_murky: rgb(lobes[4]),
+            ..Self::zeroed()
+        }
+    }
+
     /// The part of the uniform the F′ table depends on: D, σt, the phase and the table size.
     /// Eye and light may move freely as long as their distance stays the same.
     pub fn table_key(&self) -> Self {
@@ -145,4 +163,53 @@ impl ViewUniform {
 pub(crate) struct CompositeUniform {
     pub sigma_t: [f32; 3],
     pub count: u32,
+}
+
+/// One light of WGSL `Surfaces`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub(crate) struct SurfaceLightUniform {
+    pub position: [f32; 3],
+    pub cos_half: f32,
+    pub intensity: [f32; 3],
+    pub spot: u32,
+    pub direction: [f32; 3],
+    pub _pad: f32,
+}
+
+/// WGSL `Surfaces` (the composite's indirect single scattering term).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub(crate) struct SurfacesUniform {
+    pub sigma_s: [f32; 3],
+    pub count: u32,
+    pub lights: [SurfaceLightUniform; 4],
+}
+
+impl SurfacesUniform {
+    pub fn new(medium: &Medium, lights: &[Light]) -> Self {
+        // The term is defined for lights at a position; a directional light adds none.
+        let positioned: Vec<(&Light, glam::Vec3)> = lights
+            .iter()
+            .filter_map(|l| l.position().map(|p| (l, p)))
+            .collect();
+        let mut out = Self {
+            sigma_s: medium.sigma_s().to_array(),
+            count: positioned.len().min(4) as u32,
+            ..Self::zeroed()
+        };
+        for (slot, (light, position)) in out.lights.iter_mut().zip(positioned) {
+            *slot = SurfaceLightUniform {
+                position: position.to_array(),
+                intensity: light.intensity().to_array(),
+                ..SurfaceLightUniform::zeroed()
+            };
+            if let Light::Spot(spot) = light {
+                slot.spot = 1;
+                slot.cos_half = spot.cos_half_angle();
+                slot.direction = spot.direction().to_array();
+            }
+        }
+        out
+    }
 }

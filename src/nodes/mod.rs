@@ -18,20 +18,22 @@
 pub(crate) mod airlight_table;
 pub(crate) mod composite;
 pub(crate) mod extents;
+pub(crate) mod iss_table;
 pub(crate) mod light_texture;
 pub(crate) mod march;
 pub(crate) mod shadow_map;
 pub(crate) mod upsample;
 
 pub use airlight_table::{AirlightTableNode, TableInputs, TableSize};
-pub use composite::{CompositeInputs, CompositeNode, OutputTarget, MAX_LIGHTS};
+pub use composite::{CompositeInputs, CompositeNode, CompositeSurfaces, OutputTarget, MAX_LIGHTS};
 pub use extents::{
     Crossings, CrossingsRequest, Extents, ExtentsInputs, ExtentsNode, EXTENTS_NEAR,
     MAX_CROSSINGS_PER_PIXEL,
 };
+pub use iss_table::{IssTableNode, IssTableSize, ISS_TAU_RANGE};
 pub use light_texture::LightTextureNode;
 pub use march::{
     MarchInputs, MarchMethod, MarchNode, MarchSettings, MarchStats, Shadows, DEFAULT_CROSSINGS,
 };
-pub use shadow_map::{ShadowMap, ShadowMapInputs, ShadowMapNode, ShadowMapSettings};
+pub use shadow_map::{ShadowMap, ShadowMapInputs, ShadowMapNode, ShadowMapSettings, ShadowParams};
 pub use upsample::{Scale, UpsampleFilter, UpsampleInputs, UpsampleNode};

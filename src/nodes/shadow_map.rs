@@ -121,6 +121,66 @@ pub struct ShadowMap<'a> {
     pub bounds: &'a [Vec4],
 }
 
+impl ShadowMap<'_> {
+    /// The parameters [`SHADOW_WGSL`](crate::SHADOW_WGSL)'s `volshadow_shadow` takes (its
+    /// `VolshadowShadow` struct), for the `light` this map was rendered for, with a normal
+    /// offset of `normal_offset` × the distance from the light, or for a directional light
+    /// `normal_offset` world units (`None`: two texels' angular size at this map's resolution,
+    /// or two texels of a directional map, which keeps lit surfaces free of self-shadowing
+    /// acne down to grazing angles of about 25°).
+    pub fn params(&self, light: &Light, normal_offset: Option<f32>) -> ShadowParams {
+        let mut faces = [[0.0; 16]; 6];
+        for (slot, m) in faces.iter_mut().zip(self.faces) {
+            *slot = m.to_cols_array();
+        }
+        let texels = self.texture.width().max(1) as f32;
+        let (light_position, directional, default_offset) = match light {
+            Light::Directional(d) => {
+                // The orthographic map's half width, from its first row (1 / half width).
+                let half = self
+                    .faces
+                    .first()
+                    .map(|m| 1.0 / m.row(0).truncate().length())
+                    .filter(|h| h.is_finite() && *h > 0.0)
+                    .unwrap_or(0.0);
+                (d.direction(), 1, 4.0 * half / texels)
+            }
+            _ => (light.position().unwrap_or_default(), 0, 4.0 / texels),
+        };
+        ShadowParams {
+            faces,
+            light_position: light_position.to_array(),
+            depth_bias: self.depth_bias,
+            layers: self.faces.len() as u32,
+            normal_offset: normal_offset.unwrap_or(default_offset),
+            directional,
+            _pad: 0.0,
+        }
+    }
+}
+
+/// WGSL `VolshadowShadow` of [`SHADOW_WGSL`](crate::SHADOW_WGSL), byte for byte (upload it with
+/// `bytemuck::bytes_of`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct ShadowParams {
+    /// clip_from_world of each layer, column-major (unused layers zero).
+    pub faces: [[f32; 16]; 6],
+    /// The light's position (a directional light: its direction of travel).
+    pub light_position: [f32; 3],
+    /// Relative depth bias.
+    pub depth_bias: f32,
+    /// 6 (point light, cube) or 1 (spot or directional light).
+    pub layers: u32,
+    /// Offset along the normal, relative to the distance from the light (a directional light:
+    /// in world units).
+    pub normal_offset: f32,
+    /// 1 for a directional light's orthographic map, else 0.
+    pub directional: u32,
+    /// Padding.
+    pub _pad: f32,
+}
+
 /// Renders the occluders' depth from the light. Re-renders only when the light, an occluder or
 /// a transform changed since the last render.
 pub struct ShadowMapNode {
