@@ -191,7 +191,7 @@ pub fn render(options: &Options) -> Result<Rendered, BoxError> {
             transform: m.transform,
         })
         .collect();
-    let maps = surface_shadow_maps(&gpu, &[light], &occluders)?;
+    let maps = surface_shadow_maps(&gpu, &[light], &occluders, &camera)?;
     let draw_lights = [DrawLight {
         light,
         texture: None,

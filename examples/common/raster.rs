@@ -50,11 +50,12 @@ pub struct DrawLight<'a> {
 
 /// Renders one shadow map per light with volshadow's shadow-map node (default settings: 1024²,
 /// the depth bias the volumetric shadows use) for the app's surfaces; `None` for a light
-/// without occluders.
+/// without occluders. A directional light's map is fitted to what `camera` sees.
 pub fn surface_shadow_maps(
     gpu: &HeadlessGpu,
     lights: &[Light],
     occluders: &[Occluder],
+    camera: &Camera,
 ) -> Result<Vec<Option<ShadowMapNode>>, Box<dyn std::error::Error>> {
     let cache = Cache::new(&gpu.device);
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
@@ -65,11 +66,12 @@ pub fn surface_shadow_maps(
             continue;
         }
         let mut node = ShadowMapNode::new(&gpu.device, &cache, ShadowMapSettings::default())?;
-        node.prepare(
-            &gpu.device,
-            &gpu.queue,
-            &ShadowMapInputs { light, occluders },
-        )?;
+        let inputs = ShadowMapInputs { light, occluders };
+        if matches!(light, Light::Directional(_)) {
+            node.prepare_directional(&gpu.device, &gpu.queue, &inputs, camera)?;
+        } else {
+            node.prepare(&gpu.device, &gpu.queue, &inputs)?;
+        }
         node.encode(&mut encoder, None)?;
         nodes.push(Some(node));
     }

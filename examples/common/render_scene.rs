@@ -360,7 +360,7 @@ impl<'a> GpuScene<'a> {
             })
             .collect();
         let lights: Vec<Light> = scene.lights.iter().map(|l| l.light).collect();
-        let maps = surface_shadow_maps(gpu, &lights, &occluders)?;
+        let maps = surface_shadow_maps(gpu, &lights, &occluders, camera)?;
         let draw_lights: Vec<DrawLight> = scene
             .lights
             .iter()

@@ -9,7 +9,7 @@ use volshadow::glam::DVec3;
 use volshadow::nodes::{MarchMethod, MarchSettings, Scale};
 use volshadow::plan::Pass;
 use volshadow::scene_file::SceneDescription;
-use volshadow::{Cache, Frame, HeadlessGpu, Light, Settings, VolumetricShadows};
+use volshadow::{Cache, Frame, HeadlessGpu, Light, Settings, Surfaces, VolumetricShadows};
 
 use super::cache::cached_reference;
 use super::metrics::{errors, keep_mask};
@@ -131,6 +131,20 @@ pub fn run_scene(
         &unshadowed,
         view,
     )?;
+
+    // The light the medium scatters onto surfaces: the same frame with the app's normals and
+    // albedo, at the default settings, against it without them (not for a light with a radius: its
+    // march alone takes seconds a frame here).
+    if scene.lights.iter().all(|l| l.light.radius() == 0.0) {
+        let surfaces = Frame {
+            surfaces: Some(Surfaces {
+                normal: &gpu_scene.app.normal,
+                albedo: &gpu_scene.app.albedo,
+            }),
+            ..shadowed
+        };
+        surface_term_cost(ctx, base, &surfaces, &shadowed, view)?;
+    }
 
     let rows = std::cell::RefCell::new(Vec::<Row>::new());
     let record = |curve: Curve,
@@ -479,6 +493,47 @@ pub fn time_fixed(
         .into_iter()
         .map(|(pass, mut v)| (pass, median(&mut v)))
         .collect())
+}
+
+/// Prints the cost of the light scattered onto surfaces: the ISS table's build (first frame;
+/// later frames reuse it until the phase function changes) and the frame's time with the term
+/// against without it, both medians of `frames` frames after the first.
+fn surface_term_cost(
+    ctx: &Context,
+    settings: Settings,
+    with: &Frame,
+    without: &Frame,
+    view: &wgpu::Texture,
+) -> Result<(), BoxError> {
+    let mut totals = [0.0; 2];
+    let mut table_ms = 0.0;
+    for (k, frame) in [with, without].into_iter().enumerate() {
+        let mut volumetric =
+            VolumetricShadows::new(&ctx.gpu.device, &ctx.gpu.queue, &ctx.cache, settings)?;
+        let mut frame_ms = Vec::new();
+        for index in 0..=ctx.frames {
+            let times = run_frame(ctx, &mut volumetric, frame, view, &[])?;
+            if index == 0 {
+                if k == 0 {
+                    table_ms = times
+                        .iter()
+                        .filter(|(pass, _)| *pass == Pass::IssTable.name())
+                        .map(|(_, ms)| ms)
+                        .sum();
+                }
+                continue;
+            }
+            frame_ms.push(times.iter().map(|(_, ms)| ms).sum::<f64>());
+        }
+        totals[k] = median(&mut frame_ms);
+    }
+    let [with_ms, without_ms] = totals;
+    ctx.progress(&format!(
+        "  surface term (default settings): ISS table {table_ms:.1} ms once; frame {with_ms:.1} ms \
+         with the term vs {without_ms:.1} ms without ({:+.1}% of the frame)",
+        100.0 * (with_ms - without_ms) / with_ms.max(1e-9)
+    ));
+    Ok(())
 }
 
 /// Prepares and runs one frame, leaving out the `skip` passes (on a CPU adapter); the time of
