@@ -286,38 +286,13 @@ fn penumbra_cone(dir: vec3<f32>, x_end: f32, c: vec3<f32>, rho: f32) -> vec2<f32
     let axis = to_c / l;
     let apex = air.light_pos + axis * (l * radius / (radius + rho));
     let c2 = 1.0 - sin_t * sin_t;
-    let w0 = air.eye - apex;
-    let av = dot(axis, dir);
-    let aw = dot(axis, w0);
-    let qa = av * av - c2;
-    let qb = 2.0 * (av * aw - c2 * dot(dir, w0));
-    let qc = aw * aw - c2 * dot(w0, w0);
-    var roots = array<f32, 2>(-1.0, -1.0);
-    if (abs(qa) > 1.0e-12 * max(abs(qb), abs(qc))) {
-        let disc = qb * qb - 4.0 * qa * qc;
-        if (disc >= 0.0) {
-            let q = -0.5 * (qb + select(-1.0, 1.0, qb >= 0.0) * sqrt(disc));
-            let r0 = q / qa;
-            let r1 = select(r0, qc / q, q != 0.0);
-            roots = array<f32, 2>(min(r0, r1), max(r0, r1));
-        }
-    } else if (qb != 0.0) {
-        roots[0] = -qc / qb;
-    }
-    var cuts = array<f32, 4>(0.0, x_end, x_end, x_end);
-    var k = 1u;
-    for (var i = 0u; i < 2u; i++) {
-        if (roots[i] > 0.0 && roots[i] < x_end) {
-            cuts[k] = roots[i];
-            k++;
-        }
-    }
-    cuts[k] = x_end;
+    var cuts = cone_cuts(apex, axis, c2, air.eye, dir, x_end);
+    let k = cuts.count;
     var hull = vec2<f32>(FAR, -1.0);
     let cos_t = sqrt(c2);
     for (var i = 0u; i < k; i++) {
-        let a = cuts[i];
-        let b = cuts[i + 1u];
+        let a = cuts.x[i];
+        let b = cuts.x[i + 1u];
         var mid = 0.5 * (a + b);
         if (b >= FAR) {
             mid = a + 1.0 + 2.0 * abs(a) + 1.0e3 * air.distance;

@@ -242,12 +242,17 @@ fn inside_cone(a: Airlight, spot: vec4<f32>, p: vec3<f32>) -> bool {
     return dot(spot.xyz, rel) >= spot.w * length(rel);
 }
 
-fn cone_support(air: Airlight, spot: vec4<f32>, dir: vec3<f32>, x_end: f32) -> Support {
-    var sup: Support;
-    sup.count = 0u;
-    let axis = spot.xyz;
-    let c2 = spot.w * spot.w;
-    let w0 = air.eye - air.light_pos;
+// The ray eye + x·dir, x in [0, x_end], cut where it crosses the double cone with apex `apex`,
+// unit axis `axis` and squared cosine of the half-angle `c2`: pieces i = [x[i], x[i + 1]] for
+// i < count, each inside or outside the cone throughout. The quadratic's roots are taken
+// without cancellation.
+struct ConeCuts {
+    x: array<f32, 4>,
+    count: u32,
+}
+
+fn cone_cuts(apex: vec3<f32>, axis: vec3<f32>, c2: f32, eye: vec3<f32>, dir: vec3<f32>, x_end: f32) -> ConeCuts {
+    let w0 = eye - apex;
     let av = dot(axis, dir);
     let aw = dot(axis, w0);
     let qa = av * av - c2;
@@ -258,26 +263,36 @@ fn cone_support(air: Airlight, spot: vec4<f32>, dir: vec3<f32>, x_end: f32) -> S
         let disc = qb * qb - 4.0 * qa * qc;
         if (disc >= 0.0) {
             let q = -0.5 * (qb + select(-1.0, 1.0, qb >= 0.0) * sqrt(disc));
-            var r0 = q / qa;
-            var r1 = select(r0, qc / q, q != 0.0);
+            let r0 = q / qa;
+            let r1 = select(r0, qc / q, q != 0.0);
             roots = array<f32, 2>(min(r0, r1), max(r0, r1));
         }
     } else if (qb != 0.0) {
         roots[0] = -qc / qb;
     }
-    // Split [0, x_end] at the roots and keep the pieces whose midpoint is inside the cone.
-    var cuts = array<f32, 4>(0.0, x_end, x_end, x_end);
+    var cuts: ConeCuts;
+    cuts.x = array<f32, 4>(0.0, x_end, x_end, x_end);
     var k = 1u;
     for (var i = 0u; i < 2u; i++) {
         if (roots[i] > 0.0 && roots[i] < x_end) {
-            cuts[k] = roots[i];
+            cuts.x[k] = roots[i];
             k++;
         }
     }
-    cuts[k] = x_end;
+    cuts.x[k] = x_end;
+    cuts.count = k;
+    return cuts;
+}
+
+fn cone_support(air: Airlight, spot: vec4<f32>, dir: vec3<f32>, x_end: f32) -> Support {
+    var sup: Support;
+    sup.count = 0u;
+    // Split [0, x_end] at the cone's crossings and keep the pieces whose midpoint is inside it.
+    var cuts = cone_cuts(air.light_pos, spot.xyz, spot.w * spot.w, air.eye, dir, x_end);
+    let k = cuts.count;
     for (var i = 0u; i < k; i++) {
-        let a = cuts[i];
-        let b = cuts[i + 1u];
+        let a = cuts.x[i];
+        let b = cuts.x[i + 1u];
         var mid = 0.5 * (a + b);
         if (b >= FAR) {
             mid = a + 1.0 + 2.0 * abs(a) + 1.0e3 * air.distance; // far along an unbounded piece
