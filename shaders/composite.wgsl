@@ -37,9 +37,13 @@ struct Surfaces {
 @group(0) @binding(10) var surface_albedo: texture_2d<f32>;
 @group(0) @binding(11) var iss_table: texture_2d<f32>;
 
+// Pipeline constant: surfaces (normals and albedo) are given. Without them the term's code is
+// left out of the pipeline, so frames without surfaces cost what they did before it existed.
+override SURFACES: bool = false;
+
 // (ρ/π)·E(P) at the pixel's surface point, summed over the lights; 0 on sky.
 fn surface_term(pixel: vec2<u32>, ray: PixelRay) -> vec3<f32> {
-    if (surf.count == 0u || ray.distance < 0.0) {
+    if (!SURFACES || surf.count == 0u || ray.distance < 0.0) {
         return vec3<f32>(0.0);
     }
     let n = textureLoad(surface_normal, pixel, 0).xyz;

@@ -478,11 +478,13 @@ pub const ERROR_TARGET_MARGIN: f32 = 0.8;
 #[rustfmt::skip]
 pub const ERROR_TABLE: &[MeasuredConfig] = &[
     // measured(method, p95, cost, steps, scale, upsample, bisections)
-    measured(MarchMethod::Hybrid, 1.0000, 1.435, 8, Scale::Quarter, UpsampleFilter::DepthAware3x3, 2),
-    measured(MarchMethod::Hybrid, 0.3097, 1.458, 16, Scale::Quarter, UpsampleFilter::DepthAware3x3, 2),
-    measured(MarchMethod::Exact, 0.0614, 1.614, 64, Scale::Quarter, UpsampleFilter::DepthAware3x3, 2),
-    measured(MarchMethod::Exact, 0.0342, 2.608, 64, Scale::Half, UpsampleFilter::DepthAware3x3, 2),
-    measured(MarchMethod::Exact, 0.0003, 5.040, 64, Scale::Full, UpsampleFilter::DepthAware3x3, 2),
+    measured(MarchMethod::Hybrid, 1.0000, 1.685, 8, Scale::Quarter, UpsampleFilter::DepthAware3x3, 0),
+    measured(MarchMethod::Hybrid, 0.4460, 1.726, 16, Scale::Quarter, UpsampleFilter::DepthAware3x3, 0),
+    measured(MarchMethod::Hybrid, 0.3303, 1.872, 16, Scale::Quarter, UpsampleFilter::Separable { taps: 7, sigma_spatial: 1.5, sigma_depth: 0.05 }, 0),
+    measured(MarchMethod::Hybrid, 0.3097, 1.905, 16, Scale::Quarter, UpsampleFilter::DepthAware3x3, 2),
+    measured(MarchMethod::Exact, 0.0614, 1.909, 64, Scale::Quarter, UpsampleFilter::DepthAware3x3, 2),
+    measured(MarchMethod::Exact, 0.0342, 2.834, 64, Scale::Half, UpsampleFilter::DepthAware3x3, 2),
+    measured(MarchMethod::Exact, 0.0003, 5.522, 64, Scale::Full, UpsampleFilter::DepthAware3x3, 2),
 ];
 
 /// The cheapest configuration of [`ERROR_TABLE`] whose measured worst p95 is within

@@ -51,13 +51,13 @@ const BINDINGS: [Binding; 8 + MAX_LIGHTS] = [
     Binding::Texture, // iss_table
 ];
 
-/// The composite's layout and its pipelines, one per output format (built on first use); held
-/// by the [`Cache`].
+/// The composite's layout and its pipelines, one per output format and with or without the
+/// surface term (built on first use); held by the [`Cache`].
 #[derive(Clone)]
 pub(crate) struct Pipelines {
     layout: wgpu::BindGroupLayout,
     module: wgpu::ShaderModule,
-    formats: Arc<Mutex<HashMap<wgpu::TextureFormat, wgpu::RenderPipeline>>>,
+    formats: Arc<Mutex<HashMap<(wgpu::TextureFormat, bool), wgpu::RenderPipeline>>>,
 }
 
 impl Pipelines {
@@ -74,10 +74,26 @@ impl Pipelines {
         }
     }
 
-    fn writing(&self, device: &wgpu::Device, format: wgpu::TextureFormat) -> wgpu::RenderPipeline {
-        cached(&self.formats, format, || {
+    /// The pipeline writing `format`, adding the surface term if `surfaces` (a pipeline
+    /// constant: frames without surfaces do not pay for its code).
+    fn writing(
+        &self,
+        device: &wgpu::Device,
+        format: wgpu::TextureFormat,
+        surfaces: bool,
+    ) -> wgpu::RenderPipeline {
+        cached(&self.formats, (format, surfaces), || {
             let (label, entry) = ("volshadow composite", "fs_composite");
-            fullscreen_pipeline(device, label, &self.layout, &self.module, entry, format)
+            let constants = [("SURFACES", if surfaces { 1.0 } else { 0.0 })];
+            fullscreen_pipeline(
+                device,
+                label,
+                &self.layout,
+                &self.module,
+                entry,
+                format,
+                &constants,
+            )
         })
     }
 }
@@ -197,6 +213,8 @@ pub(crate) fn check_output_format(
 pub struct CompositeNode {
     format: wgpu::TextureFormat,
     pipeline: wgpu::RenderPipeline,
+    /// The pipeline with the surface term.
+    pipeline_surfaces: wgpu::RenderPipeline,
     layout: wgpu::BindGroupLayout,
     uniform: UniformBuffer<CompositeUniform>,
     view: UniformBuffer<ViewUniform>,
@@ -229,7 +247,8 @@ impl CompositeNode {
         check_output_format(device, output_format)?;
         Ok(Self {
             format: output_format,
-            pipeline: cache.composite.writing(device, output_format),
+            pipeline: cache.composite.writing(device, output_format, false),
+            pipeline_surfaces: cache.composite.writing(device, output_format, true),
             layout: cache.composite.layout.clone(),
             uniform: UniformBuffer::new(device, "volshadow composite"),
             view: UniformBuffer::new(device, "volshadow composite view"),
@@ -492,7 +511,11 @@ impl CompositeNode {
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        pass.set_pipeline(&self.pipeline);
+        pass.set_pipeline(if self.surfaces.is_some() {
+            &self.pipeline_surfaces
+        } else {
+            &self.pipeline
+        });
         pass.set_bind_group(0, &bound.bind_group, &[]);
         pass.draw(0..3, 0..1);
         Ok(())

@@ -36,7 +36,7 @@ impl Pipelines {
         let module = module(device, "volshadow light_texture.wgsl", source);
         let format = wgpu::TextureFormat::Rgba16Float;
         let levels = ["fs_copy", "fs_down"]
-            .map(|entry| fullscreen_pipeline(device, label, &layout, &module, entry, format));
+            .map(|entry| fullscreen_pipeline(device, label, &layout, &module, entry, format, &[]));
         Self { layout, levels }
     }
 }

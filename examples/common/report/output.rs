@@ -353,7 +353,8 @@ pub fn error_table(rows: &[Row]) -> String {
             let filter = match filter {
                 Filter::None | Filter::Box3 => "UpsampleFilter::DepthAware3x3".to_string(),
                 Filter::Bilinear => "UpsampleFilter::Bilinear".to_string(),
-                Filter::Separable => "SEPARABLE".to_string(),
+                // Written out in full, so the table compiles where it is pasted.
+                Filter::Separable => format!("UpsampleFilter::{:?}", super::SEPARABLE),
             };
             let scale = match scale {
                 1 => "Scale::Full",
