@@ -85,20 +85,25 @@ fn x_of_s(r: AirRay, s: f32) -> f32 {
     return air.distance * sin(sc * r.w) / max(sin_beta, 1.0e-30);
 }
 
+// The shadow map's layer holding the world point `p`: the cube face of a point light (+X, −X,
+// +Y, −Y, +Z, −Z), else the one layer.
+fn shadow_face(p: vec3<f32>) -> u32 {
+    if (SPOT || DIRECTIONAL) {
+        return 0u;
+    }
+    let rel = p - air.light_pos;
+    let m = abs(rel);
+    if (m.x >= m.y && m.x >= m.z) {
+        return select(1u, 0u, rel.x > 0.0);
+    } else if (m.y >= m.z) {
+        return select(3u, 2u, rel.y > 0.0);
+    }
+    return select(5u, 4u, rel.z > 0.0);
+}
+
 // Shadow-map visibility of a world point, in [0, 1] (2×2 percentage-closer filtered).
 fn visibility(p: vec3<f32>) -> f32 {
-    let rel = p - air.light_pos;
-    var face = 0u;
-    if (!SPOT && !DIRECTIONAL) {
-        let m = abs(rel);
-        if (m.x >= m.y && m.x >= m.z) {
-            face = select(1u, 0u, rel.x > 0.0);
-        } else if (m.y >= m.z) {
-            face = select(3u, 2u, rel.y > 0.0);
-        } else {
-            face = select(5u, 4u, rel.z > 0.0);
-        }
-    }
+    let face = shadow_face(p);
     let clip = mp.faces[face] * vec4<f32>(p, 1.0);
     if (clip.w <= 0.0) {
         return 1.0; // behind a spot light: outside its cone, which the support already excludes
@@ -143,18 +148,7 @@ fn soft_tap(u: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>, dist: f32, t: f32, k: u3
 // The distance from the light of the nearest occluder in the shadow map towards `q`, as a
 // fraction of |q − light| (≥ 1, or 2 where nothing is in front of q).
 fn blocker_ratio(q: vec3<f32>) -> f32 {
-    let rel = q - air.light_pos;
-    var face = 0u;
-    if (!SPOT) {
-        let m = abs(rel);
-        if (m.x >= m.y && m.x >= m.z) {
-            face = select(1u, 0u, rel.x > 0.0);
-        } else if (m.y >= m.z) {
-            face = select(3u, 2u, rel.y > 0.0);
-        } else {
-            face = select(5u, 4u, rel.z > 0.0);
-        }
-    }
+    let face = shadow_face(q);
     let clip = mp.faces[face] * vec4<f32>(q, 1.0);
     if (clip.w <= 0.0) {
         return 2.0;
