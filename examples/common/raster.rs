@@ -314,20 +314,12 @@ pub fn draw_app_frame(
 
     // Surface shadows: each light's shadow map (a 1-layer placeholder where it has none) and
     // its parameters, sampled by volshadow's helper.
-    let placeholder = device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("app no shadow map"),
-        size: wgpu::Extent3d {
-            width: 1,
-            height: 1,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Depth32Float,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING,
-        view_formats: &[],
-    });
+    let placeholder = device.create_texture(&texture_desc(
+        "app no shadow map",
+        (1, 1),
+        wgpu::TextureFormat::Depth32Float,
+        wgpu::TextureUsages::TEXTURE_BINDING,
+    ));
     let mut shadow_uniform: ShadowUniform = bytemuck::Zeroable::zeroed();
     let shadow_views: Vec<wgpu::TextureView> = (0..MAX_LIGHTS)
         .map(|i| {

@@ -6,7 +6,9 @@
 use std::collections::HashMap;
 use std::sync::Mutex;
 
+use crate::gpu::GpuTimer;
 use crate::nodes;
+use crate::plan::Pass;
 
 const PRELUDE: &str = include_str!("../../shaders/prelude.wgsl");
 
@@ -231,6 +233,27 @@ pub(crate) fn compute_pipeline(
         },
         cache: None,
     })
+}
+
+/// Records one compute pass over `groups` workgroups, timed as `pass` when a timer is given:
+/// what a single-dispatch node's `encode` does.
+pub(crate) fn dispatch(
+    encoder: &mut wgpu::CommandEncoder,
+    timer: Option<&mut GpuTimer>,
+    pass: Pass,
+    label: &str,
+    pipeline: &wgpu::ComputePipeline,
+    bind_group: &wgpu::BindGroup,
+    groups: (u32, u32),
+) {
+    let timestamp_writes = timer.and_then(|t| t.compute_pass(pass));
+    let mut compute = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some(label),
+        timestamp_writes,
+    });
+    compute.set_pipeline(pipeline);
+    compute.set_bind_group(0, bind_group, &[]);
+    compute.dispatch_workgroups(groups.0, groups.1, 1);
 }
 
 /// A depth-only render pipeline (no colour target). `compare: None` tests and writes nothing

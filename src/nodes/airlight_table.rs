@@ -29,7 +29,7 @@
 //! `STORAGE_BINDING | TEXTURE_BINDING | COPY_SRC`; rgb = T, a = 0. Row i is γ_i, column j is s_j.
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{bind_group, compute_pipeline, layout, module, Binding};
+use crate::gpu::cache::{bind_group, compute_pipeline, dispatch, layout, module, Binding};
 use crate::gpu::uniforms::AirlightUniform;
 use crate::gpu::{texture_2d, Cache, GpuTimer, UniformBuffer};
 use crate::plan::Pass;
@@ -194,14 +194,17 @@ impl AirlightTableNode {
         if !std::mem::take(&mut self.pending) {
             return Ok(());
         }
-        let timestamp_writes = timer.and_then(|t| t.compute_pass(Pass::AirlightTable));
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("volshadow F' table"),
-            timestamp_writes,
-        });
-        pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, &self.bind_group, &[]);
-        pass.dispatch_workgroups(self.size.across_rays.div_ceil(64), 1, 1);
+        let groups = (self.size.across_rays.div_ceil(64), 1);
+        let (pipeline, bind_group) = (&self.pipeline, &self.bind_group);
+        dispatch(
+            encoder,
+            timer,
+            Pass::AirlightTable,
+            "volshadow F' table",
+            pipeline,
+            bind_group,
+            groups,
+        );
         Ok(())
     }
 

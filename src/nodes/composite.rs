@@ -336,9 +336,6 @@ impl CompositeNode {
         if let Some([normal, albedo, _]) = &self.surfaces {
             check_size("surface_normal", normal, width, height)?;
             check_size("surface_albedo", albedo, width, height)?;
-        } else {
-            // No term: the uniform's light count is zero.
-            self.surf.write(queue, SurfacesUniform::zeroed());
         }
 
         let mut textures = vec![inputs.scene_color.clone(), inputs.scene_depth.clone()];
@@ -356,7 +353,8 @@ impl CompositeNode {
         if self.bound.as_ref().is_none_or(|b| b.textures != textures) {
             let color = textures[0].create_view(&Default::default());
             let depth = depth_view(&textures[1]);
-            let lights: Vec<wgpu::TextureView> = textures[2..]
+            // In-scatter 0..4, then surface normal, albedo and ISS table.
+            let views: Vec<wgpu::TextureView> = textures[2..]
                 .iter()
                 .map(|t| t.create_view(&Default::default()))
                 .collect();
@@ -370,14 +368,14 @@ impl CompositeNode {
                     self.view.binding(),
                     view(&color),
                     view(&depth),
-                    view(&lights[0]),
-                    view(&lights[1]),
-                    view(&lights[2]),
-                    view(&lights[3]),
+                    view(&views[0]),
+                    view(&views[1]),
+                    view(&views[2]),
+                    view(&views[3]),
                     self.surf.binding(),
-                    view(&lights[4]),
-                    view(&lights[5]),
-                    view(&lights[6]),
+                    view(&views[4]),
+                    view(&views[5]),
+                    view(&views[6]),
                 ],
             );
             self.bound = Some(Bound {

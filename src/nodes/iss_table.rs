@@ -51,7 +51,7 @@
 //! device, and hardware filtering's 8-bit weights would cost the table its accuracy.
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{bind_group, compute_pipeline, layout, module, Binding};
+use crate::gpu::cache::{bind_group, compute_pipeline, dispatch, layout, module, Binding};
 use crate::gpu::uniforms::AirlightUniform;
 use crate::gpu::{texture_2d, Cache, GpuTimer, UniformBuffer};
 use crate::plan::Pass;
@@ -231,14 +231,17 @@ impl IssTableNode {
         if !std::mem::take(&mut self.pending) {
             return Ok(());
         }
-        let timestamp_writes = timer.and_then(|t| t.compute_pass(Pass::IssTable));
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("volshadow ISS table"),
-            timestamp_writes,
-        });
-        pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, &self.bind_group, &[]);
-        pass.dispatch_workgroups(self.size.tau.div_ceil(8), self.size.alpha.div_ceil(8), 1);
+        let groups = (self.size.tau.div_ceil(8), self.size.alpha.div_ceil(8));
+        let (pipeline, bind_group) = (&self.pipeline, &self.bind_group);
+        dispatch(
+            encoder,
+            timer,
+            Pass::IssTable,
+            "volshadow ISS table",
+            pipeline,
+            bind_group,
+            groups,
+        );
         Ok(())
     }
 

@@ -40,7 +40,7 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{bind_group, cached, compute_pipeline, layout, module, Binding};
+use crate::gpu::cache::{bind_group, cached, compute_pipeline, dispatch, layout, module, Binding};
 use crate::gpu::uniforms::{AirlightUniform, ViewUniform};
 use crate::gpu::{
     check_depth_layers, check_depth_texture, check_size, check_target_size, depth_view, texture_2d,
@@ -790,14 +790,16 @@ impl MarchNode {
             });
         };
         encoder.clear_buffer(&self.stats, 0, None);
-        let timestamp_writes = timer.and_then(|t| t.compute_pass(Pass::March));
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("volshadow march"),
-            timestamp_writes,
-        });
-        pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, &bound.bind_group, &[]);
-        pass.dispatch_workgroups(bound.size.0.div_ceil(8), bound.size.1.div_ceil(8), 1);
+        let groups = (bound.size.0.div_ceil(8), bound.size.1.div_ceil(8));
+        dispatch(
+            encoder,
+            timer,
+            Pass::March,
+            "volshadow march",
+            pipeline,
+            &bound.bind_group,
+            groups,
+        );
         Ok(())
     }
 
