@@ -6,8 +6,8 @@ use crate::nodes::{
     AirlightTableNode, CompositeInputs, CompositeNode, CompositeSurfaces, CrossingsRequest,
     ExtentsInputs, ExtentsNode, IssTableNode, IssTableSize, LightTextureNode, MarchInputs,
     MarchMethod, MarchNode, MarchSettings, OutputTarget, Scale, ShadowMapInputs, ShadowMapNode,
-    ShadowMapSettings, Shadows, TableInputs, TableSize, UpsampleFilter, UpsampleInputs,
-    UpsampleNode, MAX_LIGHTS,
+    ShadowMapSettings, Shadows, SoftShadowInputs, SoftShadowNode, SoftShadowSize, TableInputs,
+    TableSize, UpsampleFilter, UpsampleInputs, UpsampleNode, MAX_LIGHTS,
 };
 use crate::plan::{self, Culled, FrameFacts, LightFacts, Pass, Plan};
 use crate::scene::{Camera, Light, Medium};
@@ -179,6 +179,8 @@ struct LightSlot {
     table: AirlightTableNode,
     march: MarchNode,
     upsample: UpsampleNode,
+    /// Created on the first frame that plans it (most lights never do).
+    soft: Option<SoftShadowNode>,
 }
 
 impl LightSlot {
@@ -325,6 +327,7 @@ impl VolumetricShadows {
                 table: AirlightTableNode::new(device, &self.cache, self.settings.table)?,
                 march: MarchNode::new(device, &self.cache, self.settings.march)?,
                 upsample: UpsampleNode::new(device, &self.cache, self.settings.upsample)?,
+                soft: None,
             });
         }
         // Cheap facts first (no GPU work), then the plan, then exactly the planned steps.
@@ -369,6 +372,7 @@ impl VolumetricShadows {
                 textured: fl.texture.is_some(),
                 occluders: light_kept.len(),
                 directional: matches!(fl.light, Light::Directional(_)),
+                soft: fl.light.radius() > 0.0,
             });
             kept.push(light_kept);
         }
@@ -420,6 +424,22 @@ impl VolumetricShadows {
                         ),
                     },
                 )?,
+                Pass::SoftShadow => {
+                    let soft = match &mut slot.soft {
+                        Some(node) => node,
+                        None => slot.soft.insert(SoftShadowNode::new(
+                            device,
+                            &self.cache,
+                            SoftShadowSize::default(),
+                        )?),
+                    };
+                    let Some(shadow_map) = slot.shadow.shadow_map() else {
+                        return Err(Error::NotPrepared {
+                            reason: "the plan names a soft shadow without a shadow map",
+                        });
+                    };
+                    soft.prepare(device, queue, &SoftShadowInputs { light, shadow_map })?
+                }
                 Pass::AirlightTable => {
                     let eye = camera.eye();
                     let inputs = TableInputs { eye, light, medium };
@@ -436,6 +456,10 @@ impl VolumetricShadows {
                             extents: plan
                                 .runs(Pass::Extents, step.light)
                                 .then(|| slot.extents.extents())
+                                .flatten(),
+                            soft: plan
+                                .runs(Pass::SoftShadow, step.light)
+                                .then(|| slot.soft.as_ref()?.output())
                                 .flatten(),
                         })
                     });
@@ -615,6 +639,12 @@ impl VolumetricShadows {
             Pass::Upsample => slot.upsample.encode(encoder, timer),
             Pass::Composite => self.composite.encode(encoder, output, timer),
             Pass::IssTable => Ok(()), // a frame step, recorded above
+            Pass::SoftShadow => match slot.soft.as_mut() {
+                Some(node) => node.encode(encoder, timer),
+                None => Err(Error::NotPrepared {
+                    reason: "the plan names a soft shadow that has no resources",
+                }),
+            },
         }
     }
 

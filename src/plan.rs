@@ -28,6 +28,8 @@ pub enum Pass {
     Composite,
     /// The indirect single scattering table (light the medium scatters onto surfaces).
     IssTable,
+    /// A light with a radius: the visible fraction of its disc on a light-space grid.
+    SoftShadow,
 }
 
 impl Pass {
@@ -42,6 +44,7 @@ impl Pass {
             Pass::Upsample => "upsample",
             Pass::Composite => "composite",
             Pass::IssTable => "ISS table",
+            Pass::SoftShadow => "soft shadow",
         }
     }
 }
@@ -78,6 +81,11 @@ pub enum Reason {
     /// No surface input (normals and albedo) was given: the light the medium scatters onto
     /// surfaces is not added.
     NoSurfaceInput,
+    /// The light has no radius: its shadows are hard.
+    HardLight,
+    /// A light with a radius: the march bounds its penumbra by cones around the occluders'
+    /// bounding spheres, not by the hard shadow's volumes.
+    SoftLight,
 }
 
 impl fmt::Display for Reason {
@@ -95,6 +103,10 @@ impl fmt::Display for Reason {
             Reason::ClosedFormAirlight => "directional light: the airlight is in closed form",
             Reason::NoSurfaceInput => {
                 "no surface normals and albedo given: no light scattered onto surfaces"
+            }
+            Reason::HardLight => "the light has no radius: hard shadows",
+            Reason::SoftLight => {
+                "the light has a radius: penumbra cones around the occluders bound the march"
             }
         })
     }
@@ -230,6 +242,8 @@ pub(crate) struct LightFacts {
     pub occluders: usize,
     /// A directional light (no F′ table).
     pub directional: bool,
+    /// A light with a radius (soft shadows).
+    pub soft: bool,
 }
 
 /// What the planner knows about the frame.
@@ -293,6 +307,7 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
                 Pass::LightTexture,
                 Pass::ShadowMap,
                 Pass::Extents,
+                Pass::SoftShadow,
                 Pass::AirlightTable,
                 Pass::March,
                 Pass::Upsample,
@@ -309,13 +324,16 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
         if !shadowed {
             skip(Pass::ShadowMap, light, Reason::NoOccluders);
             skip(Pass::Extents, light, Reason::NoOccluders);
+            skip(Pass::SoftShadow, light, Reason::NoOccluders);
         } else {
             run(
                 Pass::ShadowMap,
                 light,
                 format!("{} occluder(s)", l.occluders),
             );
-            if facts.method == MarchMethod::Hybrid {
+            if l.soft && matches!(facts.method, MarchMethod::Hybrid | MarchMethod::Exact) {
+                skip(Pass::Extents, light, Reason::SoftLight);
+            } else if facts.method == MarchMethod::Hybrid {
                 run(Pass::Extents, light, format!("at 1/{}", scale.divisor()));
             } else if facts.method == MarchMethod::Exact {
                 run(
@@ -330,6 +348,17 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
             } else {
                 skip(Pass::Extents, light, Reason::BruteForce);
             }
+            if !l.soft {
+                skip(Pass::SoftShadow, light, Reason::HardLight);
+            } else if matches!(facts.method, MarchMethod::Hybrid | MarchMethod::Exact) {
+                run(
+                    Pass::SoftShadow,
+                    light,
+                    "visible fraction of the light's disc on a light-space grid".into(),
+                );
+            } else {
+                skip(Pass::SoftShadow, light, Reason::BruteForce);
+            }
         }
         if l.directional {
             skip(Pass::AirlightTable, light, Reason::ClosedFormAirlight);
@@ -338,6 +367,10 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
         }
         let method = match (shadowed, facts.method) {
             (false, _) => "analytic".to_string(),
+            (true, MarchMethod::Hybrid | MarchMethod::Exact) if l.soft => format!(
+                "penumbra cones marched with {} steps through the soft-shadow grid",
+                facts.steps
+            ),
             (true, MarchMethod::Hybrid) => format!("hybrid, {} steps", facts.steps),
             (true, MarchMethod::BruteForce) => format!("brute force, {} steps", facts.steps),
             (true, MarchMethod::Exact) => format!(

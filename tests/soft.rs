@@ -177,6 +177,7 @@ fn sphere_penumbra_against_the_reference() {
         );
         let (worst_row, px) = row_error(&frame.inscatter, &reference, row);
         let ms = frame.time_ms("march");
+        eprintln!("soft shadow grid {:.1} ms", frame.time_ms("soft shadow"));
         eprintln!(
             "soft {m}: {e}; row {row}: worst {:.2}% at column {px}; march {ms:.1} ms (hard exact march {:.1} ms)",
             100.0 * worst_row,

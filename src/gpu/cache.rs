@@ -25,6 +25,7 @@ pub struct Cache {
     pub(crate) upsample: nodes::upsample::Pipelines,
     pub(crate) composite: nodes::composite::Pipelines,
     pub(crate) iss_table: nodes::iss_table::Pipelines,
+    pub(crate) soft_shadow: nodes::soft_shadow::Pipelines,
 }
 
 impl Cache {
@@ -43,6 +44,7 @@ impl Cache {
             upsample: nodes::upsample::Pipelines::new(device),
             composite: nodes::composite::Pipelines::new(device),
             iss_table: nodes::iss_table::Pipelines::new(device),
+            soft_shadow: nodes::soft_shadow::Pipelines::new(device),
         }
     }
 }
@@ -74,6 +76,10 @@ pub(crate) enum Binding {
     DepthArray,
     /// A write-only 2D storage texture.
     Storage(wgpu::TextureFormat),
+    /// A 3D float texture read through a filtering sampler.
+    Volume,
+    /// A write-only 3D storage texture.
+    StorageVolume(wgpu::TextureFormat),
     /// A filtering sampler.
     Sampler,
     /// A comparison sampler.
@@ -119,6 +125,21 @@ impl Binding {
                     access: wgpu::StorageTextureAccess::WriteOnly,
                     format,
                     view_dimension: d2,
+                },
+                stages,
+            ),
+            Binding::Volume => (
+                texture(
+                    wgpu::TextureSampleType::Float { filterable: true },
+                    wgpu::TextureViewDimension::D3,
+                ),
+                stages,
+            ),
+            Binding::StorageVolume(format) => (
+                wgpu::BindingType::StorageTexture {
+                    access: wgpu::StorageTextureAccess::WriteOnly,
+                    format,
+                    view_dimension: wgpu::TextureViewDimension::D3,
                 },
                 stages,
             ),
@@ -244,7 +265,7 @@ pub(crate) fn dispatch(
     label: &str,
     pipeline: &wgpu::ComputePipeline,
     bind_group: &wgpu::BindGroup,
-    groups: (u32, u32),
+    groups: (u32, u32, u32),
 ) {
     let timestamp_writes = timer.and_then(|t| t.compute_pass(pass));
     let mut compute = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -253,7 +274,7 @@ pub(crate) fn dispatch(
     });
     compute.set_pipeline(pipeline);
     compute.set_bind_group(0, bind_group, &[]);
-    compute.dispatch_workgroups(groups.0, groups.1, 1);
+    compute.dispatch_workgroups(groups.0, groups.1, groups.2);
 }
 
 /// A depth-only render pipeline (no colour target). `compare: None` tests and writes nothing
@@ -388,7 +409,20 @@ mod tests {
                 "light_texture.wgsl",
                 include_str!("../../shaders/light_texture.wgsl"),
             ),
-            ("march.wgsl", include_str!("../../shaders/march.wgsl")),
+            (
+                "march.wgsl",
+                concat!(
+                    include_str!("../../shaders/pcss.wgsl"),
+                    include_str!("../../shaders/march.wgsl")
+                ),
+            ),
+            (
+                "soft_shadow.wgsl",
+                concat!(
+                    include_str!("../../shaders/pcss.wgsl"),
+                    include_str!("../../shaders/soft_shadow.wgsl")
+                ),
+            ),
             (
                 "shadow_map.wgsl",
                 include_str!("../../shaders/shadow_map.wgsl"),

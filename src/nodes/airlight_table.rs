@@ -194,7 +194,7 @@ impl AirlightTableNode {
         if !std::mem::take(&mut self.pending) {
             return Ok(());
         }
-        let groups = (self.size.across_rays.div_ceil(64), 1);
+        let groups = (self.size.across_rays.div_ceil(64), 1, 1);
         let (pipeline, bind_group) = (&self.pipeline, &self.bind_group);
         dispatch(
             encoder,

@@ -231,7 +231,7 @@ impl IssTableNode {
         if !std::mem::take(&mut self.pending) {
             return Ok(());
         }
-        let groups = (self.size.tau.div_ceil(8), self.size.alpha.div_ceil(8));
+        let groups = (self.size.tau.div_ceil(8), self.size.alpha.div_ceil(8), 1);
         let (pipeline, bind_group) = (&self.pipeline, &self.bind_group);
         dispatch(
             encoder,

@@ -48,12 +48,13 @@ use crate::gpu::{
 };
 use crate::nodes::extents::Extents;
 use crate::nodes::shadow_map::ShadowMap;
+use crate::nodes::soft_shadow::{cell_angle, soft_params, SoftShadow, MAX_SOFT_SPHERES};
 use crate::nodes::{AirlightTableNode, Scale};
 use crate::plan::Pass;
 use crate::scene::{Camera, Light, Medium};
 
 /// The march's binding table: `@binding(i)` of `shaders/march.wgsl` is entry `i`.
-const BINDINGS: [Binding; 17] = [
+const BINDINGS: [Binding; 18] = [
     Binding::Params,                                    // air
     Binding::Params,                                    // view
     Binding::Texture,                                   // table
@@ -71,6 +72,7 @@ const BINDINGS: [Binding; 17] = [
     Binding::Params,                                    // heads
     Binding::Params,                                    // crossings
     Binding::ReadWrite,                                 // stats
+    Binding::Volume,                                    // soft_volume
 ];
 
 /// The march shader's `MODE` pipeline constant: how a pixel's ray is integrated.
@@ -92,6 +94,8 @@ struct Variant {
     bisections: u32,
     directional: bool,
     soft: bool,
+    /// `soft` with the soft-shadow grid bound.
+    soft_grid: bool,
 }
 
 /// The march's layout and its pipelines, one per [`Variant`] built on first use; held by the
@@ -105,7 +109,10 @@ pub(crate) struct Pipelines {
 
 impl Pipelines {
     pub(crate) fn new(device: &wgpu::Device) -> Self {
-        let source = include_str!("../../shaders/march.wgsl");
+        let source = concat!(
+            include_str!("../../shaders/pcss.wgsl"),
+            include_str!("../../shaders/march.wgsl")
+        );
         Self {
             layout: layout(
                 device,
@@ -128,6 +135,7 @@ impl Pipelines {
                 ("BISECTIONS", f64::from(v.bisections)),
                 ("DIRECTIONAL", flag(v.directional)),
                 ("SOFT", flag(v.soft)),
+                ("SOFT_GRID", flag(v.soft_grid)),
             ];
             let label = "volshadow march";
             compute_pipeline(
@@ -263,6 +271,11 @@ pub struct Shadows<'a> {
     /// exact method the crossing lists. `None` (or extents without what the method needs)
     /// marches the whole ray, as brute force.
     pub extents: Option<Extents<'a>>,
+    /// A light with a radius: its [`SoftShadowNode`](crate::nodes::SoftShadowNode) grid, which
+    /// the exact and hybrid methods read instead of estimating each step's visibility from
+    /// the shadow map. `None`: every step is estimated from the shadow map (as brute force
+    /// always does). Ignored for a light without a radius.
+    pub soft: Option<SoftShadow<'a>>,
 }
 
 /// What the march reads in a frame.
@@ -306,43 +319,7 @@ struct MarchUniform {
     _pad: [u32; 3],
     soft: [f32; 4],
     spheres: [[f32; 4]; MAX_SOFT_SPHERES],
-}
-
-/// Most occluder bounding spheres the soft march tests each ray against; more are merged into
-/// one sphere around them all.
-const MAX_SOFT_SPHERES: usize = 8;
-
-/// The soft march's constants: `[radius, least distance from the light to an occluder's
-/// bounding sphere, number of spheres, 0]` and the spheres (see [`ShadowMap::bounds`]).
-fn soft_params(light: &Light, bounds: &[glam::Vec4]) -> ([f32; 4], [[f32; 4]; MAX_SOFT_SPHERES]) {
-    let mut spheres = [[0.0; 4]; MAX_SOFT_SPHERES];
-    let p = light.position().unwrap_or_default();
-    let nearest = bounds
-        .iter()
-        .map(|b| (b.truncate().distance(p) - b.w).max(0.0))
-        .fold(f32::INFINITY, f32::min);
-    let count = if bounds.len() <= MAX_SOFT_SPHERES {
-        for (slot, b) in spheres.iter_mut().zip(bounds) {
-            *slot = b.to_array();
-        }
-        bounds.len()
-    } else {
-        let lo = bounds
-            .iter()
-            .fold(glam::Vec3::INFINITY, |a, b| a.min(b.truncate() - b.w));
-        let hi = bounds
-            .iter()
-            .fold(glam::Vec3::NEG_INFINITY, |a, b| a.max(b.truncate() + b.w));
-        let c = 0.5 * (lo + hi);
-        let r = bounds
-            .iter()
-            .map(|b| b.truncate().distance(c) + b.w)
-            .fold(0.0, f32::max);
-        spheres[0] = c.extend(r).to_array();
-        1
-    };
-    let nearest = if nearest.is_finite() { nearest } else { 0.0 };
-    ([light.radius(), nearest, count as f32, 0.0], spheres)
+    soft_grid: [f32; 4],
 }
 
 /// Half the width of an orthographic shadow map's square, from its `clip_from_world` (`None`
@@ -423,6 +400,7 @@ pub struct MarchNode {
     dummy_shadow: wgpu::Texture,
     dummy_depth: wgpu::Texture,
     dummy_buffer: wgpu::Buffer,
+    dummy_volume: wgpu::Texture,
     stats: wgpu::Buffer,
     outputs: Option<[wgpu::Texture; 2]>,
     bound: Option<Bound>,
@@ -493,6 +471,20 @@ impl MarchNode {
                 size: 16,
                 usage: wgpu::BufferUsages::STORAGE,
                 mapped_at_creation: false,
+            }),
+            dummy_volume: device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("volshadow no soft shadow"),
+                size: wgpu::Extent3d {
+                    width: 1,
+                    height: 1,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D3,
+                format: wgpu::TextureFormat::Rgba16Float,
+                usage: sampled,
+                view_formats: &[],
             }),
             stats: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("volshadow march stats"),
@@ -603,6 +595,29 @@ impl MarchNode {
             .as_ref()
             .map_or(&self.dummy_shadow, |s| s.shadow_map.texture);
         let extents = inputs.shadows.as_ref().and_then(|s| s.extents);
+        let soft = inputs.light.radius() > 0.0;
+        let grid = inputs
+            .shadows
+            .as_ref()
+            .and_then(|s| s.soft)
+            .filter(|_| soft && self.settings.method != MarchMethod::BruteForce);
+        if let Some(g) = &grid {
+            let t = g.texture;
+            let layers = inputs
+                .shadows
+                .map_or(0, |s| s.shadow_map.faces.len() as u32);
+            if t.dimension() != wgpu::TextureDimension::D3
+                || t.format() != wgpu::TextureFormat::Rgba16Float
+                || !t.usage().contains(wgpu::TextureUsages::TEXTURE_BINDING)
+                || (t.width(), t.height(), t.depth_or_array_layers())
+                    != (g.size.directions, g.size.directions, layers * g.size.slices)
+            {
+                return Err(Error::InvalidTexture {
+                    field: "soft",
+                    problem: "is not the 3D Rgba16Float grid of a SoftShadowNode for this light's shadow map".into(),
+                });
+            }
+        }
         let extent_textures: [&wgpu::Texture; 3] = match &extents {
             Some(e) => [&e.textures[0], &e.textures[1], &e.textures[2]],
             None => [&self.dummy_depth; 3],
@@ -617,6 +632,7 @@ impl MarchNode {
             extent_textures[2],
             &outputs[1],
             inputs.light_texture.unwrap_or(&self.dummy_light),
+            grid.map_or(&self.dummy_volume, |g| g.texture),
         ]
         .into_iter()
         .cloned()
@@ -668,6 +684,7 @@ impl MarchNode {
                     buffers[0].as_entire_binding(),
                     buffers[1].as_entire_binding(),
                     self.stats.as_entire_binding(),
+                    view(9),
                 ],
             );
             self.bound = Some(Bound {
@@ -697,7 +714,6 @@ impl MarchNode {
             .write(queue, ViewUniform::new(camera, width, height));
 
         let mut faces = [[0.0; 16]; 6];
-        let soft = inputs.light.radius() > 0.0;
         let (mut soft_consts, mut spheres) = ([0.0; 4], [[0.0; 4]; MAX_SOFT_SPHERES]);
         let (mut depth_bias, mut extents_near) = (0.0, 0.0);
         let mode = match &inputs.shadows {
@@ -709,10 +725,15 @@ impl MarchNode {
                 }
                 depth_bias = s.shadow_map.depth_bias;
                 if soft {
-                    (soft_consts, spheres) = soft_params(inputs.light, s.shadow_map.bounds);
+                    (soft_consts, spheres) = soft_params(inputs.light, &s.shadow_map);
                 }
                 extents_near = s.extents.map_or(0.0, |e| e.near);
                 match (self.settings.method, s.extents) {
+                    // A light with a radius: the penumbra cones bound the marched interval
+                    // (the extents bound the hard shadow only).
+                    (MarchMethod::Exact | MarchMethod::Hybrid, _) if soft && grid.is_some() => {
+                        Mode::Hybrid
+                    }
                     (MarchMethod::Hybrid, Some(e)) if e.crossings.is_none() => Mode::Hybrid,
                     (MarchMethod::Exact, Some(e)) if e.crossings.is_some() => Mode::Exact,
                     (MarchMethod::Textbook, _) => Mode::Textbook,
@@ -754,6 +775,15 @@ impl MarchNode {
                 _pad: [0; 3],
                 soft: soft_consts,
                 spheres,
+                soft_grid: match (grid, &inputs.shadows) {
+                    (Some(g), Some(s)) => [
+                        g.size.directions as f32,
+                        g.size.slices as f32,
+                        s.shadow_map.faces.len() as f32,
+                        cell_angle(&s.shadow_map.faces[0], g.size.directions),
+                    ],
+                    _ => [0.0; 4],
+                },
             },
         );
         self.pipeline = Some(self.pipelines.variant(
@@ -769,6 +799,7 @@ impl MarchNode {
                     self.settings.bisections
                 },
                 soft: soft && !matches!(mode, Mode::Analytic | Mode::Textbook),
+                soft_grid: soft && grid.is_some() && mode == Mode::Hybrid,
             },
         ));
         Ok(true)
@@ -790,7 +821,7 @@ impl MarchNode {
             });
         };
         encoder.clear_buffer(&self.stats, 0, None);
-        let groups = (bound.size.0.div_ceil(8), bound.size.1.div_ceil(8));
+        let groups = (bound.size.0.div_ceil(8), bound.size.1.div_ceil(8), 1);
         dispatch(
             encoder,
             timer,

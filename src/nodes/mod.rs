@@ -22,6 +22,7 @@ pub(crate) mod iss_table;
 pub(crate) mod light_texture;
 pub(crate) mod march;
 pub(crate) mod shadow_map;
+pub(crate) mod soft_shadow;
 pub(crate) mod upsample;
 
 pub use airlight_table::{AirlightTableNode, TableInputs, TableSize};
@@ -36,4 +37,5 @@ pub use march::{
     MarchInputs, MarchMethod, MarchNode, MarchSettings, MarchStats, Shadows, DEFAULT_CROSSINGS,
 };
 pub use shadow_map::{ShadowMap, ShadowMapInputs, ShadowMapNode, ShadowMapSettings, ShadowParams};
+pub use soft_shadow::{SoftShadow, SoftShadowInputs, SoftShadowNode, SoftShadowSize};
 pub use upsample::{Scale, UpsampleFilter, UpsampleInputs, UpsampleNode};

@@ -119,6 +119,14 @@ pub struct ShadowMap<'a> {
     /// with a radius can cast a penumbra. Empty (a shadow map rendered by the caller without
     /// them): a soft light's rays are marched whole.
     pub bounds: &'a [Vec4],
+    /// The least distance from the light to an occluder's world bounding box (tighter than
+    /// `bounds`' spheres); 0 when not known.
+    pub occluder_distance: f32,
+    /// Changes whenever the map's contents do, so that what is derived from it (the
+    /// [`SoftShadowNode`](crate::nodes::SoftShadowNode)'s grid) is rebuilt only then:
+    /// [`ShadowMapNode`] counts its renders. A map the caller renders must change it at
+    /// every render.
+    pub generation: u64,
 }
 
 impl ShadowMap<'_> {
@@ -195,6 +203,10 @@ pub struct ShadowMapNode {
     draws: Vec<Draw>,
     key: Vec<u32>,
     pending: bool,
+    /// Counts the renders `prepare` has planned (see [`ShadowMap::generation`]).
+    generation: u64,
+    /// See [`ShadowMap::occluder_distance`].
+    occluder_distance: f32,
 }
 
 struct Draw {
@@ -249,6 +261,8 @@ impl ShadowMapNode {
             draws: Vec::new(),
             key: Vec::new(),
             pending: false,
+            generation: 0,
+            occluder_distance: 0.0,
         })
     }
 
@@ -497,6 +511,19 @@ impl ShadowMapNode {
             };
             self.faces = Self::face_matrices(light, near);
         }
+        self.occluder_distance = match light.position() {
+            Some(p) => occluders
+                .iter()
+                .map(|o| {
+                    let (lo, hi) = o.world_bounds();
+                    p.clamp(lo, hi).distance(p)
+                })
+                .fold(f32::INFINITY, f32::min),
+            None => 0.0,
+        };
+        if !self.occluder_distance.is_finite() {
+            self.occluder_distance = 0.0;
+        }
         self.bounds = occluders
             .iter()
             .map(|o| {
@@ -546,6 +573,7 @@ impl ShadowMapNode {
             });
         }
         self.pending = true;
+        self.generation += 1;
         Ok(true)
     }
 
@@ -646,6 +674,8 @@ impl ShadowMapNode {
             faces: &self.faces,
             depth_bias: self.settings.depth_bias,
             bounds: &self.bounds,
+            occluder_distance: self.occluder_distance,
+            generation: self.generation,
         })
     }
 }

@@ -291,6 +291,8 @@ pub struct ShadowPasses<'a> {
     shadow_resolution: u32,
     filter: volshadow::nodes::UpsampleFilter,
     texture: Option<&'a wgpu::Texture>,
+    /// A light with a radius: the soft-shadow grid's size (`None`: the default).
+    soft_size: Option<volshadow::nodes::SoftShadowSize>,
 }
 
 impl<'a> ShadowPasses<'a> {
@@ -311,6 +313,14 @@ impl<'a> ShadowPasses<'a> {
             shadow_resolution: 1024,
             filter: volshadow::nodes::UpsampleFilter::DepthAware3x3,
             texture: None,
+            soft_size: None,
+        }
+    }
+
+    pub fn soft_size(self, soft_size: volshadow::nodes::SoftShadowSize) -> Self {
+        Self {
+            soft_size: Some(soft_size),
+            ..self
         }
     }
 
@@ -349,6 +359,7 @@ pub fn shadow_frame(gpu: &HeadlessGpu, cache: &Cache, passes: &ShadowPasses) -> 
         shadow_resolution,
         filter,
         texture,
+        soft_size,
     } = *passes;
     let mut light_texture = texture.map(|t| {
         let mut node = volshadow::nodes::LightTextureNode::new(&gpu.device, cache).unwrap();
@@ -398,6 +409,30 @@ pub fn shadow_frame(gpu: &HeadlessGpu, cache: &Cache, passes: &ShadowPasses) -> 
             },
         )
         .unwrap();
+    // A light with a radius: the soft-shadow grid, for the methods that read it.
+    let mut soft = (light.radius() > 0.0
+        && matches!(
+            settings.method,
+            volshadow::nodes::MarchMethod::Exact | volshadow::nodes::MarchMethod::Hybrid
+        ))
+    .then(|| {
+        let mut node = volshadow::nodes::SoftShadowNode::new(
+            &gpu.device,
+            cache,
+            soft_size.unwrap_or_default(),
+        )
+        .unwrap();
+        node.prepare(
+            &gpu.device,
+            &gpu.queue,
+            &volshadow::nodes::SoftShadowInputs {
+                light,
+                shadow_map: shadow.shadow_map().unwrap(),
+            },
+        )
+        .unwrap();
+        node
+    });
     let eye = camera.eye();
     let table_inputs = volshadow::nodes::TableInputs { eye, light, medium };
     table
@@ -416,6 +451,7 @@ pub fn shadow_frame(gpu: &HeadlessGpu, cache: &Cache, passes: &ShadowPasses) -> 
                 shadows: Some(Shadows {
                     shadow_map: shadow.shadow_map().unwrap(),
                     extents: extents.extents(),
+                    soft: soft.as_ref().and_then(|n| n.output()),
                 }),
                 light_texture: light_texture.as_ref().and_then(|n| n.texture()),
             },
@@ -444,6 +480,9 @@ pub fn shadow_frame(gpu: &HeadlessGpu, cache: &Cache, passes: &ShadowPasses) -> 
     }
     shadow.encode(&mut encoder, Some(&mut timer)).unwrap();
     extents.encode(&mut encoder, Some(&mut timer)).unwrap();
+    if let Some(node) = soft.as_mut() {
+        node.encode(&mut encoder, Some(&mut timer)).unwrap();
+    }
     table.encode(&mut encoder, Some(&mut timer)).unwrap();
     march.encode(&mut encoder, Some(&mut timer)).unwrap();
     if let Some(node) = upsample.as_mut() {

@@ -15,7 +15,7 @@ use super::cache::cached_reference;
 use super::metrics::{errors, keep_mask};
 use super::render_scene::GpuScene;
 use super::{read_inscatter, BoxError, Check, Curve, Filter, Options, Row};
-use super::{FIXED_PASSES, REFINE, SWEEP_STOP_P95, TOLERANCES};
+use super::{HardTwin, FIXED_PASSES, REFINE, SWEEP_STOP_P95, TOLERANCES};
 
 /// A step sweep's stop rule (see the module docs).
 #[derive(Debug, Clone, Default)]
@@ -173,6 +173,7 @@ pub fn run_scene(
             bisections: settings.march.bisections,
             total_ms: passes.values().sum(),
             passes,
+            hard: None,
             errors,
         };
         ctx.progress(&format!(
@@ -193,10 +194,11 @@ pub fn run_scene(
     let (passes, image) = measure(s, &unshadowed, false)?;
     record(Curve::Analytic, &s, passes, &image, &floor_fixed);
 
-    // A light with a radius marches its penumbra whatever the method (the hard sweeps and the
-    // error target do not apply): the exact method and the hybrid at the default 64 steps, each
-    // also timed on the same scene with radius 0, for the cost of soft over hard shadows at
-    // equal settings.
+    // A light with a radius: the exact method and the hybrid (which read the soft-shadow grid)
+    // at full resolution and at the defaults' reduced ones, and brute force (which estimates
+    // every step from the shadow map, the grid's own estimator); each grid configuration
+    // also on the same scene with radius 0, for the cost of soft over hard shadows at equal
+    // settings. The hard sweeps and the error target do not apply.
     if scene.lights.iter().any(|l| l.light.radius() > 0.0) {
         let mut hard_scene = scene.clone();
         for l in &mut hard_scene.lights {
@@ -209,21 +211,59 @@ pub fn run_scene(
         let hard_gpu = GpuScene::new(ctx.gpu, &hard_scene, &camera, size, true)?;
         let (hard_lights, hard_occluders) = (hard_gpu.lights(), hard_gpu.occluders());
         let hard = hard_gpu.frame(&hard_lights, &hard_occluders);
-        for (method, curve) in [
-            (MarchMethod::Exact, Curve::Exact(1, Filter::None)),
-            (MarchMethod::Hybrid, Curve::Hybrid(1, Filter::None, 0)),
+        let hard_fixed: f64 = fixed
+            .iter()
+            .filter(|(pass, _)| **pass != "soft shadow")
+            .map(|(_, ms)| ms)
+            .sum();
+        for (method, curve, scale, filter) in [
+            (
+                MarchMethod::Exact,
+                Curve::Exact(1, Filter::None),
+                Scale::Full,
+                Filter::None,
+            ),
+            (
+                MarchMethod::Exact,
+                Curve::Exact(2, Filter::Box3),
+                Scale::Half,
+                Filter::Box3,
+            ),
+            (
+                MarchMethod::Hybrid,
+                Curve::Hybrid(1, Filter::None, 0),
+                Scale::Full,
+                Filter::None,
+            ),
+            (
+                MarchMethod::Hybrid,
+                Curve::Hybrid(4, Filter::Box3, 0),
+                Scale::Quarter,
+                Filter::Box3,
+            ),
         ] {
-            let s = settings(method, 64, Scale::Full, Filter::None, 0);
+            let s = settings(method, 64, scale, filter, 0);
             let (passes, image) = measure(s, &shadowed, false)?;
             let soft_row = record(curve, &s, passes, &image, &fixed);
-            let (hard_passes, _) = measure(s, &hard, false)?;
-            let march = |p: &BTreeMap<&'static str, f64>| p.get("march").copied().unwrap_or(0.0);
-            let (soft_ms, hard_ms) = (march(&soft_row.passes), march(&hard_passes));
+            let (hard_passes, hard_image) = measure(s, &hard, false)?;
+            let twin = HardTwin {
+                total_ms: hard_passes.values().sum::<f64>() + hard_fixed,
+                p95: errors(&hard_image, &reference, &keep).p95,
+            };
             ctx.progress(&format!(
-                "  soft vs hard shadows, {method} at 64 steps: march {soft_ms:.1} ms vs {hard_ms:.1} ms ({:.1}x)",
-                soft_ms / hard_ms.max(1e-9)
+                "  soft vs hard shadows, {}: {:.1} ms vs {:.1} ms ({:.2}x)",
+                soft_row.curve.name(),
+                soft_row.total_ms,
+                twin.total_ms,
+                soft_row.total_ms / twin.total_ms.max(1e-9)
             ));
+            if let Some(last) = rows.borrow_mut().last_mut() {
+                last.hard = Some(twin);
+            }
         }
+        let s = settings(MarchMethod::BruteForce, 16, Scale::Full, Filter::None, 0);
+        let (passes, image) = measure(s, &shadowed, false)?;
+        record(Curve::Brute, &s, passes, &image, &fixed);
         return Ok((rows.into_inner(), Vec::new()));
     }
 
@@ -444,9 +484,12 @@ pub fn measure(
             continue;
         }
         for (pass, ms) in times {
-            // Passes that ran only in the first frame (table, shadow map, light texture) are
-            // timed apart.
-            if !matches!(pass, "F' table" | "shadow map" | "light texture") {
+            // Passes that ran only in the first frame (table, shadow map, soft-shadow grid,
+            // light texture) are timed apart.
+            if !matches!(
+                pass,
+                "F' table" | "shadow map" | "soft shadow" | "light texture"
+            ) {
                 samples.entry(pass).or_default().push(ms);
             }
         }

@@ -214,21 +214,34 @@ pub struct Row {
     pub total_ms: f64,
     /// Error against the reference.
     pub errors: Errors,
+    /// A scene with a light with a radius: the same configuration on the scene with radius 0.
+    pub hard: Option<HardTwin>,
+}
+
+/// A soft scene's configuration drawn with hard shadows (radius 0), for the cost of soft over
+/// hard shadows at equal settings.
+#[derive(Debug, Clone, Copy)]
+pub struct HardTwin {
+    /// Its total, with the same fixed passes less the soft-shadow grid.
+    pub total_ms: f64,
+    /// Its p95 against the soft reference (how far hard shadows are from the soft image).
+    pub p95: f64,
 }
 
 /// Pass columns, in pipeline order.
-const PASS_COLUMNS: [&str; 7] = [
+const PASS_COLUMNS: [&str; 8] = [
     "light texture",
     "shadow map",
     "F' table",
     "extents",
+    "soft shadow",
     "march",
     "upsample",
     "composite",
 ];
 
 /// Passes timed once per scene and added to every configuration's total.
-const FIXED_PASSES: [&str; 3] = ["shadow map", "F' table", "composite"];
+const FIXED_PASSES: [&str; 4] = ["shadow map", "soft shadow", "F' table", "composite"];
 
 /// One error-target check: the scene, the tolerance (p95) and the p95 achieved (∞ when no
 /// settings could be made for the tolerance).

@@ -180,6 +180,40 @@ pub fn summary(rows: &[Row], checks: &[Check]) -> String {
             describe(quarter)
         );
     }
+    let soft: Vec<&Row> = rows.iter().filter(|r| r.hard.is_some()).collect();
+    if !soft.is_empty() {
+        let _ = writeln!(out, "\n## Soft shadows against hard at equal settings\n");
+        let _ = writeln!(
+            out,
+            "Each configuration of a scene whose light has a radius, against the same \
+             configuration on the scene with radius 0. Light moving: every pass of a frame, \
+             the shadow map and the soft-shadow grid rebuilt. Light static: less the shadow \
+             map and the grid, which are then reused.\n"
+        );
+        let _ = writeln!(
+            out,
+            "| scene | configuration | soft ms | hard ms | soft / hard, light moving | soft / hard, light static | soft p95 | hard p95 against the soft reference |"
+        );
+        let _ = writeln!(out, "|---|---|---|---|---|---|---|---|");
+        for r in soft {
+            let hard = r.hard.expect("filtered");
+            let pass = |name| r.passes.get(name).copied().unwrap_or(0.0);
+            let soft_static = r.total_ms - pass("shadow map") - pass("soft shadow");
+            let hard_static = hard.total_ms - pass("shadow map");
+            let _ = writeln!(
+                out,
+                "| {} | {} | {:.1} | {:.1} | {:.2}x | {:.2}x | {:.2}% | {:.2}% |",
+                r.scene,
+                r.curve.name(),
+                r.total_ms,
+                hard.total_ms,
+                r.total_ms / hard.total_ms.max(1e-9),
+                soft_static / hard_static.max(1e-9),
+                100.0 * r.errors.p95,
+                100.0 * hard.p95
+            );
+        }
+    }
     let _ = writeln!(out, "\n## Error-target check\n");
     let _ = writeln!(out, "| scene | tolerance (p95) | achieved p95 | result |");
     let _ = writeln!(out, "|---|---|---|---|");

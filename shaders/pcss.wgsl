@@ -1,0 +1,203 @@
+// Shadow-map visibility, hard and soft: shared by the march and the soft-shadow volume
+// (composed after the prelude, before the node's own shader). The node provides the globals
+// `shadow_map` (texture_depth_2d_array), `shadow_sampler` (comparison), `mp` with the fields
+// `faces`, `depth_bias`, `soft` and `spheres` (as the march's `MarchParams`), and
+// `fn pcss_light() -> vec3<f32>`, the light's position.
+
+// The shadow map's layer holding the world point `p`: the cube face of a point light (+X, −X,
+// +Y, −Y, +Z, −Z), else the one layer.
+fn shadow_face(p: vec3<f32>) -> u32 {
+    if (SPOT || DIRECTIONAL) {
+        return 0u;
+    }
+    let rel = p - pcss_light();
+    let m = abs(rel);
+    if (m.x >= m.y && m.x >= m.z) {
+        return select(1u, 0u, rel.x > 0.0);
+    } else if (m.y >= m.z) {
+        return select(3u, 2u, rel.y > 0.0);
+    }
+    return select(5u, 4u, rel.z > 0.0);
+}
+
+// Shadow-map visibility of a world point, in [0, 1] (2×2 percentage-closer filtered).
+fn visibility(p: vec3<f32>) -> f32 {
+    let face = shadow_face(p);
+    let clip = mp.faces[face] * vec4<f32>(p, 1.0);
+    if (clip.w <= 0.0) {
+        return 1.0; // behind a spot light: outside its cone, which the support already excludes
+    }
+    let ndc = clip.xyz / clip.w;
+    if (any(abs(ndc.xy) > vec2<f32>(1.0))) {
+        return 1.0;
+    }
+    let uv = vec2<f32>(0.5 + 0.5 * ndc.x, 0.5 - 0.5 * ndc.y);
+    // Reversed Z: depth = near / distance; nearer than the occluder ⇔ larger depth. The bias
+    // is relative, so it means the same at every scene scale.
+    var z = ndc.z;
+    if (DIRECTIONAL) {
+        // Orthographic: beyond the far plane (z < 0) is behind every occluder in the map.
+        z = max(z, 0.0);
+    }
+    let reference = z / (1.0 - mp.depth_bias);
+    return textureSampleCompareLevel(shadow_map, shadow_sampler, uv, i32(face), reference);
+}
+
+// Soft shadows. Taps on a disc: golden-angle spiral, equal areas (Vogel 1979).
+const SOFT_SEARCH_TAPS: u32 = 16u;
+const SOFT_FILTER_TAPS: u32 = 32u;
+const GOLDEN_ANGLE: f32 = 2.39996322972865;
+
+// The point at the distance of `p` from the light, in the direction from the light tilted by
+// `t` (tangent of the angle) along the tap `k` of `n` on the unit disc in the frame (e1, e2).
+fn soft_tap(u: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>, dist: f32, t: f32, k: u32, n: u32, turn: f32) -> vec3<f32> {
+    let rho = sqrt((f32(k) + 0.5) / f32(n));
+    let phi = GOLDEN_ANGLE * f32(k) + turn;
+    let d = normalize(u + (t * rho) * (cos(phi) * e1 + sin(phi) * e2));
+    return pcss_light() + dist * d;
+}
+
+// The distance from the light of the nearest occluder in the shadow map towards `q`, as a
+// fraction of |q − light| (≥ 1, or 2 where nothing is in front of q).
+fn blocker_ratio(q: vec3<f32>) -> f32 {
+    let face = shadow_face(q);
+    let clip = mp.faces[face] * vec4<f32>(q, 1.0);
+    if (clip.w <= 0.0) {
+        return 2.0;
+    }
+    let ndc = clip.xyz / clip.w;
+    if (any(abs(ndc.xy) > vec2<f32>(1.0))) {
+        return 2.0;
+    }
+    let size = vec2<f32>(textureDimensions(shadow_map));
+    let uv = vec2<f32>(0.5 + 0.5 * ndc.x, 0.5 - 0.5 * ndc.y);
+    let texel = vec2<i32>(clamp(uv * size, vec2<f32>(0.0), size - 1.0));
+    let depth = textureLoad(shadow_map, texel, i32(face), 0);
+    // Reversed Z: depth = near / distance along the face's axis, so the ratio of distances
+    // along one direction is the inverse ratio of depths.
+    if (depth * (1.0 - mp.depth_bias) > ndc.z) {
+        return ndc.z / depth;
+    }
+    return 2.0;
+}
+
+// The fraction of the light's disc visible from `p` (percentage-closer soft shadows, Fernando
+// 2005, in the one shadow map): a blocker search over the directions, seen from the light,
+// where a line from `p` to the disc can meet an occluder, then the mean of the hard
+// visibility over the directions where the lines from `p` to the disc cross the blockers'
+// mean distance. Taps are points at the distance of `p`, so a cube map's faces are chosen
+// per tap.
+fn visibility_soft(p: vec3<f32>) -> f32 {
+    return soft_estimate(p).x;
+}
+
+// `visibility_soft` and the tangent of the angular radius (seen from the light) its filter
+// covered: how sharp the penumbra is around p (−1 where no filter ran: fully lit, or deep in
+// the umbra).
+fn soft_estimate(p: vec3<f32>) -> vec2<f32> {
+    let radius = mp.soft.x;
+    let rel = p - pcss_light();
+    let dist = length(rel);
+    if (dist <= radius) {
+        return vec2<f32>(1.0, -1.0); // inside the light's sphere: all of it is visible (as the reference)
+    }
+    let nearest = max(mp.soft.y, 1.0e-3 * radius);
+    if (!(dist > nearest) || !may_be_hidden(p)) {
+        return vec2<f32>(1.0, -1.0); // nearer than every occluder, or outside every penumbra cone
+    }
+    let u = rel / dist;
+    let frame = soft_frame(u);
+    let e1 = frame[0];
+    let e2 = frame[1];
+    let turn = soft_turn(p);
+    // A line from p to the light's point at lateral offset radius·w meets the sphere of
+    // distance b around the light in the direction tilted by radius·(1/b − 1/dist)·w.
+    let search = radius * (1.0 / nearest - 1.0 / dist);
+    var sum = 0.0;
+    var count = 0.0;
+    for (var k = 0u; k < SOFT_SEARCH_TAPS; k++) {
+        let b = blocker_ratio(soft_tap(u, e1, e2, dist, search, k, SOFT_SEARCH_TAPS, turn));
+        if (b < 1.0) {
+            sum = max(sum, b);
+            count += 1.0;
+        }
+    }
+    let centre = blocker_ratio(p);
+    if (centre < 1.0) {
+        sum = max(sum, centre);
+        count += 1.0;
+    }
+    if (count == 0.0) {
+        return vec2<f32>(1.0, -1.0);
+    }
+    var width = min(radius * (1.0 / max(dist * sum, nearest) - 1.0 / dist), search);
+    // Once more over the directions the filter will cover: the blockers nearest to where the
+    // lines from p to the disc graze them (a convex occluder's outline) decide.
+    var blocked = 0u;
+    for (var k = 0u; k < SOFT_SEARCH_TAPS; k++) {
+        let b = blocker_ratio(soft_tap(u, e1, e2, dist, width, k, SOFT_SEARCH_TAPS, turn));
+        if (b < 1.0) {
+            sum = max(sum, b);
+            blocked++;
+        }
+    }
+    // Every tap of both rounds blocked: the umbra (the filter covers no more than the second
+    // round did).
+    if (blocked == SOFT_SEARCH_TAPS && count == f32(SOFT_SEARCH_TAPS + 1u)) {
+        return vec2<f32>(0.0, -1.0);
+    }
+    width = min(radius * (1.0 / max(dist * sum, nearest) - 1.0 / dist), search);
+    return vec2<f32>(soft_filter(u, e1, e2, dist, width, SOFT_FILTER_TAPS, turn), width);
+}
+
+// The mean hard visibility over `n` taps of the disc of angular radius `width` (its tangent)
+// around the direction u from the light, at distance `dist` (the filter of `soft_estimate`).
+fn soft_filter(u: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>, dist: f32, width: f32, n: u32, turn: f32) -> f32 {
+    var lit = 0.0;
+    for (var k = 0u; k < n; k++) {
+        lit += visibility(soft_tap(u, e1, e2, dist, width, k, n, turn));
+    }
+    return lit / f32(n);
+}
+
+// An orthonormal frame (e1, e2) around the unit vector u (Duff et al., "Building an
+// Orthonormal Basis, Revisited", 2017).
+fn soft_frame(u: vec3<f32>) -> array<vec3<f32>, 2> {
+    let sgn = select(-1.0, 1.0, u.z >= 0.0);
+    let fa = -1.0 / (sgn + u.z);
+    let fb = u.x * u.y * fa;
+    return array<vec3<f32>, 2>(
+        vec3<f32>(1.0 + sgn * u.x * u.x * fa, sgn * fb, -sgn * u.x),
+        vec3<f32>(fb, sgn + u.y * u.y * fa, -u.y),
+    );
+}
+
+// The spiral's turn at p: a hash of the point, so that successive steps of a ray see
+// different taps and the pattern's error averages out along it instead of adding up.
+fn soft_turn(p: vec3<f32>) -> f32 {
+    return 2.0 * PI * fract(sin(dot(p, vec3<f32>(12.9898, 78.233, 37.719))) * 43758.5453);
+}
+
+// Whether p lies in one of the cones of `penumbra_cone` (all of space without bounds).
+fn may_be_hidden(p: vec3<f32>) -> bool {
+    let count = u32(mp.soft.z);
+    if (count == 0u) {
+        return true;
+    }
+    let radius = mp.soft.x;
+    for (var i = 0u; i < count; i++) {
+        let to_c = mp.spheres[i].xyz - pcss_light();
+        let rho = mp.spheres[i].w;
+        let l = length(to_c);
+        let sin_t = 1.05 * (radius + rho) / max(l, 1.0e-30);
+        if (sin_t >= 0.999) {
+            return true;
+        }
+        let axis = to_c / l;
+        let rel = p - (pcss_light() + axis * (l * radius / (radius + rho)));
+        if (dot(axis, rel) >= sqrt(1.0 - sin_t * sin_t) * length(rel)) {
+            return true;
+        }
+    }
+    return false;
+}

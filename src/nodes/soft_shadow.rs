@@ -1,0 +1,433 @@
+//! The soft-shadow node: for a light with a radius, the fraction of the light's disc visible
+//! from each cell of a light-space grid, built once per frame from the shadow map, which the
+//! march then reads with one trilinear lookup per step.
+//!
+//! Each cell holds the percentage-closer soft shadow estimate (Fernando, "Percentage-Closer
+//! Soft Shadows", 2005) that the march would otherwise compute per step from 65 shadow-map
+//! taps (see [`MarchNode`](crate::nodes::MarchNode)'s soft shadows): the cost moves from
+//! pixels × steps to the grid's cells, most of which lie outside every penumbra and cost no
+//! tap at all. The grid is the shadow map's layers (cube faces of a point light, the one layer
+//! of a spot light) at [`SoftShadowSize::directions`]² directions, times
+//! [`SoftShadowSize::slices`] distances uniform in `q = d_near / d ∈ (0, 1]`, `d_near` being
+//! the least distance of an occluder's bounding sphere from the light. A penumbra's width seen
+//! from the light is `radius · (1/d_blocker − 1/d)`, linear in `q`, so the slices are uniform
+//! steps in penumbra width and the last one reaches infinity.
+//!
+//! # Inputs
+//! * the [`ShadowMap`] of the light, with its occluders' [`ShadowMap::bounds`] (which bound
+//!   where a penumbra can be; without them every cell is estimated);
+//! * the light: a point or spot light with a radius > 0.
+//!
+//! # Output
+//! [`SoftShadowNode::output`]: a 3D `Rgba16Float` texture, `directions × directions ×
+//! (layers · slices)` (layer-major along z), usages `STORAGE_BINDING | TEXTURE_BINDING`;
+//! r = visible fraction in [0, 1].
+
+use crate::error::{Error, Result};
+use crate::gpu::cache::{bind_group, compute_pipeline, dispatch, layout, module, Binding};
+use crate::gpu::{check_depth_layers, Cache, GpuTimer, UniformBuffer};
+use crate::nodes::shadow_map::ShadowMap;
+use crate::plan::Pass;
+use crate::scene::Light;
+
+/// The node's binding table: `@binding(i)` of `shaders/soft_shadow.wgsl` is entry `i`.
+const BINDINGS: [Binding; 4] = [
+    Binding::Params,                                          // mp
+    Binding::DepthArray,                                      // shadow_map
+    Binding::Comparison,                                      // shadow_sampler
+    Binding::StorageVolume(wgpu::TextureFormat::Rgba16Float), // volume
+];
+
+/// Most occluder bounding spheres the soft shadow tests a point against; more are merged into
+/// one sphere around them all.
+pub(crate) const MAX_SOFT_SPHERES: usize = 8;
+
+/// The soft shadow's constants: `[radius, least distance from the light to an occluder (its
+/// bounding box, or sphere), number of spheres, 0]` and the spheres (see [`ShadowMap::bounds`]).
+pub(crate) fn soft_params(
+    light: &Light,
+    map: &ShadowMap<'_>,
+) -> ([f32; 4], [[f32; 4]; MAX_SOFT_SPHERES]) {
+    let bounds = map.bounds;
+    let mut spheres = [[0.0; 4]; MAX_SOFT_SPHERES];
+    let p = light.position().unwrap_or_default();
+    let nearest = bounds
+        .iter()
+        .map(|b| (b.truncate().distance(p) - b.w).max(0.0))
+        .fold(f32::INFINITY, f32::min)
+        .max(map.occluder_distance);
+    let count = if bounds.len() <= MAX_SOFT_SPHERES {
+        for (slot, b) in spheres.iter_mut().zip(bounds) {
+            *slot = b.to_array();
+        }
+        bounds.len()
+    } else {
+        let lo = bounds
+            .iter()
+            .fold(glam::Vec3::INFINITY, |a, b| a.min(b.truncate() - b.w));
+        let hi = bounds
+            .iter()
+            .fold(glam::Vec3::NEG_INFINITY, |a, b| a.max(b.truncate() + b.w));
+        let c = 0.5 * (lo + hi);
+        let r = bounds
+            .iter()
+            .map(|b| b.truncate().distance(c) + b.w)
+            .fold(0.0, f32::max);
+        spheres[0] = c.extend(r).to_array();
+        1
+    };
+    let nearest = if nearest.is_finite() { nearest } else { 0.0 };
+    ([light.radius(), nearest, count as f32, 0.0], spheres)
+}
+
+/// The angle (radians) a grid cell subtends at the centre of a layer of `directions` cells
+/// whose `clip_from_world` is `face`.
+pub(crate) fn cell_angle(face: &glam::Mat4, directions: u32) -> f32 {
+    let scale = face.row(0).truncate().length();
+    2.0 * (1.0 / scale).atan() / directions as f32
+}
+
+/// The grid's resolution (default 64 directions × 16 slices; see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SoftShadowSize {
+    /// Cells across each shadow-map layer, in each direction. At least [`SoftShadowSize::MIN`].
+    pub directions: u32,
+    /// Cells along the distance from the light. At least [`SoftShadowSize::MIN`].
+    pub slices: u32,
+}
+
+impl Default for SoftShadowSize {
+    fn default() -> Self {
+        Self {
+            directions: 64,
+            slices: 16,
+        }
+    }
+}
+
+impl SoftShadowSize {
+    /// Fewest cells along any axis.
+    pub const MIN: u32 = 2;
+    /// Most cells across a layer (the core limit for 3D textures' width).
+    pub const MAX_DIRECTIONS: u32 = 2048;
+    /// Most slices (one thread holds a direction's slices).
+    pub const MAX_SLICES: u32 = 64;
+
+    fn validate(&self) -> Result<()> {
+        if (Self::MIN..=Self::MAX_DIRECTIONS).contains(&self.directions)
+            && (Self::MIN..=Self::MAX_SLICES).contains(&self.slices)
+        {
+            Ok(())
+        } else {
+            Err(Error::InvalidSize {
+                field: "soft shadow size (directions, slices)",
+                width: self.directions,
+                height: self.slices,
+                min: Self::MIN,
+                max: Self::MAX_SLICES.min(Self::MAX_DIRECTIONS),
+            })
+        }
+    }
+}
+
+/// What the node reads in a frame.
+#[derive(Clone, Copy)]
+pub struct SoftShadowInputs<'a> {
+    /// A point or spot light with a radius > 0.
+    pub light: &'a Light,
+    /// Its shadow map, rendered this frame.
+    pub shadow_map: ShadowMap<'a>,
+}
+
+/// The grid as the march reads it ([`Shadows::soft`](crate::nodes::Shadows::soft)).
+#[derive(Clone, Copy)]
+pub struct SoftShadow<'a> {
+    /// The 3D texture (see the module docs).
+    pub texture: &'a wgpu::Texture,
+    /// Its resolution.
+    pub size: SoftShadowSize,
+}
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+/// WGSL `SoftShadowParams` (`shaders/soft_shadow.wgsl`), field by field.
+struct SoftShadowUniform {
+    faces: [[f32; 16]; 6],
+    world_from_clip: [[f32; 16]; 6],
+    light: [f32; 4],
+    depth_bias: f32,
+    size: u32,
+    slices: u32,
+    layers: u32,
+    soft: [f32; 4],
+    spheres: [[f32; 4]; MAX_SOFT_SPHERES],
+}
+
+/// The node's layout and its pipelines (point and spot), held by the [`Cache`].
+#[derive(Clone)]
+pub(crate) struct Pipelines {
+    layout: wgpu::BindGroupLayout,
+    point: wgpu::ComputePipeline,
+    spot: wgpu::ComputePipeline,
+}
+
+impl Pipelines {
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
+        let label = "volshadow soft shadow";
+        let layout = layout(device, label, wgpu::ShaderStages::COMPUTE, &BINDINGS);
+        let source = concat!(
+            include_str!("../../shaders/pcss.wgsl"),
+            include_str!("../../shaders/soft_shadow.wgsl")
+        );
+        let module = module(device, "volshadow soft_shadow.wgsl", source);
+        let point = compute_pipeline(device, label, &layout, &module, "build", &[]);
+        let spot = compute_pipeline(device, label, &layout, &module, "build", &[("SPOT", 1.0)]);
+        Self {
+            layout,
+            point,
+            spot,
+        }
+    }
+}
+
+/// Builds the soft-shadow grid of one light (see the module docs). `prepare` decides whether
+/// it needs rebuilding: only when the shadow map ([`ShadowMap::generation`]), the light or the
+/// grid's size changed; `encode` records the build only then.
+pub struct SoftShadowNode {
+    size: SoftShadowSize,
+    pipelines: Pipelines,
+    uniform: UniformBuffer<SoftShadowUniform>,
+    sampler: wgpu::Sampler,
+    texture: Option<wgpu::Texture>,
+    /// The bind group, the shadow map and the grid it was made for.
+    bound: Option<(wgpu::Texture, wgpu::Texture, wgpu::BindGroup)>,
+    pipeline: Option<wgpu::ComputePipeline>,
+    layers: u32,
+    /// The shadow map generation the grid was (or will be, when `pending`) built from.
+    generation: Option<u64>,
+    pending: bool,
+}
+
+impl SoftShadowNode {
+    /// Creates the node; the grid is allocated by the first [`prepare`](Self::prepare).
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidSize`] naming the soft shadow size for a resolution out of range.
+    pub fn new(device: &wgpu::Device, cache: &Cache, size: SoftShadowSize) -> Result<Self> {
+        size.validate()?;
+        Ok(Self {
+            size,
+            pipelines: cache.soft_shadow.clone(),
+            uniform: UniformBuffer::new(device, "volshadow soft shadow params"),
+            sampler: device.create_sampler(&wgpu::SamplerDescriptor {
+                label: Some("volshadow soft shadow compare"),
+                mag_filter: wgpu::FilterMode::Linear,
+                min_filter: wgpu::FilterMode::Linear,
+                compare: Some(wgpu::CompareFunction::GreaterEqual),
+                ..Default::default()
+            }),
+            texture: None,
+            bound: None,
+            pipeline: None,
+            layers: 0,
+            generation: None,
+            pending: false,
+        })
+    }
+
+    /// Changes the resolution (validated); the grid is recreated at the next `prepare` when
+    /// it differs.
+    ///
+    /// # Errors
+    ///
+    /// As [`SoftShadowNode::new`].
+    pub fn set_size(&mut self, size: SoftShadowSize) -> Result<()> {
+        size.validate()?;
+        self.size = size;
+        Ok(())
+    }
+
+    /// The grid's resolution.
+    pub fn size(&self) -> SoftShadowSize {
+        self.size
+    }
+
+    /// Validates the inputs, (re)creates the grid when its size changed and uploads the
+    /// parameters. Returns whether the next [`encode`](Self::encode) rebuilds the grid: the
+    /// shadow map's generation, the light, the occluders' bounds or the size changed now, or
+    /// at an earlier `prepare` that no `encode` followed.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidSetting`] naming `light` for a light without a radius or a directional
+    /// light; [`Error::InvalidTexture`] naming `shadow_map` for a shadow map whose layers or
+    /// face matrices do not match the light.
+    pub fn prepare(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        inputs: &SoftShadowInputs<'_>,
+    ) -> Result<bool> {
+        let light = inputs.light;
+        let (layers, spot) = match light {
+            Light::Point(_) => (6, false),
+            Light::Spot(_) => (1, true),
+            _ => {
+                return Err(Error::InvalidSetting {
+                    field: "light",
+                    problem: "soft shadows need a point or spot light".into(),
+                })
+            }
+        };
+        if light.radius() <= 0.0 {
+            return Err(Error::InvalidSetting {
+                field: "light",
+                problem: "soft shadows need a light with a radius > 0".into(),
+            });
+        }
+        let map = inputs.shadow_map;
+        check_depth_layers("shadow_map", map.texture, layers)?;
+        if map.faces.len() != layers as usize {
+            return Err(Error::InvalidTexture {
+                field: "shadow_map",
+                problem: format!(
+                    "has {} face matrices; this light needs {layers}",
+                    map.faces.len()
+                ),
+            });
+        }
+        let (n, s) = (self.size.directions, self.size.slices);
+        let extent = (n, n, layers * s);
+        if self
+            .texture
+            .as_ref()
+            .is_none_or(|t| (t.width(), t.height(), t.depth_or_array_layers()) != extent)
+        {
+            self.pending = true;
+            self.texture = Some(device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("volshadow soft shadow"),
+                size: wgpu::Extent3d {
+                    width: extent.0,
+                    height: extent.1,
+                    depth_or_array_layers: extent.2,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D3,
+                format: wgpu::TextureFormat::Rgba16Float,
+                usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            }));
+        }
+        let texture = self.texture.as_ref().expect("created above");
+        if self
+            .bound
+            .as_ref()
+            .is_none_or(|(m, t, _)| m != map.texture || t != texture)
+        {
+            let shadow_view = map.texture.create_view(&wgpu::TextureViewDescriptor {
+                label: Some("volshadow soft shadow map array"),
+                dimension: Some(wgpu::TextureViewDimension::D2Array),
+                aspect: wgpu::TextureAspect::DepthOnly,
+                ..Default::default()
+            });
+            let grid_view = texture.create_view(&Default::default());
+            let group = bind_group(
+                device,
+                "volshadow soft shadow",
+                &self.pipelines.layout,
+                [
+                    self.uniform.binding(),
+                    wgpu::BindingResource::TextureView(&shadow_view),
+                    wgpu::BindingResource::Sampler(&self.sampler),
+                    wgpu::BindingResource::TextureView(&grid_view),
+                ],
+            );
+            self.bound = Some((map.texture.clone(), texture.clone(), group));
+            self.pending = true;
+        }
+        let mut faces = [[0.0; 16]; 6];
+        let mut world_from_clip = [[0.0; 16]; 6];
+        for (i, m) in map.faces.iter().enumerate() {
+            let inverse = m.inverse();
+            if !inverse.is_finite() {
+                return Err(Error::InvalidTexture {
+                    field: "shadow_map",
+                    problem: format!("face matrix {i} is not invertible"),
+                });
+            }
+            faces[i] = m.to_cols_array();
+            world_from_clip[i] = inverse.to_cols_array();
+        }
+        let (mut soft, spheres) = soft_params(light, &map);
+        // A cell's angle: a layer's field of view (its projection's x scale is 1 / tan(half
+        // the angle)) over its cells.
+        soft[3] = cell_angle(&map.faces[0], n);
+        let position = light.position().unwrap_or_default();
+        self.pending |= self.uniform.write(
+            queue,
+            SoftShadowUniform {
+                faces,
+                world_from_clip,
+                light: position.extend(0.0).to_array(),
+                depth_bias: map.depth_bias,
+                size: n,
+                slices: s,
+                layers,
+                soft,
+                spheres,
+            },
+        );
+        self.pending |= self.generation != Some(map.generation);
+        self.generation = Some(map.generation);
+        self.layers = layers;
+        self.pipeline = Some(if spot {
+            self.pipelines.spot.clone()
+        } else {
+            self.pipelines.point.clone()
+        });
+        Ok(self.pending)
+    }
+
+    /// Records the grid's build if [`prepare`](Self::prepare) found a change since the last
+    /// build; otherwise records nothing.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NotPrepared`] before the first successful `prepare`, recording nothing.
+    pub fn encode(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: Option<&mut GpuTimer>,
+    ) -> Result<()> {
+        let (Some((_, _, group)), Some(pipeline)) = (&self.bound, &self.pipeline) else {
+            return Err(Error::NotPrepared {
+                reason: "SoftShadowNode::prepare has not succeeded yet",
+            });
+        };
+        if !std::mem::take(&mut self.pending) {
+            return Ok(());
+        }
+        let n = self.size.directions.div_ceil(8);
+        let groups = (n, n, self.layers);
+        dispatch(
+            encoder,
+            timer,
+            Pass::SoftShadow,
+            "volshadow soft shadow",
+            pipeline,
+            group,
+            groups,
+        );
+        Ok(())
+    }
+
+    /// The grid (see the module docs); `None` before the first `prepare`.
+    pub fn output(&self) -> Option<SoftShadow<'_>> {
+        self.texture.as_ref().map(|texture| SoftShadow {
+            texture,
+            size: self.size,
+        })
+    }
+}
