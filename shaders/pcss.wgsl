@@ -91,9 +91,10 @@ fn visibility_soft(p: vec3<f32>) -> f32 {
     return soft_estimate(p).x;
 }
 
-// `visibility_soft` and the tangent of the angular radius (seen from the light) its filter
-// covered: how sharp the penumbra is around p (−1 where no filter ran: fully lit, or deep in
-// the umbra).
+// `visibility_soft` and the tangent of the angular radius (seen from the light) of the region
+// around p's direction it found the penumbra's outline within: its filter's, or where it
+// stopped at the blocker search (nothing in front of p there, or all of it), the search's;
+// −1 where it took no tap (nearer than every occluder, outside every penumbra cone).
 fn soft_estimate(p: vec3<f32>) -> vec2<f32> {
     let radius = mp.soft.x;
     let rel = p - pcss_light();
@@ -128,7 +129,7 @@ fn soft_estimate(p: vec3<f32>) -> vec2<f32> {
         count += 1.0;
     }
     if (count == 0.0) {
-        return vec2<f32>(1.0, -1.0);
+        return vec2<f32>(1.0, search); // no blocker within `search` of p's direction
     }
     var width = min(radius * (1.0 / max(dist * sum, nearest) - 1.0 / dist), search);
     // Once more over the directions the filter will cover: the blockers nearest to where the
@@ -144,7 +145,7 @@ fn soft_estimate(p: vec3<f32>) -> vec2<f32> {
     // Every tap of both rounds blocked: the umbra (the filter covers no more than the second
     // round did).
     if (blocked == SOFT_SEARCH_TAPS && count == f32(SOFT_SEARCH_TAPS + 1u)) {
-        return vec2<f32>(0.0, -1.0);
+        return vec2<f32>(0.0, search);
     }
     width = min(radius * (1.0 / max(dist * sum, nearest) - 1.0 / dist), search);
     return vec2<f32>(soft_filter(u, e1, e2, dist, width, SOFT_FILTER_TAPS, turn), width);

@@ -33,6 +33,11 @@ fn pcss_light() -> vec3<f32> {
 
 // Most slices a thread holds (SoftShadowSize::MAX_SLICES).
 const MAX_SLICES: u32 = 64u;
+// A penumbra narrower than this many cells (filter radius) is marked sharp: the march blends in
+// the shadow map's own visibility there. Measured (tests/soft_grid.rs, tests/soft.rs): 4 cells
+// or a fade from 2 to 4 are worse on the torus and the sphere, where hard edges are too sharp
+// for such penumbrae.
+const SHARP_CELLS: f32 = 2.0;
 // A change of visibility between neighbouring slices above which the interpolation in depth
 // would smear an occluder's surface (lit in front of it, dark behind): both cells are marked
 // sharp.
@@ -55,7 +60,7 @@ fn build(@builtin(global_invocation_id) gid: vec3<u32>) {
     let light = pcss_light();
     let dir = normalize(w.xyz / w.w - light);
     let nearest = max(mp.soft.y, 1.0e-3 * mp.soft.x);
-    let narrow = 2.0 * tan(mp.soft.w);
+    let narrow = SHARP_CELLS * tan(mp.soft.w);
     var cells: array<vec2<f32>, MAX_SLICES>;
     for (var k = 0u; k < s; k++) {
         let q = 1.0 - (f32(k) + 0.5) / f32(s);
@@ -63,18 +68,22 @@ fn build(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     for (var k = 0u; k < s; k++) {
         let e = cells[k];
-        // g: 1 where the filter was narrower than two cells (a penumbra too sharp for the
-        // grid's interpolation across directions) or the visibility jumps to a neighbouring
-        // slice (an occluder's surface between them): the march blends in the shadow map's
-        // own visibility there.
-        var sharp = e.y >= 0.0 && e.y < narrow;
+        // g: 1 where the estimate's region was narrower than SHARP_CELLS cells (a penumbra, or
+        // the edge between lit and umbra, too sharp for the grid's interpolation across
+        // directions) or the visibility jumps to a neighbouring slice (an occluder's surface
+        // between them): the march blends in the shadow map's own visibility there.
+        var sharp = select(0.0, 1.0, e.y >= 0.0 && e.y < narrow);
+        var jump = false;
         if (k > 0u) {
-            sharp = sharp || abs(e.x - cells[k - 1u].x) > DEPTH_JUMP;
+            jump = jump || abs(e.x - cells[k - 1u].x) > DEPTH_JUMP;
         }
         if (k + 1u < s) {
-            sharp = sharp || abs(e.x - cells[k + 1u].x) > DEPTH_JUMP;
+            jump = jump || abs(e.x - cells[k + 1u].x) > DEPTH_JUMP;
+        }
+        if (jump) {
+            sharp = 1.0;
         }
         let texel = vec3<u32>(gid.x, gid.y, layer * mp.slices + k);
-        textureStore(volume, texel, vec4<f32>(e.x, select(0.0, 1.0, sharp), 0.0, 1.0));
+        textureStore(volume, texel, vec4<f32>(e.x, sharp, 0.0, 1.0));
     }
 }

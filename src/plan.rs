@@ -368,7 +368,7 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
         let method = match (shadowed, facts.method) {
             (false, _) => "analytic".to_string(),
             (true, MarchMethod::Hybrid | MarchMethod::Exact) if l.soft => format!(
-                "penumbra cones marched with {} steps through the soft-shadow grid",
+                "penumbra cones marched through the soft-shadow grid (half a step a cell, at most {})",
                 facts.steps
             ),
             (true, MarchMethod::Hybrid) => format!("hybrid, {} steps", facts.steps),

@@ -690,3 +690,73 @@ fn under_an_error_target_a_textured_spot_scatters_at_full_resolution() {
         assert_eq!(r.plan.runs(Pass::Upsample, Some(0)), !full);
     }
 }
+
+/// A light with a radius: the planner runs the soft-shadow grid and leaves out the extents
+/// (the penumbra cones bound its march); a hard light leaves out the grid, and so does brute
+/// force (which estimates every step from the shadow map). An unchanged frame reuses the grid
+/// (same image); an occluder that moves rebuilds it, and the image changes.
+#[test]
+fn a_soft_light_plans_its_grid_reuses_it_and_rebuilds_it_when_an_occluder_moves() {
+    let rig = rig();
+    let sphere = OccluderMesh::new(
+        &rig.gpu.device,
+        &shapes::uv_sphere(Vec3::new(0.0, 2.0, -0.3), 0.5, 16, 8).unwrap(),
+    );
+    let at = |transform| {
+        [Occluder {
+            mesh: &sphere,
+            transform,
+        }]
+    };
+    let still = at(Mat4::IDENTITY);
+    let soft: Light = match light() {
+        Light::Point(p) => p.with_radius(0.3).unwrap().into(),
+        _ => unreachable!(),
+    };
+    let mut vs =
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
+    let first = render(&rig, &mut vs, &[soft.into()], &medium(), &still);
+    println!("{}", first.plan);
+    assert!(first.plan.runs(Pass::SoftShadow, Some(0)));
+    assert!(first.passes.iter().any(|p| p == "soft shadow"));
+    assert_eq!(
+        first.plan.skip_reason(Pass::Extents, Some(0)),
+        Some(&Reason::SoftLight)
+    );
+    let second = render(&rig, &mut vs, &[soft.into()], &medium(), &still);
+    assert_eq!(
+        second.plan.skip_reason(Pass::SoftShadow, Some(0)),
+        Some(&Reason::Unchanged)
+    );
+    assert!(!second.passes.iter().any(|p| p == "soft shadow"));
+    assert_eq!(
+        first.image, second.image,
+        "the reused grid changed the image"
+    );
+    let moved = at(Mat4::from_translation(Vec3::new(0.4, 0.0, 0.0)));
+    let third = render(&rig, &mut vs, &[soft.into()], &medium(), &moved);
+    assert!(third.passes.iter().any(|p| p == "soft shadow"));
+    let changed = max_rel(&first.image, &third.image);
+    println!("moving the occluder changed the image by up to {changed:.3}");
+    assert!(changed > 1e-3);
+
+    let hard = render(&rig, &mut vs, &[light().into()], &medium(), &still);
+    assert_eq!(
+        hard.plan.skip_reason(Pass::SoftShadow, Some(0)),
+        Some(&Reason::HardLight)
+    );
+    let brute = Settings {
+        march: volshadow::nodes::MarchSettings {
+            method: volshadow::nodes::MarchMethod::BruteForce,
+            ..settings().march
+        },
+        ..settings()
+    };
+    let mut vs =
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, brute).unwrap();
+    let brute = render(&rig, &mut vs, &[soft.into()], &medium(), &still);
+    assert_eq!(
+        brute.plan.skip_reason(Pass::SoftShadow, Some(0)),
+        Some(&Reason::BruteForce)
+    );
+}
