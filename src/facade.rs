@@ -25,6 +25,9 @@ pub struct Settings {
     pub table: TableSize,
     /// Shadow-map resolution and bias.
     pub shadow_map: ShadowMapSettings,
+    /// The soft-shadow grid's resolution (lights with a radius; see
+    /// [`SoftShadowNode`](crate::nodes::SoftShadowNode)).
+    pub soft_shadow: SoftShadowSize,
     /// The format of the caller's output target.
     pub output_format: wgpu::TextureFormat,
     /// An occluder whose effect on every pixel is provably below this fraction of the
@@ -57,6 +60,10 @@ impl Settings {
         shadow_map: ShadowMapSettings {
             resolution: 1024,
             depth_bias: 2e-3,
+        },
+        soft_shadow: SoftShadowSize {
+            directions: 64,
+            slices: 16,
         },
         output_format: wgpu::TextureFormat::Rgba16Float,
         cull_threshold: 0.0,
@@ -264,7 +271,9 @@ impl VolumetricShadows {
                 problem: "create a new VolumetricShadows for another output format".into(),
             });
         }
-        if settings.table != self.settings.table || settings.shadow_map != self.settings.shadow_map
+        if settings.table != self.settings.table
+            || settings.shadow_map != self.settings.shadow_map
+            || settings.soft_shadow != self.settings.soft_shadow
         {
             self.slots.clear();
         }
@@ -430,7 +439,7 @@ impl VolumetricShadows {
                         None => slot.soft.insert(SoftShadowNode::new(
                             device,
                             &self.cache,
-                            SoftShadowSize::default(),
+                            self.settings.soft_shadow,
                         )?),
                     };
                     let Some(shadow_map) = slot.shadow.shadow_map() else {
@@ -704,6 +713,7 @@ impl VolumetricShadows {
 
 fn validate(settings: &Settings) -> Result<()> {
     settings.upsample.validate()?;
+    settings.soft_shadow.validate()?;
     if let Some(p95) = settings.error_target {
         if !(p95.is_finite() && p95 > 0.0) {
             return Err(Error::InvalidSetting {

@@ -44,7 +44,7 @@ use crate::gpu::cache::{bind_group, cached, compute_pipeline, dispatch, layout, 
 use crate::gpu::uniforms::{AirlightUniform, ViewUniform};
 use crate::gpu::{
     check_depth_layers, check_depth_texture, check_size, check_target_size, depth_view, texture_2d,
-    Cache, GpuTimer, UniformBuffer,
+    texture_3d, Cache, GpuTimer, UniformBuffer,
 };
 use crate::nodes::extents::Extents;
 use crate::nodes::shadow_map::ShadowMap;
@@ -362,30 +362,40 @@ impl MarchStats {
 /// # Soft shadows
 ///
 /// For a light with a [`radius`](crate::scene::PointLight::radius) (see its model there),
-/// visibility is the fraction of the light's disc seen from a point, estimated from the one
-/// shadow map by percentage-closer soft shadows (Fernando, "Percentage-Closer Soft Shadows",
-/// 2005): a blocker search over the directions (seen from the light) where a line from the
-/// point to the disc can meet an occluder, then the mean of 32 hard 2×2-filtered lookups over
-/// the directions where the lines from the point to the disc cross the blockers. The blockers'
-/// distance is the *farthest* one found, in two search rounds (the second over the filter's
-/// own footprint): for a convex occluder the lines graze its outline, and the mean
-/// front-surface distance made the penumbra up to 12% too wide (on the sphere scene of
+/// visibility is the fraction of the light's disc seen from a point. It is estimated from the
+/// one shadow map by percentage-closer soft shadows (Fernando, "Percentage-Closer Soft
+/// Shadows", 2005): a blocker search over the directions (seen from the light) where a line
+/// from the point to the disc can meet an occluder, then the mean of 32 hard 2×2-filtered
+/// lookups over the directions where the lines from the point to the disc cross the blockers.
+/// The blockers' distance is the *farthest* one found, in two search rounds (the second over
+/// the filter's own footprint): for a convex occluder the lines graze its outline, and the
+/// mean front-surface distance made the penumbra up to 12% too wide (on the sphere scene of
 /// `tests/soft.rs`, p95 5.9% against the reference, 2.2% with the farthest blocker). The taps
-/// lie on a golden-angle spiral turned by a hash of the point, so that successive steps of a
-/// ray see different taps and the pattern's error averages out along the ray (p95 1.9%; with
-/// a fixed spiral 2.2%, and with 16 filter taps 3.2% fixed, 2.6% turned). Shifted
-/// shadow maps from several points of the light (the alternative the SoftBiF-VS paper uses)
-/// were not implemented: each point costs a shadow-map render and a lookup per step, and
-/// the visible fraction then moves in steps of one over their count.
+/// lie on a golden-angle spiral turned by a hash of the point (with a fixed spiral, or 16
+/// taps, the error grows). Shifted shadow maps from several points of the light (the
+/// alternative the SoftBiF-VS paper uses) were not implemented: each point costs a
+/// shadow-map render and a lookup per step, and the visible fraction then moves in steps of
+/// one over their count.
 ///
-/// Rays are marched with `steps` steps (bisections off: the visibility is not a step) only
-/// where a penumbra can be: inside the cones of lines tangent to the light's sphere and to an
-/// occluder's bounding sphere ([`ShadowMap::bounds`]) that cross between them (with a 5%
-/// margin on their opening), and integrated in closed form outside them, where nothing hides
-/// any part of the light. This replaces the shadow-volume crossings of [`MarchMethod::Exact`]
-/// and the extents of [`MarchMethod::Hybrid`] for such a light (they bound the hard shadow,
-/// not the penumbra); [`MarchMethod::BruteForce`] marches the whole ray, and the textbook
-/// march stays hard. A radius of 0 runs exactly the code of a point light.
+/// That estimate costs 65 shadow-map taps, so [`MarchMethod::Exact`] and
+/// [`MarchMethod::Hybrid`] do not make it per step: they read it from the
+/// [`SoftShadowNode`](crate::nodes::SoftShadowNode)'s light-space grid
+/// ([`Shadows::soft`]), one trilinear lookup per step, with about half a step per grid cell
+/// the ray crosses (at most `steps`). Where the grid marks its cells sharp (a penumbra, or the
+/// edge between lit and umbra, narrower than two cells; an occluder's surface between two
+/// slices), the shadow map's own visibility is blended in and those steps are marched again at
+/// the resolution of `steps`: near an occluder the penumbra narrows to the hard shadow's edge,
+/// which the grid cannot resolve. [`MarchMethod::BruteForce`] (and the exact and hybrid
+/// methods without a grid) estimate every step from the shadow map: the baseline the grid is
+/// measured against.
+///
+/// Rays are marched only where a penumbra can be: inside the cones of lines tangent to the
+/// light's sphere and to an occluder's bounding sphere ([`ShadowMap::bounds`]) that cross
+/// between them (with a 5% margin on their opening), and integrated in closed form outside
+/// them, where nothing hides any part of the light. This replaces the shadow-volume crossings
+/// of the exact method and the extents of the hybrid for such a light (they bound the hard
+/// shadow, not the penumbra); brute force marches the whole ray, and the textbook march stays
+/// hard. A radius of 0 runs exactly the code of a point light.
 pub struct MarchNode {
     settings: MarchSettings,
     pipelines: Pipelines,
@@ -472,20 +482,13 @@ impl MarchNode {
                 usage: wgpu::BufferUsages::STORAGE,
                 mapped_at_creation: false,
             }),
-            dummy_volume: device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("volshadow no soft shadow"),
-                size: wgpu::Extent3d {
-                    width: 1,
-                    height: 1,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D3,
-                format: wgpu::TextureFormat::Rgba16Float,
-                usage: sampled,
-                view_formats: &[],
-            }),
+            dummy_volume: texture_3d(
+                device,
+                "volshadow no soft shadow",
+                (1, 1, 1),
+                wgpu::TextureFormat::Rgba16Float,
+                sampled,
+            ),
             stats: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("volshadow march stats"),
                 size: 16,
