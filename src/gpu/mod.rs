@@ -192,26 +192,38 @@ pub(crate) fn texture_2d(
     format: wgpu::TextureFormat,
     usage: wgpu::TextureUsages,
 ) -> wgpu::Texture {
-    device.create_texture(&wgpu::TextureDescriptor {
-        label: Some(label),
-        size: wgpu::Extent3d {
-            width: size.0,
-            height: size.1,
-            depth_or_array_layers: size.2,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
+    texture(
+        device,
+        label,
+        wgpu::TextureDimension::D2,
+        size,
         format,
         usage,
-        view_formats: &[],
-    })
+    )
 }
 
-/// A 3D texture of one mip level (a grid), `size` = (width, height, depth).
+/// A single-mip 3D texture (a grid), `size` = (width, height, depth).
 pub(crate) fn texture_3d(
     device: &wgpu::Device,
     label: &str,
+    size: (u32, u32, u32),
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    texture(
+        device,
+        label,
+        wgpu::TextureDimension::D3,
+        size,
+        format,
+        usage,
+    )
+}
+
+fn texture(
+    device: &wgpu::Device,
+    label: &str,
+    dimension: wgpu::TextureDimension,
     size: (u32, u32, u32),
     format: wgpu::TextureFormat,
     usage: wgpu::TextureUsages,
@@ -225,7 +237,7 @@ pub(crate) fn texture_3d(
         },
         mip_level_count: 1,
         sample_count: 1,
-        dimension: wgpu::TextureDimension::D3,
+        dimension,
         format,
         usage,
         view_formats: &[],

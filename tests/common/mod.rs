@@ -291,8 +291,6 @@ pub struct ShadowPasses<'a> {
     shadow_resolution: u32,
     filter: volshadow::nodes::UpsampleFilter,
     texture: Option<&'a wgpu::Texture>,
-    /// A light with a radius: the soft-shadow grid's size (`None`: the default).
-    soft_size: Option<volshadow::nodes::SoftShadowSize>,
 }
 
 impl<'a> ShadowPasses<'a> {
@@ -313,14 +311,6 @@ impl<'a> ShadowPasses<'a> {
             shadow_resolution: 1024,
             filter: volshadow::nodes::UpsampleFilter::DepthAware3x3,
             texture: None,
-            soft_size: None,
-        }
-    }
-
-    pub fn soft_size(self, soft_size: volshadow::nodes::SoftShadowSize) -> Self {
-        Self {
-            soft_size: Some(soft_size),
-            ..self
         }
     }
 
@@ -359,7 +349,6 @@ pub fn shadow_frame(gpu: &HeadlessGpu, cache: &Cache, passes: &ShadowPasses) -> 
         shadow_resolution,
         filter,
         texture,
-        soft_size,
     } = *passes;
     let mut light_texture = texture.map(|t| {
         let mut node = volshadow::nodes::LightTextureNode::new(&gpu.device, cache).unwrap();
@@ -419,7 +408,7 @@ pub fn shadow_frame(gpu: &HeadlessGpu, cache: &Cache, passes: &ShadowPasses) -> 
         let mut node = volshadow::nodes::SoftShadowNode::new(
             &gpu.device,
             cache,
-            soft_size.unwrap_or_default(),
+            volshadow::nodes::SoftShadowSize::default(),
         )
         .unwrap();
         node.prepare(
