@@ -43,6 +43,11 @@ const SHARP_CELLS: f32 = 2.0;
 // sharp.
 const DEPTH_JUMP: f32 = 0.35;
 
+// q = nearest / distance at the centre of slice k of s (slice 0 nearest the light).
+fn slice_q(k: u32, s: u32) -> f32 {
+    return 1.0 - (f32(k) + 0.5) / f32(s);
+}
+
 // One thread per direction of a layer, through all its slices: each cell's sharpness needs
 // its neighbours in depth.
 @compute @workgroup_size(8, 8, 1)
@@ -61,10 +66,20 @@ fn build(@builtin(global_invocation_id) gid: vec3<u32>) {
     let dir = normalize(w.xyz / w.w - light);
     let nearest = max(mp.soft.y, 1.0e-3 * mp.soft.x);
     let narrow = SHARP_CELLS * tan(mp.soft.w);
+    // The slices inside an occluder's penumbra cone, [lo, hi): only those take taps. A
+    // direction outside every cone (most of a cube map's) then costs no estimate at all.
+    var lo = s;
+    var hi = 0u;
     var cells: array<vec2<f32>, MAX_SLICES>;
     for (var k = 0u; k < s; k++) {
-        let q = 1.0 - (f32(k) + 0.5) / f32(s);
-        cells[k] = soft_estimate(light + (nearest / q) * dir);
+        cells[k] = vec2<f32>(1.0, -1.0);
+        if (may_be_hidden(light + (nearest / slice_q(k, s)) * dir)) {
+            lo = min(lo, k);
+            hi = k + 1u;
+        }
+    }
+    for (var k = lo; k < hi; k++) {
+        cells[k] = soft_estimate(light + (nearest / slice_q(k, s)) * dir);
     }
     for (var k = 0u; k < s; k++) {
         let e = cells[k];

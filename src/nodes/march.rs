@@ -385,7 +385,11 @@ impl MarchStats {
 /// edge between lit and umbra, narrower than two cells; an occluder's surface between two
 /// slices), the shadow map's own visibility is blended in and those steps are marched again at
 /// the resolution of `steps`: near an occluder the penumbra narrows to the hard shadow's edge,
-/// which the grid cannot resolve. [`MarchMethod::BruteForce`] (and the exact and hybrid
+/// which the grid cannot resolve. Each step's visible fraction is weighted by `dT/ds` at its
+/// midpoint, the weights normalised to the exact in-scattered `T` over the marched interval
+/// (exact where the visibility is constant, and for an optically thick medium, where `dT/ds`
+/// is exponential); see the [`SoftShadowNode`](crate::nodes::SoftShadowNode) docs for where
+/// the estimate is known to fall short. [`MarchMethod::BruteForce`] (and the exact and hybrid
 /// methods without a grid) estimate every step from the shadow map: the baseline the grid is
 /// measured against.
 ///

@@ -24,6 +24,15 @@
 //! under a small light (radius 0.03 × the distance) whose penumbrae are sharp almost
 //! everywhere.
 //!
+//! # Limitations
+//! PCSS assumes one planar blocker per point, and the grid's cells are fixed in light space.
+//! In a thick medium (σt·L from 1 to 10, L the light's distance to the occluder) seen from a
+//! few mean free paths of a penumbra, only a short piece of each ray contributes, and the
+//! error of the visible fraction at single points shows instead of averaging out along the
+//! ray: measured p95 up to 38% where the visible fraction is small (a deep penumbra; the same
+//! with the per-step estimate), and 7.8% for a small light seen close up (the grid's cells;
+//! 1.1% per step).
+//!
 //! # Inputs
 //! * the [`ShadowMap`] of the light, with its occluders' [`ShadowMap::bounds`] (which bound
 //!   where a penumbra can be; without them every cell is estimated);
