@@ -144,11 +144,12 @@ const MAX_SHARP_STEPS: u32 = 16u;
 
 // ∫ V dT over [s0, s1] (T known at both ends) in n uniform steps through the soft-shadow grid,
 // each sampled at its midpoint and weighted by dT/ds there, the weights normalised to the
-// exact T(s1) − T(s0) (one integrand a step in place of an exact T at every step boundary: the
-// march took half the time on the soft scene of the report, p95 unchanged). Where the cells around a step are marked sharp (a penumbra
-// narrower than two cells, near an occluder's outline, or an occluder's surface between two
-// slices) the grid's interpolation would smear it: there the shadow map's own 2×2-filtered
-// visibility, whose edges are the occluders', is blended in by the interpolated mark. On the
+// exact T(s1) − T(s0) (one integrand a step in place of an exact T at every step boundary:
+// the march took half the time on the soft scene of the report, p95 unchanged). Where the
+// cells around a step are marked sharp (a penumbra narrower than two cells, near an
+// occluder's outline, or an occluder's surface between two slices) the grid's interpolation
+// would smear it: there the shadow map's own 2×2-filtered visibility, whose edges are the
+// occluders', is blended in by the interpolated mark. On the
 // torus of tests/soft.rs the grid alone is off by RMSE 3.8% (p95 6.5%) in the rows through the
 // torus, with the blend 1.1% (p95 1.9%). Such a step's edge is as sharp as a hard shadow's, so
 // it is marched again at the resolution of `steps` (a small light's penumbrae are sharp

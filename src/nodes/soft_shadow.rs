@@ -31,7 +31,8 @@
 //! error of the visible fraction at single points shows instead of averaging out along the
 //! ray: measured p95 up to 38% where the visible fraction is small (a deep penumbra; the same
 //! with the per-step estimate), and 7.8% for a small light seen close up (the grid's cells;
-//! 1.1% per step).
+//! 1.1% per step). About half of the former is the blocker's distance: the front surfaces the
+//! shadow map holds are nearer than the outline the lines to the light graze.
 //!
 //! # Inputs
 //! * the [`ShadowMap`] of the light, with its occluders' [`ShadowMap::bounds`] (which bound
