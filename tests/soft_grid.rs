@@ -118,7 +118,8 @@ fn wall_distance(wall: (DVec3, DVec3), e: DVec3, d: DVec3) -> f64 {
 
 /// Seeded scenes from 1e-4 to 1 optical depth σt·L: every one within the bars with the grid
 /// (exact method), finite; the same scenes drawn hard are farther than 10% from the soft
-/// reference in at least one of them, so the bars can tell a penumbra from none.
+/// reference in at least one of them, so the bars can tell a penumbra from none (and each
+/// scene with its shadow ignored is beyond twice the p95 bar).
 #[test]
 fn random_soft_scenes_against_the_reference() {
     let (worst, hard_worst) = random_scenes(0..SEEDS, (-4.0, 0.0), (RMSE_BAR, P95_BAR));
@@ -127,6 +128,90 @@ fn random_soft_scenes_against_the_reference() {
         100.0 * worst,
         100.0 * hard_worst
     );
+    assert!(
+        hard_worst > 0.10,
+        "hard shadows within {hard_worst} of every soft reference: the scenes cannot tell"
+    );
+}
+
+/// A sphere of radius 0.6 at distance 2 from a light of radius 0.3 (its umbra widens behind it
+/// and never ends), in thin fog (σt·L = 0.2), with the eye placed at `eye` looking at `target`.
+fn umbra_scene(eye: Vec3, target: Vec3, describe: &str) -> RandomScene {
+    let light = PointLight::new(Vec3::ZERO, Vec3::splat(4.0))
+        .unwrap()
+        .with_radius(0.3)
+        .unwrap();
+    let medium = Medium::new(
+        Vec3::splat(0.08),
+        Vec3::splat(0.02),
+        PhaseFunction::HenyeyGreenstein { g: 0.3 },
+    )
+    .unwrap();
+    let up = if (target - eye).normalize().abs().y > 0.9 {
+        Vec3::Z
+    } else {
+        Vec3::Y
+    };
+    let view = look_at_mat4(eye, target, up);
+    let camera = Camera::new(view, directx::perspective(1.2, 1.0, 1e-3, 1e4)).unwrap();
+    // A wall 12 units beyond the eye, facing it.
+    let to_eye = (eye - target).normalize().as_dvec3();
+    RandomScene {
+        camera,
+        medium,
+        light,
+        center: Vec3::new(0.0, 0.0, 2.0),
+        rho: 0.6,
+        wall: (eye.as_dvec3() - to_eye * 12.0, to_eye),
+        describe: describe.to_string(),
+    }
+}
+
+/// The eye inside a soft shadow (`umbra_scene`): in the umbra looking back past the sphere at
+/// the light, and in the penumbra looking across the shadow. Bars: the issue's; each scene with
+/// its shadow ignored (what a march that lit the eye's piece of the ray would come closer to)
+/// must be beyond twice the p95 bar.
+#[test]
+fn eye_inside_a_soft_shadow() {
+    let scenes = [
+        umbra_scene(
+            Vec3::new(0.05, 0.0, 3.2),
+            Vec3::new(0.0, 0.0, -1.0),
+            "eye in the umbra, looking back at the sphere and the light",
+        ),
+        umbra_scene(
+            Vec3::new(0.95, 0.0, 4.0),
+            Vec3::new(-2.0, 0.0, 4.0),
+            "eye in the penumbra, looking across the shadow",
+        ),
+    ];
+    let (worst, hard_worst) = check_scenes(&scenes, (RMSE_BAR, P95_BAR));
+    eprintln!(
+        "worst p95 {:.2}%, hard {:.2}%",
+        100.0 * worst,
+        100.0 * hard_worst
+    );
+}
+
+/// The eye in the umbra looking away from the light (`umbra_scene`): most of each ray stays in
+/// the umbra and the deep penumbra around it, where the visible fraction is small. A known
+/// limitation, run by hand: it fails the bars. Measured on 2026-11-23: p95 41.1%, RMSE 5.1%
+/// through the grid; 30.7% and 3.7% with the per-step estimate at 256 steps (PCSS itself). The
+/// cause, measured: the blocker's distance. The shadow map holds the sphere's front surface,
+/// nearer than the outline the lines to the light graze, so the filter is too wide and the
+/// deep penumbra too bright; with the sphere's centre distance instead (an experiment, not a
+/// method: it knows the occluder is a sphere) 6.8% through the grid, 11.5% per step.
+#[test]
+#[ignore = "known limitation (deep penumbra: PCSS's blocker distance): fails the bars; run by hand"]
+fn eye_in_the_umbra_looking_away_from_the_light() {
+    check_scenes(
+        &[umbra_scene(
+            Vec3::new(0.0, 0.05, 3.2),
+            Vec3::new(0.0, 0.0, 10.0),
+            "eye in the umbra, looking away from the light",
+        )],
+        (RMSE_BAR, P95_BAR),
+    );
 }
 
 /// Thick fog, σt·L from 1 to 10 with the eye within about 8 optical depths of the shadow: the
@@ -134,11 +219,11 @@ fn random_soft_scenes_against_the_reference() {
 /// visibility at single points shows instead of averaging out along the ray. A known
 /// limitation, run by hand: it fails the bars. Measured on 2026-11-23 (exact method,
 /// grid 64² × 16): of 12 seeds, 8 within the bars, 107 and 110 just outside (RMSE 3.0%, p95
-/// 3.1%); seed 105 (the eye in a deep penumbra, where
-/// the visible fraction is small) p95 37.8%, and 38.8% with the per-step estimate at 256 steps
-/// (PCSS itself, not the grid); seed 108 (a small light seen close up) 7.8% through the grid,
-/// 1.1% per step (the grid's cells are coarse for that close a view); the hard exact method
-/// is within 0.02% of the hard reference in both.
+/// 3.1%); seed 105 (the eye in a deep penumbra, where the visible fraction is small) p95
+/// 37.8%, and 38.8% with the per-step estimate at 256 steps (PCSS itself, not the grid); seed
+/// 108 (a small light seen close up) 7.8% through the grid, 1.1% per step (the grid's cells are
+/// coarse for that close a view); the hard exact method is within 0.02% of the hard reference
+/// in both.
 #[test]
 #[ignore = "known limitation (thick fog, eye close to a deep penumbra): fails the bars; run by hand"]
 fn random_soft_scenes_in_thick_fog() {
@@ -149,13 +234,22 @@ fn random_soft_scenes_in_thick_fog() {
 /// fails naming every seed beyond `bars` (RMSE, p95) or not finite. Returns the worst soft and
 /// hard p95.
 fn random_scenes(seeds: std::ops::Range<u64>, log_tau: (f32, f32), bars: (f64, f64)) -> (f64, f64) {
+    let scenes: Vec<RandomScene> = seeds.map(|seed| random_scene(seed, log_tau)).collect();
+    check_scenes(&scenes, bars)
+}
+
+/// Each scene soft through the grid (exact method), hard, and with its shadow ignored, against
+/// the soft reference; fails naming every scene beyond `bars` (RMSE, p95) or not finite, and if
+/// a scene's shadow ignored is within twice the p95 bar (it could not tell a lit penumbra).
+/// Returns the worst soft and hard p95.
+fn check_scenes(scenes: &[RandomScene], bars: (f64, f64)) -> (f64, f64) {
     let gpu = common::gpu();
     let cache = Cache::new(&gpu.device);
     let mut hard_worst: f64 = 0.0;
+    let mut unshadowed_least = f64::INFINITY;
     let mut worst: f64 = 0.0;
     let mut failures = Vec::new();
-    for seed in seeds {
-        let s = random_scene(seed, log_tau);
+    for s in scenes {
         let wall = |e: DVec3, d: DVec3| wall_distance(s.wall, e, d);
         let occ: Vec<reference::Occluder> =
             vec![Sphere::new(s.center.as_dvec3(), f64::from(s.rho)).into()];
@@ -186,11 +280,12 @@ fn random_scenes(seeds: std::ops::Range<u64>, log_tau: (f32, f32), bars: (f64, f
             method: MarchMethod::Exact,
             ..MarchSettings::default()
         };
-        let render = |light: &Light| {
-            let passes = common::ShadowPasses::new(&s.camera, light, &s.medium, &depth, &occluders)
+        let render_with = |light: &Light, occluders: &[Occluder]| {
+            let passes = common::ShadowPasses::new(&s.camera, light, &s.medium, &depth, occluders)
                 .settings(settings);
             common::shadow_frame(&gpu, &cache, &passes)
         };
+        let render = |light: &Light| render_with(light, &occluders);
         let soft: Light = s.light.into();
         let frame = render(&soft);
         let e = errors(&frame.inscatter, &reference, &s.camera, &soft, (SIZE, SIZE));
@@ -202,12 +297,22 @@ fn random_scenes(seeds: std::ops::Range<u64>, log_tau: (f32, f32), bars: (f64, f
             &soft,
             (SIZE, SIZE),
         );
+        // The shadow ignored: what a march that lit the penumbra cones would give.
+        let unshadowed = errors(
+            &render_with(&soft, &[]).inscatter,
+            &reference,
+            &s.camera,
+            &soft,
+            (SIZE, SIZE),
+        );
         hard_worst = hard_worst.max(hard_errors.p95);
+        unshadowed_least = unshadowed_least.min(unshadowed.p95);
         worst = worst.max(e.p95);
         eprintln!(
-            "{}\n  grid: {e}\n  hard: p95 {:.2}%",
+            "{}\n  grid: {e}\n  hard: p95 {:.2}%, shadow ignored: p95 {:.2}%",
             s.describe,
-            100.0 * hard_errors.p95
+            100.0 * hard_errors.p95,
+            100.0 * unshadowed.p95
         );
         if e.non_finite > 0 || !(e.rmse <= bars.0 && e.p95 <= bars.1) {
             failures.push(format!("{}: {e}", s.describe));
@@ -219,8 +324,8 @@ fn random_scenes(seeds: std::ops::Range<u64>, log_tau: (f32, f32), bars: (f64, f
         failures.join("\n")
     );
     assert!(
-        hard_worst > 0.10,
-        "hard shadows within {hard_worst} of every soft reference: the scenes cannot tell"
+        unshadowed_least > 2.0 * bars.1,
+        "a scene's shadow ignored is within {unshadowed_least} of its reference: it cannot tell"
     );
     (worst, hard_worst)
 }
