@@ -77,6 +77,8 @@ struct MarchParams {
 // A light with a radius: the visible fraction of its disc on a light-space grid (read through
 // `light_sampler`, trilinear, clamped to the edges).
 @group(0) @binding(17) var soft_volume: texture_3d<f32>;
+// The shadow map's back faces (ShadowMap::back), or the map itself without them.
+@group(0) @binding(18) var shadow_back: texture_depth_2d_array;
 
 // Distance along the ray of the point with normalised scattering angle s (law of sines in the
 // eye–point–light triangle: x = D sin δ / sin β, δ = s w, β = (1 − s) w). sin β is taken as

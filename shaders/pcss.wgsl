@@ -1,6 +1,8 @@
 // Shadow-map visibility, hard and soft: shared by the march and the soft-shadow volume
 // (composed after the prelude, before the node's own shader). The node provides the globals
-// `shadow_map` (texture_depth_2d_array), `shadow_sampler` (comparison), `mp` with the fields
+// `shadow_map` and `shadow_back` (texture_depth_2d_array: the front surfaces, and the back
+// faces of closed occluders; the front map again where there is none), `shadow_sampler`
+// (comparison), `mp` with the fields
 // `faces`, `depth_bias`, `soft` and `spheres` (as the march's `MarchParams`), and
 // `fn pcss_light() -> vec3<f32>`, the light's position.
 
@@ -68,8 +70,13 @@ fn spiral_next(cs: vec2<f32>) -> vec2<f32> {
     return vec2<f32>(GOLDEN_COS * cs.x - GOLDEN_SIN * cs.y, GOLDEN_SIN * cs.x + GOLDEN_COS * cs.y);
 }
 
-// The distance from the light of the nearest occluder in the shadow map towards `q`, as a
-// fraction of |q − light| (≥ 1, or 2 where nothing is in front of q).
+// The distance from the light of the occluder in the shadow map towards `q`, as a fraction of
+// |q − light| (< 1, or 2 where nothing is in front of q): midway between its front surface
+// and its back face (both before q), where a convex occluder's outline lies (a sphere's
+// centre distance). The lines from a point to the light's disc graze the outline; its front
+// surface alone is nearer the light and widens the filter, which brightens the deep penumbra
+// (with the eye in an umbra looking away from the light, tests/soft_grid.rs: p95 41% with the
+// front surface).
 fn blocker_ratio(q: vec3<f32>) -> f32 {
     let face = shadow_face(q);
     let clip = mp.faces[face] * vec4<f32>(q, 1.0);
@@ -87,7 +94,11 @@ fn blocker_ratio(q: vec3<f32>) -> f32 {
     // Reversed Z: depth = near / distance along the face's axis, so the ratio of distances
     // along one direction is the inverse ratio of depths.
     if (depth * (1.0 - mp.depth_bias) > ndc.z) {
-        return ndc.z / depth;
+        let front = ndc.z / depth;
+        // Reversed Z: the back face is at most as deep as the front; 0 where none was drawn.
+        let back_depth = textureLoad(shadow_back, texel, i32(face), 0);
+        let back = select(front, min(ndc.z / back_depth, 1.0), back_depth > 0.0 && back_depth <= depth);
+        return 0.5 * (front + back);
     }
     return 2.0;
 }

@@ -26,6 +26,8 @@ struct SoftShadowParams {
 @group(0) @binding(2) var shadow_sampler: sampler_comparison;
 // x, y: the cell's direction in its layer; z: layer · slices + slice.
 @group(0) @binding(3) var volume: texture_storage_3d<rgba16float, write>;
+// The shadow map's back faces (ShadowMap::back), or the map itself without them.
+@group(0) @binding(4) var shadow_back: texture_depth_2d_array;
 
 fn pcss_light() -> vec3<f32> {
     return mp.light.xyz;

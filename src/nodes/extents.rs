@@ -112,6 +112,7 @@ impl Pipelines {
                 Some(entry),
                 &volume_vertices,
                 compare,
+                None,
             )
         };
         // Reversed Z: nearest = greatest depth.

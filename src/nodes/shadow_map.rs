@@ -18,6 +18,14 @@
 //! (spot), usages `RENDER_ATTACHMENT | TEXTURE_BINDING`, cleared to 0 (nothing); plus the
 //! face matrices and the depth bias. A shadow map the caller renders itself can be passed to the
 //! march instead, in the same layout and convention (any depth format that can be sampled).
+//!
+//! For a light with a radius the node also renders [`ShadowMap::back`]: the same faces again
+//! with closed occluders' faces turned towards the light culled, which keeps each one's
+//! nearest back face (open meshes, which have no inside, draw both sides: their nearest face).
+//! The soft shadows take a blocker's distance midway between the two, where a convex
+//! occluder's outline lies; the front surface alone is nearer and made the deep penumbra up to
+//! 41% too bright (see [`SoftShadowNode`](crate::nodes::SoftShadowNode)). It doubles the
+//! pass's draws for such a light.
 
 use glam::{Mat4, Vec3, Vec4};
 
@@ -37,7 +45,10 @@ const BINDINGS: [Binding; 2] = [
 #[derive(Clone)]
 pub(crate) struct Pipelines {
     layout: wgpu::BindGroupLayout,
+    /// Every face: the nearest surface.
     depth: wgpu::RenderPipeline,
+    /// Faces turned away from the light only: a closed occluder's nearest back face.
+    back: wgpu::RenderPipeline,
 }
 
 impl Pipelines {
@@ -46,21 +57,30 @@ impl Pipelines {
         let layout = layout(device, label, wgpu::ShaderStages::VERTEX, &BINDINGS);
         let source = include_str!("../../shaders/shadow_map.wgsl");
         let module = module(device, "volshadow shadow_map.wgsl", source);
-        let depth = depth_pipeline(
-            device,
-            label,
-            &layout,
-            &module,
-            "vs_shadow",
-            None,
-            &[wgpu::VertexBufferLayout {
-                array_stride: 16,
-                step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &wgpu::vertex_attr_array![0 => Float32x4],
-            }],
-            Some(wgpu::CompareFunction::Greater),
-        );
-        Self { layout, depth }
+        let pipeline = |cull_mode| {
+            depth_pipeline(
+                device,
+                label,
+                &layout,
+                &module,
+                "vs_shadow",
+                None,
+                &[wgpu::VertexBufferLayout {
+                    array_stride: 16,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &wgpu::vertex_attr_array![0 => Float32x4],
+                }],
+                Some(wgpu::CompareFunction::Greater),
+                cull_mode,
+            )
+        };
+        Self {
+            depth: pipeline(None),
+            // Counter-clockwise is front (wgpu's default), as the crate's meshes wind faces
+            // seen from outside.
+            back: pipeline(Some(wgpu::Face::Front)),
+            layout,
+        }
     }
 }
 
@@ -122,6 +142,12 @@ pub struct ShadowMap<'a> {
     /// The least distance from the light to an occluder's world bounding box (tighter than
     /// `bounds`' spheres); 0 when not known.
     pub occluder_distance: f32,
+    /// For a light with a radius: the nearest back faces (turned away from the light) of closed
+    /// occluders, and the nearest faces of open ones, same size, format and layout as
+    /// `texture`. Along a direction, the midpoint of the two surfaces estimates where the lines
+    /// from a point to the light's disc graze the occluder (a sphere's silhouette), which the
+    /// front surface alone puts too near the light. `None`: the front surface is taken.
+    pub back: Option<&'a wgpu::Texture>,
     /// Changes whenever the map's contents do, so that what is derived from it (the
     /// [`SoftShadowNode`](crate::nodes::SoftShadowNode)'s grid) is rebuilt only then:
     /// [`ShadowMapNode`] counts its renders. A map the caller renders must change it at
@@ -130,6 +156,31 @@ pub struct ShadowMap<'a> {
 }
 
 impl ShadowMap<'_> {
+    /// Checks [`back`](Self::back) against the map: a depth array of the same size and layers.
+    pub(crate) fn check_back(&self) -> Result<()> {
+        let Some(back) = self.back else {
+            return Ok(());
+        };
+        crate::gpu::check_depth_layers(
+            "shadow_map.back",
+            back,
+            self.texture.depth_or_array_layers(),
+        )?;
+        if (back.width(), back.height()) != (self.texture.width(), self.texture.height()) {
+            return Err(Error::InvalidTexture {
+                field: "shadow_map.back",
+                problem: format!(
+                    "is {}x{}, the shadow map {}x{}",
+                    back.width(),
+                    back.height(),
+                    self.texture.width(),
+                    self.texture.height()
+                ),
+            });
+        }
+        Ok(())
+    }
+
     /// The parameters [`SHADOW_WGSL`](crate::SHADOW_WGSL)'s `volshadow_shadow` takes (its
     /// `VolshadowShadow` struct), for the `light` this map was rendered for, with a normal
     /// offset of `normal_offset` × the distance from the light, or for a directional light
@@ -195,6 +246,8 @@ pub struct ShadowMapNode {
     settings: ShadowMapSettings,
     pipelines: Pipelines,
     texture: Option<wgpu::Texture>,
+    /// See [`ShadowMap::back`]: only for a light with a radius.
+    back: Option<wgpu::Texture>,
     faces: Vec<Mat4>,
     bounds: Vec<Vec4>,
     face_buffer: wgpu::Buffer,
@@ -213,6 +266,7 @@ struct Draw {
     positions: wgpu::Buffer,
     indices: wgpu::Buffer,
     index_count: u32,
+    closed: bool,
 }
 
 /// Uniform slots are 256 bytes apart (the core minimum dynamic-offset alignment).
@@ -248,6 +302,7 @@ impl ShadowMapNode {
             settings,
             pipelines: cache.shadow_map.clone(),
             texture: None,
+            back: None,
             faces: Vec::new(),
             bounds: Vec::new(),
             face_buffer: device.create_buffer(&wgpu::BufferDescriptor {
@@ -435,13 +490,9 @@ impl ShadowMapNode {
             _ => 1,
         };
         let resolution = self.settings.resolution;
-        let recreate = self
-            .texture
-            .as_ref()
-            .is_none_or(|t| t.depth_or_array_layers() != layers);
-        if recreate {
-            self.texture = Some(device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("volshadow shadow map"),
+        let map = |label| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
                 size: wgpu::Extent3d {
                     width: resolution,
                     height: resolution,
@@ -454,7 +505,17 @@ impl ShadowMapNode {
                 usage: wgpu::TextureUsages::RENDER_ATTACHMENT
                     | wgpu::TextureUsages::TEXTURE_BINDING,
                 view_formats: &[],
-            }));
+            })
+        };
+        let wants_back = light.radius() > 0.0;
+        let recreate = self
+            .texture
+            .as_ref()
+            .is_none_or(|t| t.depth_or_array_layers() != layers)
+            || wants_back != self.back.is_some();
+        if recreate {
+            self.texture = Some(map("volshadow shadow map"));
+            self.back = wants_back.then(|| map("volshadow shadow map back faces"));
         }
 
         // Re-render only when something the map depends on changed.
@@ -570,6 +631,7 @@ impl ShadowMapNode {
                 positions: o.mesh.positions.clone(),
                 indices: o.mesh.indices.clone(),
                 index_count: o.mesh.triangle_count * 3,
+                closed: o.mesh.is_closed(),
             });
         }
         self.pending = true;
@@ -626,42 +688,51 @@ impl ShadowMapNode {
         let (Some(texture), Some(bind_group)) = (&self.texture, &self.bind_group) else {
             return Ok(());
         };
-        for layer in 0..texture.depth_or_array_layers() {
-            let view = texture.create_view(&wgpu::TextureViewDescriptor {
-                label: Some("volshadow shadow face"),
-                dimension: Some(wgpu::TextureViewDimension::D2),
-                base_array_layer: layer,
-                array_layer_count: Some(1),
-                ..Default::default()
-            });
-            let timestamp_writes = timer
-                .as_deref_mut()
-                .and_then(|t| t.render_pass(Pass::ShadowMap));
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("volshadow shadow map"),
-                color_attachments: &[],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(0.0),
-                        store: wgpu::StoreOp::Store,
+        // The front surfaces, then (a light with a radius) the back faces.
+        let targets = std::iter::once((texture, false)).chain(self.back.iter().map(|b| (b, true)));
+        for (target, back) in targets {
+            for layer in 0..target.depth_or_array_layers() {
+                let view = target.create_view(&wgpu::TextureViewDescriptor {
+                    label: Some("volshadow shadow face"),
+                    dimension: Some(wgpu::TextureViewDimension::D2),
+                    base_array_layer: layer,
+                    array_layer_count: Some(1),
+                    ..Default::default()
+                });
+                let timestamp_writes = timer
+                    .as_deref_mut()
+                    .and_then(|t| t.render_pass(Pass::ShadowMap));
+                let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("volshadow shadow map"),
+                    color_attachments: &[],
+                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                        view: &view,
+                        depth_ops: Some(wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(0.0),
+                            store: wgpu::StoreOp::Store,
+                        }),
+                        stencil_ops: None,
                     }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_pipeline(&self.pipelines.depth);
-            for (i, draw) in self.draws.iter().enumerate() {
-                pass.set_bind_group(
-                    0,
-                    bind_group,
-                    &[layer * SLOT as u32, i as u32 * SLOT as u32],
-                );
-                pass.set_vertex_buffer(0, draw.positions.slice(..));
-                pass.set_index_buffer(draw.indices.slice(..), wgpu::IndexFormat::Uint32);
-                pass.draw_indexed(0..draw.index_count, 0, 0..1);
+                    timestamp_writes,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                for (i, draw) in self.draws.iter().enumerate() {
+                    // An open mesh has no inside: its back layer is its nearest face.
+                    pass.set_pipeline(if back && draw.closed {
+                        &self.pipelines.back
+                    } else {
+                        &self.pipelines.depth
+                    });
+                    pass.set_bind_group(
+                        0,
+                        bind_group,
+                        &[layer * SLOT as u32, i as u32 * SLOT as u32],
+                    );
+                    pass.set_vertex_buffer(0, draw.positions.slice(..));
+                    pass.set_index_buffer(draw.indices.slice(..), wgpu::IndexFormat::Uint32);
+                    pass.draw_indexed(0..draw.index_count, 0, 0..1);
+                }
             }
         }
         Ok(())
@@ -671,6 +742,7 @@ impl ShadowMapNode {
     pub fn shadow_map(&self) -> Option<ShadowMap<'_>> {
         Some(ShadowMap {
             texture: self.texture.as_ref()?,
+            back: self.back.as_ref(),
             faces: &self.faces,
             depth_bias: self.settings.depth_bias,
             bounds: &self.bounds,

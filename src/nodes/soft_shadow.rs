@@ -19,22 +19,22 @@
 //! are marked sharp: the grid's interpolation would smear them, and the march blends in the
 //! shadow map's own visibility there, at a finer step (see [`MarchNode`](crate::nodes::MarchNode)).
 //! Measured against the f64 reference (`tests/soft.rs`, `tests/soft_grid.rs`): a sphere under
-//! a light of radius 0.2 × their distance p95 1.8%, RMSE 0.7% (the per-step estimate: 1.8%,
-//! 0.6%); a torus under a spot 0.8% RMSE; without the marks 3.8% on the torus, and 3.9% p95
-//! under a small light (radius 0.03 × the distance) whose penumbrae are sharp almost
-//! everywhere.
+//! a light of radius 0.2 × their distance p95 0.74%, RMSE 0.38% (the per-step estimate: 0.82%,
+//! 0.41%); a torus under a spot 0.9% RMSE. Before the back-face layer, without the marks:
+//! 3.8% on the torus, and 3.9% p95 under a small light (radius 0.03 × the distance) whose
+//! penumbrae are sharp almost everywhere.
 //!
 //! # Limitations
 //! PCSS assumes one planar blocker per point, and the grid's cells are fixed in light space.
 //! The estimate's error is relative to the visible fraction, and it shows where a pixel's
 //! light comes mostly from the deep penumbra, where that fraction is small: with the eye in an
-//! umbra looking away from the light, p95 41% against the reference (31% estimating per step),
-//! and in a thick medium (σt·L from 1 to 10, L the light's distance to the occluder) with the
-//! eye a few mean free paths from a penumbra, up to 38%; in the thinner seeded scenes of the
-//! crate's tests it averages out along the ray (p95 ≤ 2.6%). Most of it is the blocker's distance: the front surfaces the shadow map
-//! holds are nearer than the outline the lines to the light graze, so the estimated penumbra
-//! is too wide. A small light seen close up in thick fog: 7.8% through the grid (its cells are
-//! coarse for that view), 1.1% estimating per step.
+//! umbra looking away from the light, p95 6.4% against the reference (RMSE 1.4%); in a thick
+//! medium (σt·L from 1 to 10, L the light's distance to the occluder) with the eye a few mean
+//! free paths from a penumbra, up to 18.8%; in the thinner seeded scenes of the crate's tests
+//! it averages out along the ray (p95 ≤ 1.7%). Those figures take the blockers' distance
+//! midway between the front and back faces ([`ShadowMap::back`]); with the front surface
+//! alone they were 41%, 38% and 2.6%. A small light seen close up in thick fog: 7.8% through
+//! the grid (its cells are coarse for that view), 1.1% estimating per step.
 //!
 //! # Inputs
 //! * the [`ShadowMap`] of the light, with its occluders' [`ShadowMap::bounds`] (which bound
@@ -54,11 +54,12 @@ use crate::plan::Pass;
 use crate::scene::Light;
 
 /// The node's binding table: `@binding(i)` of `shaders/soft_shadow.wgsl` is entry `i`.
-const BINDINGS: [Binding; 4] = [
+const BINDINGS: [Binding; 5] = [
     Binding::Params,                                          // mp
     Binding::DepthArray,                                      // shadow_map
     Binding::Comparison,                                      // shadow_sampler
     Binding::StorageVolume(wgpu::TextureFormat::Rgba16Float), // volume
+    Binding::DepthArray,                                      // shadow_back
 ];
 
 /// Most occluder bounding spheres the soft shadow tests a point against; more are merged into
@@ -219,8 +220,8 @@ pub struct SoftShadowNode {
     uniform: UniformBuffer<SoftShadowUniform>,
     sampler: wgpu::Sampler,
     texture: Option<wgpu::Texture>,
-    /// The bind group, the shadow map and the grid it was made for.
-    bound: Option<(wgpu::Texture, wgpu::Texture, wgpu::BindGroup)>,
+    /// The bind group, and the shadow map, its back faces and the grid it was made for.
+    bound: Option<(wgpu::Texture, wgpu::Texture, wgpu::Texture, wgpu::BindGroup)>,
     pipeline: Option<wgpu::ComputePipeline>,
     layers: u32,
     /// The shadow map generation the grid was (or will be, when `pending`) built from.
@@ -308,6 +309,7 @@ impl SoftShadowNode {
         }
         let map = inputs.shadow_map;
         check_depth_layers("shadow_map", map.texture, layers)?;
+        map.check_back()?;
         if map.faces.len() != layers as usize {
             return Err(Error::InvalidTexture {
                 field: "shadow_map",
@@ -334,17 +336,22 @@ impl SoftShadowNode {
             ));
         }
         let texture = self.texture.as_ref().expect("created above");
+        let back = map.back.unwrap_or(map.texture);
         if self
             .bound
             .as_ref()
-            .is_none_or(|(m, t, _)| m != map.texture || t != texture)
+            .is_none_or(|(m, b, t, _)| m != map.texture || b != back || t != texture)
         {
-            let shadow_view = map.texture.create_view(&wgpu::TextureViewDescriptor {
-                label: Some("volshadow soft shadow map array"),
-                dimension: Some(wgpu::TextureViewDimension::D2Array),
-                aspect: wgpu::TextureAspect::DepthOnly,
-                ..Default::default()
-            });
+            let array_view = |t: &wgpu::Texture| {
+                t.create_view(&wgpu::TextureViewDescriptor {
+                    label: Some("volshadow soft shadow map array"),
+                    dimension: Some(wgpu::TextureViewDimension::D2Array),
+                    aspect: wgpu::TextureAspect::DepthOnly,
+                    ..Default::default()
+                })
+            };
+            let shadow_view = array_view(map.texture);
+            let back_view = array_view(back);
             let grid_view = texture.create_view(&Default::default());
             let group = bind_group(
                 device,
@@ -355,9 +362,10 @@ impl SoftShadowNode {
                     wgpu::BindingResource::TextureView(&shadow_view),
                     wgpu::BindingResource::Sampler(&self.sampler),
                     wgpu::BindingResource::TextureView(&grid_view),
+                    wgpu::BindingResource::TextureView(&back_view),
                 ],
             );
-            self.bound = Some((map.texture.clone(), texture.clone(), group));
+            self.bound = Some((map.texture.clone(), back.clone(), texture.clone(), group));
             self.pending = true;
         }
         let mut faces = [[0.0; 16]; 6];
@@ -414,7 +422,7 @@ impl SoftShadowNode {
         encoder: &mut wgpu::CommandEncoder,
         timer: Option<&mut GpuTimer>,
     ) -> Result<()> {
-        let (Some((_, _, group)), Some(pipeline)) = (&self.bound, &self.pipeline) else {
+        let (Some((_, _, _, group)), Some(pipeline)) = (&self.bound, &self.pipeline) else {
             return Err(Error::NotPrepared {
                 reason: "SoftShadowNode::prepare has not succeeded yet",
             });
