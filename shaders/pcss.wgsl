@@ -72,11 +72,12 @@ fn spiral_next(cs: vec2<f32>) -> vec2<f32> {
 
 // The distance from the light of the occluder in the shadow map towards `q`, as a fraction of
 // |q − light| (< 1, or 2 where nothing is in front of q): midway between its front surface
-// and its back face (both before q), where a convex occluder's outline lies (a sphere's
-// centre distance). The lines from a point to the light's disc graze the outline; its front
-// surface alone is nearer the light and widens the filter, which brightens the deep penumbra
-// (with the eye in an umbra looking away from the light, tests/soft_grid.rs: p95 41% with the
-// front surface).
+// and its back face (both before q), where a convex occluder's outline lies near its rim (near
+// a sphere's centre direction the midpoint lies beyond the outline, which narrows a large
+// sphere's penumbra: see docs/METHOD.md). The lines from a point to the light's disc graze
+// the outline; its front surface alone is nearer the light and widens the filter, which
+// brightens the deep penumbra (with the eye in an umbra looking away from the light,
+// tests/soft_grid.rs: p95 41% with the front surface).
 fn blocker_ratio(q: vec3<f32>) -> f32 {
     let face = shadow_face(q);
     let clip = mp.faces[face] * vec4<f32>(q, 1.0);
