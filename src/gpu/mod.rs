@@ -164,6 +164,16 @@ pub(crate) fn depth_view(texture: &wgpu::Texture) -> wgpu::TextureView {
     })
 }
 
+/// The depth aspect of a (shadow-map) texture as a 2D array view, every layer.
+pub(crate) fn depth_array_view(texture: &wgpu::Texture) -> wgpu::TextureView {
+    texture.create_view(&wgpu::TextureViewDescriptor {
+        label: Some("volshadow shadow map array"),
+        dimension: Some(wgpu::TextureViewDimension::D2Array),
+        aspect: wgpu::TextureAspect::DepthOnly,
+        ..Default::default()
+    })
+}
+
 /// Validates a pass size against the device's 2D texture limit.
 pub(crate) fn check_target_size(
     field: &'static str,

@@ -43,8 +43,8 @@ use crate::error::{Error, Result};
 use crate::gpu::cache::{bind_group, cached, compute_pipeline, dispatch, layout, module, Binding};
 use crate::gpu::uniforms::{AirlightUniform, ViewUniform};
 use crate::gpu::{
-    check_depth_layers, check_depth_texture, check_size, check_target_size, depth_view, texture_2d,
-    texture_3d, Cache, GpuTimer, UniformBuffer,
+    check_depth_layers, check_depth_texture, check_size, check_target_size, depth_array_view,
+    depth_view, texture_2d, texture_3d, Cache, GpuTimer, UniformBuffer,
 };
 use crate::nodes::extents::Extents;
 use crate::nodes::shadow_map::ShadowMap;
@@ -670,12 +670,7 @@ impl MarchNode {
                 .enumerate()
                 .map(|(i, t)| match i {
                     1 | 4 | 5 | 6 => depth_view(t),
-                    3 | 10 => t.create_view(&wgpu::TextureViewDescriptor {
-                        label: Some("volshadow shadow map array"),
-                        dimension: Some(wgpu::TextureViewDimension::D2Array),
-                        aspect: wgpu::TextureAspect::DepthOnly,
-                        ..Default::default()
-                    }),
+                    3 | 10 => depth_array_view(t),
                     _ => t.create_view(&Default::default()),
                 })
                 .collect();

@@ -50,7 +50,9 @@
 
 use crate::error::{Error, Result};
 use crate::gpu::cache::{bind_group, compute_pipeline, dispatch, layout, module, Binding};
-use crate::gpu::{check_depth_layers, texture_3d, Cache, GpuTimer, UniformBuffer};
+use crate::gpu::{
+    check_depth_layers, depth_array_view, texture_3d, Cache, GpuTimer, UniformBuffer,
+};
 use crate::nodes::shadow_map::ShadowMap;
 use crate::plan::Pass;
 use crate::scene::Light;
@@ -344,16 +346,8 @@ impl SoftShadowNode {
             .as_ref()
             .is_none_or(|(m, b, t, _)| m != map.texture || b != back || t != texture)
         {
-            let array_view = |t: &wgpu::Texture| {
-                t.create_view(&wgpu::TextureViewDescriptor {
-                    label: Some("volshadow soft shadow map array"),
-                    dimension: Some(wgpu::TextureViewDimension::D2Array),
-                    aspect: wgpu::TextureAspect::DepthOnly,
-                    ..Default::default()
-                })
-            };
-            let shadow_view = array_view(map.texture);
-            let back_view = array_view(back);
+            let shadow_view = depth_array_view(map.texture);
+            let back_view = depth_array_view(back);
             let grid_view = texture.create_view(&Default::default());
             let group = bind_group(
                 device,
