@@ -7,7 +7,7 @@
 mod common;
 
 use common::scene::errors;
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Quat, Vec3};
 use volshadow::glam::camera::rh::{proj::directx, view::look_at_mat4};
 use volshadow::gpu::{Occluder, OccluderMesh};
 use volshadow::nodes::{
@@ -32,9 +32,9 @@ const SEEDS: u64 = 12;
 struct RandomScene {
     camera: Camera,
     medium: Medium,
-    light: PointLight,
-    center: Vec3,
-    rho: f32,
+    light: Light,
+    /// The occluders: spheres (centre, radius).
+    spheres: Vec<(Vec3, f32)>,
     /// A point of the wall and its normal (towards the camera).
     wall: (DVec3, DVec3),
     describe: String,
@@ -98,12 +98,84 @@ fn random_scene(seed: u64, log_tau: (f32, f32)) -> RandomScene {
             PhaseFunction::HenyeyGreenstein { g },
         )
         .unwrap(),
-        light,
-        center,
-        rho,
+        light: light.into(),
+        spheres: vec![(center, rho)],
         wall: (wall_point, to_eye),
         describe,
     }
+}
+
+/// The same light with radius 0 (hard shadows).
+fn without_radius(light: Light) -> Light {
+    match light {
+        Light::Point(l) => l.with_radius(0.0).unwrap().into(),
+        Light::Spot(l) => l.with_radius(0.0).unwrap().into(),
+        other => other,
+    }
+}
+
+/// `random_scene` with a spot light (its apex angle log-uniform over `cone`, radians) aimed
+/// off the sphere by 0.4 to 1.1 times its half-angle, so that the cone's edge crosses the
+/// sphere or passes near it and the penumbra inside the cone reaches parts of the sphere
+/// outside it. With `two` a second sphere (radius the first's times a factor over `scale`, at
+/// most `max_size` times its distance from the light) beside, before or behind the first:
+/// two penumbrae at different distances.
+fn random_spot_scene(
+    seed: u64,
+    log_tau: (f32, f32),
+    cone: (f32, f32),
+    scale: (f32, f32),
+    max_size: f32,
+    two: bool,
+) -> RandomScene {
+    let mut s = random_scene(seed, log_tau);
+    let mut rng = fastrand::Rng::with_seed(seed ^ 0x5eed_5907);
+    let mut uniform = |lo: f32, hi: f32| lo + (hi - lo) * rng.f32();
+    let Light::Point(point) = s.light else {
+        unreachable!("random_scene makes point lights")
+    };
+    let (center, rho) = s.spheres[0];
+    let to_sphere = center - point.position();
+    let l = to_sphere.length();
+    let axis = to_sphere / l;
+    let side = Quat::from_axis_angle(axis, uniform(0.0, std::f32::consts::TAU))
+        * axis.any_orthonormal_vector();
+    let apex = (cone.0.ln() + (cone.1.ln() - cone.0.ln()) * uniform(0.0, 1.0)).exp();
+    let off = 0.5 * apex * uniform(0.4, 1.1);
+    let aim = Quat::from_axis_angle(axis.cross(side), off) * axis;
+    let spot = volshadow::SpotLight::new(point.position(), aim, apex, point.intensity())
+        .unwrap()
+        .with_radius(point.radius())
+        .unwrap();
+    s.light = spot.into();
+    s.describe = format!(
+        "{} (spot {:.0} deg, {:.2} of its half-angle off the sphere)",
+        s.describe,
+        apex.to_degrees(),
+        2.0 * off / apex
+    );
+    if two {
+        let mut c2 =
+            point.position() + axis * l * uniform(0.6, 2.0) + side * rho * uniform(0.0, 1.5);
+        let rho2 =
+            (rho * uniform(scale.0, scale.1)).min(max_size * (c2 - point.position()).length());
+        let gap = c2 - center;
+        if gap.length() < (rho + rho2) * 1.05 {
+            c2 = center + gap.normalize_or(side) * (rho + rho2) * 1.05;
+        }
+        let clearance = point.radius() + rho2;
+        if (c2 - point.position()).length() < clearance * 1.2 {
+            c2 = point.position() + (c2 - point.position()).normalize_or(axis) * clearance * 1.2;
+        }
+        s.spheres.push((c2, rho2));
+        s.describe = format!(
+            "{}, second sphere rho/L {:.2} at {:.2} L",
+            s.describe,
+            rho2 / l,
+            (c2 - point.position()).length() / l
+        );
+    }
+    s
 }
 
 fn wall_distance(wall: (DVec3, DVec3), e: DVec3, d: DVec3) -> f64 {
@@ -134,6 +206,54 @@ fn random_soft_scenes_against_the_reference() {
     );
 }
 
+/// Seeded scenes with a spot light (apex 30° to 90°) whose cone's edge crosses the sphere or
+/// passes near it (`random_spot_scene`), σt·L from 1e-4 to 1, through the grid (exact method):
+/// all finite and beyond twice the p95 bar with the shadow ignored; at least 9 of the 12
+/// within the bars, and every one within p95 15%, RMSE 4%. Those two are measured
+/// limits (2026-11-23: 9 within; the others, p95 5.2%, 5.6%, 14.6%, RMSE up to 4.0%, are
+/// views in which every counted pixel is in the hard umbra, lit only by the deep penumbra, a
+/// known limitation: see the `SoftShadowNode` docs). Before the spot map widened for the
+/// penumbra (`ShadowMapNode::spot_fov`), the parts of the sphere outside the cone were missing
+/// from it and lit the penumbra they cast inside: 4 within the bars, p95 up to 112%,
+/// RMSE up to 6.9%.
+#[test]
+fn random_soft_spot_scenes_against_the_reference() {
+    const LIMIT_BARS: (f64, f64) = (0.04, 0.15);
+    const WITHIN: usize = 9;
+    let scenes: Vec<RandomScene> = (200..200 + SEEDS)
+        .map(|seed| random_spot_scene(seed, (-4.0, 0.0), (0.52, 1.57), (0.1, 1.2), 0.3, false))
+        .collect();
+    let (worst, hard_worst, within) = check_scenes_counted(&scenes, LIMIT_BARS);
+    eprintln!(
+        "worst p95 {:.2}%, hard {:.2}%, {within} of {} within the issue's bars",
+        100.0 * worst,
+        100.0 * hard_worst,
+        scenes.len()
+    );
+    assert!(
+        within >= WITHIN,
+        "{within} of {} scenes within the issue's bars, fewer than {WITHIN}",
+        scenes.len()
+    );
+}
+
+/// Known limitations, run by hand: a wide spot (apex up to 115°, its map up to 179° once
+/// widened for the penumbra, coarse at its centre) with a sphere up to twice as large near the
+/// light; and two spheres at different distances, whose penumbrae overlap (the soft estimate
+/// takes one blocker distance for both). Both fail the bars on some seeds: see the node's docs.
+#[test]
+#[ignore = "known limitations (wide spot maps, large occluders near the light, overlapping penumbrae at different distances); ~4 min"]
+fn random_soft_spot_scenes_wide_and_overlapping() {
+    let mut scenes: Vec<RandomScene> = (200..200 + SEEDS)
+        .map(|seed| random_spot_scene(seed, (-4.0, 0.0), (0.52, 2.0), (0.1, 2.0), 0.8, false))
+        .collect();
+    scenes.extend(
+        (200..200 + SEEDS)
+            .map(|seed| random_spot_scene(seed, (-4.0, 0.0), (0.52, 2.0), (0.1, 2.0), 0.8, true)),
+    );
+    check_scenes(&scenes, (RMSE_BAR, P95_BAR));
+}
+
 /// A sphere of radius 0.6 at distance 2 from a light of radius 0.3 (its umbra widens behind it
 /// and never ends), in thin fog (σt·L = 0.2), with the eye placed at `eye` looking at `target`.
 fn umbra_scene(eye: Vec3, target: Vec3, describe: &str) -> RandomScene {
@@ -159,9 +279,8 @@ fn umbra_scene(eye: Vec3, target: Vec3, describe: &str) -> RandomScene {
     RandomScene {
         camera,
         medium,
-        light,
-        center: Vec3::new(0.0, 0.0, 2.0),
-        rho: 0.6,
+        light: light.into(),
+        spheres: vec![(Vec3::new(0.0, 0.0, 2.0), 0.6)],
         wall: (eye.as_dvec3() - to_eye * 12.0, to_eye),
         describe: describe.to_string(),
     }
@@ -238,9 +357,18 @@ fn random_scenes(seeds: std::ops::Range<u64>, log_tau: (f32, f32), bars: (f64, f
 
 /// Each scene soft through the grid (exact method), hard, and with its shadow ignored, against
 /// the soft reference; fails naming every scene beyond `bars` (RMSE, p95) or not finite, and if
-/// a scene's shadow ignored is within twice the p95 bar (it could not tell a lit penumbra).
+/// a scene's shadow ignored is within twice the p95 bar (it could not tell a lit
+/// penumbra).
 /// Returns the worst soft and hard p95.
 fn check_scenes(scenes: &[RandomScene], bars: (f64, f64)) -> (f64, f64) {
+    let (worst, hard_worst, _) = check_scenes_counted(scenes, bars);
+    (worst, hard_worst)
+}
+
+/// `check_scenes`, also returning how many scenes were within the bars (RMSE_BAR,
+/// P95_BAR), which may be tighter than `bars`.
+fn check_scenes_counted(scenes: &[RandomScene], bars: (f64, f64)) -> (f64, f64, usize) {
+    let mut within = 0;
     let gpu = common::gpu();
     let cache = Cache::new(&gpu.device);
     let mut hard_worst: f64 = 0.0;
@@ -249,8 +377,11 @@ fn check_scenes(scenes: &[RandomScene], bars: (f64, f64)) -> (f64, f64) {
     let mut failures = Vec::new();
     for s in scenes {
         let wall = |e: DVec3, d: DVec3| wall_distance(s.wall, e, d);
-        let occ: Vec<reference::Occluder> =
-            vec![Sphere::new(s.center.as_dvec3(), f64::from(s.rho)).into()];
+        let occ: Vec<reference::Occluder> = s
+            .spheres
+            .iter()
+            .map(|&(c, rho)| Sphere::new(c.as_dvec3(), f64::from(rho)).into())
+            .collect();
         let reference = reference::soft::inscatter_image_soft(
             &s.camera, SIZE, SIZE, wall, &s.medium, &s.light, &occ,
         );
@@ -266,14 +397,20 @@ fn check_scenes(scenes: &[RandomScene], bars: (f64, f64)) -> (f64, f64) {
             })
             .collect();
         let depth = common::depth_texture(&gpu, SIZE, SIZE, &depths);
-        let mesh = OccluderMesh::new(
-            &gpu.device,
-            &shapes::uv_sphere(s.center, s.rho, 64, 32).unwrap(),
-        );
-        let occluders = [Occluder {
-            mesh: &mesh,
-            transform: glam::Mat4::IDENTITY,
-        }];
+        let meshes: Vec<OccluderMesh> = s
+            .spheres
+            .iter()
+            .map(|&(c, rho)| {
+                OccluderMesh::new(&gpu.device, &shapes::uv_sphere(c, rho, 64, 32).unwrap())
+            })
+            .collect();
+        let occluders: Vec<Occluder> = meshes
+            .iter()
+            .map(|mesh| Occluder {
+                mesh,
+                transform: glam::Mat4::IDENTITY,
+            })
+            .collect();
         let settings = MarchSettings {
             method: MarchMethod::Exact,
             ..MarchSettings::default()
@@ -284,10 +421,10 @@ fn check_scenes(scenes: &[RandomScene], bars: (f64, f64)) -> (f64, f64) {
             common::shadow_frame(&gpu, &cache, &passes)
         };
         let render = |light: &Light| render_with(light, &occluders);
-        let soft: Light = s.light.into();
+        let soft = s.light;
         let frame = render(&soft);
         let e = errors(&frame.inscatter, &reference, &s.camera, &soft, (SIZE, SIZE));
-        let hard: Light = s.light.with_radius(0.0).unwrap().into();
+        let hard = without_radius(s.light);
         let hard_errors = errors(
             &render(&hard).inscatter,
             &reference,
@@ -312,6 +449,9 @@ fn check_scenes(scenes: &[RandomScene], bars: (f64, f64)) -> (f64, f64) {
             100.0 * hard_errors.p95,
             100.0 * unshadowed.p95
         );
+        if e.non_finite == 0 && e.rmse <= RMSE_BAR && e.p95 <= P95_BAR {
+            within += 1;
+        }
         if e.non_finite > 0 || !(e.rmse <= bars.0 && e.p95 <= bars.1) {
             failures.push(format!("{}: {e}", s.describe));
         }
@@ -321,11 +461,12 @@ fn check_scenes(scenes: &[RandomScene], bars: (f64, f64)) -> (f64, f64) {
         "failing seeds:\n{}",
         failures.join("\n")
     );
+    // Against the p95 bar: each scene must be able to tell a lit penumbra at it.
     assert!(
-        unshadowed_least > 2.0 * bars.1,
+        unshadowed_least > 2.0 * P95_BAR,
         "a scene's shadow ignored is within {unshadowed_least} of its reference: it cannot tell"
     );
-    (worst, hard_worst)
+    (worst, hard_worst, within)
 }
 
 fn sphere_occluder(gpu: &volshadow::HeadlessGpu, at: Vec3) -> OccluderMesh {

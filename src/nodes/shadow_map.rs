@@ -322,10 +322,12 @@ impl ShadowMapNode {
     }
 
     /// The face matrices this node uses for `light`, with near plane `near`: reversed-Z
-    /// infinite perspective per face (90° cube faces, or the spot cone plus a small margin).
-    /// None for a directional light, whose face depends on the camera
+    /// infinite perspective per face (90° cube faces, or the spot cone plus a small margin,
+    /// widened for a light with a radius by the penumbra's reach beyond the cone: see
+    /// [`spot_fov`](Self::spot_fov), with `occluder_distance` the least distance from the
+    /// light to an occluder). None for a directional light, whose face depends on the camera
     /// ([`directional_matrix`](Self::directional_matrix)).
-    pub fn face_matrices(light: &Light, near: f32) -> Vec<Mat4> {
+    pub fn face_matrices(light: &Light, near: f32, occluder_distance: f32) -> Vec<Mat4> {
         use glam::camera::rh::{proj::directx::perspective_infinite_reverse, view::look_to_mat4};
         let p = light.position().unwrap_or_default();
         match light {
@@ -345,7 +347,8 @@ impl ShadowMapNode {
                 .collect()
             }
             Light::Spot(spot) => {
-                let proj = perspective_infinite_reverse(Self::spot_fov(spot), 1.0, near);
+                let fov = Self::spot_fov(spot, occluder_distance);
+                let proj = perspective_infinite_reverse(fov, 1.0, near);
                 vec![proj * spot.texture_frame()]
             }
         }
@@ -406,18 +409,28 @@ impl ShadowMapNode {
     }
 
     /// A spot map's field of view: the cone inscribed in the square frustum, with a texel of
-    /// margin.
-    fn spot_fov(spot: &crate::scene::SpotLight) -> f32 {
-        (spot.cone_angle() * 1.02).min(179f32.to_radians())
+    /// margin. For a light of radius r the lines from a point inside the cone to the light's
+    /// disc reach occluders outside it: one at distance b from the light lies up to
+    /// atan(r / b) off the point's direction, so the field widens by twice that at the least
+    /// occluder distance b (an occluder cut off by the map's edge would light its penumbra).
+    /// Radius 0: the cone alone, as for hard shadows.
+    pub fn spot_fov(spot: &crate::scene::SpotLight, occluder_distance: f32) -> f32 {
+        let cone = spot.cone_angle() * 1.02;
+        let widened = if spot.radius() > 0.0 {
+            cone + 2.0 * (spot.radius() / occluder_distance.max(0.0)).atan()
+        } else {
+            cone
+        };
+        widened.min(179f32.to_radians())
     }
 
     /// Cosine of the widest angle between a face's axis and a direction inside its frustum
     /// (a corner of the square): the near plane lies along the axis, so a point at distance r
     /// can be as near as r times this along it.
-    fn corner_cosine(light: &Light) -> f32 {
+    fn corner_cosine(light: &Light, occluder_distance: f32) -> f32 {
         let half_tan = match light {
             Light::Point(_) => 1.0,
-            Light::Spot(spot) => (0.5 * Self::spot_fov(spot)).tan(),
+            Light::Spot(spot) => (0.5 * Self::spot_fov(spot, occluder_distance)).tan(),
             Light::Directional(_) => 1.0,
         };
         1.0 / (1.0 + 2.0 * half_tan * half_tan).sqrt()
@@ -534,6 +547,8 @@ impl ShadowMapNode {
         if let Light::Spot(s) = light {
             key.extend(bits(&s.direction().to_array()));
             key.push(s.cone_angle().to_bits());
+            // The radius widens the map's field of view (`spot_fov`).
+            key.push(s.radius().to_bits());
         }
         for o in occluders {
             key.extend([o.mesh.id() as u32, (o.mesh.id() >> 32) as u32]);
@@ -554,24 +569,6 @@ impl ShadowMapNode {
         // it past a small occluder next to the light). When the light is inside an occluder's
         // bounds the distance is 0; then a floor of about one f32 step of the light's
         // coordinates (nothing nearer can be placed) keeps the projection finite.
-        if let Some(face) = directional {
-            self.faces = vec![face];
-        } else {
-            let p = light.position().unwrap_or_default();
-            let along_axis = (0.9 * Self::corner_cosine(light)).min(0.5);
-            let mut near = f32::INFINITY;
-            for o in occluders {
-                let (lo, hi) = o.world_bounds();
-                near = near.min(along_axis * p.clamp(lo, hi).distance(p));
-            }
-            let floor = 1e-7 * p.abs().max_element().max(1e-3);
-            let near = if near.is_finite() {
-                near.max(floor)
-            } else {
-                floor
-            };
-            self.faces = Self::face_matrices(light, near);
-        }
         self.occluder_distance = match light.position() {
             Some(p) => occluders
                 .iter()
@@ -584,6 +581,24 @@ impl ShadowMapNode {
         };
         if !self.occluder_distance.is_finite() {
             self.occluder_distance = 0.0;
+        }
+        if let Some(face) = directional {
+            self.faces = vec![face];
+        } else {
+            let p = light.position().unwrap_or_default();
+            let along_axis = (0.9 * Self::corner_cosine(light, self.occluder_distance)).min(0.5);
+            let mut near = f32::INFINITY;
+            for o in occluders {
+                let (lo, hi) = o.world_bounds();
+                near = near.min(along_axis * p.clamp(lo, hi).distance(p));
+            }
+            let floor = 1e-7 * p.abs().max_element().max(1e-3);
+            let near = if near.is_finite() {
+                near.max(floor)
+            } else {
+                floor
+            };
+            self.faces = Self::face_matrices(light, near, self.occluder_distance);
         }
         self.bounds = occluders
             .iter()
