@@ -141,18 +141,25 @@ fn soft_estimate(p: vec3<f32>) -> vec2<f32> {
     var sum = 0.0;
     var count = 0.0;
     var cs = start;
+    // The blockers found (their distance ratios, 2 for none) and the nearest of them: blockers
+    // at clearly different distances are two layers (see below).
+    var found: array<f32, SOFT_FOUND_TAPS>;
+    var least = 2.0;
     for (var k = 0u; k < SOFT_SEARCH_TAPS; k++) {
         let b = blocker_ratio(soft_tap(u, e1, e2, dist, search * spiral_radius(k, SOFT_SEARCH_TAPS), cs));
         cs = spiral_next(cs);
+        found[k] = b;
         if (b < 1.0) {
             sum = max(sum, b);
             count += 1.0;
+            least = min(least, b);
         }
     }
     let centre = blocker_ratio(p);
     if (centre < 1.0) {
         sum = max(sum, centre);
         count += 1.0;
+        least = min(least, centre);
     }
     if (count == 0.0) {
         return vec2<f32>(1.0, search); // no blocker within `search` of p's direction
@@ -165,9 +172,11 @@ fn soft_estimate(p: vec3<f32>) -> vec2<f32> {
     for (var k = 0u; k < SOFT_SEARCH_TAPS; k++) {
         let b = blocker_ratio(soft_tap(u, e1, e2, dist, width * spiral_radius(k, SOFT_SEARCH_TAPS), cs));
         cs = spiral_next(cs);
+        found[SOFT_SEARCH_TAPS + k] = b;
         if (b < 1.0) {
             sum = max(sum, b);
             blocked++;
+            least = min(least, b);
         }
     }
     // Every tap of both rounds blocked: the umbra (the filter covers no more than the second
@@ -176,8 +185,41 @@ fn soft_estimate(p: vec3<f32>) -> vec2<f32> {
         return vec2<f32>(0.0, search);
     }
     width = min(radius * (1.0 / max(dist * sum, nearest) - 1.0 / dist), search);
+    if (sum > LAYER_SPLIT * least) {
+        // Two layers: occluders at clearly different distances (one's penumbra over the
+        // other's), each with its own filter width, the farthest blocker of its own layer. A
+        // line from p to the disc's point at the spiral's tap k is blocked if either layer
+        // hides the tap's direction at its width (the union, not a product of fractions).
+        // Measured (tests/soft_grid.rs, overlapping penumbrae): p95 4.63% → 4.13%; scenes
+        // with one occluder never take this branch.
+        let split = sqrt(sum * least);
+        var near = least;
+        found[SOFT_FOUND_TAPS - 1u] = centre;
+        for (var k = 0u; k < SOFT_FOUND_TAPS; k++) {
+            if (found[k] < split) {
+                near = max(near, found[k]);
+            }
+        }
+        let near_width = min(radius * (1.0 / max(dist * near, nearest) - 1.0 / dist), search);
+        var lit = 0.0;
+        cs = start;
+        for (var k = 0u; k < SOFT_FILTER_TAPS; k++) {
+            let r = spiral_radius(k, SOFT_FILTER_TAPS);
+            let far_b = blocker_ratio(soft_tap(u, e1, e2, dist, width * r, cs));
+            let near_b = blocker_ratio(soft_tap(u, e1, e2, dist, near_width * r, cs));
+            cs = spiral_next(cs);
+            let hidden = (far_b < 1.0 && far_b >= split) || near_b < split;
+            lit += select(1.0, 0.0, hidden);
+        }
+        return vec2<f32>(lit / f32(SOFT_FILTER_TAPS), width);
+    }
     return vec2<f32>(soft_filter(u, e1, e2, dist, width, SOFT_FILTER_TAPS, start), width);
 }
+
+// Taps whose blockers `soft_estimate` keeps: both search rounds and the centre.
+const SOFT_FOUND_TAPS: u32 = 33u;
+// Blockers' distances further apart than this ratio are two layers in `soft_estimate`.
+const LAYER_SPLIT: f32 = 1.5;
 
 // The mean hard visibility over `n` taps of the disc of angular radius `width` (its tangent)
 // around the direction u from the light, at distance `dist` (the filter of `soft_estimate`).

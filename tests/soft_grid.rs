@@ -117,27 +117,15 @@ fn without_radius(light: Light) -> Light {
 /// `random_scene` with a spot light (its apex angle log-uniform over `cone`, radians) aimed
 /// off the sphere by 0.4 to 1.1 times its half-angle, so that the cone's edge crosses the
 /// sphere or passes near it and the penumbra inside the cone reaches parts of the sphere
-/// outside it. With `two` a second sphere (radius the first's times a factor over `scale`, at
-/// most `max_size` times its distance from the light) beside, before or behind the first:
-/// two penumbrae at different distances.
-fn random_spot_scene(
-    seed: u64,
-    log_tau: (f32, f32),
-    cone: (f32, f32),
-    scale: (f32, f32),
-    max_size: f32,
-    two: bool,
-) -> RandomScene {
+/// outside it.
+fn random_spot_scene(seed: u64, log_tau: (f32, f32), cone: (f32, f32)) -> RandomScene {
     let mut s = random_scene(seed, log_tau);
     let mut rng = fastrand::Rng::with_seed(seed ^ 0x5eed_5907);
     let mut uniform = |lo: f32, hi: f32| lo + (hi - lo) * rng.f32();
     let Light::Point(point) = s.light else {
         unreachable!("random_scene makes point lights")
     };
-    let (center, rho) = s.spheres[0];
-    let to_sphere = center - point.position();
-    let l = to_sphere.length();
-    let axis = to_sphere / l;
+    let axis = (s.spheres[0].0 - point.position()).normalize();
     let side = Quat::from_axis_angle(axis, uniform(0.0, std::f32::consts::TAU))
         * axis.any_orthonormal_vector();
     let apex = (cone.0.ln() + (cone.1.ln() - cone.0.ln()) * uniform(0.0, 1.0)).exp();
@@ -154,27 +142,6 @@ fn random_spot_scene(
         apex.to_degrees(),
         2.0 * off / apex
     );
-    if two {
-        let mut c2 =
-            point.position() + axis * l * uniform(0.6, 2.0) + side * rho * uniform(0.0, 1.5);
-        let rho2 =
-            (rho * uniform(scale.0, scale.1)).min(max_size * (c2 - point.position()).length());
-        let gap = c2 - center;
-        if gap.length() < (rho + rho2) * 1.05 {
-            c2 = center + gap.normalize_or(side) * (rho + rho2) * 1.05;
-        }
-        let clearance = point.radius() + rho2;
-        if (c2 - point.position()).length() < clearance * 1.2 {
-            c2 = point.position() + (c2 - point.position()).normalize_or(axis) * clearance * 1.2;
-        }
-        s.spheres.push((c2, rho2));
-        s.describe = format!(
-            "{}, second sphere rho/L {:.2} at {:.2} L",
-            s.describe,
-            rho2 / l,
-            (c2 - point.position()).length() / l
-        );
-    }
     s
 }
 
@@ -206,52 +173,71 @@ fn random_soft_scenes_against_the_reference() {
     );
 }
 
-/// Seeded scenes with a spot light (apex 30° to 90°) whose cone's edge crosses the sphere or
-/// passes near it (`random_spot_scene`), σt·L from 1e-4 to 1, through the grid (exact method):
-/// all finite and beyond twice the p95 bar with the shadow ignored; at least 9 of the 12
-/// within the bars, and every one within p95 15%, RMSE 4%. Those two are measured
-/// limits (2026-11-23: 9 within; the others, p95 5.2%, 5.6%, 14.6%, RMSE up to 4.0%, are
-/// views in which every counted pixel is in the hard umbra, lit only by the deep penumbra, a
-/// known limitation: see the `SoftShadowNode` docs). Before the spot map widened for the
-/// penumbra (`ShadowMapNode::spot_fov`), the parts of the sphere outside the cone were missing
-/// from it and lit the penumbra they cast inside: 4 within the bars, p95 up to 112%,
-/// RMSE up to 6.9%.
+/// Seeded scenes with a spot light whose cone's edge crosses the sphere or passes near it
+/// (`random_spot_scene`), σt·L from 1e-4 to 1, through the grid (exact method), twice over
+/// the same seeds: apex 30° to 90°, and 30° to 115° (a map up to 179° once widened for the
+/// penumbra, coarse at its centre). All finite and beyond twice the p95 bar with the shadow
+/// ignored; of each 12, at least 9 within the bars, and every one within p95 15%,
+/// RMSE 4%. Those two are measured limits (2026-11-23: 9 and 10 within; the others, p95 3.8%,
+/// 5.6%, 14.5% and 4.6%, 13.2%, RMSE up to 4.0%, are views in which every counted pixel is in
+/// the hard umbra, lit only by the deep penumbra: a known limitation, see the
+/// `SoftShadowNode` docs). Before the spot map widened for the penumbra
+/// (`ShadowMapNode::spot_fov`), the parts of the sphere outside the cone were missing from it
+/// and lit the penumbra they cast inside: 4 of the first 12 within the bars, p95 up
+/// to 112%, RMSE up to 6.9%.
 #[test]
 fn random_soft_spot_scenes_against_the_reference() {
     const LIMIT_BARS: (f64, f64) = (0.04, 0.15);
     const WITHIN: usize = 9;
-    let scenes: Vec<RandomScene> = (200..200 + SEEDS)
-        .map(|seed| random_spot_scene(seed, (-4.0, 0.0), (0.52, 1.57), (0.1, 1.2), 0.3, false))
-        .collect();
-    let (worst, hard_worst, within) = check_scenes_counted(&scenes, LIMIT_BARS);
-    eprintln!(
-        "worst p95 {:.2}%, hard {:.2}%, {within} of {} within the issue's bars",
-        100.0 * worst,
-        100.0 * hard_worst,
-        scenes.len()
-    );
-    assert!(
-        within >= WITHIN,
-        "{within} of {} scenes within the issue's bars, fewer than {WITHIN}",
-        scenes.len()
-    );
+    for cone in [(0.52, 1.57), (0.52, 2.0)] {
+        let scenes: Vec<RandomScene> = (200..200 + SEEDS)
+            .map(|seed| random_spot_scene(seed, (-4.0, 0.0), cone))
+            .collect();
+        let (worst, hard_worst, within) = check_scenes_counted(&scenes, LIMIT_BARS);
+        eprintln!(
+            "apex {:.0}° to {:.0}°: worst p95 {:.2}%, hard {:.2}%, {within} of {} within the issue's bars",
+            cone.0.to_degrees(),
+            cone.1.to_degrees(),
+            100.0 * worst,
+            100.0 * hard_worst,
+            scenes.len()
+        );
+        assert!(
+            within >= WITHIN,
+            "apex up to {:.0}°: {within} of {} scenes within the issue's bars, fewer than {WITHIN}",
+            cone.1.to_degrees(),
+            scenes.len()
+        );
+    }
 }
 
-/// Known limitations, run by hand: a wide spot (apex up to 115°, its map up to 179° once
-/// widened for the penumbra, coarse at its centre) with a sphere up to twice as large near the
-/// light; and two spheres at different distances, whose penumbrae overlap (the soft estimate
-/// takes one blocker distance for both). Both fail the bars on some seeds: see the node's docs.
-#[test]
-#[ignore = "known limitations (wide spot maps, large occluders near the light, overlapping penumbrae at different distances); ~4 min"]
-fn random_soft_spot_scenes_wide_and_overlapping() {
-    let mut scenes: Vec<RandomScene> = (200..200 + SEEDS)
-        .map(|seed| random_spot_scene(seed, (-4.0, 0.0), (0.52, 2.0), (0.1, 2.0), 0.8, false))
-        .collect();
-    scenes.extend(
-        (200..200 + SEEDS)
-            .map(|seed| random_spot_scene(seed, (-4.0, 0.0), (0.52, 2.0), (0.1, 2.0), 0.8, true)),
+/// Two spheres at different distances from a light of radius 0.3: the far one (radius 0.5 at
+/// 3.5) in the near one's (radius 0.3 at 1.5) penumbra, their penumbrae overlapping behind it;
+/// thin fog, the eye beside the shadows looking across them.
+fn overlap_scene() -> RandomScene {
+    let mut s = umbra_scene(
+        Vec3::new(4.0, 0.3, 5.0),
+        Vec3::new(0.2, 0.0, 5.5),
+        "two spheres, overlapping penumbrae",
     );
-    check_scenes(&scenes, (RMSE_BAR, P95_BAR));
+    s.spheres = vec![
+        (Vec3::new(0.0, 0.0, 1.5), 0.3),
+        (Vec3::new(0.45, 0.0, 3.5), 0.5),
+    ];
+    s
+}
+
+/// Overlapping penumbrae at different distances (`overlap_scene`). Bars: RMSE the 2%;
+/// p95 4.5%, a measured limit above the 3% (2026-11-23: 4.13%, RMSE 1.70%; with one
+/// blocker distance for both spheres, before the estimate took two layers, 4.63%; each sphere
+/// alone 0.38% and 1.88%). The far sphere is half hidden behind the near one in the shadow
+/// map, which holds one surface a direction: a known limitation (see the `SoftShadowNode`
+/// docs).
+#[test]
+fn overlapping_penumbrae_at_different_distances() {
+    const OVERLAP_P95_BAR: f64 = 0.045;
+    let (worst, _) = check_scenes(&[overlap_scene()], (RMSE_BAR, OVERLAP_P95_BAR));
+    eprintln!("p95 {:.2}%", 100.0 * worst);
 }
 
 /// A sphere of radius 0.6 at distance 2 from a light of radius 0.3 (its umbra widens behind it
