@@ -412,16 +412,19 @@ impl ShadowMapNode {
     /// margin. For a light of radius r the lines from a point inside the cone to the light's
     /// disc reach occluders outside it: one at distance b from the light lies up to
     /// atan(r / b) off the point's direction, so the field widens by twice that at the least
-    /// occluder distance b (an occluder cut off by the map's edge would light its penumbra).
+    /// occluder distance b (an occluder cut off by the map's edge would light its penumbra),
+    /// but at most to twice the cone's half-width on the map's plane (texels at most twice as
+    /// coarse: an occluder around the light, b = 0, would otherwise take the field to 179°).
     /// Radius 0: the cone alone, as for hard shadows.
     pub fn spot_fov(spot: &crate::scene::SpotLight, occluder_distance: f32) -> f32 {
         let cone = spot.cone_angle() * 1.02;
-        let widened = if spot.radius() > 0.0 {
-            cone + 2.0 * (spot.radius() / occluder_distance.max(0.0)).atan()
-        } else {
-            cone
-        };
-        widened.min(179f32.to_radians())
+        let max = 179f32.to_radians();
+        if !(spot.radius() > 0.0) {
+            return cone.min(max);
+        }
+        let widened = cone + 2.0 * (spot.radius() / occluder_distance.max(0.0)).atan();
+        let twice = 2.0 * (2.0 * (0.5 * cone).tan()).atan();
+        widened.min(twice).min(max)
     }
 
     /// Cosine of the widest angle between a face's axis and a direction inside its frustum
@@ -560,15 +563,9 @@ impl ShadowMapNode {
         }
         self.key = key;
 
-        // Near plane: half the distance to the nearest occluder's bounds, or less for a wide
-        // spot cone (measured along the axis, an occluder near the frustum's edge is nearer
-        // than its distance: a 165° cone clipped a sphere 84° off axis), so every occluder is
-        // in front of it. Depth is near / distance in f32 (reversed Z), whose relative
-        // precision is the same at every distance, so a tiny near plane costs nothing: no
-        // floor relative to the scene's size (a terrain-sized occluder elsewhere would push
-        // it past a small occluder next to the light). When the light is inside an occluder's
-        // bounds the distance is 0; then a floor of about one f32 step of the light's
-        // coordinates (nothing nearer can be placed) keeps the projection finite.
+        // The least distance from the light to an occluder's bounds (0 without occluders or
+        // with the light inside their bounds): a spot map widens by it for a light with a
+        // radius (`spot_fov`).
         self.occluder_distance = match light.position() {
             Some(p) => occluders
                 .iter()
@@ -582,6 +579,16 @@ impl ShadowMapNode {
         if !self.occluder_distance.is_finite() {
             self.occluder_distance = 0.0;
         }
+
+        // Near plane: half the distance to the nearest occluder's bounds, or less for a wide
+        // spot cone (measured along the axis, an occluder near the frustum's edge is nearer
+        // than its distance: a 165° cone clipped a sphere 84° off axis), so every occluder is
+        // in front of it. Depth is near / distance in f32 (reversed Z), whose relative
+        // precision is the same at every distance, so a tiny near plane costs nothing: no
+        // floor relative to the scene's size (a terrain-sized occluder elsewhere would push
+        // it past a small occluder next to the light). When the light is inside an occluder's
+        // bounds the distance is 0; then a floor of about one f32 step of the light's
+        // coordinates (nothing nearer can be placed) keeps the projection finite.
         if let Some(face) = directional {
             self.faces = vec![face];
         } else {

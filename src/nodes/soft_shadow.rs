@@ -20,9 +20,9 @@
 //! shadow map's own visibility there, at a finer step (see [`MarchNode`](crate::nodes::MarchNode)).
 //! Measured against the f64 reference (`tests/soft.rs`, `tests/soft_grid.rs`): a sphere under
 //! a light of radius 0.2 × their distance p95 0.74%, RMSE 0.38% (the per-step estimate: 0.82%,
-//! 0.41%); a torus under a spot 1.3% RMSE (0.9% before its map widened for the radius). Before the back-face layer, without the marks:
-//! 3.8% on the torus, and 3.9% p95 under a small light (radius 0.03 × the distance) whose
-//! penumbrae are sharp almost everywhere.
+//! 0.41%); a torus under a spot 1.3% RMSE (0.9% before its map widened for the radius).
+//! Before the back-face layer, without the marks: 3.8% on the torus, and 3.9% p95 under a
+//! small light (radius 0.03 × the distance) whose penumbrae are sharp almost everywhere.
 //!
 //! # Limitations
 //! PCSS assumes one planar blocker per point, and the grid's cells are fixed in light space.
@@ -38,7 +38,7 @@
 //! 1.8% with the front surface alone). A small light seen close up in thick fog: 7.8% through
 //! the grid (its cells are coarse for that view), 1.1% estimating per step. Under a spot whose
 //! cone's edge crosses the occluder, a view lit only by the deep penumbra is off by up to p95
-//! 14.5% (5 of 24 seeded scenes beyond p95 3%). Where blockers lie at clearly different
+//! 13.4% (5 of 24 seeded scenes beyond p95 3%). Where blockers lie at clearly different
 //! distances (ratio > 1.5) the estimate takes two layers, each with its own filter width; the
 //! shadow map still holds one surface a direction, so an occluder hidden behind a nearer one
 //! is partly missed: two spheres with overlapping penumbrae, p95 4.1% (4.6% with one layer;
