@@ -419,7 +419,7 @@ impl ShadowMapNode {
     pub fn spot_fov(spot: &crate::scene::SpotLight, occluder_distance: f32) -> f32 {
         let cone = spot.cone_angle() * 1.02;
         let max = 179f32.to_radians();
-        if !(spot.radius() > 0.0) {
+        if spot.radius() <= 0.0 {
             return cone.min(max);
         }
         let widened = cone + 2.0 * (spot.radius() / occluder_distance.max(0.0)).atan();
