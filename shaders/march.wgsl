@@ -47,6 +47,7 @@ struct MarchParams {
     // occluder's bounding sphere, the number of bounding spheres in `spheres`.
     soft: vec4<f32>,
     spheres: array<vec4<f32>, 8>,  // occluders' world bounding spheres (centre, radius)
+    planes: array<vec4<f32>, 8>,   // each sphere's occluder in n·x ≤ d, (n, d); zero: none
     // The soft-shadow grid (shaders/soft_shadow.wgsl): directions, slices, layers, and the
     // angle (radians) a cell subtends at the light (0: no grid bound).
     soft_grid: vec4<f32>,
@@ -286,6 +287,20 @@ fn penumbra_cone(dir: vec3<f32>, x_end: f32, c: vec3<f32>, rho: f32) -> vec2<f32
     return hull;
 }
 
+// The part of the ray interval [h.x, h.y] (x) in n·x ≤ d for plane = (n, d) (ShadowMap::planes):
+// where the occluder can cast a penumbra; empty: h.x > h.y.
+fn beneath_plane(h: vec2<f32>, dir: vec3<f32>, plane: vec4<f32>) -> vec2<f32> {
+    let f0 = dot(plane.xyz, air.eye) - plane.w;
+    let f1 = dot(plane.xyz, dir);
+    if (f1 > 0.0) {
+        return vec2<f32>(h.x, min(h.y, -f0 / f1));
+    }
+    if (f1 < 0.0) {
+        return vec2<f32>(max(h.x, -f0 / f1), h.y);
+    }
+    return select(vec2<f32>(1.0, 0.0), h, f0 <= 0.0);
+}
+
 // Where a soft shadow may be along the ray, in s: the hull of the occluders' penumbra cones
 // (empty: (1, 0)). Brute force marches all of it, and so does a shadow map without bounds.
 fn soft_extents(ray: PixelRay, r: AirRay, x_end: f32) -> vec2<f32> {
@@ -298,8 +313,13 @@ fn soft_extents(ray: PixelRay, r: AirRay, x_end: f32) -> vec2<f32> {
     }
     var hull = vec2<f32>(FAR, -1.0);
     for (var i = 0u; i < count; i++) {
-        let h = penumbra_cone(ray.dir, x_end, mp.spheres[i].xyz, mp.spheres[i].w);
-        hull = vec2<f32>(min(hull.x, h.x), max(hull.y, h.y));
+        var h = penumbra_cone(ray.dir, x_end, mp.spheres[i].xyz, mp.spheres[i].w);
+        h = beneath_plane(h, ray.dir, mp.planes[i]);
+        // A piece within rounding of a point (a ray ending on a ground's plane) holds no
+        // penumbra: it would only be marched.
+        if (h.y - h.x > 1.0e-4 * abs(h.y)) {
+            hull = vec2<f32>(min(hull.x, h.x), max(hull.y, h.y));
+        }
     }
     if (!(hull.x <= hull.y)) {
         return vec2<f32>(1.0, 0.0);

@@ -3,7 +3,7 @@
 // `shadow_map` and `shadow_back` (texture_depth_2d_array: the front surfaces, and the back
 // faces of closed occluders; the front map again where there is none), `shadow_sampler`
 // (comparison), `mp` with the fields
-// `faces`, `depth_bias`, `soft` and `spheres` (as the march's `MarchParams`), and
+// `faces`, `depth_bias`, `soft`, `spheres` and `planes` (as the march's `MarchParams`), and
 // `fn pcss_light() -> vec3<f32>`, the light's position.
 
 // The shadow map's layer holding the world point `p`: the cube face of a point light (+X, −X,
@@ -259,6 +259,10 @@ fn may_be_hidden(p: vec3<f32>) -> bool {
     }
     let radius = mp.soft.x;
     for (var i = 0u; i < count; i++) {
+        // Beyond the occluder's plane, away from it: no line to the light meets it.
+        if (dot(mp.planes[i].xyz, p) > mp.planes[i].w) {
+            continue;
+        }
         let to_c = mp.spheres[i].xyz - pcss_light();
         let rho = mp.spheres[i].w;
         let l = length(to_c);

@@ -19,6 +19,7 @@ struct SoftShadowParams {
     soft: vec4<f32>,                         // as the march's: radius, nearest, sphere count,
                                              // and the angle (radians) a cell subtends
     spheres: array<vec4<f32>, 8>,            // occluders' bounding spheres
+    planes: array<vec4<f32>, 8>,             // and their planes, as the march's
 }
 
 @group(0) @binding(0) var<storage, read> mp: SoftShadowParams;

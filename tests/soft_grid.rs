@@ -632,3 +632,95 @@ fn the_grid_rejects_what_it_cannot_use() {
         Err(Error::NotPrepared { .. })
     ));
 }
+
+/// A ground (an open plane, 60 × 60) under a light of radius 0.3, 3 above it, with a sphere
+/// between them: the ground's bounding sphere holds the light, so its penumbra cone is all of
+/// space, and every ray would be marched through the grid. Its separating plane
+/// (`ShadowMap::planes`) keeps the march to the sphere's cone above the ground: the same
+/// pixels are marched with the ground as without it. Measured (2026-11-23, exact method,
+/// 48²): 428 of 2304 pixels either way; without the planes, 2304 with the ground (170707
+/// steps against 26991).
+#[test]
+fn a_ground_adds_no_march_above_it() {
+    let gpu = common::gpu();
+    let cache = Cache::new(&gpu.device);
+    let light: Light = PointLight::new(Vec3::new(0.0, 3.0, 0.0), Vec3::splat(4.0))
+        .unwrap()
+        .with_radius(0.3)
+        .unwrap()
+        .into();
+    let medium = Medium::new(
+        Vec3::splat(0.08),
+        Vec3::splat(0.02),
+        PhaseFunction::Isotropic,
+    )
+    .unwrap();
+    let eye = Vec3::new(0.0, 1.0, 6.0);
+    let view = look_at_mat4(eye, Vec3::new(0.0, 1.0, 0.0), Vec3::Y);
+    let camera = Camera::new(view, directx::perspective(1.2, 1.0, 1e-2, 1e3)).unwrap();
+    // Rays end on the ground (y = 0) or on a wall at z = −10.
+    let depths: Vec<f32> = (0..SIZE * SIZE)
+        .map(|i| {
+            let (o, d) = common::pixel_ray(&camera, SIZE, SIZE, i % SIZE, i / SIZE);
+            let ground = if d.y < 0.0 { -o.y / d.y } else { f64::INFINITY };
+            let wall = if d.z < 0.0 {
+                (-10.0 - o.z) / d.z
+            } else {
+                f64::INFINITY
+            };
+            let t = ground.min(wall);
+            if t.is_finite() {
+                common::ndc_depth(&camera, o + t * d)
+            } else {
+                camera.far_depth()
+            }
+        })
+        .collect();
+    let depth = common::depth_texture(&gpu, SIZE, SIZE, &depths);
+    let sphere = OccluderMesh::new(
+        &gpu.device,
+        &shapes::uv_sphere(Vec3::new(0.0, 1.6, 0.0), 0.4, 32, 16).unwrap(),
+    );
+    let ground = OccluderMesh::new(
+        &gpu.device,
+        &shapes::plane(Vec3::ZERO, glam::Vec2::splat(30.0)).unwrap(),
+    );
+    let settings = MarchSettings {
+        method: MarchMethod::Exact,
+        ..MarchSettings::default()
+    };
+    // Pixels whose ray is marched (steps > 0), and all the steps.
+    let marched = |meshes: &[&OccluderMesh]| -> (usize, u64) {
+        let occluders: Vec<Occluder> = meshes
+            .iter()
+            .map(|&mesh| Occluder {
+                mesh,
+                transform: glam::Mat4::IDENTITY,
+            })
+            .collect();
+        let passes = common::ShadowPasses::new(&camera, &light, &medium, &depth, &occluders)
+            .settings(settings);
+        let frame = common::shadow_frame(&gpu, &cache, &passes);
+        (
+            frame.steps.iter().filter(|&&s| s > 0).count(),
+            frame.steps.iter().map(|&s| u64::from(s)).sum(),
+        )
+    };
+    let alone = marched(&[&sphere]);
+    let with_ground = marched(&[&sphere, &ground]);
+    eprintln!(
+        "marched pixels (steps): sphere alone {} ({}), with the ground {} ({}), of {}",
+        alone.0,
+        alone.1,
+        with_ground.0,
+        with_ground.1,
+        SIZE * SIZE
+    );
+    assert!(alone.0 > 0, "the sphere's penumbra is in view");
+    assert!(
+        with_ground.0 == alone.0,
+        "the ground added marched pixels above it: {} against {}",
+        with_ground.0,
+        alone.0
+    );
+}

@@ -320,6 +320,7 @@ struct MarchUniform {
     _pad: [u32; 3],
     soft: [f32; 4],
     spheres: [[f32; 4]; MAX_SOFT_SPHERES],
+    planes: [[f32; 4]; MAX_SOFT_SPHERES],
     soft_grid: [f32; 4],
 }
 
@@ -728,7 +729,11 @@ impl MarchNode {
             .write(queue, ViewUniform::new(camera, width, height));
 
         let mut faces = [[0.0; 16]; 6];
-        let (mut soft_consts, mut spheres) = ([0.0; 4], [[0.0; 4]; MAX_SOFT_SPHERES]);
+        let (mut soft_consts, mut spheres, mut planes) = (
+            [0.0; 4],
+            [[0.0; 4]; MAX_SOFT_SPHERES],
+            [[0.0; 4]; MAX_SOFT_SPHERES],
+        );
         let (mut depth_bias, mut extents_near) = (0.0, 0.0);
         let mode = match &inputs.shadows {
             None if self.settings.method == MarchMethod::Textbook => Mode::Textbook,
@@ -739,7 +744,7 @@ impl MarchNode {
                 }
                 depth_bias = s.shadow_map.depth_bias;
                 if soft {
-                    (soft_consts, spheres) = soft_params(inputs.light, &s.shadow_map);
+                    (soft_consts, spheres, planes) = soft_params(inputs.light, &s.shadow_map);
                 }
                 extents_near = s.extents.map_or(0.0, |e| e.near);
                 match (self.settings.method, s.extents) {
@@ -789,6 +794,7 @@ impl MarchNode {
                 _pad: [0; 3],
                 soft: soft_consts,
                 spheres,
+                planes,
                 soft_grid: match (grid, &inputs.shadows) {
                     (Some(g), Some(s)) => [
                         g.size.directions as f32,

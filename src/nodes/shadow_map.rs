@@ -139,6 +139,11 @@ pub struct ShadowMap<'a> {
     /// with a radius can cast a penumbra. Empty (a shadow map rendered by the caller without
     /// them): a soft light's rays are marched whole.
     pub bounds: &'a [Vec4],
+    /// For each of `bounds` (same order; missing or zero: none), a plane `(n, d)` with the
+    /// occluder in `n·x ≤ d` and the light's sphere strictly beyond it: no line from a point
+    /// beyond the plane to the light meets the occluder, so its penumbra lies in `n·x ≤ d`. A
+    /// flat occluder such as a ground, whose bounding sphere holds the light, is bounded by it.
+    pub planes: &'a [Vec4],
     /// The least distance from the light to an occluder's world bounding box (tighter than
     /// `bounds`' spheres); 0 when not known.
     pub occluder_distance: f32,
@@ -250,6 +255,7 @@ pub struct ShadowMapNode {
     back: Option<wgpu::Texture>,
     faces: Vec<Mat4>,
     bounds: Vec<Vec4>,
+    planes: Vec<Vec4>,
     face_buffer: wgpu::Buffer,
     instance_buffer: Option<wgpu::Buffer>,
     bind_group: Option<wgpu::BindGroup>,
@@ -305,6 +311,7 @@ impl ShadowMapNode {
             back: None,
             faces: Vec::new(),
             bounds: Vec::new(),
+            planes: Vec::new(),
             face_buffer: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("volshadow shadow faces"),
                 size: 6 * SLOT,
@@ -614,6 +621,15 @@ impl ShadowMapNode {
                 (0.5 * (lo + hi)).extend(0.5 * (hi - lo).length())
             })
             .collect();
+        self.planes = occluders
+            .iter()
+            .map(|o| {
+                let (lo, hi) = o.world_bounds();
+                light
+                    .position()
+                    .map_or(Vec4::ZERO, |p| separating_plane(lo, hi, p, light.radius()))
+            })
+            .collect();
         for (i, face) in self.faces.iter().enumerate() {
             queue.write_buffer(&self.face_buffer, i as u64 * SLOT, bytemuck::bytes_of(face));
         }
@@ -768,8 +784,63 @@ impl ShadowMapNode {
             faces: &self.faces,
             depth_bias: self.settings.depth_bias,
             bounds: &self.bounds,
+            planes: &self.planes,
             occluder_distance: self.occluder_distance,
             generation: self.generation,
         })
+    }
+}
+
+/// The face plane of the box `[lo, hi]` farthest from the sphere (`centre`, `radius`) among
+/// those with the sphere wholly beyond them, as `(n, d)` with the box in `n·x ≤ d` (see
+/// [`ShadowMap::planes`]); zero when the sphere reaches every face's plane.
+fn separating_plane(lo: Vec3, hi: Vec3, centre: Vec3, radius: f32) -> Vec4 {
+    let mut best = Vec4::ZERO;
+    let mut gap = 0.0;
+    for axis in 0..3 {
+        let n = Vec3::AXES[axis];
+        for (sign, face) in [(1.0, hi[axis]), (-1.0, lo[axis])] {
+            let beyond = sign * (centre[axis] - face) - radius;
+            if beyond > gap {
+                gap = beyond;
+                best = (sign * n).extend(sign * face);
+            }
+        }
+    }
+    best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The plane is the face the light's sphere lies farthest beyond; none when the sphere
+    /// reaches every face's plane. A plane that cut the sphere would let a penumbra through.
+    #[test]
+    fn separating_plane_keeps_the_light_beyond_it() {
+        let (lo, hi) = (Vec3::new(-30.0, 0.0, -30.0), Vec3::new(30.0, 0.0, 30.0));
+        // A light 3 above a ground: the top face, n·x ≤ 0 with n = +Y.
+        assert_eq!(
+            separating_plane(lo, hi, Vec3::new(0.0, 3.0, 0.0), 0.3),
+            Vec4::new(0.0, 1.0, 0.0, 0.0)
+        );
+        // Below it: the bottom face, −y ≤ 0.
+        assert_eq!(
+            separating_plane(lo, hi, Vec3::new(1.0, -2.0, 0.0), 0.3),
+            Vec4::new(0.0, -1.0, 0.0, 0.0)
+        );
+        // The light's sphere reaching the plane: none.
+        assert_eq!(
+            separating_plane(lo, hi, Vec3::new(0.0, 0.2, 0.0), 0.3),
+            Vec4::ZERO
+        );
+        // Inside a box: none.
+        let (a, b) = (Vec3::splat(-1.0), Vec3::splat(1.0));
+        assert_eq!(separating_plane(a, b, Vec3::ZERO, 0.1), Vec4::ZERO);
+        // Beside a box, farther along x than along y: the +X face.
+        assert_eq!(
+            separating_plane(a, b, Vec3::new(5.0, 2.0, 0.0), 0.5),
+            Vec4::new(1.0, 0.0, 0.0, 1.0)
+        );
     }
 }
