@@ -179,7 +179,7 @@ fn random_soft_scenes_against_the_reference() {
 /// the penumbra, coarse at its centre). All finite and beyond twice the p95 bar with the shadow
 /// ignored; of each 12, at least 9 within the bars, and every one within p95 15%,
 /// RMSE 4%. Those two are measured limits (2026-11-23: 9 and 10 within; the others, p95 4.6%,
-/// 7.1%, 13.4% and 6.5%, 10.3%, RMSE up to 3.1%, are views in which every counted pixel is in
+/// 7.1%, 13.4% and 6.4%, 10.3%, RMSE up to 3.1%, are views in which every counted pixel is in
 /// the hard umbra, lit only by the deep penumbra: a known limitation, see the
 /// `SoftShadowNode` docs). Before the spot map widened for the penumbra
 /// (`ShadowMapNode::spot_fov`), the parts of the sphere outside the cone were missing from it
