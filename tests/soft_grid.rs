@@ -371,17 +371,7 @@ fn check_scenes_counted(scenes: &[RandomScene], bars: (f64, f64)) -> (f64, f64, 
         let reference = reference::soft::inscatter_image_soft(
             &s.camera, SIZE, SIZE, wall, &s.medium, &s.light, &occ,
         );
-        let depths: Vec<f32> = (0..SIZE * SIZE)
-            .map(|i| {
-                let (o, d) = common::pixel_ray(&s.camera, SIZE, SIZE, i % SIZE, i / SIZE);
-                let t = wall(o, d);
-                if t.is_finite() {
-                    common::ndc_depth(&s.camera, o + t * d)
-                } else {
-                    s.camera.far_depth()
-                }
-            })
-            .collect();
+        let depths = common::depths_at(&s.camera, SIZE, SIZE, wall);
         let depth = common::depth_texture(&gpu, SIZE, SIZE, &depths);
         let meshes: Vec<OccluderMesh> = s
             .spheres
@@ -659,23 +649,15 @@ fn a_ground_adds_no_march_above_it() {
     let view = look_at_mat4(eye, Vec3::new(0.0, 1.0, 0.0), Vec3::Y);
     let camera = Camera::new(view, directx::perspective(1.2, 1.0, 1e-2, 1e3)).unwrap();
     // Rays end on the ground (y = 0) or on a wall at z = −10.
-    let depths: Vec<f32> = (0..SIZE * SIZE)
-        .map(|i| {
-            let (o, d) = common::pixel_ray(&camera, SIZE, SIZE, i % SIZE, i / SIZE);
-            let ground = if d.y < 0.0 { -o.y / d.y } else { f64::INFINITY };
-            let wall = if d.z < 0.0 {
-                (-10.0 - o.z) / d.z
-            } else {
-                f64::INFINITY
-            };
-            let t = ground.min(wall);
-            if t.is_finite() {
-                common::ndc_depth(&camera, o + t * d)
-            } else {
-                camera.far_depth()
-            }
-        })
-        .collect();
+    let depths = common::depths_at(&camera, SIZE, SIZE, |o, d| {
+        let ground = if d.y < 0.0 { -o.y / d.y } else { f64::INFINITY };
+        let wall = if d.z < 0.0 {
+            (-10.0 - o.z) / d.z
+        } else {
+            f64::INFINITY
+        };
+        ground.min(wall)
+    });
     let depth = common::depth_texture(&gpu, SIZE, SIZE, &depths);
     let sphere = OccluderMesh::new(
         &gpu.device,

@@ -23,6 +23,27 @@ pub fn ndc_depth(camera: &Camera, point: DVec3) -> f32 {
     (clip.z / clip.w) as f32
 }
 
+/// The depth buffer of `camera`, `width × height`, for rays ending at `distance(eye, dir)`
+/// from the eye (not finite: at the far plane).
+pub fn depths_at(
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    distance: impl Fn(DVec3, DVec3) -> f64,
+) -> Vec<f32> {
+    (0..width * height)
+        .map(|i| {
+            let (o, d) = pixel_ray(camera, width, height, i % width, i / width);
+            let t = distance(o, d);
+            if t.is_finite() {
+                ndc_depth(camera, o + t * d)
+            } else {
+                camera.far_depth()
+            }
+        })
+        .collect()
+}
+
 /// Eye position and ray direction through the centre of pixel (px, py), in f64, computed from
 /// the matrices (independent of the crate's shaders).
 pub fn pixel_ray(camera: &Camera, width: u32, height: u32, px: u32, py: u32) -> (DVec3, DVec3) {
