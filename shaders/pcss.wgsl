@@ -156,6 +156,7 @@ fn soft_estimate(p: vec3<f32>) -> vec2<f32> {
         }
     }
     let centre = blocker_ratio(p);
+    found[SOFT_FOUND_TAPS - 1u] = centre;
     if (centre < 1.0) {
         sum = max(sum, centre);
         count += 1.0;
@@ -194,7 +195,6 @@ fn soft_estimate(p: vec3<f32>) -> vec2<f32> {
         // with one occluder never take this branch.
         let split = sqrt(sum * least);
         var near = least;
-        found[SOFT_FOUND_TAPS - 1u] = centre;
         for (var k = 0u; k < SOFT_FOUND_TAPS; k++) {
             if (found[k] < split) {
                 near = max(near, found[k]);
@@ -217,7 +217,7 @@ fn soft_estimate(p: vec3<f32>) -> vec2<f32> {
 }
 
 // Taps whose blockers `soft_estimate` keeps: both search rounds and the centre.
-const SOFT_FOUND_TAPS: u32 = 33u;
+const SOFT_FOUND_TAPS: u32 = 2u * SOFT_SEARCH_TAPS + 1u;
 // Blockers' distances further apart than this ratio are two layers in `soft_estimate`.
 const LAYER_SPLIT: f32 = 1.5;
 

@@ -379,7 +379,8 @@ impl MarchStats {
 /// light, where the deep penumbra dominates, 6.4% (41.1%). The taps
 /// lie on a golden-angle spiral turned by a hash of the point (with a fixed spiral, or 16
 /// taps, the error grows). Shifted shadow maps from several points of the light (the
-/// alternative the SoftBiF-VS paper uses) were not implemented: each point costs a
+/// alternative of Ali, Sunar and Kolivand, "Soft Bilateral Filtering Volumetric Shadows
+/// Using Cube Shadow Maps", 2017) were not implemented: each point costs a
 /// shadow-map render and a lookup per step, and the visible fraction then moves in steps of
 /// one over their count.
 ///

@@ -1,5 +1,6 @@
 //! Low-resolution scattering and the bilateral upsample node (Wyman and Ramsey 2008, §3.3, and
-//! SoftBiF-VS, "soft volumetric shadows by sampling and bilateral interpolation", 2017).
+//! Ali, Sunar and Kolivand, "Soft Bilateral Filtering Volumetric Shadows Using Cube Shadow
+//! Maps", PLOS ONE, 2017: SoftBiF-VS).
 
 use crate::error::{finite, Error, Result};
 
@@ -59,7 +60,7 @@ pub enum UpsampleFilter {
     /// full-resolution pixel's; falls back to the nearest-depth sample when none matches.
     #[default]
     DepthAware3x3,
-    /// SoftBiF-VS (2017): a separable N-tap bilateral (horizontal then vertical), weights
+    /// SoftBiF-VS (Ali, Sunar and Kolivand 2017): a separable N-tap bilateral (horizontal then vertical), weights
     /// `exp(−d²/2σs²) · exp(−Δz²/2σz²)` with Δz relative to the pixel's depth.
     Separable {
         /// Taps per direction (odd, 3 ..= 31).
