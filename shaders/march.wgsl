@@ -114,7 +114,7 @@ fn vis_at(ray: PixelRay, r: AirRay, s: f32) -> f32 {
 // The soft-shadow grid at `p` (see shaders/soft_shadow.wgsl): x the visible fraction of the
 // light's disc, y > 0 where a cell around p is marked sharp. One trilinear lookup between the cells
 // around p (its layer's directions, and the slices in q = nearest / distance), in place of
-// `visibility_soft`'s 65 shadow-map taps.
+// `visibility_soft`'s 49 shadow-map taps.
 fn soft_grid(p: vec3<f32>) -> vec2<f32> {
     let rel = p - air.light_pos;
     let dist = length(rel);

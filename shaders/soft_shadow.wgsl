@@ -1,6 +1,6 @@
 // Soft-shadow node: the fraction of a light's disc visible from each cell of a light-space
 // grid (composed after the prelude and pcss.wgsl), which the march reads with one trilinear
-// lookup per step instead of a percentage-closer soft shadow (PCSS) estimate of 65 shadow-map
+// lookup per step instead of a percentage-closer soft shadow (PCSS) estimate of 49 shadow-map
 // taps. Cells: per shadow-map layer, `size`² directions (the layer's texel grid, coarser) by
 // `slices` distances uniform in q = nearest / distance ∈ (0, 1], nearest being the least
 // distance of an occluder from the light. A penumbra's width at distance d, seen from the

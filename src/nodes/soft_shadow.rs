@@ -3,7 +3,7 @@
 //! march then reads with one trilinear lookup per step.
 //!
 //! Each cell holds the percentage-closer soft shadow estimate (Fernando, "Percentage-Closer
-//! Soft Shadows", 2005) that the march would otherwise compute per step from 65 shadow-map
+//! Soft Shadows", 2005) that the march would otherwise compute per step from 49 shadow-map
 //! taps (see [`MarchNode`](crate::nodes::MarchNode)'s soft shadows): the cost moves from
 //! pixels × steps to the grid's cells, most of which lie outside every penumbra and cost no
 //! tap at all. The grid is the shadow map's layers (cube faces of a point light, the one layer
