@@ -355,6 +355,8 @@ impl VolumetricShadows {
             surfaces: frame.surfaces.is_some(),
         };
         let mut kept: Vec<Vec<Occluder<'_>>> = Vec::new();
+        // The lights as drawn: one whose penumbrae the shadow map cannot resolve, hard.
+        let mut drawn: Vec<Light> = Vec::new();
         for (i, fl) in frame.lights.iter().enumerate() {
             // Occluders whose effect is provably below the threshold stay out of this light's
             // shadow map and extents.
@@ -377,13 +379,25 @@ impl VolumetricShadows {
                     light_kept.push(*o);
                 }
             }
+            let penumbra_below_texel = ShadowMapNode::penumbra_below_texel(
+                &fl.light,
+                nearest_occluder(&fl.light, &light_kept),
+                self.settings.shadow_map.resolution,
+            );
+            let light = if penumbra_below_texel {
+                without_radius(fl.light)
+            } else {
+                fl.light
+            };
             facts.lights.push(LightFacts {
                 textured: fl.texture.is_some(),
                 occluders: light_kept.len(),
                 directional: matches!(fl.light, Light::Directional(_)),
-                soft: fl.light.radius() > 0.0,
+                soft: light.radius() > 0.0,
+                penumbra_below_texel,
             });
             kept.push(light_kept);
+            drawn.push(light);
         }
         let mut plan = plan::plan(&facts);
         let mut unchanged = Vec::new();
@@ -402,7 +416,7 @@ impl VolumetricShadows {
             }
             let Some(i) = step.light else { continue };
             let (fl, slot, occluders) = (&frame.lights[i], &mut self.slots[i], &kept[i]);
-            let (camera, light, medium) = (frame.camera, &fl.light, frame.medium);
+            let (camera, light, medium) = (frame.camera, &drawn[i], frame.medium);
             let work = match step.pass {
                 Pass::LightTexture => match fl.texture {
                     Some(t) => slot.texture.prepare(device, queue, t)?,
@@ -708,6 +722,30 @@ impl VolumetricShadows {
     /// March steps per pixel of a light's last march (`R32Uint`, at the march's resolution).
     pub fn step_counts(&self, light: usize) -> Option<&wgpu::Texture> {
         self.slots.get(light)?.march.step_counts()
+    }
+}
+
+/// The least distance from a light to an occluder's world-space box (0 inside one, infinite
+/// without occluders or for a directional light).
+fn nearest_occluder(light: &Light, occluders: &[Occluder<'_>]) -> f32 {
+    let Some(p) = light.position() else {
+        return f32::INFINITY;
+    };
+    occluders
+        .iter()
+        .map(|o| {
+            let (lo, hi) = o.world_bounds();
+            p.clamp(lo, hi).distance(p)
+        })
+        .fold(f32::INFINITY, f32::min)
+}
+
+/// The light with radius 0.
+fn without_radius(light: Light) -> Light {
+    match light {
+        Light::Point(l) => l.with_radius(0.0).map_or(light, Light::from),
+        Light::Spot(l) => l.with_radius(0.0).map_or(light, Light::from),
+        other => other,
     }
 }
 

@@ -86,6 +86,10 @@ pub enum Reason {
     /// A light with a radius: the march bounds its penumbra by cones around the occluders'
     /// bounding spheres, not by the hard shadow's volumes.
     SoftLight,
+    /// A light with a radius whose penumbrae are all narrower than a shadow-map texel
+    /// ([`ShadowMapNode::penumbra_below_texel`](crate::nodes::ShadowMapNode::penumbra_below_texel)):
+    /// drawn hard.
+    PenumbraBelowTexel,
 }
 
 impl fmt::Display for Reason {
@@ -107,6 +111,9 @@ impl fmt::Display for Reason {
             Reason::HardLight => "the light has no radius: hard shadows",
             Reason::SoftLight => {
                 "the light has a radius: penumbra cones around the occluders bound the march"
+            }
+            Reason::PenumbraBelowTexel => {
+                "the light's penumbrae are narrower than a shadow-map texel: hard shadows"
             }
         })
     }
@@ -244,6 +251,9 @@ pub(crate) struct LightFacts {
     pub directional: bool,
     /// A light with a radius (soft shadows).
     pub soft: bool,
+    /// A light with a radius whose penumbrae are narrower than a shadow-map texel, drawn hard
+    /// (`soft` is then false).
+    pub penumbra_below_texel: bool,
 }
 
 /// What the planner knows about the frame.
@@ -348,7 +358,9 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
             } else {
                 skip(Pass::Extents, light, Reason::BruteForce);
             }
-            if !l.soft {
+            if l.penumbra_below_texel {
+                skip(Pass::SoftShadow, light, Reason::PenumbraBelowTexel);
+            } else if !l.soft {
                 skip(Pass::SoftShadow, light, Reason::HardLight);
             } else if matches!(facts.method, MarchMethod::Hybrid | MarchMethod::Exact) {
                 run(

@@ -38,6 +38,9 @@ struct RandomScene {
     /// A point of the wall and its normal (towards the camera).
     wall: (DVec3, DVec3),
     describe: String,
+    /// Whether the view shows the shadow (`check_scenes_counted` then requires the image with
+    /// the shadow ignored to be beyond twice the p95 bar).
+    shows_shadow: bool,
 }
 
 fn random_scene(seed: u64, log_tau: (f32, f32)) -> RandomScene {
@@ -102,6 +105,7 @@ fn random_scene(seed: u64, log_tau: (f32, f32)) -> RandomScene {
         spheres: vec![(center, rho)],
         wall: (wall_point, to_eye),
         describe,
+        shows_shadow: true,
     }
 }
 
@@ -269,6 +273,7 @@ fn umbra_scene(eye: Vec3, target: Vec3, describe: &str) -> RandomScene {
         spheres: vec![(Vec3::new(0.0, 0.0, 2.0), 0.6)],
         wall: (eye.as_dvec3() - to_eye * 12.0, to_eye),
         describe: describe.to_string(),
+        shows_shadow: true,
     }
 }
 
@@ -417,7 +422,9 @@ fn check_scenes_counted(scenes: &[RandomScene], bars: (f64, f64)) -> (f64, f64, 
             (SIZE, SIZE),
         );
         hard_worst = hard_worst.max(hard_errors.p95);
-        unshadowed_least = unshadowed_least.min(unshadowed.p95);
+        if s.shows_shadow {
+            unshadowed_least = unshadowed_least.min(unshadowed.p95);
+        }
         worst = worst.max(e.p95);
         eprintln!(
             "{}\n  grid: {e}\n  hard: p95 {:.2}%, shadow ignored: p95 {:.2}%",
@@ -705,4 +712,76 @@ fn a_ground_adds_no_march_above_it() {
         with_ground.0,
         alone.0
     );
+}
+
+/// `umbra_scene` with the light's radius set to `radius` (the sphere's near side is 1.4 from
+/// the light's centre).
+fn extreme_scene(radius: f32, eye: Vec3, target: Vec3, describe: &str) -> RandomScene {
+    let mut s = umbra_scene(eye, target, describe);
+    let Light::Point(point) = s.light else {
+        unreachable!("umbra_scene makes a point light")
+    };
+    s.light = point.with_radius(radius).unwrap().into();
+    s
+}
+
+/// Extreme soft lights, through the grid (exact method): every output finite, each scene
+/// within its bar against the soft reference. A light nearly as large as its distance to the
+/// occluder is beyond PCSS's one-planar-blocker assumption: bars of 6% (radius 1.39 against a
+/// gap of 1.4: measured 2026-11-23 p95 4.6%, RMSE 4.7%) and 10% (radius 2, the occluder half
+/// inside the light's sphere: p95 8.0%, RMSE 8.1%), measured limits, a known limitation (see
+/// the `SoftShadowNode` docs). The eye inside the light's sphere: the bars (p95 0.04%;
+/// its view is lit mostly near the light, so the shadow barely shows there). The eye between
+/// the light and the sphere, 0.1 in front of it, looking through it along the umbra: p95 5%,
+/// RMSE 3.5%, measured limits (p95 3.9%, RMSE 2.9%) beyond the bars. Hard shadows
+/// are beyond 10% of the soft reference in each of the first two, so the bars can tell.
+#[test]
+fn extreme_soft_lights_stay_finite_and_bounded() {
+    let across = |radius: f32, eye_x: f32, describe: &str| {
+        extreme_scene(
+            radius,
+            Vec3::new(eye_x, 0.0, 4.0),
+            Vec3::new(0.0, 0.0, 4.0),
+            describe,
+        )
+    };
+    let (worst, hard) = check_scenes(
+        &[across(
+            1.39,
+            3.0,
+            "radius 1.39, nearly touching the occluder",
+        )],
+        (0.06, 0.06),
+    );
+    assert!(hard > 0.10, "hard within {hard} of the soft reference");
+    eprintln!("nearly touching: p95 {:.2}%", 100.0 * worst);
+    let (worst, hard) = check_scenes(
+        &[across(
+            2.0,
+            4.0,
+            "radius 2, the occluder half inside the light's sphere",
+        )],
+        (0.10, 0.10),
+    );
+    assert!(hard > 0.10, "hard within {hard} of the soft reference");
+    eprintln!("half inside: p95 {:.2}%", 100.0 * worst);
+    let mut inside = extreme_scene(
+        0.3,
+        Vec3::new(0.1, 0.05, 0.0),
+        Vec3::new(0.0, 0.0, 4.0),
+        "eye inside the light's sphere",
+    );
+    inside.shows_shadow = false;
+    let (worst, _) = check_scenes(&[inside], (RMSE_BAR, P95_BAR));
+    eprintln!("eye inside the light: p95 {:.2}%", 100.0 * worst);
+    let (worst, _) = check_scenes(
+        &[extreme_scene(
+            0.3,
+            Vec3::new(0.0, 0.02, 1.3),
+            Vec3::new(0.0, 0.0, 4.0),
+            "eye 0.1 in front of the occluder, looking through it",
+        )],
+        (0.035, 0.05),
+    );
+    eprintln!("eye in front of the occluder: p95 {:.2}%", 100.0 * worst);
 }
