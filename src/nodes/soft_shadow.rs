@@ -19,8 +19,8 @@
 //! are marked sharp: the grid's interpolation would smear them, and the march blends in the
 //! shadow map's own visibility there, at a finer step (see [`MarchNode`](crate::nodes::MarchNode)).
 //! Measured against the f64 reference (`tests/soft.rs`, `tests/soft_grid.rs`): a sphere under
-//! a light of radius 0.2 × their distance p95 0.74%, RMSE 0.38% (the per-step estimate: 0.82%,
-//! 0.41%); a torus under a spot 1.5% RMSE (1.3% before the march was clipped by the
+//! a light of radius 0.2 × their distance p95 0.68%, RMSE 0.36% (the per-step estimate: 0.84%,
+//! 0.41%); a torus under a spot 1.6% RMSE (1.3% before the march was clipped by the
 //! occluders' planes, 0.9% before the spot map widened for the radius).
 //! Before the back-face layer, without the marks: 3.8% on the torus, and 3.9% p95 under a
 //! small light (radius 0.03 × the distance) whose penumbrae are sharp almost everywhere.
@@ -29,27 +29,29 @@
 //! PCSS assumes one planar blocker per point, and the grid's cells are fixed in light space.
 //! The estimate's error is relative to the visible fraction, and it shows where a pixel's
 //! light comes mostly from the deep penumbra, where that fraction is small: with the eye in an
-//! umbra looking away from the light, p95 6.4% against the reference (RMSE 1.4%); in a thick
+//! umbra looking away from the light, p95 6.3% against the reference (RMSE 1.5%); in a thick
 //! medium (σt·L from 1 to 10, L the light's distance to the occluder) with the eye a few mean
-//! free paths from a penumbra, up to 18.8%; in the thinner seeded scenes of the crate's tests
-//! it averages out along the ray (p95 ≤ 1.7%). Those figures take the blockers' distance
+//! free paths from a penumbra, up to 18.6%; in the thinner seeded scenes of the crate's tests
+//! it averages out along the ray (p95 ≤ 1.6%). Those figures take the blockers' distance
 //! midway between the front and back faces ([`ShadowMap::back`]); with the front surface
-//! alone they were 41%, 38% and 2.6%. The midpoint is not a gain everywhere: for a sphere of
+//! alone they were 41%, 38% and 2.6% (with 16 taps a search round, as in the figures below
+//! in parentheses). The midpoint is not a gain everywhere: for a sphere of
 //! radius 0.41 × its distance to the light it sets the penumbra too narrow (p95 2.9% against
 //! 1.8% with the front surface alone). A small light seen close up in thick fog: 7.8% through
 //! the grid (its cells are coarse for that view), 1.1% estimating per step. Under a spot whose
 //! cone's edge crosses the occluder, a view lit only by the deep penumbra is off by up to p95
-//! 13.4% (5 of 24 seeded scenes beyond p95 3%). Where blockers lie at clearly different
+//! 12.9% (5 of 24 seeded scenes beyond p95 3%). Where blockers lie at clearly different
 //! distances (ratio > 1.5) the estimate takes two layers, each with its own filter width; the
 //! shadow map still holds one surface a direction, so an occluder hidden behind a nearer one
-//! is partly missed: two spheres with overlapping penumbrae, p95 4.1% (4.6% with one layer;
-//! 0.4% and 1.9% for each alone). The two layers also keep a ground that casts shadows from
+//! is partly missed: two spheres with overlapping penumbrae, p95 2.9% (3.6% with one layer). The two layers also keep a ground that casts shadows from
 //! posing as the farthest blocker of the medium just above it (the search's taps at the
 //! distance of a point there fall below the ground), which collapsed a sphere's penumbra over
 //! it: the report's soft scene with its ground casting shadows, 128², per step p95 10.6% with
-//! one layer, 3.6% with two (as without the ground's shadow). Through the grid it is still
-//! 6.5% (8.0% with one layer; 2.9% without the ground's shadow): the medium just above the
-//! ground is 2–5% too bright.
+//! one layer, 3.6% with two (as without the ground's shadow); 3.4% now. Through the grid it
+//! is still 6.9% (8.0% with one layer; 2.6% without the ground's shadow): the medium just
+//! above the ground is 2–5% too bright. Estimating per step in the cells marked where an
+//! occluder's surface lies between two slices brought it to 4.8%, at 10 times the march's
+//! cost on that scene: not kept.
 //! A light nearly as large as its distance to an occluder is beyond the one-planar-blocker
 //! assumption: radius 1.39 with a sphere's near side 1.4 from the light's centre, p95 4.6%
 //! (RMSE 4.7%); radius 2, the sphere half inside the light's sphere, 8.0%. The eye 0.1 in
