@@ -762,18 +762,15 @@ fn a_soft_light_plans_its_grid_reuses_it_and_rebuilds_it_when_an_occluder_moves(
 }
 
 /// A light whose penumbrae are narrower than a shadow-map texel everywhere
-/// (`volshadow::nodes::ShadowMapNode::penumbra_below_texel`) is drawn hard: no soft-shadow grid, the plan says
+/// (`ShadowMapNode::penumbra_below_texel`) is drawn hard: no soft-shadow grid, the plan says
 /// why, and the image is the radius-0 image bit for bit (through the grid, a sphere 1.4 from a
 /// light of radius 1e-5 was at p95 1.81% against the soft reference, 0.21% hard:
-/// tests/soft_grid.rs). A radius 100 times the threshold still gets its grid, so the threshold
-/// is not everything.
+/// tests/soft_grid.rs). A radius 100 times the threshold still gets its grid: the rule does not
+/// draw every light hard. The threshold itself, for a point light and a spot, within 10%.
 #[test]
 fn a_light_whose_penumbra_is_below_a_texel_is_drawn_hard() {
     let rig = rig();
-    let sphere = OccluderMesh::new(
-        &rig.gpu.device,
-        &shapes::uv_sphere(Vec3::new(0.0, 2.0, -0.3), 0.5, 16, 8).unwrap(),
-    );
+    let sphere = sphere_mesh(&rig);
     let occluders = [Occluder {
         mesh: &sphere,
         transform: Mat4::IDENTITY,
@@ -802,6 +799,27 @@ fn a_light_whose_penumbra_is_below_a_texel_is_drawn_hard() {
         gap,
         resolution
     ));
+    // A spot of 60°: its hard map's finest texel, 2·tan(h)·cos²(h) / resolution at its edge
+    // (h half its field, the cone's with a margin of 2%).
+    let spot = |radius: f32| -> Light {
+        volshadow::SpotLight::new(Vec3::ZERO, Vec3::Z, 60f32.to_radians(), Vec3::ONE)
+            .unwrap()
+            .with_radius(radius)
+            .unwrap()
+            .into()
+    };
+    let h = 0.5 * 60f32.to_radians() * 1.02;
+    let spot_threshold = gap * h.tan() * h.cos().powi(2) / resolution as f32;
+    for (factor, below) in [(0.9, true), (1.1, false)] {
+        assert_eq!(
+            volshadow::nodes::ShadowMapNode::penumbra_below_texel(
+                &spot(factor * spot_threshold),
+                gap,
+                resolution
+            ),
+            below
+        );
+    }
 
     let mut vs =
         VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, settings()).unwrap();

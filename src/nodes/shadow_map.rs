@@ -456,7 +456,9 @@ impl ShadowMapNode {
         let finest = match light {
             Light::Point(_) => 2.0 / 3.0,
             Light::Spot(spot) => {
-                let half = 0.5 * Self::spot_fov(spot, occluder_distance);
+                // The map it would then be drawn with: the hard light's, the cone's own.
+                let hard = spot.with_radius(0.0).unwrap_or(*spot);
+                let half = 0.5 * Self::spot_fov(&hard, occluder_distance);
                 2.0 * half.tan() * half.cos().powi(2)
             }
             _ => return false,
