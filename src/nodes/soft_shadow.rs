@@ -34,22 +34,22 @@
 //! free paths from a penumbra, up to 18.6%; in the thinner seeded scenes of the crate's tests
 //! it averages out along the ray (p95 ≤ 1.6%). Those figures take the blockers' distance
 //! midway between the front and back faces ([`ShadowMap::back`]); with the front surface
-//! alone they were 41%, 38% and 2.6% (with 16 taps a search round, as in the figures below
-//! in parentheses). The midpoint is not a gain everywhere: for a sphere of
-//! radius 0.41 × its distance to the light it sets the penumbra too narrow (p95 2.9% against
-//! 1.8% with the front surface alone). A small light seen close up in thick fog: 7.8% through
+//! alone they were 41%, 38% and 2.6% (measured with 16 taps a search round, as were the
+//! one-layer figures below). The midpoint is not a gain everywhere: for a sphere of radius
+//! 0.41 × its distance to the light it sets the penumbra too narrow (p95 2.6%; 2.9% with 16
+//! taps a search round, against 1.8% with the front surface alone). A small light seen close up in thick fog: 7.8% through
 //! the grid (its cells are coarse for that view), 1.1% estimating per step. Under a spot whose
 //! cone's edge crosses the occluder, a view lit only by the deep penumbra is off by up to p95
 //! 12.9% (5 of 24 seeded scenes beyond p95 3%). Where blockers lie at clearly different
 //! distances (ratio > 1.5) the estimate takes two layers, each with its own filter width; the
 //! shadow map still holds one surface a direction, so an occluder hidden behind a nearer one
-//! is partly missed: two spheres with overlapping penumbrae, p95 2.9% (3.6% with one layer). The two layers also keep a ground that casts shadows from
-//! posing as the farthest blocker of the medium just above it (the search's taps at the
-//! distance of a point there fall below the ground), which collapsed a sphere's penumbra over
-//! it: the report's soft scene with its ground casting shadows, 128², per step p95 10.6% with
-//! one layer, 3.6% with two (as without the ground's shadow); 3.4% now. Through the grid it
-//! is still 6.9% (8.0% with one layer; 2.6% without the ground's shadow): the medium just
-//! above the ground is 2–5% too bright. Estimating per step in the cells marked where an
+//! is partly missed: two spheres with overlapping penumbrae, p95 2.9% (3.6% with one layer).
+//! The two layers also keep a ground that casts shadows from posing as the farthest blocker of
+//! the medium just above it (the search's taps at the distance of a point there fall below
+//! the ground), which collapsed a sphere's penumbra over it: the report's soft scene with its
+//! ground casting shadows, 128², per step p95 10.6% with one layer, 3.6% with two (as without
+//! the ground's shadow); 3.4% now. Through the grid it is still 6.9% (8.0% with one layer;
+//! 2.6% without the ground's shadow): the medium just above the ground is 2–5% too bright. Estimating per step in the cells marked where an
 //! occluder's surface lies between two slices brought it to 4.8%, at 10 times the march's
 //! cost on that scene: not kept.
 //! A light nearly as large as its distance to an occluder is beyond the one-planar-blocker
