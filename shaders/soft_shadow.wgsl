@@ -88,8 +88,9 @@ fn build(@builtin(global_invocation_id) gid: vec3<u32>) {
         let e = cells[k];
         // g: 1 where the estimate's region was narrower than SHARP_CELLS cells (a penumbra, or
         // the edge between lit and umbra, too sharp for the grid's interpolation across
-        // directions) or the visibility jumps to a neighbouring slice (an occluder's surface
-        // between them): the march blends in the shadow map's own visibility there.
+        // directions): the march blends in the shadow map's own visibility there. b: 1 where
+        // the visibility jumps to a neighbouring slice (an occluder's surface between them):
+        // the march does not interpolate across it.
         var sharp = select(0.0, 1.0, e.y >= 0.0 && e.y < narrow);
         var jump = false;
         if (k > 0u) {
@@ -98,10 +99,8 @@ fn build(@builtin(global_invocation_id) gid: vec3<u32>) {
         if (k + 1u < s) {
             jump = jump || abs(e.x - cells[k + 1u].x) > DEPTH_JUMP;
         }
-        if (jump) {
-            sharp = 1.0;
-        }
+        let surface = select(0.0, 1.0, jump);
         let texel = vec3<u32>(gid.x, gid.y, layer * mp.slices + k);
-        textureStore(volume, texel, vec4<f32>(e.x, sharp, 0.0, 1.0));
+        textureStore(volume, texel, vec4<f32>(e.x, sharp, surface, 1.0));
     }
 }

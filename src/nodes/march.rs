@@ -390,11 +390,13 @@ impl MarchStats {
 /// [`MarchMethod::Hybrid`] do not make it per step: they read it from the
 /// [`SoftShadowNode`](crate::nodes::SoftShadowNode)'s light-space grid
 /// ([`Shadows::soft`]), one trilinear lookup per step, with about half a step per grid cell
-/// the ray crosses (at most `steps`). Where the grid marks its cells sharp (a penumbra, or the
-/// edge between lit and umbra, narrower than two cells; an occluder's surface between two
-/// slices), the shadow map's own visibility is blended in and those steps are marched again at
-/// the resolution of `steps`: near an occluder the penumbra narrows to the hard shadow's edge,
-/// which the grid cannot resolve. Each step's visible fraction is weighted by `dT/ds` at its
+/// the ray crosses (at most `steps`). Where the grid marks its cells (a penumbra, or the edge
+/// between lit and umbra, narrower than two cells; an occluder's surface between two slices),
+/// those steps are marched again at the resolution of `steps`: in a narrow penumbra the shadow
+/// map's own visibility is blended in (near an occluder the penumbra narrows to the hard
+/// shadow's edge, which the grid cannot resolve); at a surface, a point in front of it takes
+/// the grid's slice on its side, not interpolated across the surface, and a point behind it the
+/// shadow map's visibility. Each step's visible fraction is weighted by `dT/ds` at its
 /// midpoint, the weights normalised to the exact in-scattered `T` over the marched interval
 /// (exact where the visibility is constant, and for an optically thick medium, where `dT/ds`
 /// is exponential); see the [`SoftShadowNode`](crate::nodes::SoftShadowNode) docs for where

@@ -16,11 +16,14 @@
 //! One thread estimates one direction's slices, so it also sees where the visibility jumps
 //! between two slices (an occluder's surface between them). Such cells, and those whose
 //! estimate found the penumbra (or the edge between lit and umbra) narrower than two cells,
-//! are marked sharp: the grid's interpolation would smear them, and the march blends in the
-//! shadow map's own visibility there, at a finer step (see [`MarchNode`](crate::nodes::MarchNode)).
+//! are marked: the grid's interpolation would smear them, and the march refines its steps
+//! there (see [`MarchNode`](crate::nodes::MarchNode)), blending in the shadow map's own
+//! visibility where the penumbra is narrow, and at a surface taking the grid's slice on the
+//! near side of it for a point in front (a ground far below an occluder receives a wide
+//! penumbra) and the shadow map's visibility behind.
 //! Measured against the f64 reference (`tests/soft.rs`, `tests/soft_grid.rs`): a sphere under
 //! a light of radius 0.2 × their distance p95 0.68%, RMSE 0.36% (the per-step estimate: 0.84%,
-//! 0.41%); a torus under a spot 1.6% RMSE (1.3% before the march was clipped by the
+//! 0.41%); a torus under a spot 1.7% RMSE (1.3% before the march was clipped by the
 //! occluders' planes, 0.9% before the spot map widened for the radius).
 //! Before the back-face layer, without the marks: 3.8% on the torus, and 3.9% p95 under a
 //! small light (radius 0.03 × the distance) whose penumbrae are sharp almost everywhere.
@@ -48,12 +51,14 @@
 //! the medium just above it (the search's taps at the distance of a point there fall below
 //! the ground), which collapsed a sphere's penumbra over it: the report's soft scene with its
 //! ground casting shadows, 128², per step p95 10.6% with one layer, 3.6% with two (as without
-//! the ground's shadow); 3.4% now. Through the grid it is still 6.9% (8.0% with one layer;
-//! 2.6% without the ground's shadow): the medium just above the ground is 2–5% too bright.
-//! Two attempts on the cells marked where an occluder's surface lies between two slices, not
-//! kept: estimating per step there, 4.8% at 10 times the march's cost on that scene; in front
-//! of the surface the grid's slice before it in place of the shadow map's visibility, 5.1%,
-//! but the torus under a spot went from p95 2.4% to 2.8% (RMSE 1.6% to 1.7%).
+//! the ground's shadow); 3.4% now. Through the grid it is 5.2% (2.6% without the ground's
+//! shadow): the medium just above the ground is still a few percent too bright. It was 6.9%
+//! (8.0% with one layer) while the march blended in the shadow map's hard visibility at a
+//! surface between two slices, which sharpens the wide penumbra a ground far below an
+//! occluder receives; a point in front of a surface now takes the grid's slice on its side
+//! (on the sparse torus test p95 2.44% → 2.80%, RMSE 1.57% → 1.70%, on the dense one no
+//! change: row 1.67%, RMSE 0.70%, p95 1.58%). Estimating per step in those cells instead gave
+//! 4.8% at about 10 times the march's cost on that scene: not kept.
 //! A light nearly as large as its distance to an occluder is beyond the one-planar-blocker
 //! assumption: radius 1.39 with a sphere's near side 1.4 from the light's centre, p95 4.6%
 //! (RMSE 4.7%); radius 2, the sphere half inside the light's sphere, 8.0%. The eye 0.1 in
@@ -71,7 +76,8 @@
 //! # Output
 //! [`SoftShadowNode::output`]: a 3D `Rgba16Float` texture, `directions × directions ×
 //! (layers · slices)` (layer-major along z), usages `STORAGE_BINDING | TEXTURE_BINDING`;
-//! r = visible fraction in [0, 1], g = 1 where the cell is marked sharp, else 0.
+//! r = visible fraction in [0, 1], g = 1 where the cell's penumbra is marked sharp, b = 1
+//! where an occluder's surface lies between it and a neighbouring slice, else 0.
 
 use crate::error::{Error, Result};
 use crate::gpu::cache::{bind_group, compute_pipeline, dispatch, layout, module, Binding};
