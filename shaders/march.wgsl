@@ -112,21 +112,22 @@ fn vis_at(ray: PixelRay, r: AirRay, s: f32) -> f32 {
 }
 
 // The soft-shadow grid at `p` (see shaders/soft_shadow.wgsl): x the visible fraction of the
-// light's disc, y > 0 where a cell around p is marked sharp. One trilinear lookup between the cells
-// around p (its layer's directions, and the slices in q = nearest / distance), in place of
+// light's disc, y > 0 where a cell around p is marked for a narrow penumbra, z > 0 for an
+// occluder's surface between two slices. One trilinear lookup between the cells around p (its
+// layer's directions, and the slices in q = nearest / distance), in place of
 // `visibility_soft`'s 49 shadow-map taps.
 fn soft_grid(p: vec3<f32>) -> vec3<f32> {
     return soft_grid_at(p, 0);
 }
 
-// `soft_grid` (x the visible fraction, y the narrow-penumbra mark, z the mark of an occluder's
-// surface between two slices); `side` 1 takes the slice at or before p (nearer the light)
-// instead of interpolating between slices: in front of a surface, the value on p's side of it.
+// `soft_grid`; `side` 1 takes the slice at or before p (nearer the light) instead of
+// interpolating between slices: in front of a surface, the value on p's side of it.
 fn soft_grid_at(p: vec3<f32>, side: i32) -> vec3<f32> {
     let rel = p - air.light_pos;
     let dist = length(rel);
     let nearest = max(mp.soft.y, 1.0e-3 * mp.soft.x);
     if (dist <= max(nearest, mp.soft.x)) {
+        // As visibility_soft: nearer than every occluder (the grid holds 1 outside the cones).
         return vec3<f32>(1.0, 0.0, 0.0);
     }
     let face = shadow_face(p);
@@ -139,6 +140,8 @@ fn soft_grid_at(p: vec3<f32>, side: i32) -> vec3<f32> {
         return vec3<f32>(1.0, 0.0, 0.0);
     }
     let slices = mp.soft_grid.y;
+    // Cell k's centre lies at (1 − q)·slices = k + 0.5; clamped inside the layer's own slices
+    // so that the lookup never blends two layers.
     var k = clamp((1.0 - nearest / dist) * slices, 0.5, slices - 0.5);
     if (side == 1) {
         k = floor(k - 0.5) + 0.5;
@@ -182,8 +185,9 @@ const MAX_SHARP_STEPS: u32 = 16u;
 // in front of it takes instead the grid's slice on its own side, not interpolated across the
 // surface: a ground far below an occluder receives a wide penumbra, which the hard visibility
 // would sharpen (the report's soft scene with its ground casting shadows, 128², p95 6.9% with
-// the hard visibility, 5.2% with the slice); behind it, the hard visibility. Such a step's edge is as sharp as a hard shadow's, so
-// it is marched again at the resolution of `steps` (a small light's penumbrae are sharp
+// the hard visibility, 5.2% with the slice); behind it, the hard visibility. Such a step's
+// edge is as sharp as a hard shadow's, so it is marched again at the resolution of `steps`
+// (a small light's penumbrae are sharp
 // almost everywhere: seed 2 of tests/soft_grid.rs, p95 3.9% at the grid's half step a cell,
 // 1.8% refined). The refinement runs after the step loop, in a loop as cheap per iteration;
 // marked steps beyond MAX_SHARP_STEPS keep the grid's value (no shadow-map lookup in the main
