@@ -117,12 +117,12 @@ fn vis_at(ray: PixelRay, r: AirRay, s: f32) -> f32 {
 // layer's directions, and the slices in q = nearest / distance), in place of
 // `visibility_soft`'s 49 shadow-map taps.
 fn soft_grid(p: vec3<f32>) -> vec3<f32> {
-    return soft_grid_at(p, 0);
+    return soft_grid_at(p, false);
 }
 
-// `soft_grid`; `side` 1 takes the slice at or before p (nearer the light) instead of
-// interpolating between slices: in front of a surface, the value on p's side of it.
-fn soft_grid_at(p: vec3<f32>, side: i32) -> vec3<f32> {
+// `soft_grid`; with `near_side` the slice at or before p (nearer the light) instead of an
+// interpolation between slices: in front of a surface, the value on p's side of it.
+fn soft_grid_at(p: vec3<f32>, near_side: bool) -> vec3<f32> {
     let rel = p - air.light_pos;
     let dist = length(rel);
     let nearest = max(mp.soft.y, 1.0e-3 * mp.soft.x);
@@ -143,7 +143,7 @@ fn soft_grid_at(p: vec3<f32>, side: i32) -> vec3<f32> {
     // Cell k's centre lies at (1 − q)·slices = k + 0.5; clamped inside the layer's own slices
     // so that the lookup never blends two layers.
     var k = clamp((1.0 - nearest / dist) * slices, 0.5, slices - 0.5);
-    if (side == 1) {
+    if (near_side) {
         k = floor(k - 0.5) + 0.5;
     }
     let z = (f32(face) * slices + k) / (mp.soft_grid.z * slices);
@@ -154,19 +154,8 @@ fn soft_grid_at(p: vec3<f32>, side: i32) -> vec3<f32> {
 // Whether p lies in front of the occluder surface the shadow map holds in its direction (or
 // outside the map): as `visibility`'s test, at p's own texel.
 fn in_front_of_surface(p: vec3<f32>) -> bool {
-    let face = shadow_face(p);
-    let clip = mp.faces[face] * vec4<f32>(p, 1.0);
-    if (clip.w <= 0.0) {
-        return true;
-    }
-    let ndc = clip.xyz / clip.w;
-    if (any(abs(ndc.xy) > vec2<f32>(1.0))) {
-        return true;
-    }
-    let size = vec2<f32>(textureDimensions(shadow_map));
-    let uv = vec2<f32>(0.5 + 0.5 * ndc.x, 0.5 - 0.5 * ndc.y);
-    let texel = vec2<i32>(clamp(uv * size, vec2<f32>(0.0), size - 1.0));
-    return !(textureLoad(shadow_map, texel, i32(face), 0) * (1.0 - mp.depth_bias) > ndc.z);
+    let t = map_texel(p);
+    return !t.inside || !(textureLoad(shadow_map, t.texel, i32(t.face), 0) * (1.0 - mp.depth_bias) > t.depth);
 }
 
 // Most steps of a ray `march_soft_grid` refines (more keep their one sample).
@@ -245,7 +234,7 @@ fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: vec3<f32>, t1
         if (g.z > 0.0) {
             var side = hard;
             if (in_front_of_surface(p)) {
-                side = soft_grid_at(p, 1).x;
+                side = soft_grid_at(p, true).x;
             }
             base = mix(g.x, side, g.z);
         }

@@ -84,29 +84,46 @@ fn spiral_next(cs: vec2<f32>) -> vec2<f32> {
 // brightens the deep penumbra (with the eye in an umbra looking away from the light,
 // tests/soft_grid.rs: p95 41% with the front surface).
 fn blocker_ratio(q: vec3<f32>) -> f32 {
-    let face = shadow_face(q);
-    let clip = mp.faces[face] * vec4<f32>(q, 1.0);
-    if (clip.w <= 0.0) {
+    let t = map_texel(q);
+    if (!t.inside) {
         return 2.0;
+    }
+    let depth = textureLoad(shadow_map, t.texel, i32(t.face), 0);
+    // Reversed Z: depth = near / distance along the face's axis, so the ratio of distances
+    // along one direction is the inverse ratio of depths.
+    if (depth * (1.0 - mp.depth_bias) > t.depth) {
+        let front = t.depth / depth;
+        // Reversed Z: the back face is at most as deep as the front; 0 where none was drawn.
+        let back_depth = textureLoad(shadow_back, t.texel, i32(t.face), 0);
+        let back = select(front, min(t.depth / back_depth, 1.0), back_depth > 0.0 && back_depth <= depth);
+        return 0.5 * (front + back);
+    }
+    return 2.0;
+}
+
+// The shadow map's texel holding the world point `p`: its layer, texel and `p`'s own depth
+// there (ndc z); `inside` false behind a spot light or outside the map.
+struct MapTexel {
+    face: u32,
+    texel: vec2<i32>,
+    depth: f32,
+    inside: bool,
+}
+
+fn map_texel(p: vec3<f32>) -> MapTexel {
+    let face = shadow_face(p);
+    let clip = mp.faces[face] * vec4<f32>(p, 1.0);
+    if (clip.w <= 0.0) {
+        return MapTexel(face, vec2<i32>(0), 0.0, false);
     }
     let ndc = clip.xyz / clip.w;
     if (any(abs(ndc.xy) > vec2<f32>(1.0))) {
-        return 2.0;
+        return MapTexel(face, vec2<i32>(0), 0.0, false);
     }
     let size = vec2<f32>(textureDimensions(shadow_map));
     let uv = vec2<f32>(0.5 + 0.5 * ndc.x, 0.5 - 0.5 * ndc.y);
     let texel = vec2<i32>(clamp(uv * size, vec2<f32>(0.0), size - 1.0));
-    let depth = textureLoad(shadow_map, texel, i32(face), 0);
-    // Reversed Z: depth = near / distance along the face's axis, so the ratio of distances
-    // along one direction is the inverse ratio of depths.
-    if (depth * (1.0 - mp.depth_bias) > ndc.z) {
-        let front = ndc.z / depth;
-        // Reversed Z: the back face is at most as deep as the front; 0 where none was drawn.
-        let back_depth = textureLoad(shadow_back, texel, i32(face), 0);
-        let back = select(front, min(ndc.z / back_depth, 1.0), back_depth > 0.0 && back_depth <= depth);
-        return 0.5 * (front + back);
-    }
-    return 2.0;
+    return MapTexel(face, texel, ndc.z, true);
 }
 
 // The fraction of the light's disc visible from `p` (percentage-closer soft shadows, Fernando
