@@ -377,8 +377,8 @@ impl MarchStats {
 /// `tests/soft.rs`, p95 5.9% against the reference, 2.2% with the farthest blocker). Where
 /// [`ShadowMap::back`] is given, each blocker's distance is taken midway between its front
 /// surface and its back face, where a convex occluder's outline lies: on the same sphere p95
-/// 0.68% (1.79% with the front surface), and with the eye in an umbra looking away from the
-/// light, where the deep penumbra dominates, 6.3% (41.1%). The taps
+/// 0.73% (1.79% with the front surface), and with the eye in an umbra looking away from the
+/// light, where the deep penumbra dominates, 6.0% (41.1%). The taps
 /// lie on a golden-angle spiral turned by a hash of the point (with a fixed spiral, or 16
 /// taps, the error grows). Shifted shadow maps from several points of the light (the
 /// alternative of Ali, Sunar and Kolivand, "Soft Bilateral Filtering Volumetric Shadows

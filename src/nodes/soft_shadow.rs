@@ -13,7 +13,25 @@
 //! from the light is `radius · (1/d_blocker − 1/d)`, linear in `q`, so the slices are uniform
 //! steps in penumbra width and the last one reaches infinity.
 //!
-//! One thread estimates one direction's slices, so it also sees where the visibility jumps
+//! The build estimates only where interpolation would not do, in two passes. The first
+//! estimates the directions at even indices (a quarter of them), at their even slices and the
+//! last, and at an odd slice only where its two neighbours differ (else their mean). The
+//! second fills each other direction with the mean of its two or four neighbours of the first
+//! pass where they agree, and estimates it where not. Neighbours agree where none is marked
+//! sharp (below) and their fractions are within 5% of the larger (lit, umbra; relative, so
+//! the deep penumbra is kept), or where they lie on a penumbra at least 4 cells wide away
+//! from its foot (the smaller fraction at least 0.7 of the larger: near the umbra a fraction
+//! grows as a power of the distance, which a mean overestimates). Measured on the report's
+//! soft scene, alternating with the single-pass build in one process: 0.73–0.86 of its time
+//! for the point light, 0.77–0.86 for a spot (four runs); that scene's penumbra fills most of
+//! the occluder's cone, so most cells of the second pass still take an estimate (without
+//! any, both passes take 0.32–0.40). A mean of neighbours also averages their taps' pattern
+//! noise: the report's soft scene p95 2.6% → 2.1%, the sphere below 0.68% → 0.73%, the dense
+//! torus 1.58% → 1.41%, overlapping penumbrae 2.9% → 2.5%. With an absolute bound of 0.02
+//! in place of the relative one, the deep penumbra was interpolated away (the eye in an umbra
+//! looking away from the light: p95 22.9%).
+//!
+//! A thread holds its directions' slices, so it also sees where the visibility jumps
 //! between two slices (an occluder's surface between them). Such cells, and those whose
 //! estimate found the penumbra (or the edge between lit and umbra) narrower than two cells,
 //! are marked: the grid's interpolation would smear them, and the march refines its steps
@@ -22,7 +40,7 @@
 //! near side of it for a point in front (a ground far below an occluder receives a wide
 //! penumbra) and the shadow map's visibility behind.
 //! Measured against the f64 reference (`tests/soft.rs`, `tests/soft_grid.rs`): a sphere under
-//! a light of radius 0.2 × their distance p95 0.68%, RMSE 0.36% (the per-step estimate: 0.84%,
+//! a light of radius 0.2 × their distance p95 0.73%, RMSE 0.32% (the per-step estimate: 0.84%,
 //! 0.41%); a torus under a spot 1.7% RMSE (1.3% before the march was clipped by the
 //! occluders' planes, 0.9% before the spot map widened for the radius).
 //! Before the back-face layer, without the marks: 3.8% on the torus, and 3.9% p95 under a
@@ -32,7 +50,7 @@
 //! PCSS assumes one planar blocker per point, and the grid's cells are fixed in light space.
 //! The estimate's error is relative to the visible fraction, and it shows where a pixel's
 //! light comes mostly from the deep penumbra, where that fraction is small: with the eye in an
-//! umbra looking away from the light, p95 6.3% against the reference (RMSE 1.5%); in a thick
+//! umbra looking away from the light, p95 6.0% against the reference (RMSE 1.3%); in a thick
 //! medium (σt·L from 1 to 10, L the light's distance to the occluder) with the eye a few mean
 //! free paths from a penumbra, up to 18.6%; in the thinner seeded scenes of the crate's tests
 //! it averages out along the ray (p95 ≤ 1.6%). Those figures take the blockers' distance
@@ -43,15 +61,16 @@
 //! taps a search round, against 1.8% with the front surface alone). A small light seen close up in thick fog: 7.8% through
 //! the grid (its cells are coarse for that view), 1.1% estimating per step. Under a spot whose
 //! cone's edge crosses the occluder, a view lit only by the deep penumbra is off by up to p95
-//! 12.9% (5 of 24 seeded scenes beyond p95 3%). Where blockers lie at clearly different
+//! 13.0% (5 of 24 seeded scenes beyond p95 3%). Where blockers lie at clearly different
 //! distances (ratio > 1.5) the estimate takes two layers, each with its own filter width; the
 //! shadow map still holds one surface a direction, so an occluder hidden behind a nearer one
-//! is partly missed: two spheres with overlapping penumbrae, p95 2.9% (3.6% with one layer).
+//! is partly missed: two spheres with overlapping penumbrae, p95 2.5% (3.6% with one layer,
+//! before the grid's build became adaptive).
 //! The two layers also keep a ground that casts shadows from posing as the farthest blocker of
 //! the medium just above it (the search's taps at the distance of a point there fall below
 //! the ground), which collapsed a sphere's penumbra over it: the report's soft scene with its
 //! ground casting shadows, 128², per step p95 10.6% with one layer, 3.6% with two (as without
-//! the ground's shadow); 3.4% now. Through the grid it is 5.2% (2.6% without the ground's
+//! the ground's shadow); 3.4% now. Through the grid it is 4.9% (2.1% without the ground's
 //! shadow): the medium just above the ground is still a few percent too bright. It was 6.9%
 //! (8.0% with one layer) while the march blended in the shadow map's hard visibility at a
 //! surface between two slices, which sharpens the wide penumbra a ground far below an
@@ -60,8 +79,8 @@
 //! change: row 1.67%, RMSE 0.70%, p95 1.58%). Estimating per step in those cells instead gave
 //! 4.8% at about 10 times the march's cost on that scene: not kept.
 //! A light nearly as large as its distance to an occluder is beyond the one-planar-blocker
-//! assumption: radius 1.39 with a sphere's near side 1.4 from the light's centre, p95 4.6%
-//! (RMSE 4.7%); radius 2, the sphere half inside the light's sphere, 8.0%. The eye 0.1 in
+//! assumption: radius 1.39 with a sphere's near side 1.4 from the light's centre, p95 4.7%
+//! (RMSE 4.8%); radius 2, the sphere half inside the light's sphere, 8.1%. The eye 0.1 in
 //! front of an occluder, looking through it along its umbra: p95 3.9%. A light whose
 //! penumbrae are all narrower than a shadow-map texel is better drawn hard
 //! ([`ShadowMapNode::penumbra_below_texel`](crate::nodes::ShadowMapNode::penumbra_below_texel),
@@ -80,7 +99,7 @@
 //! where an occluder's surface lies between it and a neighbouring slice, else 0.
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{bind_group, compute_pipeline, dispatch, layout, module, Binding};
+use crate::gpu::cache::{bind_group, compute_pipeline, layout, module, Binding};
 use crate::gpu::{
     check_depth_layers, depth_array_view, texture_3d, Cache, GpuTimer, UniformBuffer,
 };
@@ -88,13 +107,25 @@ use crate::nodes::shadow_map::ShadowMap;
 use crate::plan::Pass;
 use crate::scene::Light;
 
-/// The node's binding table: `@binding(i)` of `shaders/soft_shadow.wgsl` is entry `i`.
-const BINDINGS: [Binding; 5] = [
+/// The binding table of `build_anchors` in `shaders/soft_shadow.wgsl`: `@binding(i)` is
+/// entry `i`.
+const ANCHOR_BINDINGS: [Binding; 6] = [
     Binding::Params,                                          // mp
     Binding::DepthArray,                                      // shadow_map
     Binding::Comparison,                                      // shadow_sampler
     Binding::StorageVolume(wgpu::TextureFormat::Rgba16Float), // volume
     Binding::DepthArray,                                      // shadow_back
+    Binding::StorageVolume(wgpu::TextureFormat::Rgba16Float), // anchors_out
+];
+
+/// `build_rest`'s: the same, but reading the anchors.
+const REST_BINDINGS: [Binding; 6] = [
+    Binding::Params,
+    Binding::DepthArray,
+    Binding::Comparison,
+    Binding::StorageVolume(wgpu::TextureFormat::Rgba16Float),
+    Binding::DepthArray,
+    Binding::Volume, // anchors_in
 ];
 
 /// Most occluder bounding spheres the soft shadow tests a point against; more are merged into
@@ -233,31 +264,68 @@ struct SoftShadowUniform {
     planes: [[f32; 4]; MAX_SOFT_SPHERES],
 }
 
-/// The node's layout and its pipelines (point and spot), held by the [`Cache`].
+/// The two passes of a build (see `shaders/soft_shadow.wgsl`) for one kind of light.
+#[derive(Clone)]
+struct Build {
+    anchors: wgpu::ComputePipeline,
+    rest: wgpu::ComputePipeline,
+}
+
+/// The node's layouts and its pipelines (point and spot), held by the [`Cache`].
 #[derive(Clone)]
 pub(crate) struct Pipelines {
-    layout: wgpu::BindGroupLayout,
-    point: wgpu::ComputePipeline,
-    spot: wgpu::ComputePipeline,
+    anchor_layout: wgpu::BindGroupLayout,
+    rest_layout: wgpu::BindGroupLayout,
+    point: Build,
+    spot: Build,
 }
 
 impl Pipelines {
     pub(crate) fn new(device: &wgpu::Device) -> Self {
         let label = "volshadow soft shadow";
-        let layout = layout(device, label, wgpu::ShaderStages::COMPUTE, &BINDINGS);
+        let anchor_layout = layout(device, label, wgpu::ShaderStages::COMPUTE, &ANCHOR_BINDINGS);
+        let rest_layout = layout(device, label, wgpu::ShaderStages::COMPUTE, &REST_BINDINGS);
         let source = concat!(
             include_str!("../../shaders/pcss.wgsl"),
             include_str!("../../shaders/soft_shadow.wgsl")
         );
         let module = module(device, "volshadow soft_shadow.wgsl", source);
-        let point = compute_pipeline(device, label, &layout, &module, "build", &[]);
-        let spot = compute_pipeline(device, label, &layout, &module, "build", &[("SPOT", 1.0)]);
+        let build = |constants: &[(&str, f64)]| Build {
+            anchors: compute_pipeline(
+                device,
+                label,
+                &anchor_layout,
+                &module,
+                "build_anchors",
+                constants,
+            ),
+            rest: compute_pipeline(
+                device,
+                label,
+                &rest_layout,
+                &module,
+                "build_rest",
+                constants,
+            ),
+        };
+        let point = build(&[]);
+        let spot = build(&[("SPOT", 1.0)]);
         Self {
-            layout,
+            anchor_layout,
+            rest_layout,
             point,
             spot,
         }
     }
+}
+
+/// What the bind groups were made for, and they.
+struct Bound {
+    map: wgpu::Texture,
+    back: wgpu::Texture,
+    grid: wgpu::Texture,
+    anchors: wgpu::BindGroup,
+    rest: wgpu::BindGroup,
 }
 
 /// Builds the soft-shadow grid of one light (see the module docs). `prepare` decides whether
@@ -269,9 +337,12 @@ pub struct SoftShadowNode {
     uniform: UniformBuffer<SoftShadowUniform>,
     sampler: wgpu::Sampler,
     texture: Option<wgpu::Texture>,
-    /// The bind group, and the shadow map, its back faces and the grid it was made for.
-    bound: Option<(wgpu::Texture, wgpu::Texture, wgpu::Texture, wgpu::BindGroup)>,
-    pipeline: Option<wgpu::ComputePipeline>,
+    /// The anchors' cells (see `shaders/soft_shadow.wgsl`), made with `texture`.
+    anchors: Option<wgpu::Texture>,
+    /// The bind groups of the two passes, and the shadow map, its back faces and the grid
+    /// they were made for.
+    bound: Option<Bound>,
+    pipeline: Option<Build>,
     layers: u32,
     /// The shadow map generation the grid was (or will be, when `pending`) built from.
     generation: Option<u64>,
@@ -298,6 +369,7 @@ impl SoftShadowNode {
                 ..Default::default()
             }),
             texture: None,
+            anchors: None,
             bound: None,
             pipeline: None,
             layers: 0,
@@ -383,30 +455,49 @@ impl SoftShadowNode {
                 wgpu::TextureFormat::Rgba16Float,
                 wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
             ));
+            let a = n.div_ceil(2);
+            self.anchors = Some(texture_3d(
+                device,
+                "volshadow soft shadow anchors",
+                (a, a, layers * s),
+                wgpu::TextureFormat::Rgba16Float,
+                wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+            ));
         }
         let texture = self.texture.as_ref().expect("created above");
+        let anchors = self.anchors.as_ref().expect("created with the grid");
         let back = map.back.unwrap_or(map.texture);
         if self
             .bound
             .as_ref()
-            .is_none_or(|(m, b, t, _)| m != map.texture || b != back || t != texture)
+            .is_none_or(|b| b.map != *map.texture || b.back != *back || b.grid != *texture)
         {
             let shadow_view = depth_array_view(map.texture);
             let back_view = depth_array_view(back);
             let grid_view = texture.create_view(&Default::default());
-            let group = bind_group(
-                device,
-                "volshadow soft shadow",
-                &self.pipelines.layout,
-                [
-                    self.uniform.binding(),
-                    wgpu::BindingResource::TextureView(&shadow_view),
-                    wgpu::BindingResource::Sampler(&self.sampler),
-                    wgpu::BindingResource::TextureView(&grid_view),
-                    wgpu::BindingResource::TextureView(&back_view),
-                ],
-            );
-            self.bound = Some((map.texture.clone(), back.clone(), texture.clone(), group));
+            let anchor_view = anchors.create_view(&Default::default());
+            let group = |layout: &wgpu::BindGroupLayout| {
+                bind_group(
+                    device,
+                    "volshadow soft shadow",
+                    layout,
+                    [
+                        self.uniform.binding(),
+                        wgpu::BindingResource::TextureView(&shadow_view),
+                        wgpu::BindingResource::Sampler(&self.sampler),
+                        wgpu::BindingResource::TextureView(&grid_view),
+                        wgpu::BindingResource::TextureView(&back_view),
+                        wgpu::BindingResource::TextureView(&anchor_view),
+                    ],
+                )
+            };
+            self.bound = Some(Bound {
+                map: map.texture.clone(),
+                back: back.clone(),
+                grid: texture.clone(),
+                anchors: group(&self.pipelines.anchor_layout),
+                rest: group(&self.pipelines.rest_layout),
+            });
             self.pending = true;
         }
         let mut faces = [[0.0; 16]; 6];
@@ -464,7 +555,7 @@ impl SoftShadowNode {
         encoder: &mut wgpu::CommandEncoder,
         timer: Option<&mut GpuTimer>,
     ) -> Result<()> {
-        let (Some((_, _, _, group)), Some(pipeline)) = (&self.bound, &self.pipeline) else {
+        let (Some(bound), Some(build)) = (&self.bound, &self.pipeline) else {
             return Err(Error::NotPrepared {
                 reason: "SoftShadowNode::prepare has not succeeded yet",
             });
@@ -472,17 +563,19 @@ impl SoftShadowNode {
         if !std::mem::take(&mut self.pending) {
             return Ok(());
         }
-        let n = self.size.directions.div_ceil(8);
-        let groups = (n, n, self.layers);
-        dispatch(
-            encoder,
-            timer,
-            Pass::SoftShadow,
-            "volshadow soft shadow",
-            pipeline,
-            group,
-            groups,
-        );
+        // Anchors, and blocks of 2 × 2 directions: 8 × 8 a workgroup.
+        let a = self.size.directions.div_ceil(2);
+        let timestamp_writes = timer.and_then(|t| t.compute_pass(Pass::SoftShadow));
+        let mut compute = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("volshadow soft shadow"),
+            timestamp_writes,
+        });
+        compute.set_pipeline(&build.anchors);
+        compute.set_bind_group(0, &bound.anchors, &[]);
+        compute.dispatch_workgroups(a.div_ceil(8), a.div_ceil(8), self.layers);
+        compute.set_pipeline(&build.rest);
+        compute.set_bind_group(0, &bound.rest, &[]);
+        compute.dispatch_workgroups(a.div_ceil(8), a.div_ceil(8), self.layers);
         Ok(())
     }
 
