@@ -259,7 +259,12 @@ fn cone_cuts(apex: vec3<f32>, axis: vec3<f32>, c2: f32, eye: vec3<f32>, dir: vec
     let qb = 2.0 * (av * aw - c2 * dot(dir, w0));
     let qc = aw * aw - c2 * dot(w0, w0);
     var roots = array<f32, 2>(-1.0, -1.0);
-    if (abs(qa) > 1.0e-12 * max(abs(qb), abs(qc))) {
+    // qa is dimensionless (qb a length, qc an area): whether it is zero is decided against its
+    // own terms' rounding, not against qb or qc, which grow with the scene's scale (at a unit of
+    // 8e4 a threshold of 1e-12 · |qc| took rays nearly parallel to the cone's surface for
+    // linear and cut them wrong, by up to 8%). Below it the far root lies beyond 1e6 times the
+    // eye's distance from the apex.
+    if (abs(qa) > 1.0e-6 * max(av * av, c2)) {
         let disc = qb * qb - 4.0 * qa * qc;
         if (disc >= 0.0) {
             let q = -0.5 * (qb + select(-1.0, 1.0, qb >= 0.0) * sqrt(disc));

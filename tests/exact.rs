@@ -380,7 +380,8 @@ fn f_textured_spot_eye_in_its_occluders_shadow() {
 /// an optional ground, a point or spot light, an eye that is often inside a shadow or looking
 /// at the light, a camera whose near plane may cut the volumes (standard or reversed infinite
 /// depth), optical depth σt·D from 1e-3 to 50, any phase, and the whole scene scaled by
-/// 1e-2 … 1e4.
+/// 1e-2 … 1e5 (1e4 until 2026-11-23: at 1e5 the spot's cone was cut wrong for rays nearly
+/// parallel to its surface; seed 204 of `tests/soft_grid.rs` found it).
 struct RandomScene {
     scene: MeshScene,
     camera: Camera,
@@ -393,7 +394,7 @@ struct RandomScene {
 fn random_scene(seed: u64) -> RandomScene {
     let mut rng = fastrand::Rng::with_seed(seed);
     let mut uniform = |a: f32, b: f32| a + (b - a) * rng.f32();
-    let scale = 10f32.powf(uniform(-2.0, 4.0));
+    let scale = 10f32.powf(uniform(-2.0, 5.0));
     let ground = uniform(0.0, 1.0) < 0.7;
     let mut scene = MeshScene {
         ground: ground.then_some(0.0),

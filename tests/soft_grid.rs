@@ -27,7 +27,9 @@ const SEEDS: u64 = 12;
 
 /// One random scene: a point light of radius R at a position, a sphere at distance L in a
 /// random direction, a camera looking across the shadow behind it at a wall, all scaled by a
-/// log-uniform unit from 1e-2 to 1e3 (the f32 path must not care), optical depth σt·L
+/// log-uniform unit from 1e-2 to 1e5 (the f32 path must not care; at 1e3 until 2026-11-23, when
+/// widening it found a spot's cone cut wrong at a unit of 8e4: seed 204 of the spot test,
+/// RMSE 5.2%), optical depth σt·L
 /// log-uniform over the caller's range (the eye within about 8 optical depths of the shadow).
 struct RandomScene {
     camera: Camera,
@@ -46,7 +48,7 @@ struct RandomScene {
 fn random_scene(seed: u64, log_tau: (f32, f32)) -> RandomScene {
     let mut rng = fastrand::Rng::with_seed(seed);
     let mut uniform = |lo: f32, hi: f32| lo + (hi - lo) * rng.f32();
-    let unit = 10f32.powf(uniform(-2.0, 3.0));
+    let unit = 10f32.powf(uniform(-2.0, 5.0));
     let direction = |u: f32, v: f32| {
         let z = 2.0 * u - 1.0;
         let phi = 2.0 * std::f32::consts::PI * v;
@@ -182,8 +184,8 @@ fn random_soft_scenes_against_the_reference() {
 /// the same seeds: apex 30° to 90°, and 30° to 115° (a map up to about 146° once widened for
 /// the penumbra, coarse at its centre). All finite and beyond twice the p95 bar with the shadow
 /// ignored; of each 12, at least 9 within the bars, and every one within p95 15%,
-/// RMSE 4%. Those two are measured limits (2026-11-23: 9 and 10 within; the others, p95 4.4%,
-/// 6.3%, 13.0% and 5.7%, 9.7%, RMSE up to 2.9%, are views in which every counted pixel is in
+/// RMSE 4%. Those two are measured limits (2026-11-23: 9 and 10 within; the others, p95 3.5%,
+/// 6.2%, 11.4% and 4.6%, 11.3%, RMSE up to 2.7%, are views in which every counted pixel is in
 /// the hard umbra, lit only by the deep penumbra: a known limitation, see the
 /// `SoftShadowNode` docs). Before the spot map widened for the penumbra
 /// (`ShadowMapNode::spot_fov`), the parts of the sphere outside the cone were missing from it
@@ -328,12 +330,12 @@ fn eye_in_the_umbra_looking_away_from_the_light() {
 /// light a pixel receives comes from a few mean free paths of the ray, so the error of the
 /// visibility at single points shows instead of averaging out along the ray. A known
 /// limitation, run by hand: it fails the bars. Measured on 2026-11-23 (exact method,
-/// grid 64² × 16, with the back-face layer): of 12 seeds, 8 within the bars (9 before the
-/// grid's build became adaptive; seed 107 now p95 2.57%, RMSE 2.16%); seed 105 (the eye
-/// in a deep penumbra, where the visible fraction is small) p95 18.6% (37.8% with the front
-/// surface alone); seed 108 (a small light seen close up) 7.8% through the grid, 1.1%
-/// estimating per step (the grid's cells are coarse for that close a view); seed 110 p95 3.3%,
-/// RMSE 3.5%. The hard exact method is within 0.02% of the hard reference in 105 and 108.
+/// grid 64² × 16, with the back-face layer, units from 1e-2 to 1e5): of 12 seeds, 9 within the
+/// bars; seed 105 (the eye in a deep penumbra, where the visible fraction is small) p95 28.2%
+/// (18.6% with the scene 0.94 times the size, the spiral's turns per point falling elsewhere;
+/// 37.8% then with the front surface alone); seed 108 (a small light seen close up) 7.8% through the grid, 1.1%
+/// estimating per step (the grid's cells are coarse for that close a view); seed 110 p95 3.4%,
+/// RMSE 3.7%. The hard exact method is within 0.02% of the hard reference in 105 and 108.
 #[test]
 #[ignore = "known limitation (thick fog, eye close to a deep penumbra): fails the bars; run by hand"]
 fn random_soft_scenes_in_thick_fog() {

@@ -52,8 +52,8 @@
 //! light comes mostly from the deep penumbra, where that fraction is small: with the eye in an
 //! umbra looking away from the light, p95 6.0% against the reference (RMSE 1.3%); in a thick
 //! medium (σt·L from 1 to 10, L the light's distance to the occluder) with the eye a few mean
-//! free paths from a penumbra, up to 18.6%; in the thinner seeded scenes of the crate's tests
-//! it averages out along the ray (p95 ≤ 1.6%). Those figures take the blockers' distance
+//! free paths from a penumbra, up to 28.2%; in the thinner seeded scenes of the crate's tests
+//! it averages out along the ray (p95 ≤ 1.8%). Those figures take the blockers' distance
 //! midway between the front and back faces ([`ShadowMap::back`]); with the front surface
 //! alone they were 41%, 38% and 2.6% (measured with 16 taps a search round, as were the
 //! one-layer figures below). The midpoint is not a gain everywhere: for a sphere of radius
@@ -61,7 +61,7 @@
 //! taps a search round, against 1.8% with the front surface alone). A small light seen close up in thick fog: 7.8% through
 //! the grid (its cells are coarse for that view), 1.1% estimating per step. Under a spot whose
 //! cone's edge crosses the occluder, a view lit only by the deep penumbra is off by up to p95
-//! 13.0% (5 of 24 seeded scenes beyond p95 3%). Where blockers lie at clearly different
+//! 11.4% (5 of 24 seeded scenes beyond p95 3%). Where blockers lie at clearly different
 //! distances (ratio > 1.5) the estimate takes two layers, each with its own filter width; the
 //! shadow map still holds one surface a direction, so an occluder hidden behind a nearer one
 //! is partly missed: two spheres with overlapping penumbrae, p95 2.5% (3.6% with one layer,
