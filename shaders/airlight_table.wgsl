@@ -1,6 +1,7 @@
 // F′ table builder: one invocation per row γ_i = π t_i², t_i = i / (rows − 1).
 // Entry j holds T(γ_i, s_j) = ∫₀^{s_j} p exp(−σt (d + x − D)) ds, s_j = j / (n − 1), integrated
-// by 8-point Gauss–Legendre per cell and a compensated running sum along the row.
+// by 8-point Gauss–Legendre per cell and a compensated running sum along the row; entry n + j
+// the tail ∫_{s_j}^1, summed from s = 1.
 
 @group(0) @binding(0) var<storage, read> air: Airlight;
 @group(0) @binding(1) var table_out: texture_storage_2d<rgba32float, write>;
@@ -22,32 +23,50 @@ fn build(@builtin(global_invocation_id) gid: vec3<u32>) {
     // light exactly behind) uses the limit w → 0, approached through a tiny w.
     let w = max(PI * (1.0 - t) * (1.0 + t), 1.0e-6);
     let sin_half_gamma = sin(0.5 * gamma);
+    let ds = 1.0 / f32(n - 1u);
+    // Columns [0, n): T from the eye (s = 0) to s_j. Columns [n, 2n): the tail, T from s_j to
+    // the end (s = 1), summed from that end: an interval far from where the integrand peaks
+    // (an optically thick medium) is a small difference of two large heads, but of two small
+    // tails when it lies beyond the peak (see `t_between` in prelude.wgsl).
     var sum = vec3<f32>(0.0);
     var carry = vec3<f32>(0.0);
     textureStore(table_out, vec2<u32>(0u, i), vec4<f32>(0.0));
-    let ds = 1.0 / f32(n - 1u);
     for (var j = 1u; j < n; j++) {
-        var cell = vec3<f32>(0.0);
-        if (j + 1u < n) {
-            cell = gl8(0.5 * ds, (f32(j) - 0.5) * ds, w, sin_half_gamma);
-        } else {
-            // The last cell ends at s = 1 (x = ∞), where exp(−σt (d + x − D)) drops to zero
-            // within a sliver of width ~ 1/(σt D) that one Gauss–Legendre rule cannot see:
-            // split it geometrically towards s = 1, in 1 − s.
-            var hi = ds;
-            for (var k = 0u; k < 24u; k++) {
-                let lo = select(0.25 * hi, 0.0, k == 23u);
-                cell += gl8_tail(0.5 * (hi - lo), 0.5 * (hi + lo), w, sin_half_gamma);
-                hi = lo;
-            }
-        }
         // Kahan summation: a row of 255 cells keeps the f32 sum to ~1e-7 relative.
-        let y = cell - carry;
+        let y = cell(j, n, ds, w, sin_half_gamma) - carry;
         let next = sum + y;
         carry = (next - sum) - y;
         sum = next;
         textureStore(table_out, vec2<u32>(j, i), vec4<f32>(sum, 0.0));
     }
+    sum = vec3<f32>(0.0);
+    carry = vec3<f32>(0.0);
+    textureStore(table_out, vec2<u32>(2u * n - 1u, i), vec4<f32>(0.0));
+    for (var j = n - 1u; j >= 1u; j--) {
+        let y = cell(j, n, ds, w, sin_half_gamma) - carry;
+        let next = sum + y;
+        carry = (next - sum) - y;
+        sum = next;
+        textureStore(table_out, vec2<u32>(n + j - 1u, i), vec4<f32>(sum, 0.0));
+    }
+}
+
+// ∫ over cell j, [s_{j−1}, s_j], of a row.
+fn cell(j: u32, n: u32, ds: f32, w: f32, sin_half_gamma: f32) -> vec3<f32> {
+    if (j + 1u < n) {
+        return gl8(0.5 * ds, (f32(j) - 0.5) * ds, w, sin_half_gamma);
+    }
+    // The last cell ends at s = 1 (x = ∞), where exp(−σt (d + x − D)) drops to zero within a
+    // sliver of width ~ 1/(σt D) that one Gauss–Legendre rule cannot see: split it
+    // geometrically towards s = 1, in 1 − s.
+    var acc = vec3<f32>(0.0);
+    var hi = ds;
+    for (var k = 0u; k < 24u; k++) {
+        let lo = select(0.25 * hi, 0.0, k == 23u);
+        acc += gl8_tail(0.5 * (hi - lo), 0.5 * (hi + lo), w, sin_half_gamma);
+        hi = lo;
+    }
+    return acc;
 }
 
 // ∫ over [mid − half, mid + half] in s.

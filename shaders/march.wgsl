@@ -181,7 +181,7 @@ const MAX_SHARP_STEPS: u32 = 16u;
 // 1.8% refined). The refinement runs after the step loop, in a loop as cheap per iteration;
 // marked steps beyond MAX_SHARP_STEPS keep the grid's value (no shadow-map lookup in the main
 // loop, which every step would pay for on a SIMD device).
-fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: vec3<f32>, t1: vec3<f32>, n: u32) -> Marched {
+fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: TT, t1: TT, n: u32) -> Marched {
     var out: Marched;
     out.t = vec3<f32>(0.0);
     out.steps = n;
@@ -253,7 +253,7 @@ fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: vec3<f32>, t1
     // The midpoint weights normalised to the exact T over the interval: exact where V is
     // constant, and for uniform steps exact too where dT/ds is exponential in s (an optically
     // thick medium), whose midpoint-to-integral ratio is then the same for every step.
-    let total = t1 - t0;
+    let total = t_between(t0, t1);
     out.t = select(vec3<f32>(plain / f32(n)) * total, total * lit / weights, weights > vec3<f32>(0.0));
     out.steps += count * pieces;
     return out;
@@ -410,12 +410,12 @@ fn march_textured(ray: PixelRay, r: AirRay, s0: f32, s1: f32, n: u32) -> Marched
     }
     let ds = (s1 - s0) / f32(n);
     let footprint = 0.5 * ds * r.w;
-    var t_a = table_t(table, air, r, s0);
+    var t_a = table_tt(table, air, r, s0);
     for (var i = 0u; i < n; i++) {
         let a = s0 + ds * f32(i);
         let b = select(s0 + ds * f32(i + 1u), s1, i + 1u == n);
-        let t_b = table_t(table, air, r, b);
-        out.t += (t_b - t_a) * step_texture(ray, r, a, b, footprint);
+        let t_b = table_tt(table, air, r, b);
+        out.t += t_between(t_a, t_b) * step_texture(ray, r, a, b, footprint);
         t_a = t_b;
     }
     out.steps = n;
@@ -429,7 +429,7 @@ fn march_textured(ray: PixelRay, r: AirRay, s0: f32, s1: f32, n: u32) -> Marched
 // visibility changes. The step loop only records those transitions; T (and, with bisection
 // on, the located edge between the two midpoints that disagree) is computed for them
 // afterwards, outside the loop every step executes.
-fn march_shadowed(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: vec3<f32>, t1: vec3<f32>, n: u32) -> Marched {
+fn march_shadowed(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: TT, t1: TT, n: u32) -> Marched {
     var out: Marched;
     out.t = vec3<f32>(0.0);
     out.steps = 0u;
@@ -461,8 +461,8 @@ fn march_shadowed(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: vec3<f32>, t1:
                 edge = bisect(ray, r, edge - 0.5 * ds, edge + 0.5 * ds, v_run);
                 out.steps += BISECTIONS;
             }
-            let t_edge = table_t(table, air, r, edge);
-            out.t += (t_edge - t_run) * v_run;
+            let t_edge = table_tt(table, air, r, edge);
+            out.t += t_between(t_run, t_edge) * v_run;
             t_run = t_edge;
             v_run = v;
         }
@@ -470,7 +470,7 @@ fn march_shadowed(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: vec3<f32>, t1:
             break;
         }
     }
-    out.t += (t1 - t_run) * v_run;
+    out.t += t_between(t_run, t1) * v_run;
     out.steps += n;
     return out;
 }
@@ -486,21 +486,21 @@ fn march_shadowed_textured(ray: PixelRay, r: AirRay, s0: f32, s1: f32, n: u32) -
     }
     let ds = (s1 - s0) / f32(n);
     let footprint = 0.5 * ds * r.w;
-    var t_a = table_t(table, air, r, s0);
+    var t_a = table_tt(table, air, r, s0);
     var v_prev = 1.0;
     var w_prev = vec3<f32>(1.0);
     for (var i = 0u; i < n; i++) {
         let a = s0 + ds * f32(i);
         let b = select(s0 + ds * f32(i + 1u), s1, i + 1u == n);
         let mid = 0.5 * (a + b);
-        let t_b = table_t(table, air, r, b);
+        let t_b = table_tt(table, air, r, b);
         let v = vis_at(ray, r, mid);
         let w = step_texture(ray, r, a, b, footprint);
-        out.t += (t_b - t_a) * (v * w);
+        out.t += t_between(t_a, t_b) * (v * w);
         if (BISECTIONS > 0u && i > 0u && (v >= 0.5) != (v_prev >= 0.5)) {
             // Move the edge the midpoint rule assumed (at a) to the located transition.
-            let t_edge = table_t(table, air, r, bisect(ray, r, a - 0.5 * ds, mid, v_prev));
-            out.t += (t_edge - t_a) * (v_prev * w_prev - v * w);
+            let t_edge = table_tt(table, air, r, bisect(ray, r, a - 0.5 * ds, mid, v_prev));
+            out.t += t_between(t_a, t_edge) * (v_prev * w_prev - v * w);
             out.steps += BISECTIONS;
         }
         t_a = t_b;
@@ -684,13 +684,9 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var i = 0u; i < sup.count; i++) {
         let u0 = sup.s[i].x;
         let u1 = sup.s[i].y;
-        // A point light's support starts at the eye, where T = 0.
-        var t_u0 = vec3<f32>(0.0);
-        if (SPOT) {
-            t_u0 = table_t(table, air, r, u0);
-        }
-        let t_u1 = table_t(table, air, r, u1);
-        open += t_u1 - t_u0;
+        let t_u0 = table_tt(table, air, r, u0);
+        let t_u1 = table_tt(table, air, r, u1);
+        open += t_between(t_u0, t_u1);
         if (MODE == 0u) {
             // No occluders: all of it is lit. (MODE == 0 lets the compiler drop the shadow
             // code from the analytic pipeline.)
@@ -699,7 +695,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
                 total += all.t;
                 steps += all.steps;
             } else {
-                total += t_u1 - t_u0;
+                total += t_between(t_u0, t_u1);
             }
             continue;
         }
@@ -741,7 +737,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
                     }
                     if (s_c < u1) {
                         b = s_c;
-                        t_b = table_t(table, air, r, b);
+                        t_b = table_tt(table, air, r, b);
                     }
                 }
                 // The shadow map says which side of the faces the interval is on. Where it
@@ -761,7 +757,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
                         steps += m.steps;
                     }
                 } else {
-                    total += v * (t_b - t_a);
+                    total += v * t_between(t_a, t_b);
                 }
                 if (!(b < u1)) {
                     break;
@@ -786,7 +782,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
                     steps += all.steps;
                 }
             } else {
-                total += v * (t_u1 - t_u0);
+                total += v * t_between(t_u0, t_u1);
             }
             continue;
         }
@@ -795,11 +791,11 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
         // the cone.
         var t_m0 = t_u0;
         if (m0 != u0) {
-            t_m0 = table_t(table, air, r, m0);
+            t_m0 = table_tt(table, air, r, m0);
         }
         var t_m1 = t_u1;
         if (m1 != u1) {
-            t_m1 = table_t(table, air, r, m1);
+            t_m1 = table_tt(table, air, r, m1);
         }
         var inside: Marched;
         if (TEXTURED) {
@@ -836,7 +832,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
                 steps += after.steps;
             }
         } else {
-            total += v_before * (t_m0 - t_u0) + v_after * (t_u1 - t_m1);
+            total += v_before * t_between(t_u0, t_m0) + v_after * t_between(t_m1, t_u1);
         }
     }
     total = max(total, vec3<f32>(0.0));

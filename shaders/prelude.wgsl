@@ -205,20 +205,54 @@ fn table_t(table: texture_2d<f32>, a: Airlight, r: AirRay, s: f32) -> vec3<f32> 
         return directional_t(a, directional_x(a, s));
     }
     let n = a.table_along;
-    let ts = s * f32(n - 1u);
-    let j = min(u32(ts), n - 1u);
-    let s0 = f32(j) / f32(n - 1u);
-    var t = table_row_mix(table, a, r.gamma, j);
+    let j = min(u32(s * f32(n - 1u)), n - 1u);
+    return table_row_mix(table, a, r.gamma, j) + table_partial(a, r, s, j);
+}
+
+// ∫ from the table's entry j (at or below s) to s, by 3-point Gauss–Legendre.
+fn table_partial(a: Airlight, r: AirRay, s: f32, j: u32) -> vec3<f32> {
+    let s0 = f32(j) / f32(a.table_along - 1u);
     let half_len = 0.5 * (s - s0);
-    if (half_len > 0.0) {
-        let mid = s0 + half_len;
-        let k = 0.7745966692414834 * half_len;
-        let f = 0.5555555555555556 * (table_integrand(a, mid - k, r.w, r.sin_half_gamma)
-                                    + table_integrand(a, mid + k, r.w, r.sin_half_gamma))
-              + 0.8888888888888888 * table_integrand(a, mid, r.w, r.sin_half_gamma);
-        t += f * half_len;
+    if (!(half_len > 0.0)) {
+        return vec3<f32>(0.0);
     }
-    return t;
+    let mid = s0 + half_len;
+    let k = 0.7745966692414834 * half_len;
+    let f = 0.5555555555555556 * (table_integrand(a, mid - k, r.w, r.sin_half_gamma)
+                                + table_integrand(a, mid + k, r.w, r.sin_half_gamma))
+          + 0.8888888888888888 * table_integrand(a, mid, r.w, r.sin_half_gamma);
+    return f * half_len;
+}
+
+// T at s both ways: from the eye (head) and to the end (tail). `t_between` takes an interval's
+// integral from whichever holds less beyond it.
+struct TT {
+    head: vec3<f32>,
+    tail: vec3<f32>,
+}
+
+// The tail is the entry at or below s less the same partial cell the head adds: head + tail
+// is the row's total, and the cell's rounding stays within the cell.
+fn table_tt(table: texture_2d<f32>, a: Airlight, r: AirRay, s: f32) -> TT {
+    if (DIRECTIONAL) {
+        let t = directional_t(a, directional_x(a, s));
+        return TT(t, -t); // differences of heads (directional lights have no table)
+    }
+    let n = a.table_along;
+    let j = min(u32(s * f32(n - 1u)), n - 1u);
+    let partial = table_partial(a, r, s, j);
+    let head = table_row_mix(table, a, r.gamma, j) + partial;
+    let tail = max(table_row_mix(table, a, r.gamma, n + j) - partial, vec3<f32>(0.0));
+    return TT(head, tail);
+}
+
+// ∫ over [s_a, s_b] (s_a ≤ s_b) from T at its ends: the difference of the heads, whose
+// rounding is relative to the head at b, or of the tails, relative to the tail at a, per
+// channel whichever is smaller. In an optically thick medium the integrand peaks sharply, and
+// an interval beyond the peak (a spot's cone that leaves it outside) is a small difference of
+// two heads that both hold it: at σt·D = 81, off by up to 106%.
+fn t_between(a: TT, b: TT) -> vec3<f32> {
+    return select(b.head - a.head, a.tail - b.tail, b.head > a.tail);
 }
 
 // I0 · F′(x): in-scattered radiance from the eye to distance x (x < 0: sky).
@@ -349,9 +383,10 @@ fn support_s(a: Airlight, r: AirRay, spot: vec4<f32>, dir: vec3<f32>, x_end: f32
 fn unshadowed_t(table: texture_2d<f32>, a: Airlight, r: AirRay, sup: SupportS) -> vec3<f32> {
     var t = vec3<f32>(0.0);
     for (var i = 0u; i < sup.count; i++) {
-        t += table_t(table, a, r, sup.s[i].y);
         if (SPOT) {
-            t -= table_t(table, a, r, sup.s[i].x);
+            t += t_between(table_tt(table, a, r, sup.s[i].x), table_tt(table, a, r, sup.s[i].y));
+        } else {
+            t += table_t(table, a, r, sup.s[i].y); // from the eye, where T = 0
         }
     }
     return t;

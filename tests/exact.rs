@@ -391,7 +391,29 @@ struct RandomScene {
     summary: String,
 }
 
+/// What a seeded scene may be held to: the optical depth σt·D's range (log10), whether the
+/// light must be a spot, and a factor on its intensity.
+#[derive(Clone, Copy)]
+struct Regime {
+    log_tau: (f32, f32),
+    spot: bool,
+    brighter: f32,
+}
+
+/// The regime of `g_random_scenes_against_the_reference`.
+fn any_regime() -> Regime {
+    Regime {
+        log_tau: (-3.0, 50f32.log10()),
+        spot: false,
+        brighter: 1.0,
+    }
+}
+
 fn random_scene(seed: u64) -> RandomScene {
+    random_scene_in(seed, any_regime())
+}
+
+fn random_scene_in(seed: u64, regime: Regime) -> RandomScene {
     let mut rng = fastrand::Rng::with_seed(seed);
     let mut uniform = |a: f32, b: f32| a + (b - a) * rng.f32();
     let scale = 10f32.powf(uniform(-2.0, 5.0));
@@ -487,9 +509,11 @@ fn random_scene(seed: u64) -> RandomScene {
         glam::camera::rh::proj::directx::perspective(fov, 1.0, near, 1e3 * scale)
     };
     let camera = Camera::new(view, proj).unwrap();
-    let spot = uniform(0.0, 1.0) < 0.2;
-    let intensity =
-        Vec3::new(uniform(5.0, 40.0), uniform(5.0, 40.0), uniform(5.0, 40.0)) * scale * scale;
+    let spot = uniform(0.0, 1.0) < 0.2 || regime.spot;
+    let intensity = Vec3::new(uniform(5.0, 40.0), uniform(5.0, 40.0), uniform(5.0, 40.0))
+        * scale
+        * scale
+        * regime.brighter;
     let light: Light = if spot {
         let dir = (centers[0].0 - light_pos).normalize();
         SpotLight::new(
@@ -505,7 +529,7 @@ fn random_scene(seed: u64) -> RandomScene {
             .unwrap()
             .into()
     };
-    let tau = 10f32.powf(uniform(-3.0, 50f32.log10()));
+    let tau = 10f32.powf(uniform(regime.log_tau.0, regime.log_tau.1));
     let sigma_t = tau / (eye.distance(light_pos) * scale);
     let albedo = uniform(0.2, 1.0);
     let phase = match (uniform(0.0, 3.0) as u32).min(2) {
@@ -698,5 +722,57 @@ fn intersecting_occluders_with_a_low_light() {
         &gpu,
         &cache,
         &Shot::new(&scene, &camera, &light, &medium, SIZE),
+    );
+}
+
+/// Seeded spot-light scenes in thick fog, σt·D from 10 to 100 (the generator of
+/// `g_random_scenes_against_the_reference` otherwise, the light 1e15 times as bright so that
+/// the in-scatter, which falls as e^{−σt·D}, stays within f32's normal range), exact method
+/// against the reference: all finite, at least 197 of 200 within p95 1% (the random scenes'
+/// bar) and every one within p95 15%. Those two are measured limits (2026-11-23: 198 within,
+/// the others p95 2.4% and 11.8%, views with 11 and 15 pixels lit above 1% of their brightest).
+/// The integrand along a ray peaks sharply there, and a spot's cone can leave the peak outside:
+/// an interval beyond it was the difference of two heads T(s) that both held the peak, which
+/// put 13 of these 200 over 1%, the worst at p95 100% (seed 95 of the random scenes, at σt·D 81
+/// brightened, was off by up to 106%), before the table kept the tails too
+/// (`AirlightTableNode`).
+#[test]
+fn thick_fog_spot_scenes_against_the_reference() {
+    let gpu = common::gpu();
+    let cache = Cache::new(&gpu.device);
+    let regime = Regime {
+        log_tau: (1.0, 2.0),
+        spot: true,
+        brighter: 1e15,
+    };
+    let (mut within, mut worst) = (0, 0.0_f64);
+    let mut failed = Vec::new();
+    for seed in 0..200 {
+        let s = random_scene_in(seed, regime);
+        let shot = Shot::new(&s.scene, &s.camera, &s.light, &s.medium, s.size);
+        let reference = shot.reference();
+        let e = shot.measure(&gpu, &cache, exact(), &reference).errors;
+        worst = worst.max(e.p95);
+        if e.p95 <= 0.01 {
+            within += 1;
+        } else {
+            println!("seed {seed} ({}): {e}", s.summary);
+        }
+        if e.non_finite > 0 || e.p95 > 0.15 {
+            failed.push(format!("seed {seed} ({}): {e}", s.summary));
+        }
+    }
+    println!(
+        "200 thick-fog spot scenes: {within} within p95 1%, worst p95 {:.3}%",
+        100.0 * worst
+    );
+    assert!(
+        failed.is_empty(),
+        "over p95 15% or non-finite:\n{}",
+        failed.join("\n")
+    );
+    assert!(
+        within >= 197,
+        "{within} of 200 within p95 1%, fewer than 197"
     );
 }
