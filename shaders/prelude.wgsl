@@ -296,8 +296,8 @@ fn cone_cuts(apex: vec3<f32>, axis: vec3<f32>, c2: f32, eye: vec3<f32>, dir: vec
     // qa is dimensionless (qb a length, qc an area): whether it is zero is decided against its
     // own terms' rounding, not against qb or qc, which grow with the scene's scale (at a unit of
     // 8e4 a threshold of 1e-12 · |qc| took rays nearly parallel to the cone's surface for
-    // linear and cut them wrong, by up to 8%). Below it the far root lies beyond 1e6 times the
-    // eye's distance from the apex.
+    // linear and cut them wrong, by up to 8%). Below it qa is rounding noise, and the linear
+    // root is the one kept.
     if (abs(qa) > 1.0e-6 * max(av * av, c2)) {
         let disc = qb * qb - 4.0 * qa * qc;
         if (disc >= 0.0) {
