@@ -193,8 +193,20 @@ fn table_row_mix(table: texture_2d<f32>, a: Airlight, gamma: f32, j: u32) -> vec
     let f = clamp(tg - f32(i0), 0.0, 1.0);
     let t0 = textureLoad(table, vec2<u32>(j, i0), 0).xyz;
     let t1 = textureLoad(table, vec2<u32>(j, i0 + 1u), 0).xyz;
-    return mix(t0, t1, f);
+    // Where the two rows differ by more than a factor ROW_RATIO, T is nearly exponential in γ
+    // (an optically thick medium, far from the integrand's peak: the optical path grows
+    // linearly with γ there), and a linear mix overestimates it: mix the logarithms instead.
+    let lo = min(t0, t1);
+    let hi = max(t0, t1);
+    let geometric = t0 * pow(t1 / max(t0, vec3<f32>(1.0e-37)), vec3<f32>(f));
+    return select(mix(t0, t1, f), geometric, (lo > vec3<f32>(0.0)) & (hi > ROW_RATIO * lo));
 }
+
+// See `table_row_mix`. Measured (tests/exact.rs, 200 spot-light scenes in thick fog): with a
+// linear mix everywhere, 198 within p95 1%, the others 2.4% and 11.8% (0.19% and 0.59% with
+// four times the rows); with the logarithms mixed above a ratio of 2, 198 and worst 5.5%;
+// above 1.2, 199 and worst 1.04%. The table's own test and the frame tests are unchanged.
+const ROW_RATIO: f32 = 1.2;
 
 // T(γ, s): the table entry at or below s (rows interpolated in γ), plus the rest of the cell
 // integrated exactly at this ray's own γ by 3-point Gauss–Legendre. Interpolating T along s

@@ -728,9 +728,12 @@ fn intersecting_occluders_with_a_low_light() {
 /// Seeded spot-light scenes in thick fog, σt·D from 10 to 100 (the generator of
 /// `g_random_scenes_against_the_reference` otherwise, the light 1e15 times as bright so that
 /// the in-scatter, which falls as e^{−σt·D}, stays within f32's normal range), exact method
-/// against the reference: all finite, at least 197 of 200 within p95 1% (the random scenes'
-/// bar) and every one within p95 15%. Those two are measured limits (2026-11-23: 198 within,
-/// the others p95 2.4% and 11.8%, views with 11 and 15 pixels lit above 1% of their brightest).
+/// against the reference: all finite, at least 198 of 200 within p95 1% (the random scenes'
+/// bar) and every one within p95 2%. Those two are measured limits (2026-11-24: 199 within, the
+/// other p95 1.04%). With the table's rows in γ mixed linearly (see `table_row_mix`), 198
+/// were within and the others at 2.4% and 11.8%, views with 11 and 15 pixels lit above 1% of
+/// their brightest, whose light comes from far beyond the integrand's peak, where T is nearly
+/// exponential in γ.
 /// The integrand along a ray peaks sharply there, and a spot's cone can leave the peak outside:
 /// an interval beyond it was the difference of two heads T(s) that both held the peak, which
 /// put 13 of these 200 over 1%, the worst at p95 100% (seed 95 of the random scenes, at σt·D 81
@@ -758,7 +761,7 @@ fn thick_fog_spot_scenes_against_the_reference() {
         } else {
             println!("seed {seed} ({}): {e}", s.summary);
         }
-        if e.non_finite > 0 || e.p95 > 0.15 {
+        if e.non_finite > 0 || e.p95 > 0.02 {
             failed.push(format!("seed {seed} ({}): {e}", s.summary));
         }
     }
@@ -768,11 +771,11 @@ fn thick_fog_spot_scenes_against_the_reference() {
     );
     assert!(
         failed.is_empty(),
-        "over p95 15% or non-finite:\n{}",
+        "over p95 2% or non-finite:\n{}",
         failed.join("\n")
     );
     assert!(
-        within >= 197,
-        "{within} of 200 within p95 1%, fewer than 197"
+        within >= 198,
+        "{within} of 200 within p95 1%, fewer than 198"
     );
 }
