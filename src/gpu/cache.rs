@@ -256,25 +256,25 @@ pub(crate) fn compute_pipeline(
     })
 }
 
-/// Records one compute pass over `groups` workgroups, timed as `pass` when a timer is given:
-/// what a single-dispatch node's `encode` does.
+/// Records one compute pass, timed as `pass` when a timer is given, of one dispatch per entry
+/// of `dispatches` (pipeline, bind group, workgroups) in order: what a node's `encode` does.
 pub(crate) fn dispatch(
     encoder: &mut wgpu::CommandEncoder,
     timer: Option<&mut GpuTimer>,
     pass: Pass,
     label: &str,
-    pipeline: &wgpu::ComputePipeline,
-    bind_group: &wgpu::BindGroup,
-    groups: (u32, u32, u32),
+    dispatches: &[(&wgpu::ComputePipeline, &wgpu::BindGroup, (u32, u32, u32))],
 ) {
     let timestamp_writes = timer.and_then(|t| t.compute_pass(pass));
     let mut compute = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
         label: Some(label),
         timestamp_writes,
     });
-    compute.set_pipeline(pipeline);
-    compute.set_bind_group(0, bind_group, &[]);
-    compute.dispatch_workgroups(groups.0, groups.1, groups.2);
+    for &(pipeline, bind_group, groups) in dispatches {
+        compute.set_pipeline(pipeline);
+        compute.set_bind_group(0, bind_group, &[]);
+        compute.dispatch_workgroups(groups.0, groups.1, groups.2);
+    }
 }
 
 /// A depth-only render pipeline (no colour target). `compare: None` tests and writes nothing

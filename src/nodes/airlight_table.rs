@@ -208,9 +208,7 @@ impl AirlightTableNode {
             timer,
             Pass::AirlightTable,
             "volshadow F' table",
-            pipeline,
-            bind_group,
-            groups,
+            &[(pipeline, bind_group, groups)],
         );
         Ok(())
     }

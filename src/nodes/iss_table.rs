@@ -238,9 +238,7 @@ impl IssTableNode {
             timer,
             Pass::IssTable,
             "volshadow ISS table",
-            pipeline,
-            bind_group,
-            groups,
+            &[(pipeline, bind_group, groups)],
         );
         Ok(())
     }

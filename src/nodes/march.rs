@@ -852,9 +852,7 @@ impl MarchNode {
             timer,
             Pass::March,
             "volshadow march",
-            pipeline,
-            &bound.bind_group,
-            groups,
+            &[(pipeline, &bound.bind_group, groups)],
         );
         Ok(())
     }

@@ -99,7 +99,7 @@
 //! where an occluder's surface lies between it and a neighbouring slice, else 0.
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{bind_group, compute_pipeline, layout, module, Binding};
+use crate::gpu::cache::{bind_group, compute_pipeline, dispatch, layout, module, Binding};
 use crate::gpu::{
     check_depth_layers, depth_array_view, texture_3d, Cache, GpuTimer, UniformBuffer,
 };
@@ -565,17 +565,17 @@ impl SoftShadowNode {
         }
         // Anchors, and blocks of 2 × 2 directions: 8 × 8 a workgroup.
         let a = self.size.directions.div_ceil(2);
-        let timestamp_writes = timer.and_then(|t| t.compute_pass(Pass::SoftShadow));
-        let mut compute = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("volshadow soft shadow"),
-            timestamp_writes,
-        });
-        compute.set_pipeline(&build.anchors);
-        compute.set_bind_group(0, &bound.anchors, &[]);
-        compute.dispatch_workgroups(a.div_ceil(8), a.div_ceil(8), self.layers);
-        compute.set_pipeline(&build.rest);
-        compute.set_bind_group(0, &bound.rest, &[]);
-        compute.dispatch_workgroups(a.div_ceil(8), a.div_ceil(8), self.layers);
+        let groups = (a.div_ceil(8), a.div_ceil(8), self.layers);
+        dispatch(
+            encoder,
+            timer,
+            Pass::SoftShadow,
+            "volshadow soft shadow",
+            &[
+                (&build.anchors, &bound.anchors, groups),
+                (&build.rest, &bound.rest, groups),
+            ],
+        );
         Ok(())
     }
 
