@@ -336,6 +336,9 @@ fn eye_in_the_umbra_looking_away_from_the_light() {
 /// 37.8% then with the front surface alone); seed 108 (a small light seen close up) 7.8% through the grid, 1.1%
 /// estimating per step (the grid's cells are coarse for that close a view); seed 110 p95 3.4%,
 /// RMSE 3.7%. The hard exact method is within 0.02% of the hard reference in 105 and 108.
+/// Seed 105 taken apart (2026-11-24): 10.5% with 128 filter taps, 8.0% with 64 slices, 14.8%
+/// estimating per step; the rest is the estimate's bias in the deep penumbra
+/// (`grid_cells_against_the_reference_visible_fraction`: 10.6% too dark on average there).
 #[test]
 #[ignore = "known limitation (thick fog, eye close to a deep penumbra): fails the bars; run by hand"]
 fn random_soft_scenes_in_thick_fog() {
@@ -806,4 +809,177 @@ fn extreme_soft_lights_stay_finite_and_bounded() {
         (0.035, 0.05),
     );
     eprintln!("eye in front of the occluder: p95 {:.2}%", 100.0 * worst);
+}
+
+/// The grid's cells themselves against the reference's exact visible fraction at each cell's
+/// point (spherical-cap overlap), on the seeded scenes of `random_soft_scenes_against_the_reference`
+/// (the grid does not depend on the medium): the estimate and the adaptive build, apart from
+/// the march that reads them, whose integration along a ray averages a cell's error with its
+/// neighbours'. In the penumbra (reference fraction 0.02 to 0.98): the mean and 95th
+/// percentile of |error|, and the mean signed error (the estimate's bias); outside it (lit or
+/// umbra), the share of cells off by more than 0.1.
+///
+/// Bars: measured limits (2026-11-24: mean |error| 0.0221, p95 0.0554, mean error +0.0108;
+/// deep penumbra mean relative error −0.106 (the estimate there is too dark), mean |relative
+/// error| 0.274; 0.0085% of the others off), each between the code and a plausibly broken
+/// variant measured by hand with the same seeds: the blockers' distance at the front surface
+/// alone (0.0301, p95 0.0890, deep +1.094 / 1.100, 0.0327% off); 16 filter taps instead of 32
+/// (0.0293, p95 0.0731); the geometric mean of the front and back distances in place of the
+/// arithmetic one (deep +0.269 / 0.338, though 0.0193 and p95 0.0489 overall: the images'
+/// tests, which weigh the deep penumbra, are worse with it: the eye in an umbra looking away
+/// p95 17.6%, the sphere of tests/soft.rs 1.09%). 128 filter taps: 0.0173, p95 0.0471 (the
+/// rest of the error is the estimate's, not the taps' noise).
+#[test]
+fn grid_cells_against_the_reference_visible_fraction() {
+    const MEAN_BAR: f64 = 0.025;
+    const P95_CELL_BAR: f64 = 0.065;
+    const DEEP_BIAS_BAR: f64 = 0.2;
+    const DEEP_ABS_BAR: f64 = 0.32;
+    const OFF_BAR: f64 = 0.0002;
+    let gpu = common::gpu();
+    let cache = Cache::new(&gpu.device);
+    let size = SoftShadowSize::default();
+    let mut shadow = ShadowMapNode::new(
+        &gpu.device,
+        &cache,
+        ShadowMapSettings {
+            resolution: 1024,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let mut soft = SoftShadowNode::new(&gpu.device, &cache, size).unwrap();
+    let (n, slices) = (size.directions as usize, size.slices as usize);
+    let mut penumbra_errors = Vec::new();
+    let (mut outside, mut outside_off) = (0usize, 0usize);
+    // The deep penumbra (reference fraction 0.02 to 0.2): Σ error / fraction, Σ |…|, count.
+    let (mut deep_bias, mut deep_abs, mut deep) = (0.0, 0.0, 0usize);
+    let mut all_bias = 0.0;
+    for seed in 0..SEEDS {
+        let s = random_scene(seed, (-4.0, 0.0));
+        let meshes: Vec<OccluderMesh> = s
+            .spheres
+            .iter()
+            .map(|&(c, rho)| {
+                OccluderMesh::new(&gpu.device, &shapes::uv_sphere(c, rho, 64, 32).unwrap())
+            })
+            .collect();
+        let occluders: Vec<Occluder> = meshes
+            .iter()
+            .map(|mesh| Occluder {
+                mesh,
+                transform: glam::Mat4::IDENTITY,
+            })
+            .collect();
+        let inputs = ShadowMapInputs {
+            light: &s.light,
+            occluders: &occluders,
+        };
+        shadow.prepare(&gpu.device, &gpu.queue, &inputs).unwrap();
+        let map = shadow.shadow_map().unwrap();
+        soft.prepare(
+            &gpu.device,
+            &gpu.queue,
+            &SoftShadowInputs {
+                light: &s.light,
+                shadow_map: map,
+            },
+        )
+        .unwrap();
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        shadow.encode(&mut encoder, None).unwrap();
+        soft.encode(&mut encoder, None).unwrap();
+        gpu.submit_and_wait(encoder).unwrap();
+        let map = shadow.shadow_map().unwrap();
+        let cells: Vec<half::f16> = bytemuck::pod_collect_to_vec(
+            &gpu.read_all_layers_bytes(soft.output().unwrap().texture)
+                .unwrap(),
+        );
+        let light = s.light.position().unwrap();
+        let radius = s.light.radius();
+        // As the node: the least distance of an occluder's bounding sphere from the light.
+        let nearest = map
+            .bounds
+            .iter()
+            .map(|b| (b.truncate().distance(light) - b.w).max(0.0))
+            .fold(f32::INFINITY, f32::min)
+            .max(map.occluder_distance)
+            .max(1e-3 * radius);
+        let occ: Vec<reference::Occluder> = s
+            .spheres
+            .iter()
+            .map(|&(c, rho)| Sphere::new(c.as_dvec3(), f64::from(rho)).into())
+            .collect();
+        let (mut sum, mut count, mut bias) = (0.0, 0usize, 0.0);
+        for (layer, face) in map.faces.iter().enumerate() {
+            let world_from_clip = face.inverse();
+            for y in 0..n {
+                for x in 0..n {
+                    // The cell's direction and its slices' points, as the node places them.
+                    let uv = (glam::Vec2::new(x as f32, y as f32) + 0.5) / n as f32;
+                    let w = world_from_clip
+                        * glam::Vec4::new(2.0 * uv.x - 1.0, 1.0 - 2.0 * uv.y, 0.5, 1.0);
+                    let dir = (w.truncate() / w.w - light).normalize().as_dvec3();
+                    for k in 0..slices {
+                        let q = 1.0 - (k as f64 + 0.5) / slices as f64;
+                        let point = light.as_dvec3() + dir * (f64::from(nearest) / q);
+                        let want = reference::soft::visible_fraction(
+                            point,
+                            light.as_dvec3(),
+                            f64::from(radius),
+                            &occ,
+                        );
+                        let got = f64::from(cells[(((layer * slices + k) * n + y) * n + x) * 4]);
+                        let e = got - want;
+                        if (0.02..=0.2).contains(&want) {
+                            deep_bias += e / want;
+                            deep_abs += e.abs() / want;
+                            deep += 1;
+                        }
+                        if (0.02..=0.98).contains(&want) {
+                            all_bias += e;
+                            penumbra_errors.push(e.abs());
+                            sum += e.abs();
+                            bias += e;
+                            count += 1;
+                        } else {
+                            outside += 1;
+                            outside_off += usize::from(e.abs() > 0.1);
+                        }
+                    }
+                }
+            }
+        }
+        eprintln!(
+            "{}\n  {count} penumbra cells: mean |error| {:.4}, mean error {:+.4}",
+            s.describe,
+            sum / count.max(1) as f64,
+            bias / count.max(1) as f64
+        );
+    }
+    penumbra_errors.sort_by(f64::total_cmp);
+    let mean = penumbra_errors.iter().sum::<f64>() / penumbra_errors.len() as f64;
+    let p95 = penumbra_errors[(penumbra_errors.len() as f64 * 0.95) as usize];
+    let off = outside_off as f64 / outside as f64;
+    let (deep_bias, deep_abs) = (deep_bias / deep as f64, deep_abs / deep as f64);
+    eprintln!(
+        "{} penumbra cells: mean |error| {mean:.4}, p95 {p95:.4}, mean error {:+.4}; deep penumbra ({deep} cells, fraction 0.02 to 0.2): mean relative error {deep_bias:+.3}, mean |relative error| {deep_abs:.3}; {outside} others, {:.4}% off by > 0.1",
+        penumbra_errors.len(),
+        all_bias / penumbra_errors.len() as f64,
+        100.0 * off
+    );
+    assert!(
+        mean <= MEAN_BAR && p95 <= P95_CELL_BAR,
+        "penumbra cells: mean |error| {mean:.4} (bar {MEAN_BAR}), p95 {p95:.4} (bar {P95_CELL_BAR})"
+    );
+    assert!(
+        deep_bias.abs() <= DEEP_BIAS_BAR && deep_abs <= DEEP_ABS_BAR,
+        "deep penumbra: mean relative error {deep_bias:+.3} (bar ±{DEEP_BIAS_BAR}), mean |relative error| {deep_abs:.3} (bar {DEEP_ABS_BAR})"
+    );
+    assert!(
+        off <= OFF_BAR,
+        "{:.4}% of the lit and umbra cells off by more than 0.1 (bar {:.4}%)",
+        100.0 * off,
+        100.0 * OFF_BAR
+    );
 }

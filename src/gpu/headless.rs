@@ -181,6 +181,22 @@ impl HeadlessGpu {
     /// depth format whose depth cannot be copied, such as `Depth24Plus`) and when waiting for
     /// the copy or mapping the buffer fails.
     pub fn read_texture_bytes(&self, texture: &wgpu::Texture) -> Result<Vec<u8>> {
+        self.read_layers(texture, 1)
+    }
+
+    /// As [`read_texture_bytes`](Self::read_texture_bytes), but every array layer of a 2D
+    /// texture, or every depth slice of a 3D one, one after the other (layer 0 or the nearest
+    /// slice first).
+    ///
+    /// # Errors
+    ///
+    /// Those of [`read_texture_bytes`](Self::read_texture_bytes).
+    pub fn read_all_layers_bytes(&self, texture: &wgpu::Texture) -> Result<Vec<u8>> {
+        self.read_layers(texture, texture.depth_or_array_layers())
+    }
+
+    /// Mip 0 of the first `layers` layers (or depth slices) of `texture`, tightly packed.
+    fn read_layers(&self, texture: &wgpu::Texture, layers: u32) -> Result<Vec<u8>> {
         let format = texture.format();
         let aspect = if format.is_depth_stencil_format() {
             wgpu::TextureAspect::DepthOnly
@@ -197,7 +213,7 @@ impl HeadlessGpu {
             row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
         let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("volshadow readback"),
-            size: u64::from(padded) * u64::from(height),
+            size: u64::from(padded) * u64::from(height) * u64::from(layers),
             usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
             mapped_at_creation: false,
         });
@@ -220,12 +236,12 @@ impl HeadlessGpu {
             wgpu::Extent3d {
                 width,
                 height,
-                depth_or_array_layers: 1,
+                depth_or_array_layers: layers,
             },
         );
         let mapped = self.submit_and_map(encoder, &buffer)?;
-        let mut out = Vec::with_capacity((row * height) as usize);
-        for y in 0..height as usize {
+        let mut out = Vec::with_capacity((row * height * layers) as usize);
+        for y in 0..(height * layers) as usize {
             let start = y * padded as usize;
             out.extend_from_slice(&mapped[start..start + row as usize]);
         }
