@@ -385,20 +385,8 @@ fn check_scenes_counted(scenes: &[RandomScene], bars: (f64, f64)) -> (f64, f64, 
         );
         let depths = common::depths_at(&s.camera, SIZE, SIZE, wall);
         let depth = common::depth_texture(&gpu, SIZE, SIZE, &depths);
-        let meshes: Vec<OccluderMesh> = s
-            .spheres
-            .iter()
-            .map(|&(c, rho)| {
-                OccluderMesh::new(&gpu.device, &shapes::uv_sphere(c, rho, 64, 32).unwrap())
-            })
-            .collect();
-        let occluders: Vec<Occluder> = meshes
-            .iter()
-            .map(|mesh| Occluder {
-                mesh,
-                transform: glam::Mat4::IDENTITY,
-            })
-            .collect();
+        let meshes = sphere_meshes(&gpu, &s.spheres);
+        let occluders = in_place(&meshes);
         let settings = MarchSettings {
             method: MarchMethod::Exact,
             ..MarchSettings::default()
@@ -457,6 +445,27 @@ fn check_scenes_counted(scenes: &[RandomScene], bars: (f64, f64)) -> (f64, f64, 
         "a scene's shadow ignored is within {unshadowed_least} of its reference: it cannot tell"
     );
     (worst, hard_worst, within)
+}
+
+/// The meshes of a scene's spheres (centre, radius): 64 segments by 32 rings.
+fn sphere_meshes(gpu: &volshadow::HeadlessGpu, spheres: &[(Vec3, f32)]) -> Vec<OccluderMesh> {
+    spheres
+        .iter()
+        .map(|&(c, rho)| {
+            OccluderMesh::new(&gpu.device, &shapes::uv_sphere(c, rho, 64, 32).unwrap())
+        })
+        .collect()
+}
+
+/// Occluders of `meshes` where they stand (identity transforms).
+fn in_place(meshes: &[OccluderMesh]) -> Vec<Occluder<'_>> {
+    meshes
+        .iter()
+        .map(|mesh| Occluder {
+            mesh,
+            transform: glam::Mat4::IDENTITY,
+        })
+        .collect()
 }
 
 fn sphere_occluder(gpu: &volshadow::HeadlessGpu, at: Vec3) -> OccluderMesh {
@@ -857,20 +866,8 @@ fn grid_cells_against_the_reference_visible_fraction() {
     let mut all_bias = 0.0;
     for seed in 0..SEEDS {
         let s = random_scene(seed, (-4.0, 0.0));
-        let meshes: Vec<OccluderMesh> = s
-            .spheres
-            .iter()
-            .map(|&(c, rho)| {
-                OccluderMesh::new(&gpu.device, &shapes::uv_sphere(c, rho, 64, 32).unwrap())
-            })
-            .collect();
-        let occluders: Vec<Occluder> = meshes
-            .iter()
-            .map(|mesh| Occluder {
-                mesh,
-                transform: glam::Mat4::IDENTITY,
-            })
-            .collect();
+        let meshes = sphere_meshes(&gpu, &s.spheres);
+        let occluders = in_place(&meshes);
         let inputs = ShadowMapInputs {
             light: &s.light,
             occluders: &occluders,
