@@ -115,7 +115,7 @@ fn vis_at(ray: PixelRay, r: AirRay, s: f32) -> f32 {
 // light's disc, y > 0 where a cell around p is marked for a narrow penumbra, z > 0 for an
 // occluder's surface between two slices. One trilinear lookup between the cells around p (its
 // layer's directions, and the slices in q = nearest / distance), in place of
-// `visibility_soft`'s 49 shadow-map taps.
+// `visibility_soft`'s 49 shadow-map taps (145 in the deep penumbra).
 fn soft_grid(p: vec3<f32>) -> vec3<f32> {
     return soft_grid_at(p, false);
 }

@@ -1,7 +1,7 @@
 // Soft-shadow node: the fraction of a light's disc visible from each cell of a light-space
 // grid (composed after the prelude and pcss.wgsl), which the march reads with one trilinear
 // lookup per step instead of a percentage-closer soft shadow (PCSS) estimate of 49 shadow-map
-// taps. Cells: per shadow-map layer, `size`² directions (the layer's texel grid, coarser) by
+// taps (145 in the deep penumbra). Cells: per shadow-map layer, `size`² directions (the layer's texel grid, coarser) by
 // `slices` distances uniform in q = nearest / distance ∈ (0, 1], nearest being the least
 // distance of an occluder from the light. A penumbra's width at distance d, seen from the
 // light, is radius · (1/d_blocker − 1/d): linear in q, so uniform steps in q are uniform

@@ -375,10 +375,11 @@ impl MarchStats {
 /// tests): for a convex occluder the lines graze its outline, and the
 /// mean front-surface distance made the penumbra up to 12% too wide (on the sphere scene of
 /// `tests/soft.rs`, p95 5.9% against the reference, 2.2% with the farthest blocker). Where
-/// [`ShadowMap::back`] is given, each blocker's distance is taken midway between its front
-/// surface and its back face, where a convex occluder's outline lies: on the same sphere p95
-/// 0.73% (1.79% with the front surface), and with the eye in an umbra looking away from the
-/// light, where the deep penumbra dominates, 6.0% (41.1%). The taps
+/// [`ShadowMap::back`] is given, each blocker's distance is taken between its front surface
+/// and its back face (see [`SoftShadowNode`](crate::nodes::SoftShadowNode)), where a convex
+/// occluder's outline lies: on the same sphere p95 0.67% (1.79% with the front surface), and
+/// with the eye in an umbra looking away from the light, where the deep penumbra dominates,
+/// 4.6% (41.1%). The taps
 /// lie on a golden-angle spiral turned by a hash of the point (with a fixed spiral, or 16
 /// taps, the error grows). Shifted shadow maps from several points of the light (the
 /// alternative of Ali, Sunar and Kolivand, "Soft Bilateral Filtering Volumetric Shadows
@@ -386,7 +387,7 @@ impl MarchStats {
 /// shadow-map render and a lookup per step, and the visible fraction then moves in steps of
 /// one over their count.
 ///
-/// That estimate costs 49 shadow-map taps, so [`MarchMethod::Exact`] and
+/// That estimate costs 49 shadow-map taps (145 in the deep penumbra), so [`MarchMethod::Exact`] and
 /// [`MarchMethod::Hybrid`] do not make it per step: they read it from the
 /// [`SoftShadowNode`](crate::nodes::SoftShadowNode)'s light-space grid
 /// ([`Shadows::soft`]), one trilinear lookup per step, with about half a step per grid cell

@@ -22,8 +22,9 @@
 //! For a light with a radius the node also renders [`ShadowMap::back`]: the same faces again
 //! with closed occluders' faces turned towards the light culled, which keeps each one's
 //! nearest back face (open meshes, which have no inside, draw both sides: their nearest face).
-//! The soft shadows take a blocker's distance midway between the two, where a convex
-//! occluder's outline lies; the front surface alone is nearer and made the deep penumbra up to
+//! The soft shadows take a blocker's distance between the two (between their midpoint and
+//! their geometric mean), where a convex occluder's outline lies; the front surface alone is
+//! nearer and made the deep penumbra up to
 //! 41% too bright (see [`SoftShadowNode`](crate::nodes::SoftShadowNode)). It doubles the
 //! pass's draws for such a light.
 
@@ -149,9 +150,9 @@ pub struct ShadowMap<'a> {
     pub occluder_distance: f32,
     /// For a light with a radius: the nearest back faces (turned away from the light) of closed
     /// occluders, and the nearest faces of open ones, same size, format and layout as
-    /// `texture`. Along a direction, the midpoint of the two surfaces estimates where the lines
-    /// from a point to the light's disc graze the occluder (a sphere's silhouette), which the
-    /// front surface alone puts too near the light. `None`: the front surface is taken.
+    /// `texture`. Along a direction, a distance between the two surfaces estimates where the
+    /// lines from a point to the light's disc graze the occluder (a sphere's silhouette), which
+    /// the front surface alone puts too near the light. `None`: the front surface is taken.
     pub back: Option<&'a wgpu::Texture>,
     /// Changes whenever the map's contents do, so that what is derived from it (the
     /// [`SoftShadowNode`](crate::nodes::SoftShadowNode)'s grid) is rebuilt only then:

@@ -4,7 +4,7 @@
 //!
 //! Each cell holds the percentage-closer soft shadow estimate (Fernando, "Percentage-Closer
 //! Soft Shadows", 2005) that the march would otherwise compute per step from 49 shadow-map
-//! taps (see [`MarchNode`](crate::nodes::MarchNode)'s soft shadows): the cost moves from
+//! taps, 145 in the deep penumbra (see [`MarchNode`](crate::nodes::MarchNode)'s soft shadows): the cost moves from
 //! pixels × steps to the grid's cells, most of which lie outside every penumbra and cost no
 //! tap at all. The grid is the shadow map's layers (cube faces of a point light, the one layer
 //! of a spot light) at [`SoftShadowSize::directions`]² directions, times
@@ -39,44 +39,57 @@
 //! visibility where the penumbra is narrow, and at a surface taking the grid's slice on the
 //! near side of it for a point in front (a ground far below an occluder receives a wide
 //! penumbra) and the shadow map's visibility behind.
-//! Measured against the f64 reference (`tests/soft.rs`, `tests/soft_grid.rs`): a sphere under
-//! a light of radius 0.2 × their distance p95 0.73%, RMSE 0.32% (the per-step estimate: 0.84%,
-//! 0.41%); a torus under a spot 1.7% RMSE (1.3% before the march was clipped by the
-//! occluders' planes, 0.9% before the spot map widened for the radius).
+//! Measured against the f64 reference (`tests/soft.rs`, `tests/soft_grid.rs`, 2026-11-24): a
+//! sphere under a light of radius 0.2 × their distance p95 0.67%, RMSE 0.31% (the per-step
+//! estimate: 0.80%, 0.39%); a torus under a spot 1.7% RMSE (1.3% before the march was clipped
+//! by the occluders' planes, 0.9% before the spot map widened for the radius). The grid's
+//! cells themselves, against the exact visible fraction at each cell's point over 12 seeded
+//! sphere scenes: mean |error| 0.020 in the penumbra, and in the deep penumbra (a fraction of
+//! 0.02 to 0.2) a mean relative error of −2.6%, 17.5% in absolute value.
 //! Before the back-face layer, without the marks: 3.8% on the torus, and 3.9% p95 under a
 //! small light (radius 0.03 × the distance) whose penumbrae are sharp almost everywhere.
+//!
+//! The blockers' distance is taken between the midpoint `m` of the front surface and the back
+//! face ([`ShadowMap::back`]) and their geometric mean `g`, as `m^¾ g^¼`. For a sphere `m` is
+//! the centre's distance on a chord through the centre, `g` its tangent distance on every
+//! chord. A planar blocker (PCSS's model) at the centre's distance sets a sphere's deep
+//! penumbra too dark, by 4% to 43% for spheres of radius 0.1 to 0.4 × their distance, even
+//! with the sphere's exact outline in place of a map; at the tangent distance too bright, by
+//! 12% to 22%. The blend is a fit to the grid's cells over the seeded scenes (their deep
+//! penumbra's mean relative error −0.011 with it, −0.106 with `m`, +0.269 with `g`, measured
+//! without the extra taps below); it moved the deep-penumbra views the most: under a spot
+//! whose cone's edge crosses a sphere, p95 up to 11.4% → 7.1% (7.5% with the extra taps
+//! below), and the report's soft scene (a sphere of radius 0.41 × its distance, where `m` had
+//! set the penumbra too narrow) p95 2.07% → 1.80% (with the extra taps below). Where
+//! the filter finds at most 12 of its 32 taps lit, it takes 96 more: over a small fraction a
+//! tap that is lit or not is a large part of it (the deep penumbra's mean |relative error|
+//! 0.249 → 0.175), for a grid that takes 1.20× as long to build on the report's scene.
 //!
 //! # Limitations
 //! PCSS assumes one planar blocker per point, and the grid's cells are fixed in light space.
 //! The estimate's error is relative to the visible fraction, and it shows where a pixel's
 //! light comes mostly from the deep penumbra, where that fraction is small: with the eye in an
-//! umbra looking away from the light, p95 6.0% against the reference (RMSE 1.3%); in a thick
+//! umbra looking away from the light, p95 4.6% against the reference (RMSE 1.3%); in a thick
 //! medium (σt·L from 1 to 10, L the light's distance to the occluder) with the eye a few mean
-//! free paths from a penumbra, up to 28.2%; in the thinner seeded scenes of the crate's tests
-//! it averages out along the ray (p95 ≤ 1.8%). Measured on that worst scene (2026-11-24), the
-//! error has three parts: the estimate's noise (32 taps that each see the disc lit or not:
-//! 10.5% with 128), the grid's depth resolution for a view that close (8.0% with 64 slices)
-//! and a bias of the estimate in the deep penumbra: over the cells of the seeded scenes whose
-//! visible fraction is 0.02 to 0.2, it is 10.6% too dark on average (the cells' own test in
-//! `tests/soft_grid.rs`; a convex occluder's outline seen from a point in its shadow is not
-//! the one the light sees). Estimating per step instead of through the grid gave 14.8%. Those figures take the blockers' distance
-//! midway between the front and back faces ([`ShadowMap::back`]); with the front surface
-//! alone they were 41%, 38% and 2.6% (measured with 16 taps a search round, as were the
-//! one-layer figures below). The midpoint is not a gain everywhere: for a sphere of radius
-//! 0.41 × its distance to the light it sets the penumbra too narrow (p95 2.6%; 2.9% with 16
-//! taps a search round, against 1.8% with the front surface alone). A small light seen close up in thick fog: 7.8% through
-//! the grid (its cells are coarse for that view), 1.1% estimating per step. Under a spot whose
-//! cone's edge crosses the occluder, a view lit only by the deep penumbra is off by up to p95
-//! 11.4% (5 of 24 seeded scenes beyond p95 3%). Where blockers lie at clearly different
-//! distances (ratio > 1.5) the estimate takes two layers, each with its own filter width; the
-//! shadow map still holds one surface a direction, so an occluder hidden behind a nearer one
-//! is partly missed: two spheres with overlapping penumbrae, p95 2.5% (3.6% with one layer,
-//! before the grid's build became adaptive).
+//! free paths from a penumbra, up to 16.5%; in the thinner seeded scenes of the crate's tests
+//! it averages out along the ray (p95 ≤ 1.8%). In that worst scene the grid's depth resolution
+//! for a view that close and the taps' noise remain (before the blend and the extra taps:
+//! 28.2%, 10.5% with 128 filter taps, 8.0% with 64 slices; 14.8% estimating per step).
+//! With the front surface alone as the blockers' distance, the first two were 41% and 38%
+//! (measured with 16 taps a search round, as were the one-layer figures below). A small light
+//! seen close up in thick fog: 7.8% through the grid (its cells are coarse for that view),
+//! 1.1% estimating per step. Under a spot whose cone's edge crosses the occluder, a view lit
+//! only by the deep penumbra is off by up to p95 7.5% (4 of 24 seeded scenes beyond p95 3%).
+//! Where blockers lie at clearly different distances (ratio > 1.5) the estimate takes two
+//! layers, each with its own filter width; the shadow map still holds one surface a
+//! direction, so an occluder hidden behind a nearer one is partly missed: two spheres with
+//! overlapping penumbrae, p95 2.55% (3.6% with one layer, before the grid's build became
+//! adaptive).
 //! The two layers also keep a ground that casts shadows from posing as the farthest blocker of
 //! the medium just above it (the search's taps at the distance of a point there fall below
 //! the ground), which collapsed a sphere's penumbra over it: the report's soft scene with its
 //! ground casting shadows, 128², per step p95 10.6% with one layer, 3.6% with two (as without
-//! the ground's shadow); 3.4% now. Through the grid it is 4.9% (2.1% without the ground's
+//! the ground's shadow); 3.4% on 2026-11-23. Through the grid it was 4.9% (2.1% without the ground's
 //! shadow): the medium just above the ground is still a few percent too bright. It was 6.9%
 //! (8.0% with one layer) while the march blended in the shadow map's hard visibility at a
 //! surface between two slices, which sharpens the wide penumbra a ground far below an
@@ -85,8 +98,8 @@
 //! change: row 1.67%, RMSE 0.70%, p95 1.58%). Estimating per step in those cells instead gave
 //! 4.8% at about 10 times the march's cost on that scene: not kept.
 //! A light nearly as large as its distance to an occluder is beyond the one-planar-blocker
-//! assumption: radius 1.39 with a sphere's near side 1.4 from the light's centre, p95 4.7%
-//! (RMSE 4.8%); radius 2, the sphere half inside the light's sphere, 8.1%. The eye 0.1 in
+//! assumption: radius 1.39 with a sphere's near side 1.4 from the light's centre, p95 4.5%
+//! (RMSE 4.7%); radius 2, the sphere half inside the light's sphere, 8.0%. The eye 0.1 in
 //! front of an occluder, looking through it along its umbra: p95 3.9%. A light whose
 //! penumbrae are all narrower than a shadow-map texel is better drawn hard
 //! ([`ShadowMapNode::penumbra_below_texel`](crate::nodes::ShadowMapNode::penumbra_below_texel),
