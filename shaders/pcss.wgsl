@@ -105,7 +105,8 @@ fn blocker_ratio(q: vec3<f32>) -> f32 {
         // the deep penumbra's extra taps: mean relative error −0.011, against −0.106 with m
         // and +0.269 with g; −0.026 with the taps).
         let mid = 0.5 * (front + back);
-        return mid * sqrt(sqrt(sqrt(front * back) / mid));
+        // (max: a point so far that its depth is 0 has mid = 0, and 0/0 would be NaN.)
+        return mid * sqrt(sqrt(sqrt(front * back) / max(mid, 1.0e-30)));
     }
     return 2.0;
 }
