@@ -190,7 +190,8 @@ impl HeadlessGpu {
     ///
     /// # Errors
     ///
-    /// Those of [`read_texture_bytes`](Self::read_texture_bytes).
+    /// Those of [`read_texture_bytes`](Self::read_texture_bytes), and [`Error::Readback`] where
+    /// the texture holds more bytes than this device's largest buffer.
     pub fn read_all_layers_bytes(&self, texture: &wgpu::Texture) -> Result<Vec<u8>> {
         self.read_layers(texture, texture.depth_or_array_layers())
     }
@@ -211,9 +212,16 @@ impl HeadlessGpu {
         let row = width * texel;
         let padded =
             row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let size = u64::from(padded) * u64::from(height) * u64::from(layers);
+        if size > self.device.limits().max_buffer_size {
+            return Err(Error::Readback(format!(
+                "{size} bytes exceed this device's largest buffer ({})",
+                self.device.limits().max_buffer_size
+            )));
+        }
         let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("volshadow readback"),
-            size: u64::from(padded) * u64::from(height) * u64::from(layers),
+            size,
             usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
             mapped_at_creation: false,
         });
@@ -240,8 +248,9 @@ impl HeadlessGpu {
             },
         );
         let mapped = self.submit_and_map(encoder, &buffer)?;
-        let mut out = Vec::with_capacity((row * height * layers) as usize);
-        for y in 0..(height * layers) as usize {
+        let rows = height as usize * layers as usize;
+        let mut out = Vec::with_capacity(row as usize * rows);
+        for y in 0..rows {
             let start = y * padded as usize;
             out.extend_from_slice(&mapped[start..start + row as usize]);
         }
