@@ -14,7 +14,7 @@ use volshadow::nodes::{
     MarchMethod, MarchSettings, ShadowMap, ShadowMapInputs, ShadowMapNode, ShadowMapSettings,
     SoftShadowInputs, SoftShadowNode, SoftShadowSize,
 };
-use volshadow::reference::{self, Sphere};
+use volshadow::reference::{self, Cuboid, Sphere};
 use volshadow::scene::shapes;
 use volshadow::{
     Cache, Camera, DirectionalLight, Error, Light, Medium, PhaseFunction, PointLight, SpotLight,
@@ -37,12 +37,28 @@ struct RandomScene {
     light: Light,
     /// The occluders: spheres (centre, radius).
     spheres: Vec<(Vec3, f32)>,
+    /// and boxes (centre, half extents, rotation).
+    boxes: Vec<(Vec3, Vec3, Quat)>,
     /// A point of the wall and its normal (towards the camera).
     wall: (DVec3, DVec3),
     describe: String,
     /// Whether the view shows the shadow (`check_scenes_counted` then requires the image with
     /// the shadow ignored to be beyond twice the p95 bar).
     shows_shadow: bool,
+}
+
+impl RandomScene {
+    /// The occluders as the reference takes them.
+    fn reference_occluders(&self) -> Vec<reference::Occluder> {
+        let spheres = self
+            .spheres
+            .iter()
+            .map(|&(c, rho)| Sphere::new(c.as_dvec3(), f64::from(rho)).into());
+        let boxes = self.boxes.iter().map(|&(c, half, rotation)| {
+            Cuboid::new(c.as_dvec3(), half.as_dvec3(), rotation.as_dquat()).into()
+        });
+        spheres.chain(boxes).collect()
+    }
 }
 
 fn random_scene(seed: u64, log_tau: (f32, f32)) -> RandomScene {
@@ -105,6 +121,7 @@ fn random_scene(seed: u64, log_tau: (f32, f32)) -> RandomScene {
         .unwrap(),
         light: light.into(),
         spheres: vec![(center, rho)],
+        boxes: Vec::new(),
         wall: (wall_point, to_eye),
         describe,
         shows_shadow: true,
@@ -149,6 +166,88 @@ fn random_spot_scene(seed: u64, log_tau: (f32, f32), cone: (f32, f32)) -> Random
         2.0 * off / apex
     );
     s
+}
+
+/// `random_scene` with a box in place of the sphere: half extents of 0.6 to 1 times the
+/// sphere's radius over √3 along each axis (so that it fits within the sphere, which the light
+/// never reaches), turned at random. Its outline has corners and straight edges, and its
+/// shadow-map depths vary across a face: the reference samples the light's disc (stratified,
+/// within 0.015 of the exact fraction).
+fn random_box_scene(seed: u64, log_tau: (f32, f32)) -> RandomScene {
+    let mut s = random_scene(seed, log_tau);
+    let mut rng = fastrand::Rng::with_seed(seed ^ 0xb0c5_0b0c);
+    let mut uniform = |lo: f32, hi: f32| lo + (hi - lo) * rng.f32();
+    let (center, rho) = s.spheres[0];
+    let half =
+        rho / 3f32.sqrt() * Vec3::new(uniform(0.6, 1.0), uniform(0.6, 1.0), uniform(0.6, 1.0));
+    let rotation = Quat::from_euler(
+        glam::EulerRot::XYZ,
+        uniform(0.0, std::f32::consts::TAU),
+        uniform(0.0, std::f32::consts::TAU),
+        uniform(0.0, std::f32::consts::TAU),
+    );
+    s.spheres.clear();
+    s.boxes = vec![(center, half, rotation)];
+    // Counted by the box test instead (some views show little of a box's shadow).
+    s.shows_shadow = false;
+    s.describe = format!(
+        "{} (a box, half extents {:.2} {:.2} {:.2} of rho)",
+        s.describe,
+        half.x / rho,
+        half.y / rho,
+        half.z / rho
+    );
+    s
+}
+
+/// Box scenes: how many seeds, and their image's side (the reference samples the light's disc
+/// for a box, about 1000× the cost of a sphere's cap overlap: 8 scenes at 16² take about a
+/// minute in a release build).
+const BOX_SEEDS: std::ops::Range<u64> = 300..308;
+const BOX_SIZE: u32 = 16;
+/// Measured limit for every box scene (2026-11-24: seed 300, a light of radius 0.33 L close to
+/// a box, p95 5.13%); the others are held to the bars.
+const BOX_P95_LIMIT: f64 = 0.06;
+
+/// Seeded box scenes (`random_box_scene`), otherwise as
+/// `random_soft_scenes_against_the_reference`: at least 7 of 8 within the bars, all
+/// within RMSE 2% and the measured p95 limit, finite; hard > 10% in one scene at least; the
+/// shadow ignored beyond twice the p95 bar in at least 6 (a box is smaller than the sphere it
+/// replaces, so some views show little of its shadow).
+///
+/// Measured 2026-11-24: 7 of 8 within, seed 300 p95 5.13% (the others ≤ 1.12%). PCSS's one
+/// planar blocker is the limit there, not the grid: the per-step estimate at 256 steps gives
+/// 5.24%. Its distance, for that seed and against the reference: the blend of the front surface
+/// and the back face the crate uses 5.13%, the chord's midpoint 5.25%, the geometric mean
+/// 4.87%, the back face alone 11.3% (beyond the limit: the test tells), the front surface alone
+/// 1.83%, which also does best on the other seven box scenes, while on spheres it leaves the
+/// deep penumbra 110% too bright (see `grid_cells_against_the_reference_visible_fraction`): a
+/// box's penumbra is wider than a planar blocker at its middle predicts.
+#[test]
+fn random_soft_box_scenes_against_the_reference() {
+    let scenes: Vec<RandomScene> = BOX_SEEDS
+        .map(|seed| random_box_scene(seed, (-4.0, 0.0)))
+        .collect();
+    let count = scenes.len();
+    let (worst, hard_worst, within, telling) =
+        check_scenes_sized(&scenes, (RMSE_BAR, BOX_P95_LIMIT), BOX_SIZE);
+    eprintln!(
+        "boxes: {within} of {count} within, worst p95 {:.2}%, hard worst {:.2}%, {telling} telling",
+        100.0 * worst,
+        100.0 * hard_worst
+    );
+    assert!(
+        within + 1 >= count,
+        "{within} of {count} box scenes within the bars"
+    );
+    assert!(
+        hard_worst > 0.1,
+        "hard worst p95 {hard_worst}: the bars cannot tell"
+    );
+    assert!(
+        telling + 2 >= count,
+        "only {telling} of {count} box scenes show their shadow"
+    );
 }
 
 fn wall_distance(wall: (DVec3, DVec3), e: DVec3, d: DVec3) -> f64 {
@@ -275,6 +374,7 @@ fn umbra_scene(eye: Vec3, target: Vec3, describe: &str) -> RandomScene {
         medium,
         light: light.into(),
         spheres: vec![(Vec3::new(0.0, 0.0, 2.0), 0.6)],
+        boxes: Vec::new(),
         wall: (eye.as_dvec3() - to_eye * 12.0, to_eye),
         describe: describe.to_string(),
         shows_shadow: true,
@@ -372,7 +472,19 @@ fn check_scenes(scenes: &[RandomScene], bars: (f64, f64)) -> (f64, f64) {
 /// `check_scenes`, also returning how many scenes were within the bars (RMSE_BAR,
 /// P95_BAR), which may be tighter than `bars`.
 fn check_scenes_counted(scenes: &[RandomScene], bars: (f64, f64)) -> (f64, f64, usize) {
+    let (worst, hard_worst, within, _) = check_scenes_sized(scenes, bars, SIZE);
+    (worst, hard_worst, within)
+}
+
+/// `check_scenes_counted` at `size`² pixels, also returning how many scenes' images with the
+/// shadow ignored are beyond twice the p95 bar (those that can tell a lit penumbra).
+fn check_scenes_sized(
+    scenes: &[RandomScene],
+    bars: (f64, f64),
+    size: u32,
+) -> (f64, f64, usize, usize) {
     let mut within = 0;
+    let mut telling = 0;
     let gpu = common::gpu();
     let cache = Cache::new(&gpu.device);
     let mut hard_worst: f64 = 0.0;
@@ -381,18 +493,24 @@ fn check_scenes_counted(scenes: &[RandomScene], bars: (f64, f64)) -> (f64, f64, 
     let mut failures = Vec::new();
     for s in scenes {
         let wall = |e: DVec3, d: DVec3| wall_distance(s.wall, e, d);
-        let occ: Vec<reference::Occluder> = s
-            .spheres
-            .iter()
-            .map(|&(c, rho)| Sphere::new(c.as_dvec3(), f64::from(rho)).into())
-            .collect();
+        let occ = s.reference_occluders();
         let reference = reference::soft::inscatter_image_soft(
-            &s.camera, SIZE, SIZE, wall, &s.medium, &s.light, &occ,
+            &s.camera, size, size, wall, &s.medium, &s.light, &occ,
         );
-        let depths = common::depths_at(&s.camera, SIZE, SIZE, wall);
-        let depth = common::depth_texture(&gpu, SIZE, SIZE, &depths);
+        let depths = common::depths_at(&s.camera, size, size, wall);
+        let depth = common::depth_texture(&gpu, size, size, &depths);
         let meshes = sphere_meshes(&gpu, &s.spheres);
-        let occluders = in_place(&meshes);
+        let box_meshes = box_meshes(&gpu, &s.boxes);
+        let mut occluders = in_place(&meshes);
+        occluders.extend(
+            box_meshes
+                .iter()
+                .zip(&s.boxes)
+                .map(|(mesh, &(c, _, rotation))| Occluder {
+                    mesh,
+                    transform: glam::Mat4::from_rotation_translation(rotation, c),
+                }),
+        );
         let settings = MarchSettings {
             method: MarchMethod::Exact,
             ..MarchSettings::default()
@@ -405,14 +523,14 @@ fn check_scenes_counted(scenes: &[RandomScene], bars: (f64, f64)) -> (f64, f64, 
         let render = |light: &Light| render_with(light, &occluders);
         let soft = s.light;
         let frame = render(&soft);
-        let e = errors(&frame.inscatter, &reference, &s.camera, &soft, (SIZE, SIZE));
+        let e = errors(&frame.inscatter, &reference, &s.camera, &soft, (size, size));
         let hard = without_radius(s.light);
         let hard_errors = errors(
             &render(&hard).inscatter,
             &reference,
             &s.camera,
             &soft,
-            (SIZE, SIZE),
+            (size, size),
         );
         // The shadow ignored: what a march that lit the penumbra cones would give.
         let unshadowed = errors(
@@ -420,9 +538,12 @@ fn check_scenes_counted(scenes: &[RandomScene], bars: (f64, f64)) -> (f64, f64, 
             &reference,
             &s.camera,
             &soft,
-            (SIZE, SIZE),
+            (size, size),
         );
         hard_worst = hard_worst.max(hard_errors.p95);
+        if unshadowed.p95 > 2.0 * P95_BAR {
+            telling += 1;
+        }
         if s.shows_shadow {
             unshadowed_least = unshadowed_least.min(unshadowed.p95);
         }
@@ -450,7 +571,7 @@ fn check_scenes_counted(scenes: &[RandomScene], bars: (f64, f64)) -> (f64, f64, 
         unshadowed_least > 2.0 * P95_BAR,
         "a scene's shadow ignored is within {unshadowed_least} of its reference: it cannot tell"
     );
-    (worst, hard_worst, within)
+    (worst, hard_worst, within, telling)
 }
 
 /// The meshes of a scene's spheres (centre, radius): 64 segments by 32 rings.
@@ -459,6 +580,17 @@ fn sphere_meshes(gpu: &volshadow::HeadlessGpu, spheres: &[(Vec3, f32)]) -> Vec<O
         .iter()
         .map(|&(c, rho)| {
             OccluderMesh::new(&gpu.device, &shapes::uv_sphere(c, rho, 64, 32).unwrap())
+        })
+        .collect()
+}
+
+/// The meshes of a scene's boxes, each centred at the origin (placed by its occluder's
+/// transform, so that the GPU path takes a rotated box as an app would).
+fn box_meshes(gpu: &volshadow::HeadlessGpu, boxes: &[(Vec3, Vec3, Quat)]) -> Vec<OccluderMesh> {
+    boxes
+        .iter()
+        .map(|&(_, half, _)| {
+            OccluderMesh::new(&gpu.device, &shapes::cuboid(Vec3::ZERO, half).unwrap())
         })
         .collect()
 }
@@ -906,11 +1038,7 @@ fn grid_cells_against_the_reference_visible_fraction() {
             .fold(f32::INFINITY, f32::min)
             .max(map.occluder_distance)
             .max(1e-3 * radius);
-        let occ: Vec<reference::Occluder> = s
-            .spheres
-            .iter()
-            .map(|&(c, rho)| Sphere::new(c.as_dvec3(), f64::from(rho)).into())
-            .collect();
+        let occ = s.reference_occluders();
         let (mut sum, mut count, mut bias) = (0.0, 0usize, 0.0);
         for (layer, face) in map.faces.iter().enumerate() {
             let world_from_clip = face.inverse();
