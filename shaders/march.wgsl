@@ -104,7 +104,7 @@ fn vis_at(ray: PixelRay, r: AirRay, s: f32) -> f32 {
     if (SOFT) {
         let p = air.eye + x_of_s(r, s) * ray.dir;
         if (SOFT_GRID) {
-            return soft_grid(p).x;
+            return soft_grid_visibility(p, false);
         }
         return visibility_soft(p);
     }
@@ -156,6 +156,33 @@ fn soft_grid_at(p: vec3<f32>, near_side: bool) -> vec3<f32> {
 fn in_front_of_surface(p: vec3<f32>) -> bool {
     let t = map_texel(p);
     return !t.inside || !(textureLoad(shadow_map, t.texel, i32(t.face), 0) * (1.0 - mp.depth_bias) > t.depth);
+}
+
+// The visible fraction at `p` from the soft-shadow grid where its cells are not marked, and
+// where they are (see `march_soft_grid`), the shadow map's own visibility blended in by the
+// interpolated marks: at an occluder's surface between two slices, for a point in front of it
+// the grid's slice on its side, behind it the hard visibility; with `sharp`, for a narrow
+// penumbra the hard visibility, whose edges are the occluders'. A textured spot's march reads
+// it at each of its uniform steps without `sharp`: in tests/textured_spot.rs (a sphere under a
+// textured spot of radius 0.3, 64², 2026-11-24) p95 1.56% and RMSE 2.25% without it, 2.31% and
+// 2.94% with it, 1.62% and 4.18% with the grid's value alone (its worst pixel 18% off, in
+// cells marked for the sphere's surface).
+fn soft_grid_visibility(p: vec3<f32>, sharp: bool) -> f32 {
+    let g = soft_grid(p);
+    let blend = select(0.0, g.y, sharp);
+    if (!(blend > 0.0 || g.z > 0.0)) {
+        return g.x;
+    }
+    let hard = visibility(p);
+    var base = g.x;
+    if (g.z > 0.0) {
+        var side = hard;
+        if (in_front_of_surface(p)) {
+            side = soft_grid_at(p, true).x;
+        }
+        base = mix(g.x, side, g.z);
+    }
+    return mix(base, hard, blend);
 }
 
 // Most steps of a ray `march_soft_grid` refines (more keep their one sample).
@@ -227,18 +254,7 @@ fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: TT, t1: TT, n
         }
         let mid = s0 + ds * f32(step) + dp * (f32(j) + 0.5);
         let w = table_integrand(air, mid, r.w, r.sin_half_gamma);
-        let p = air.eye + x_of_s(r, mid) * ray.dir;
-        let g = soft_grid(p);
-        let hard = visibility(p);
-        var base = g.x;
-        if (g.z > 0.0) {
-            var side = hard;
-            if (in_front_of_surface(p)) {
-                side = soft_grid_at(p, true).x;
-            }
-            base = mix(g.x, side, g.z);
-        }
-        let v = mix(base, hard, g.y);
+        let v = soft_grid_visibility(air.eye + x_of_s(r, mid) * ray.dir, true);
         piece_lit += v * w;
         piece_weights += w;
         piece_plain += v;
