@@ -234,16 +234,29 @@ fn soft_estimate(p: vec3<f32>) -> vec2<f32> {
         }
         let near_width = min(radius * (1.0 / max(dist * near, nearest) - 1.0 / dist), search);
         var lit = 0.0;
+        var far_hits = 0u;
         cs = start;
         for (var k = 0u; k < SOFT_FILTER_TAPS; k++) {
             let r = spiral_radius(k, SOFT_FILTER_TAPS);
             let far_b = blocker_ratio(soft_tap(u, e1, e2, dist, width * r, cs));
             let near_b = blocker_ratio(soft_tap(u, e1, e2, dist, near_width * r, cs));
             cs = spiral_next(cs);
-            let hidden = (far_b < 1.0 && far_b >= split) || near_b < split;
-            lit += select(1.0, 0.0, hidden);
+            let far_hidden = far_b < 1.0 && far_b >= split;
+            let near_hidden = near_b < split;
+            far_hits += select(0u, 1u, far_hidden);
+            lit += select(1.0, 0.0, far_hidden || near_hidden);
         }
-        return vec2<f32>(lit / f32(SOFT_FILTER_TAPS), width);
+        // The region the visibility changes within: the far layer's, unless it hides none of
+        // the taps and lies just in front of p's distance (a receiver p is above, such as a
+        // ground that casts shadows: its edge is its own surface, which the grid marks
+        // between slices). Its width would mark the cell sharp, and the march would blend in
+        // the shadow map's hard edge in place of the near layer's wide penumbra. Measured
+        // (tests/soft_grid.rs; the report's soft scene with its ground casting shadows, 128²,
+        // 2026-11-24): p95 4.71% → 3.51%; without the distance condition 3.01%, but two
+        // spheres with overlapping penumbrae 2.55% → 3.65% (2.66% with it).
+        let receiver = far_hits == 0u && sum >= RECEIVER_RATIO;
+        let region = select(width, near_width, receiver);
+        return vec2<f32>(lit / f32(SOFT_FILTER_TAPS), region);
     }
     var f = soft_filter(u, e1, e2, dist, width, SOFT_FILTER_TAPS, start);
     if (f > 0.0 && f <= SOFT_DEEP) {
@@ -268,6 +281,9 @@ const SOFT_DEEP_TAPS: u32 = 96u;
 
 // Taps whose blockers `soft_estimate` keeps: both search rounds and the centre.
 const SOFT_FOUND_TAPS: u32 = 2u * SOFT_SEARCH_TAPS + 1u;
+// A far layer at least this fraction of p's distance from the light, hiding none of p's
+// taps, is a receiver p lies just above (see `soft_estimate`).
+const RECEIVER_RATIO: f32 = 0.9;
 // Blockers' distances further apart than this ratio are two layers in `soft_estimate`.
 const LAYER_SPLIT: f32 = 1.5;
 

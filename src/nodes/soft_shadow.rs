@@ -85,14 +85,19 @@
 //! Where blockers lie at clearly different distances (ratio > 1.5) the estimate takes two
 //! layers, each with its own filter width; the shadow map still holds one surface a
 //! direction, so an occluder hidden behind a nearer one is partly missed: two spheres with
-//! overlapping penumbrae, p95 2.55% (3.6% with one layer, before the grid's build became
+//! overlapping penumbrae, p95 2.66% (3.6% with one layer, before the grid's build became
 //! adaptive).
 //! The two layers also keep a ground that casts shadows from posing as the farthest blocker of
 //! the medium just above it (the search's taps at the distance of a point there fall below
 //! the ground), which collapsed a sphere's penumbra over it: the report's soft scene with its
 //! ground casting shadows, 128², per step p95 10.6% with one layer, 3.6% with two (as without
-//! the ground's shadow); 3.4% on 2026-11-23. Through the grid it was 4.9% (2.1% without the ground's
-//! shadow): the medium just above the ground is still a few percent too bright. It was 6.9%
+//! the ground's shadow); 3.4% on 2026-11-23; 2.7% at 64 steps on 2026-11-24. Through the
+//! grid it was 4.9% (2.1% without the ground's shadow; 4.7% on 2026-11-24), most of it where
+//! the ground, the far layer of the medium just above it, set the estimate's region: its
+//! narrow filter marked the cell sharp, and the march blended in the shadow map's hard edge in
+//! place of the sphere's wide penumbra. A far layer that hides none of a point's taps and lies
+//! within 0.9 of its distance (a receiver the point lies above) now leaves the region to the
+//! near layer: 3.5% (without the 0.9, 3.0%, but overlapping penumbrae 3.65%). It was 6.9%
 //! (8.0% with one layer) while the march blended in the shadow map's hard visibility at a
 //! surface between two slices, which sharpens the wide penumbra a ground far below an
 //! occluder receives; a point in front of a surface now takes the grid's slice on its side
