@@ -24,40 +24,54 @@ fn ground(o: DVec3, d: DVec3) -> f64 {
     }
 }
 
+/// The scene of this file: a spot above a sphere (centre 0, 2.2, 0; radius 0.5) over a
+/// ground, a coloured checkerboard, and the camera looking at the sphere.
+struct Rig {
+    spot: SpotLight,
+    texture: LightTexture,
+    camera: volshadow::Camera,
+    center: Vec3,
+}
+
+fn rig() -> Rig {
+    Rig {
+        spot: SpotLight::new(
+            Vec3::new(0.3, 4.0, -0.2),
+            Vec3::new(-0.1, -1.0, 0.05),
+            60f32.to_radians(),
+            Vec3::splat(80.0),
+        )
+        .unwrap(),
+        texture: LightTexture::checkerboard(
+            64,
+            8,
+            Vec3::new(1.0, 0.25, 0.1),
+            Vec3::new(0.1, 0.35, 1.0),
+        )
+        .unwrap(),
+        camera: common::look_at(
+            Vec3::new(0.0, 1.6, 5.5),
+            Vec3::new(0.0, 1.5, 0.0),
+            60.0,
+            1.0,
+        ),
+        center: Vec3::new(0.0, 2.2, 0.0),
+    }
+}
+
 /// RMSE of the GPU in-scatter against the reference, relative to the reference's mean.
 fn textured_rmse(medium: &Medium) -> f64 {
     let gpu = common::gpu();
     let cache = Cache::new(&gpu.device);
-    let spot = SpotLight::new(
-        Vec3::new(0.3, 4.0, -0.2),
-        Vec3::new(-0.1, -1.0, 0.05),
-        60f32.to_radians(),
-        Vec3::splat(80.0),
-    )
-    .unwrap();
-    let texture =
-        LightTexture::checkerboard(64, 8, Vec3::new(1.0, 0.25, 0.1), Vec3::new(0.1, 0.35, 1.0))
-            .unwrap();
-    let camera = common::look_at(
-        Vec3::new(0.0, 1.6, 5.5),
-        Vec3::new(0.0, 1.5, 0.0),
-        60.0,
-        1.0,
-    );
-    let center = Vec3::new(0.0, 2.2, 0.0);
+    let Rig {
+        spot,
+        texture,
+        camera,
+        center,
+    } = rig();
     let mesh = shapes::uv_sphere(center, 0.5, 24, 12).unwrap();
 
-    let depths: Vec<f32> = (0..SIZE * SIZE)
-        .map(|i| {
-            let (o, d) = common::pixel_ray(&camera, SIZE, SIZE, i % SIZE, i / SIZE);
-            let ds = ground(o, d);
-            if ds.is_finite() {
-                common::ndc_depth(&camera, o + ds * d)
-            } else {
-                camera.far_depth()
-            }
-        })
-        .collect();
+    let depths = common::depths_at(&camera, SIZE, SIZE, ground);
     let depth = common::depth_texture(&gpu, SIZE, SIZE, &depths);
     let gpu_mesh = OccluderMesh::new(&gpu.device, &mesh);
     let occluders = [Occluder {
@@ -217,38 +231,15 @@ fn soft_textured_spot_against_the_reference() {
         PhaseFunction::HenyeyGreenstein { g: 0.5 },
     )
     .unwrap();
-    let spot = SpotLight::new(
-        Vec3::new(0.3, 4.0, -0.2),
-        Vec3::new(-0.1, -1.0, 0.05),
-        60f32.to_radians(),
-        Vec3::splat(80.0),
-    )
-    .unwrap()
-    .with_radius(0.3)
-    .unwrap();
-    let texture =
-        LightTexture::checkerboard(64, 8, Vec3::new(1.0, 0.25, 0.1), Vec3::new(0.1, 0.35, 1.0))
-            .unwrap();
-    let camera = common::look_at(
-        Vec3::new(0.0, 1.6, 5.5),
-        Vec3::new(0.0, 1.5, 0.0),
-        60.0,
-        1.0,
-    );
-    let center = Vec3::new(0.0, 2.2, 0.0);
+    let Rig {
+        spot,
+        texture,
+        camera,
+        center,
+    } = rig();
+    let spot = spot.with_radius(0.3).unwrap();
     let mesh = shapes::uv_sphere(center, 0.5, 64, 32).unwrap();
-    let depths: Vec<f32> = (0..SOFT_SIZE * SOFT_SIZE)
-        .map(|i| {
-            let (o, d) =
-                common::pixel_ray(&camera, SOFT_SIZE, SOFT_SIZE, i % SOFT_SIZE, i / SOFT_SIZE);
-            let ds = ground(o, d);
-            if ds.is_finite() {
-                common::ndc_depth(&camera, o + ds * d)
-            } else {
-                camera.far_depth()
-            }
-        })
-        .collect();
+    let depths = common::depths_at(&camera, SOFT_SIZE, SOFT_SIZE, ground);
     let depth = common::depth_texture(&gpu, SOFT_SIZE, SOFT_SIZE, &depths);
     let gpu_mesh = OccluderMesh::new(&gpu.device, &mesh);
     let occluders = [Occluder {
