@@ -252,8 +252,9 @@ fn soft_estimate(p: vec3<f32>) -> vec2<f32> {
         // between slices). Its width would mark the cell sharp, and the march would blend in
         // the shadow map's hard edge in place of the near layer's wide penumbra. Measured
         // (tests/soft_grid.rs; the report's soft scene with its ground casting shadows, 128²,
-        // 2026-11-24): p95 4.71% → 3.51%; without the distance condition 3.01%, but two
-        // spheres with overlapping penumbrae 2.55% → 3.65% (2.66% with it).
+        // exact at full resolution, 2026-11-24): p95 4.74% → 3.60%; without the distance
+        // condition 3.01% against 3.51% with it (alternated in one process), but two spheres
+        // with overlapping penumbrae 2.55% → 3.65% (2.66% with it).
         let receiver = far_hits == 0u && sum >= RECEIVER_RATIO;
         let region = select(width, near_width, receiver);
         return vec2<f32>(lit / f32(SOFT_FILTER_TAPS), region);

@@ -396,12 +396,13 @@ fn ground_scene() -> RandomScene {
 /// A ground that casts shadows (`ground_scene`), 32² (the reference samples the light's disc
 /// for the plane's triangles everywhere above it: about 30 s in a release build). Bars: RMSE
 /// the 2%; p95 5%, a measured limit (2026-11-24: 4.61%, RMSE 1.33%; at 64² 3.82%; at
-/// 128² through the report's configurations, exact at full resolution, 3.51%, and per step at
-/// 64 steps 2.67%). Before the estimate took a far layer just in front of a point that hides
+/// 128² the report's exact full 3.60% and its defaults 4.02%, and per step at 64 steps
+/// 2.67%). Before the estimate took a far layer just in front of a point that hides
 /// none of its taps (a receiver the point lies above) as no reason to mark the cell sharp, the
 /// march blended in the shadow map's hard visibility there, in place of the sphere's wide
-/// penumbra: 6.35% (fails; 4.71% at 128²). Without the condition that the far layer lies
-/// within 0.9 of the point's distance: 3.01% at 128², but two spheres with overlapping
+/// penumbra: 6.35% (fails; the report's exact full at 128² 4.74%). Without the condition that the far layer lies
+/// within 0.9 of the point's distance: 3.01% at 128² exact full (3.51% with it, alternated in
+/// one process), but two spheres with overlapping
 /// penumbrae 3.65%, beyond their bar.
 #[test]
 fn a_ground_that_casts_shadows_under_a_soft_light() {

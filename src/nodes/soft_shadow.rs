@@ -97,7 +97,7 @@
 //! narrow filter marked the cell sharp, and the march blended in the shadow map's hard edge in
 //! place of the sphere's wide penumbra. A far layer that hides none of a point's taps and lies
 //! within 0.9 of its distance (a receiver the point lies above) now leaves the region to the
-//! near layer: 3.5% (without the 0.9, 3.0%, but overlapping penumbrae 3.65%). It was 6.9%
+//! near layer: 3.6% (without the 0.9, 3.0% against 3.5%, but overlapping penumbrae 3.65%). It was 6.9%
 //! (8.0% with one layer) while the march blended in the shadow map's hard visibility at a
 //! surface between two slices, which sharpens the wide penumbra a ground far below an
 //! occluder receives; a point in front of a surface now takes the grid's slice on its side
