@@ -59,41 +59,48 @@ fn rig() -> Rig {
     }
 }
 
-/// RMSE of the GPU in-scatter against the reference, relative to the reference's mean.
-fn textured_rmse(medium: &Medium) -> f64 {
+/// The GPU in-scatter of `light` with the rig's texture over a ground, `mesh` the occluder,
+/// `size`² pixels, at the default march settings (64 steps in the extents, 32 before and
+/// after).
+fn textured_inscatter(
+    rig: &Rig,
+    light: &Light,
+    medium: &Medium,
+    mesh: &volshadow::scene::Mesh,
+    size: u32,
+) -> Vec<[f32; 4]> {
     let gpu = common::gpu();
     let cache = Cache::new(&gpu.device);
-    let Rig {
-        spot,
-        texture,
-        camera,
-        center,
-    } = rig();
-    let mesh = shapes::uv_sphere(center, 0.5, 24, 12).unwrap();
-
-    let depths = common::depths_at(&camera, SIZE, SIZE, ground);
-    let depth = common::depth_texture(&gpu, SIZE, SIZE, &depths);
-    let gpu_mesh = OccluderMesh::new(&gpu.device, &mesh);
+    let depths = common::depths_at(&rig.camera, size, size, ground);
+    let depth = common::depth_texture(&gpu, size, size, &depths);
+    let gpu_mesh = OccluderMesh::new(&gpu.device, mesh);
     let occluders = [Occluder {
         mesh: &gpu_mesh,
         transform: Mat4::IDENTITY,
     }];
-    let uploaded = texture.upload(&gpu.device, &gpu.queue);
-    let settings = MarchSettings::default(); // 64 steps in the extents, 32 before and after
-    let light = Light::from(spot);
-    let passes = common::ShadowPasses::new(&camera, &light, medium, &depth, &occluders)
-        .settings(settings)
+    let uploaded = rig.texture.upload(&gpu.device, &gpu.queue);
+    let passes = common::ShadowPasses::new(&rig.camera, light, medium, &depth, &occluders)
+        .settings(MarchSettings::default())
         .texture(Some(&uploaded));
-    let frame = common::shadow_frame(&gpu, &cache, &passes);
-    assert!(frame
-        .inscatter
+    common::shadow_frame(&gpu, &cache, &passes).inscatter
+}
+
+/// RMSE of the GPU in-scatter against the reference, relative to the reference's mean.
+fn textured_rmse(medium: &Medium) -> f64 {
+    let rig = rig();
+    let Rig {
+        spot,
+        ref texture,
+        camera,
+        center,
+    } = rig;
+    let mesh = shapes::uv_sphere(center, 0.5, 24, 12).unwrap();
+    let inscatter = textured_inscatter(&rig, &Light::from(spot), medium, &mesh, SIZE);
+    assert!(inscatter
         .iter()
         .all(|t| t[0..3].iter().all(|v| v.is_finite() && *v >= 0.0)));
 
-    let textured = TexturedSpot {
-        spot,
-        texture: &texture,
-    };
+    let textured = TexturedSpot { spot, texture };
     let ref_occ = [reference::Occluder::Mesh(TriangleMesh::from_indexed(
         mesh.positions(),
         mesh.indices(),
@@ -102,7 +109,7 @@ fn textured_rmse(medium: &Medium) -> f64 {
     let reference =
         reference::inscatter_image(&camera, SIZE, SIZE, ground, medium, &textured, &ref_occ);
     let (mut sq, mut sum) = (0.0, 0.0);
-    for (g, r) in frame.inscatter.iter().zip(&reference) {
+    for (g, r) in inscatter.iter().zip(&reference) {
         for c in 0..3 {
             sq += (f64::from(g[c]) - r[c]).powi(2);
             sum += r[c];
@@ -223,40 +230,23 @@ fn invalid_spot_and_texture_inputs_are_errors() {
 #[test]
 fn soft_textured_spot_against_the_reference() {
     const SOFT_SIZE: u32 = 64;
-    let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
     let medium = Medium::new(
         Vec3::new(0.2, 0.22, 0.25),
         Vec3::splat(0.03),
         PhaseFunction::HenyeyGreenstein { g: 0.5 },
     )
     .unwrap();
+    let rig = rig();
     let Rig {
         spot,
-        texture,
+        ref texture,
         camera,
         center,
-    } = rig();
+    } = rig;
     let spot = spot.with_radius(0.3).unwrap();
     let mesh = shapes::uv_sphere(center, 0.5, 64, 32).unwrap();
-    let depths = common::depths_at(&camera, SOFT_SIZE, SOFT_SIZE, ground);
-    let depth = common::depth_texture(&gpu, SOFT_SIZE, SOFT_SIZE, &depths);
-    let gpu_mesh = OccluderMesh::new(&gpu.device, &mesh);
-    let occluders = [Occluder {
-        mesh: &gpu_mesh,
-        transform: Mat4::IDENTITY,
-    }];
-    let uploaded = texture.upload(&gpu.device, &gpu.queue);
-    let render = |light: &Light| {
-        let passes = common::ShadowPasses::new(&camera, light, &medium, &depth, &occluders)
-            .settings(MarchSettings::default())
-            .texture(Some(&uploaded));
-        common::shadow_frame(&gpu, &cache, &passes).inscatter
-    };
-    let textured = TexturedSpot {
-        spot,
-        texture: &texture,
-    };
+    let render = |light: &Light| textured_inscatter(&rig, light, &medium, &mesh, SOFT_SIZE);
+    let textured = TexturedSpot { spot, texture };
     let ref_occ = [reference::Sphere::new(center.as_dvec3(), 0.5).into()];
     let reference = reference::soft::inscatter_image_soft(
         &camera, SOFT_SIZE, SOFT_SIZE, ground, &medium, &textured, &ref_occ,
@@ -287,7 +277,7 @@ fn soft_textured_spot_against_the_reference() {
         &medium,
         &TexturedSpot {
             spot: hard_spot,
-            texture: &texture,
+            texture,
         },
         &ref_occ,
     );
