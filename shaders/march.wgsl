@@ -305,9 +305,8 @@ fn penumbra_cone(dir: vec3<f32>, x_end: f32, c: vec3<f32>, rho: f32) -> vec2<f32
     let radius = mp.soft.x;
     let to_c = c - air.light_pos;
     let l = length(to_c);
-    // A relative margin of 5% on the cone's opening covers the filter's estimate of the
-    // blockers' distance (the front surface, nearer than where the lines graze the occluder).
-    let sin_t = 1.05 * (radius + rho) / max(l, 1.0e-30);
+    // With a margin (see PENUMBRA_CONE_MARGIN).
+    let sin_t = PENUMBRA_CONE_MARGIN * (radius + rho) / max(l, 1.0e-30);
     if (sin_t >= 0.999) {
         return vec2<f32>(0.0, x_end); // the spheres (nearly) touch: anywhere
     }

@@ -115,6 +115,52 @@ fn cone_slices(dir: vec3<f32>, s: u32) -> vec2<u32> {
 // visible fraction and the estimate's region as `soft_estimate` returns it. Private globals,
 // not arguments: llvmpipe copied an array passed by value at every call (1.7× the build).
 var<private> columns: array<array<vec2<f32>, MAX_SLICES>, 3>;
+// The directions of the thread's columns.
+var<private> column_dirs: array<vec3<f32>, 3>;
+// The cells a thread estimates, column j and slice k as j · MAX_SLICES + k, and the filter
+// width each needs once the search has run (see `estimate_cells`).
+var<private> todo: array<u32, 3u * MAX_SLICES>;
+var<private> widths: array<f32, 3u * MAX_SLICES>;
+
+// Estimates the first `count` cells of `todo` into `columns`, one stage of `soft_estimate` at
+// a time over them: the search for all, the filter for those the search left open, the deep
+// penumbra's taps for those the filter found in it (the list compacted in place between
+// stages). A SIMD batch pays for its busiest lane: estimating cell by cell, a lane in the deep
+// penumbra (145 taps) held its seven neighbours, lit at 9 taps or in the penumbra at 49; by
+// stage, a lane waits only for the longest list of the stage. The same values as
+// `soft_estimate`, cell by cell (the grid bit for bit). Measured on the report's soft scene,
+// alternated in one process with the estimates cell by cell: 0.79–0.86 of the build's time.
+fn estimate_cells(count: u32, s: u32) {
+    var open = 0u;
+    for (var i = 0u; i < count; i++) {
+        let j = todo[i] / MAX_SLICES;
+        let k = todo[i] % MAX_SLICES;
+        let found = soft_search(cell_point(column_dirs[j], k, s));
+        columns[j][k] = found.xy;
+        if (found.z >= 0.0) {
+            todo[open] = todo[i];
+            widths[open] = found.z;
+            open++;
+        }
+    }
+    var deep = 0u;
+    for (var i = 0u; i < open; i++) {
+        let j = todo[i] / MAX_SLICES;
+        let k = todo[i] % MAX_SLICES;
+        let f = soft_filter_at(cell_point(column_dirs[j], k, s), widths[i]);
+        columns[j][k] = vec2<f32>(f, widths[i]);
+        if (soft_is_deep(f)) {
+            todo[deep] = todo[i];
+            widths[deep] = widths[i];
+            deep++;
+        }
+    }
+    for (var i = 0u; i < deep; i++) {
+        let j = todo[i] / MAX_SLICES;
+        let k = todo[i] % MAX_SLICES;
+        columns[j][k].x = soft_deepen(cell_point(column_dirs[j], k, s), widths[i], columns[j][k].x);
+    }
+}
 
 // g of a cell: 1 where the estimate's region was narrower than SHARP_CELLS cells (a
 // penumbra, or the edge between lit and umbra, too sharp for the grid's interpolation across
@@ -154,12 +200,12 @@ fn build_anchors(@builtin(global_invocation_id) gid: vec3<u32>) {
     let x = 2u * gid.x;
     let y = 2u * gid.y;
     let dir = cell_direction(x, y, layer);
+    column_dirs[0] = dir;
     let range = cone_slices(dir, s);
     for (var k = 0u; k < s; k++) {
         columns[0][k] = vec2<f32>(1.0, -1.0);
     }
     // The even slices and the last first, then each odd one between two that do not agree.
-    var todo: array<u32, MAX_SLICES>;
     var count = 0u;
     for (var k = range.x; k < range.y; k++) {
         if (k % 2u == 0u || k + 1u == s) {
@@ -167,10 +213,7 @@ fn build_anchors(@builtin(global_invocation_id) gid: vec3<u32>) {
             count++;
         }
     }
-    for (var i = 0u; i < count; i++) {
-        let k = todo[i];
-        columns[0][k] = soft_estimate(cell_point(dir, k, s));
-    }
+    estimate_cells(count, s);
     count = 0u;
     for (var k = range.x | 1u; k + 1u < min(range.y + 1u, s); k += 2u) {
         let before = columns[0][k - 1u];
@@ -186,10 +229,7 @@ fn build_anchors(@builtin(global_invocation_id) gid: vec3<u32>) {
             count++;
         }
     }
-    for (var i = 0u; i < count; i++) {
-        let k = todo[i];
-        columns[0][k] = soft_estimate(cell_point(dir, k, s));
-    }
+    estimate_cells(count, s);
     store_column(x, y, layer, 0u, s);
     for (var k = 0u; k < s; k++) {
         textureStore(anchors_out, vec3<u32>(gid.x, gid.y, layer * mp.slices + k), vec4<f32>(summary(columns[0][k]), 1.0));
@@ -239,12 +279,9 @@ fn build_rest(@builtin(global_invocation_id) gid: vec3<u32>) {
     let below = gid.y + 1u < a && 2u * gid.y + 2u < n;
     let ax = vec2<u32>(gid.x, min(gid.x + 1u, a - 1u));
     let ay = vec2<u32>(gid.y, min(gid.y + 1u, a - 1u));
-    var dirs: array<vec3<f32>, 3>;
     for (var j = 0u; j < 3u; j++) {
-        dirs[j] = cell_direction(min(xy[j].x, n - 1u), min(xy[j].y, n - 1u), layer);
+        column_dirs[j] = cell_direction(min(xy[j].x, n - 1u), min(xy[j].y, n - 1u), layer);
     }
-    // The cells to estimate: direction j and slice k as j · MAX_SLICES + k.
-    var todo: array<u32, 3u * MAX_SLICES>;
     var count = 0u;
     for (var k = 0u; k < s; k++) {
         let z = layer * mp.slices + k;
@@ -279,18 +316,14 @@ fn build_rest(@builtin(global_invocation_id) gid: vec3<u32>) {
             columns[j][k] = vec2<f32>(sum / f32(select(2u, 4u, j == 2u)), -1.0);
             if (!agree) {
                 columns[j][k] = vec2<f32>(1.0, -1.0);
-                if (may_be_hidden(cell_point(dirs[j], k, s))) {
+                if (may_be_hidden(cell_point(column_dirs[j], k, s))) {
                     todo[count] = j * MAX_SLICES + k;
                     count++;
                 }
             }
         }
     }
-    for (var i = 0u; i < count; i++) {
-        let j = todo[i] / MAX_SLICES;
-        let k = todo[i] % MAX_SLICES;
-        columns[j][k] = soft_estimate(cell_point(dirs[j], k, s));
-    }
+    estimate_cells(count, s);
     for (var j = 0u; j < 3u; j++) {
         if (xy[j].x < n && xy[j].y < n) {
             store_column(xy[j].x, xy[j].y, layer, j, s);

@@ -1109,14 +1109,8 @@ fn grid_cells_against_the_reference_visible_fraction() {
         );
         let light = s.light.position().unwrap();
         let radius = s.light.radius();
-        // As the node: the least distance of an occluder's bounding sphere from the light.
-        let nearest = map
-            .bounds
-            .iter()
-            .map(|b| (b.truncate().distance(light) - b.w).max(0.0))
-            .fold(f32::INFINITY, f32::min)
-            .max(map.occluder_distance)
-            .max(1e-3 * radius);
+        // Where the node put its slices.
+        let nearest = soft.output().unwrap().near;
         let occ = s.reference_occluders();
         let (mut sum, mut count, mut bias) = (0.0, 0usize, 0.0);
         for (layer, face) in map.faces.iter().enumerate() {

@@ -18,6 +18,9 @@ pub struct OccluderMesh {
     pub(crate) edge_count: u32,
     closed: bool,
     bounds: (Vec3, Vec3),
+    /// Object-space bounding sphere: the box's centre and the farthest vertex's distance
+    /// from it (a sphere's own radius, where the box's circumsphere is √3 times as large).
+    sphere: (Vec3, f32),
     summary: MeshSummary,
     id: u64,
 }
@@ -68,6 +71,13 @@ impl OccluderMesh {
         } else {
             bytemuck::cast_slice(&edges)
         };
+        let (lo, hi) = mesh.bounds();
+        let centre = 0.5 * (lo + hi);
+        let reach = mesh
+            .positions()
+            .iter()
+            .map(|p| p.distance(centre))
+            .fold(0.0, f32::max);
         Self {
             positions: buffer(
                 "volshadow occluder positions",
@@ -88,6 +98,7 @@ impl OccluderMesh {
             edge_count: edges.len() as u32,
             closed: mesh.is_closed(),
             bounds: mesh.bounds(),
+            sphere: (centre, reach),
             summary: mesh.summary(),
             id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         }
@@ -152,6 +163,22 @@ impl Occluder<'_> {
         }
     }
 
+    /// A world-space bounding sphere (centre, radius) of the transformed mesh: the object-space
+    /// sphere transformed, its radius scaled by a bound on the transform's largest stretch
+    /// (Gershgorin's on the eigenvalues of `MᵀM`, exact for a rotation times a scale), or
+    /// the world box's circumsphere where that is smaller.
+    pub(crate) fn world_sphere(&self) -> glam::Vec4 {
+        let (lo, hi) = self.world_bounds();
+        let boxed = (0.5 * (lo + hi)).extend(0.5 * (hi - lo).length());
+        let (centre, reach) = self.mesh.sphere;
+        let sphere = transformed_sphere(centre, reach, self.transform);
+        if sphere.w < boxed.w {
+            sphere
+        } else {
+            boxed
+        }
+    }
+
     /// World-space bounding box of the transformed mesh.
     pub(crate) fn world_bounds(&self) -> (Vec3, Vec3) {
         let (lo, hi) = self.mesh.bounds;
@@ -168,5 +195,114 @@ impl Occluder<'_> {
             max = max.max(p);
         }
         (min, max)
+    }
+}
+
+/// A sphere (centre, radius) holding the image of the sphere (`centre`, `radius`) under the
+/// affine `transform`: its radius scaled by a bound on the transform's largest stretch, the
+/// square root of Gershgorin's bound on the largest eigenvalue of `MᵀM` (`M` its linear
+/// part; exact for a rotation times a scale, larger with a shear), with a margin for the
+/// rounding of points as large as the centre's coordinates.
+fn transformed_sphere(centre: Vec3, radius: f32, transform: Mat4) -> glam::Vec4 {
+    let m = glam::Mat3::from_mat4(transform);
+    let a = m.transpose() * m;
+    let stretch = (0..3)
+        .map(|i| a.col(i).abs().element_sum())
+        .fold(0.0, f32::max)
+        .sqrt();
+    let world = transform.transform_point3(centre);
+    let reach = radius * stretch;
+    world.extend(reach + 1.0e-5 * (reach + world.abs().max_element()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Quat;
+
+    /// Points on a sphere, transformed, stay within `transformed_sphere`'s, over seeded
+    /// transforms (rotation, scale from 1e-2 to 1e2 per axis, shear, translation); for a
+    /// rotation times a scale its radius is the largest scale's. The largest column length,
+    /// a plausible stretch that shear breaks, lets points out: the test can tell.
+    #[test]
+    fn a_transformed_sphere_holds_the_transformed_points() {
+        let mut rng = fastrand::Rng::with_seed(7);
+        let mut escaped_by_columns = 0;
+        for case in 0..500 {
+            let rotation = Quat::from_euler(
+                glam::EulerRot::XYZ,
+                rng.f32() * 6.3,
+                rng.f32() * 6.3,
+                rng.f32() * 6.3,
+            );
+            let scale = Vec3::new(
+                10f32.powf(4.0 * rng.f32() - 2.0),
+                10f32.powf(4.0 * rng.f32() - 2.0),
+                10f32.powf(4.0 * rng.f32() - 2.0),
+            );
+            let shear = if case % 2 == 0 {
+                Mat4::IDENTITY
+            } else {
+                Mat4::from_cols_array(&[
+                    1.0,
+                    rng.f32() - 0.5,
+                    rng.f32() - 0.5,
+                    0.0,
+                    rng.f32() - 0.5,
+                    1.0,
+                    rng.f32() - 0.5,
+                    0.0,
+                    0.0,
+                    0.0,
+                    1.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    1.0,
+                ])
+            };
+            let transform = Mat4::from_translation(Vec3::splat(100.0 * rng.f32() - 50.0))
+                * Mat4::from_quat(rotation)
+                * shear
+                * Mat4::from_scale(scale);
+            let (centre, radius) = (Vec3::new(rng.f32(), rng.f32(), rng.f32()), 0.5 + rng.f32());
+            let sphere = transformed_sphere(centre, radius, transform);
+            let columns = (0..3)
+                .map(|i| glam::Mat3::from_mat4(transform).col(i).length())
+                .fold(0.0, f32::max)
+                * radius;
+            if case % 2 == 0 {
+                let largest = scale.max_element() * radius;
+                let rounding = 2.0e-5 * sphere.truncate().abs().max_element();
+                assert!(
+                    (sphere.w - largest).abs() <= 1e-4 * largest + rounding,
+                    "case {case}: radius {} for a largest scale of {largest}",
+                    sphere.w
+                );
+            }
+            let mut escaped = false;
+            for k in 0..2000 {
+                let d = Vec3::new(rng.f32() - 0.5, rng.f32() - 0.5, rng.f32() - 0.5);
+                let d = if k < 6 {
+                    Vec3::AXES[k % 3] * if k < 3 { 1.0 } else { -1.0 }
+                } else {
+                    d.normalize_or(Vec3::X)
+                };
+                let p = transform.transform_point3(centre + radius * d);
+                let r = p.distance(sphere.truncate());
+                assert!(
+                    r <= sphere.w,
+                    "case {case}: a point {r} from the centre, radius {}",
+                    sphere.w
+                );
+                escaped |= r > columns * (1.0 + 1.0e-5);
+            }
+            escaped_by_columns += usize::from(escaped);
+        }
+        assert!(
+            escaped_by_columns > 10,
+            "the column bound let points out in only {escaped_by_columns} of 500 cases"
+        );
     }
 }

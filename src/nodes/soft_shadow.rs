@@ -9,7 +9,7 @@
 //! tap at all. The grid is the shadow map's layers (cube faces of a point light, the one layer
 //! of a spot light) at [`SoftShadowSize::directions`]² directions, times
 //! [`SoftShadowSize::slices`] distances uniform in `q = d_near / d ∈ (0, 1]`, `d_near` being
-//! the least distance of an occluder's bounding sphere from the light. A penumbra's width seen
+//! the least distance of an occluder's bounding box from the light. A penumbra's width seen
 //! from the light is `radius · (1/d_blocker − 1/d)`, linear in `q`, so the slices are uniform
 //! steps in penumbra width and the last one reaches infinity.
 //!
@@ -180,11 +180,17 @@ pub(crate) fn soft_params(
     let mut spheres = [[0.0; 4]; MAX_SOFT_SPHERES];
     let mut planes = [[0.0; 4]; MAX_SOFT_SPHERES];
     let p = light.position().unwrap_or_default();
-    let nearest = bounds
-        .iter()
-        .map(|b| (b.truncate().distance(p) - b.w).max(0.0))
-        .fold(f32::INFINITY, f32::min)
-        .max(map.occluder_distance);
+    // The grid's slices start at the occluders' bounding boxes (where known), not at their
+    // tighter spheres: on the seeded spot scenes of the tests, slices from the spheres left
+    // the views lit by a deep penumbra worse (p95 up to 8.1% against 7.5%).
+    let nearest = if map.occluder_distance > 0.0 {
+        map.occluder_distance
+    } else {
+        bounds
+            .iter()
+            .map(|b| (b.truncate().distance(p) - b.w).max(0.0))
+            .fold(f32::INFINITY, f32::min)
+    };
     let count = if bounds.len() <= MAX_SOFT_SPHERES {
         for (slot, b) in spheres.iter_mut().zip(bounds) {
             *slot = b.to_array();
@@ -279,6 +285,10 @@ pub struct SoftShadow<'a> {
     pub texture: &'a wgpu::Texture,
     /// Its resolution.
     pub size: SoftShadowSize,
+    /// `d_near` of its slices (see the module docs): slice `k` of `s` lies at the distance
+    /// `d_near / (1 − (k + ½) / s)` from the light. For reading the grid; the march derives
+    /// the same from the shadow map.
+    pub near: f32,
 }
 
 #[repr(C)]
@@ -377,6 +387,8 @@ pub struct SoftShadowNode {
     bound: Option<Bound>,
     pipeline: Option<Build>,
     layers: u32,
+    /// The slices' `d_near` of the last `prepare`.
+    near: f32,
     /// The shadow map generation the grid was (or will be, when `pending`) built from.
     generation: Option<u64>,
     pending: bool,
@@ -406,6 +418,7 @@ impl SoftShadowNode {
             bound: None,
             pipeline: None,
             layers: 0,
+            near: 0.0,
             generation: None,
             pending: false,
         })
@@ -554,6 +567,8 @@ impl SoftShadowNode {
         // A cell's angle: a layer's field of view (its projection's x scale is 1 / tan(half
         // the angle)) over its cells.
         soft[3] = cell_angle(&map.faces[0], n);
+        // As the shaders take it (pcss.wgsl's `soft_estimate`).
+        self.near = soft[1].max(1.0e-3 * soft[0]);
         let position = light.position().unwrap_or_default();
         self.pending |= self.uniform.write(
             queue,
@@ -621,6 +636,7 @@ impl SoftShadowNode {
         self.texture.as_ref().map(|texture| SoftShadow {
             texture,
             size: self.size,
+            near: self.near,
         })
     }
 }
