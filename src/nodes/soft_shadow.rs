@@ -40,9 +40,10 @@
 //! near side of it for a point in front (a ground far below an occluder receives a wide
 //! penumbra) and the shadow map's visibility behind.
 //! Measured against the f64 reference (`tests/soft.rs`, `tests/soft_grid.rs`, 2026-11-24): a
-//! sphere under a light of radius 0.2 × their distance p95 0.67%, RMSE 0.31% (the per-step
-//! estimate: 0.80%, 0.39%); a torus under a spot 1.7% RMSE (1.3% before the march was clipped
-//! by the occluders' planes, 0.9% before the spot map widened for the radius). The grid's
+//! sphere under a light of radius 0.2 × their distance p95 0.68%, RMSE 0.29% (the per-step
+//! estimate: 0.80%, 0.39%); a torus under a spot 1.2% RMSE (1.7% before the occluders'
+//! bounding spheres became tight, 1.3% before the march was clipped by the occluders' planes,
+//! 0.9% before the spot map widened for the radius). The grid's
 //! cells themselves, against the exact visible fraction at each cell's point over 12 seeded
 //! sphere scenes: mean |error| 0.020 in the penumbra, and in the deep penumbra (a fraction of
 //! 0.02 to 0.2) a mean relative error of −2.6%, 17.5% in absolute value.
@@ -71,16 +72,16 @@
 //! light comes mostly from the deep penumbra, where that fraction is small: with the eye in an
 //! umbra looking away from the light, p95 4.6% against the reference (RMSE 1.3%); in a thick
 //! medium (σt·L from 1 to 10, L the light's distance to the occluder) with the eye a few mean
-//! free paths from a penumbra, up to 16.5%; in the thinner seeded scenes of the crate's tests
+//! free paths from a penumbra, up to 16.8%; in the thinner seeded scenes of the crate's tests
 //! it averages out along the ray (p95 ≤ 1.8%). In that worst scene the grid's depth resolution
 //! for a view that close and the taps' noise remain (before the blend and the extra taps:
 //! 28.2%, 10.5% with 128 filter taps, 8.0% with 64 slices; 14.8% estimating per step).
 //! With the front surface alone as the blockers' distance, the first two were 41% and 38%
 //! (measured with 16 taps a search round, as were the one-layer figures below). A small light
-//! seen close up in thick fog: 7.8% through the grid (its cells are coarse for that view),
+//! seen close up in thick fog: 5.5% through the grid (its cells are coarse for that view),
 //! 1.1% estimating per step. Under a spot whose cone's edge crosses the occluder, a view lit
 //! only by the deep penumbra is off by up to p95 7.5% (4 of 24 seeded scenes beyond p95 3%);
-//! where a sphere fills most of a spot's cone, its penumbra reaching the cone's edge, p95 3.5%
+//! where a sphere fills most of a spot's cone, its penumbra reaching the cone's edge, p95 3.1%
 //! (per step 2.8%).
 //! Where blockers lie at clearly different distances (ratio > 1.5) the estimate takes two
 //! layers, each with its own filter width; the shadow map still holds one surface a
@@ -110,10 +111,10 @@
 //! distance is fitted to round occluders. A box's penumbra is wider than a planar blocker
 //! between its front and back faces predicts: on 8 seeded scenes of a turned box (the crate's
 //! tests, 16² against a reference that samples the light's disc), 7 are within p95 3%, and one,
-//! a light of radius 0.33 × its distance larger than the box, is at 5.1% (per step 5.2%). The
+//! a light of radius 0.33 × its distance larger than the box, is at 5.4% (per step 5.2%). The
 //! front surface alone gives 1.8% there and does better on all 8, but on spheres it leaves
 //! the deep penumbra twice as bright as it is. The eye 0.1 in
-//! front of an occluder, looking through it along its umbra: p95 3.9%. A light whose
+//! front of an occluder, looking through it along its umbra: p95 3.7%. A light whose
 //! penumbrae are all narrower than a shadow-map texel is better drawn hard
 //! ([`ShadowMapNode::penumbra_below_texel`](crate::nodes::ShadowMapNode::penumbra_below_texel),
 //! which the facade applies): through the grid such a penumbra is marched, not integrated
