@@ -243,24 +243,11 @@ mod tests {
             let shear = if case % 2 == 0 {
                 Mat4::IDENTITY
             } else {
-                Mat4::from_cols_array(&[
-                    1.0,
-                    rng.f32() - 0.5,
-                    rng.f32() - 0.5,
-                    0.0,
-                    rng.f32() - 0.5,
-                    1.0,
-                    rng.f32() - 0.5,
-                    0.0,
-                    0.0,
-                    0.0,
-                    1.0,
-                    0.0,
-                    0.0,
-                    0.0,
-                    0.0,
-                    1.0,
-                ])
+                Mat4::from_mat3(glam::Mat3::from_cols(
+                    Vec3::new(1.0, rng.f32() - 0.5, rng.f32() - 0.5),
+                    Vec3::new(rng.f32() - 0.5, 1.0, rng.f32() - 0.5),
+                    Vec3::Z,
+                ))
             };
             let transform = Mat4::from_translation(Vec3::splat(100.0 * rng.f32() - 50.0))
                 * Mat4::from_quat(rotation)
