@@ -43,6 +43,8 @@ struct MarchParams {
     tan_half_angle: f32,     // textured spot: tan(half apex angle)
     tex_width: f32,          // textured spot: texture width (texels)
     tex_mips: f32,           // textured spot: mip levels
+    cube_near: f32,          // point light: the cube faces' near plane where `cube_clip` may
+                             // stand for their matrices (shaders/pcss.wgsl), else 0
     // Soft shadows (SOFT pipelines): light radius, the least distance from the light of any
     // occluder's bounding sphere, the number of bounding spheres in `spheres`.
     soft: vec4<f32>,
@@ -98,6 +100,10 @@ fn x_of_s(r: AirRay, s: f32) -> f32 {
 // The shared hard and soft visibility (shaders/pcss.wgsl) reads the light from here.
 fn pcss_light() -> vec3<f32> {
     return air.light_pos;
+}
+
+fn pcss_cube_near() -> f32 {
+    return mp.cube_near;
 }
 
 fn vis_at(ray: PixelRay, r: AirRay, s: f32) -> f32 {

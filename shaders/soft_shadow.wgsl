@@ -11,7 +11,8 @@
 struct SoftShadowParams {
     faces: array<mat4x4<f32>, 6>,            // clip_from_world of each layer (the shadow map's)
     world_from_clip: array<mat4x4<f32>, 6>,  // their inverses
-    light: vec4<f32>,                        // xyz: the light's position
+    light: vec4<f32>,                        // xyz: the light's position; w: the cube
+                                             // faces' near plane for `cube_clip`, or 0
     depth_bias: f32,                         // the shadow map's relative depth bias
     size: u32,                               // cells across a layer
     slices: u32,                             // cells along the distance from the light
@@ -35,9 +36,34 @@ struct SoftShadowParams {
 // binding of each entry point's own layout).
 @group(0) @binding(5) var anchors_out: texture_storage_3d<rgba16float, write>;
 @group(0) @binding(5) var anchors_in: texture_3d<f32>;
+// Cells before their marks (the grid's layout; r = visible fraction, g = the estimate's
+// region as `soft_estimate` returns it): `estimate_listed` writes the estimated ones,
+// `build_rest` the interpolated cells of the other directions' columns with listed cells;
+// `between_anchors`, `store_anchors` and `store_rest` read them.
+@group(0) @binding(6) var rest_out: texture_storage_3d<rg32float, write>;
+@group(0) @binding(6) var rest_in: texture_3d<f32>;
+// A list of cells to estimate, packed by `list_cell` (`build_anchors`, `between_anchors`
+// and `build_rest` each fill one, `estimate_listed` estimates it), and its indirect dispatch:
+// workgroups (x, y, z), then the number of cells listed. `estimate_listed` reads both (its
+// dispatch's own arguments cannot be bound for writing).
+@group(0) @binding(7) var<storage, read_write> work: array<u32>;
+@group(0) @binding(7) var<storage, read> listed: array<u32>;
+@group(0) @binding(8) var<storage, read_write> work_args: array<atomic<u32>, 4>;
+@group(0) @binding(8) var<storage, read> listed_args: array<u32, 4>;
+// Per block of `build_rest` (x + a · (y + a · layer), a = anchor_count()): bit j set where its
+// column j has listed cells, which `store_rest` then stores; `build_rest` stores the others.
+@group(0) @binding(9) var<storage, read_write> listed_columns: array<u32>;
+@group(0) @binding(9) var<storage, read> listed_columns_in: array<u32>;
+// Per anchor (the same index): its slices inside a penumbra cone, [lo, hi) as lo | hi << 8.
+@group(0) @binding(10) var<storage, read_write> anchor_ranges: array<u32>;
+@group(0) @binding(10) var<storage, read> anchor_ranges_in: array<u32>;
 
 fn pcss_light() -> vec3<f32> {
     return mp.light.xyz;
+}
+
+fn pcss_cube_near() -> f32 {
+    return mp.light.w;
 }
 
 // Most slices a thread holds (SoftShadowSize::MAX_SLICES).
@@ -57,18 +83,23 @@ fn slice_q(k: u32, s: u32) -> f32 {
     return 1.0 - (f32(k) + 0.5) / f32(s);
 }
 
-// The grid is built in two passes, estimating only where interpolation would not do.
-// `build_anchors` estimates the directions at even indices (a quarter of them): their even
-// slices and the last, then each odd slice whose two neighbours are not `interpolable` (else
-// their mean). `build_rest` fills each other direction's cell with the mean of its two or four
-// anchor neighbours (the midpoint of a bilinear interpolation) where they are `interpolable`,
-// and estimates it where not: near an outline, a surface, a narrow penumbra or the deep
-// penumbra. Threads are packed so that a SIMD batch's lanes share their work (a batch pays for
-// its busiest lane): anchors alone in `build_anchors`, the other directions alone in
-// `build_rest`, and a thread's estimates as a list, not a loop over the slices with a
-// condition. A mean of neighbours is also a mean of their taps: the spiral's pattern noise
-// averages out (the report's soft scene p95 2.6% -> 2.1%). Measured: see SoftShadowNode's
-// docs.
+// The grid is built estimating only where interpolation would not do. The anchors, the
+// directions at even indices (a quarter of them), take an estimate at their even slices and
+// the last, then at each odd slice whose two neighbours are not `interpolable` (else their
+// mean). Each other direction's cell takes the mean of its two or four anchor neighbours
+// (the midpoint of a bilinear interpolation) where they are `interpolable`, and an estimate
+// where not: near an outline, a surface, a narrow penumbra or the deep penumbra. A mean of
+// neighbours is also a mean of their taps: the spiral's pattern noise averages out (the
+// report's soft scene p95 2.6% -> 2.1%).
+//
+// The estimates run from lists, one cell a thread (`estimate_listed`): a SIMD batch pays for
+// its busiest lane, and a thread that estimated its own cells made its batch wait for the
+// longest list among its lanes, where most had few or none. The passes: `build_anchors` lists
+// the anchors' even slices and last; `between_anchors` their odd slices that need an
+// estimate; `store_anchors` writes the anchors' columns; `build_rest` interpolates the other
+// directions and lists what it cannot; `store_rest` writes the columns with listed cells.
+// Each list is estimated between the pass that fills it and the next. Measured: see
+// SoftShadowNode's docs.
 // See `interpolable`. Measured: an absolute spread of 0.02 in place of the relative one
 // interpolated the deep penumbra away (the eye in an umbra looking away from the light,
 // tests/soft_grid.rs: p95 22.9%, 6.0% relative); looser bounds (0.15, 2 cells, 0.4) saved
@@ -111,55 +142,61 @@ fn cone_slices(dir: vec3<f32>, s: u32) -> vec2<u32> {
     return vec2<u32>(lo, hi);
 }
 
-// The columns of cells a thread holds (one in `build_anchors`, three in `build_rest`): the
-// visible fraction and the estimate's region as `soft_estimate` returns it. Private globals,
-// not arguments: llvmpipe copied an array passed by value at every call (1.7× the build).
+// The columns of cells a thread holds (one in the anchors' passes, three in `build_rest` and
+// `store_rest`): the visible fraction and the estimate's region as `soft_estimate` returns
+// it. Private globals, not arguments: llvmpipe copied an array passed by value at every call
+// (1.7× the build).
 var<private> columns: array<array<vec2<f32>, MAX_SLICES>, 3>;
-// The directions of the thread's columns.
-var<private> column_dirs: array<vec3<f32>, 3>;
-// The cells a thread estimates, column j and slice k as j · MAX_SLICES + k, and the filter
-// width each needs once the search has run (see `estimate_cells`).
+// The grid coordinates (x, y) of the thread's columns.
+var<private> column_xy: array<vec2<u32>, 3>;
+// The cells a thread lists, column j and slice k as j · MAX_SLICES + k.
 var<private> todo: array<u32, 3u * MAX_SLICES>;
-var<private> widths: array<f32, 3u * MAX_SLICES>;
 
-// Estimates the first `count` cells of `todo` into `columns`, one stage of `soft_estimate` at
-// a time over them: the search for all, the filter for those the search left open, the deep
-// penumbra's taps for those the filter found in it (the list compacted in place between
-// stages). A SIMD batch pays for its busiest lane: estimating cell by cell, a lane in the deep
-// penumbra (145 taps) held its seven neighbours, lit at 9 taps or in the penumbra at 49; by
-// stage, a lane waits only for the longest list of the stage. The same values as
-// `soft_estimate`, cell by cell (the grid bit for bit). Measured on the report's soft scene,
-// alternated in one process with the estimates cell by cell: 0.79–0.86 of the build's time.
-fn estimate_cells(count: u32, s: u32) {
-    var open = 0u;
+// Threads of a workgroup of `estimate_listed`, and workgroups along x of its dispatch (the
+// core limit per dimension; more go along y).
+const LIST_GROUP: u32 = 64u;
+const LIST_ROW: u32 = 65535u;
+
+// A cell of a list: x and y (11 bits each, up to SoftShadowSize::MAX_DIRECTIONS) and
+// z = layer · slices + slice (below 6 · 64).
+fn list_cell(xy: vec2<u32>, z: u32) -> u32 {
+    return xy.x | (xy.y << 11u) | (z << 22u);
+}
+
+// Appends the first `count` cells of `todo` (columns at `column_xy`, in `layer`) to the
+// list, and widens its dispatch to cover them. The list holds every cell of a pass (the node
+// sizes it so), so none is dropped.
+fn list_todo(count: u32, layer: u32) {
+    if (count == 0u) {
+        return;
+    }
+    let base = atomicAdd(&work_args[3], count);
     for (var i = 0u; i < count; i++) {
         let j = todo[i] / MAX_SLICES;
         let k = todo[i] % MAX_SLICES;
-        let found = soft_search(cell_point(column_dirs[j], k, s));
-        columns[j][k] = found.xy;
-        if (found.z >= 0.0) {
-            todo[open] = todo[i];
-            widths[open] = found.z;
-            open++;
-        }
+        work[base + i] = list_cell(column_xy[j], layer * mp.slices + k);
     }
-    var deep = 0u;
-    for (var i = 0u; i < open; i++) {
-        let j = todo[i] / MAX_SLICES;
-        let k = todo[i] % MAX_SLICES;
-        let f = soft_filter_at(cell_point(column_dirs[j], k, s), widths[i]);
-        columns[j][k] = vec2<f32>(f, widths[i]);
-        if (soft_is_deep(f)) {
-            todo[deep] = todo[i];
-            widths[deep] = widths[i];
-            deep++;
-        }
+    let groups = (base + count + LIST_GROUP - 1u) / LIST_GROUP;
+    atomicMax(&work_args[0], min(groups, LIST_ROW));
+    atomicMax(&work_args[1], (groups + LIST_ROW - 1u) / LIST_ROW);
+    atomicMax(&work_args[2], 1u);
+}
+
+// One listed cell a thread: `soft_estimate` at its point, to `rest_out`.
+@compute @workgroup_size(64, 1, 1)
+fn estimate_listed(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = gid.x + gid.y * groups.x * LIST_GROUP;
+    if (i >= min(listed_args[3], arrayLength(&listed))) {
+        return;
     }
-    for (var i = 0u; i < deep; i++) {
-        let j = todo[i] / MAX_SLICES;
-        let k = todo[i] % MAX_SLICES;
-        columns[j][k].x = soft_deepen(cell_point(column_dirs[j], k, s), widths[i], columns[j][k].x);
-    }
+    let cell = listed[i];
+    let x = cell & 0x7ffu;
+    let y = (cell >> 11u) & 0x7ffu;
+    let z = cell >> 22u;
+    let s = min(mp.slices, MAX_SLICES);
+    let dir = cell_direction(x, y, z / mp.slices);
+    let e = soft_estimate(cell_point(dir, z % mp.slices, s));
+    textureStore(rest_out, vec3<u32>(x, y, z), vec4<f32>(e, 0.0, 0.0));
 }
 
 // g of a cell: 1 where the estimate's region was narrower than SHARP_CELLS cells (a
@@ -188,7 +225,9 @@ fn store_column(x: u32, y: u32, layer: u32, j: u32, s: u32) {
 }
 
 // One thread per anchor direction, through all its slices (a cell's surface mark needs its
-// neighbours in depth).
+// neighbours in depth), in three passes with the lists' estimates between them. The slices
+// inside a penumbra cone (the others take no tap) and the first list: the even slices and
+// the last.
 @compute @workgroup_size(8, 8, 1)
 fn build_anchors(@builtin(global_invocation_id) gid: vec3<u32>) {
     let a = anchor_count();
@@ -197,15 +236,9 @@ fn build_anchors(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let layer = gid.z;
-    let x = 2u * gid.x;
-    let y = 2u * gid.y;
-    let dir = cell_direction(x, y, layer);
-    column_dirs[0] = dir;
-    let range = cone_slices(dir, s);
-    for (var k = 0u; k < s; k++) {
-        columns[0][k] = vec2<f32>(1.0, -1.0);
-    }
-    // The even slices and the last first, then each odd one between two that do not agree.
+    column_xy[0] = 2u * gid.xy;
+    let range = cone_slices(cell_direction(column_xy[0].x, column_xy[0].y, layer), s);
+    anchor_ranges[gid.x + a * (gid.y + a * layer)] = range.x | (range.y << 8u);
     var count = 0u;
     for (var k = range.x; k < range.y; k++) {
         if (k % 2u == 0u || k + 1u == s) {
@@ -213,8 +246,26 @@ fn build_anchors(@builtin(global_invocation_id) gid: vec3<u32>) {
             count++;
         }
     }
-    estimate_cells(count, s);
-    count = 0u;
+    list_todo(count, layer);
+}
+
+// An anchor's column as far as the lists have estimated it: the cells of the first list
+// from `rest_in`, lit elsewhere, and with `between` the odd slices too, each the mean of its
+// neighbours where they are `interpolable` (else from `rest_in`, `between_anchors` having
+// listed it). Returns the number of odd slices to list in `todo` (without `between`).
+fn anchor_column(gid: vec3<u32>, s: u32, between: bool) -> u32 {
+    let a = anchor_count();
+    let layer = gid.z;
+    column_xy[0] = 2u * gid.xy;
+    let packed = anchor_ranges_in[gid.x + a * (gid.y + a * layer)];
+    let range = vec2<u32>(packed & 0xffu, packed >> 8u);
+    for (var k = 0u; k < s; k++) {
+        columns[0][k] = vec2<f32>(1.0, -1.0);
+        if (k >= range.x && k < range.y && (k % 2u == 0u || k + 1u == s)) {
+            columns[0][k] = textureLoad(rest_in, vec3<u32>(column_xy[0], layer * mp.slices + k), 0).xy;
+        }
+    }
+    var count = 0u;
     for (var k = range.x | 1u; k + 1u < min(range.y + 1u, s); k += 2u) {
         let before = columns[0][k - 1u];
         let after = columns[0][k + 1u];
@@ -224,13 +275,38 @@ fn build_anchors(@builtin(global_invocation_id) gid: vec3<u32>) {
             // The region: the narrower estimate's (as the rest pass reads it).
             let region = select(min(before.y, after.y), max(before.y, after.y), min(before.y, after.y) < 0.0);
             columns[0][k] = vec2<f32>(0.5 * (before.x + after.x), region);
+        } else if (between) {
+            columns[0][k] = textureLoad(rest_in, vec3<u32>(column_xy[0], layer * mp.slices + k), 0).xy;
         } else {
             todo[count] = k;
             count++;
         }
     }
-    estimate_cells(count, s);
-    store_column(x, y, layer, 0u, s);
+    return count;
+}
+
+// The second list: the anchors' odd slices between two that do not agree.
+@compute @workgroup_size(8, 8, 1)
+fn between_anchors(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let a = anchor_count();
+    let s = min(mp.slices, MAX_SLICES);
+    if (gid.x >= a || gid.y >= a || gid.z >= mp.layers) {
+        return;
+    }
+    list_todo(anchor_column(gid, s, false), gid.z);
+}
+
+// The anchors' columns, complete, to the grid and to the anchors `build_rest` reads.
+@compute @workgroup_size(8, 8, 1)
+fn store_anchors(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let a = anchor_count();
+    let s = min(mp.slices, MAX_SLICES);
+    if (gid.x >= a || gid.y >= a || gid.z >= mp.layers) {
+        return;
+    }
+    anchor_column(gid, s, true);
+    let layer = gid.z;
+    store_column(column_xy[0].x, column_xy[0].y, layer, 0u, s);
     for (var k = 0u; k < s; k++) {
         textureStore(anchors_out, vec3<u32>(gid.x, gid.y, layer * mp.slices + k), vec4<f32>(summary(columns[0][k]), 1.0));
     }
@@ -279,8 +355,9 @@ fn build_rest(@builtin(global_invocation_id) gid: vec3<u32>) {
     let below = gid.y + 1u < a && 2u * gid.y + 2u < n;
     let ax = vec2<u32>(gid.x, min(gid.x + 1u, a - 1u));
     let ay = vec2<u32>(gid.y, min(gid.y + 1u, a - 1u));
+    var dirs: array<vec3<f32>, 3>;
     for (var j = 0u; j < 3u; j++) {
-        column_dirs[j] = cell_direction(min(xy[j].x, n - 1u), min(xy[j].y, n - 1u), layer);
+        dirs[j] = cell_direction(min(xy[j].x, n - 1u), min(xy[j].y, n - 1u), layer);
     }
     var count = 0u;
     for (var k = 0u; k < s; k++) {
@@ -316,16 +393,56 @@ fn build_rest(@builtin(global_invocation_id) gid: vec3<u32>) {
             columns[j][k] = vec2<f32>(sum / f32(select(2u, 4u, j == 2u)), -1.0);
             if (!agree) {
                 columns[j][k] = vec2<f32>(1.0, -1.0);
-                if (may_be_hidden(cell_point(column_dirs[j], k, s))) {
+                if (xy[j].x < n && xy[j].y < n && may_be_hidden(cell_point(dirs[j], k, s))) {
                     todo[count] = j * MAX_SLICES + k;
                     count++;
                 }
             }
         }
     }
-    estimate_cells(count, s);
+    var listed_mask = 0u;
+    for (var i = 0u; i < count; i++) {
+        listed_mask |= 1u << (todo[i] / MAX_SLICES);
+    }
+    column_xy = xy;
+    list_todo(count, layer);
+    listed_columns[gid.x + a * (gid.y + a * layer)] = listed_mask;
+    // A column with listed cells waits for them in `rest_out`; the others are complete.
     for (var j = 0u; j < 3u; j++) {
         if (xy[j].x < n && xy[j].y < n) {
+            if ((listed_mask & (1u << j)) != 0u) {
+                for (var k = 0u; k < s; k++) {
+                    textureStore(rest_out, vec3<u32>(xy[j], layer * mp.slices + k), vec4<f32>(columns[j][k], 0.0, 0.0));
+                }
+            } else {
+                store_column(xy[j].x, xy[j].y, layer, j, s);
+            }
+        }
+    }
+}
+
+// The other directions' columns with listed cells, from `rest_in`, to the grid with their
+// marks: one thread a block, as `build_rest`.
+@compute @workgroup_size(8, 8, 1)
+fn store_rest(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let a = anchor_count();
+    let n = mp.size;
+    let s = min(mp.slices, MAX_SLICES);
+    let layer = gid.z;
+    if (gid.x >= a || gid.y >= a || layer >= mp.layers) {
+        return;
+    }
+    var xy = array<vec2<u32>, 3>(
+        vec2<u32>(2u * gid.x + 1u, 2u * gid.y),
+        vec2<u32>(2u * gid.x, 2u * gid.y + 1u),
+        vec2<u32>(2u * gid.x + 1u, 2u * gid.y + 1u),
+    );
+    let listed_mask = listed_columns_in[gid.x + a * (gid.y + a * layer)];
+    for (var j = 0u; j < 3u; j++) {
+        if ((listed_mask & (1u << j)) != 0u) {
+            for (var k = 0u; k < s; k++) {
+                columns[j][k] = textureLoad(rest_in, vec3<u32>(xy[j], layer * mp.slices + k), 0).xy;
+            }
             store_column(xy[j].x, xy[j].y, layer, j, s);
         }
     }

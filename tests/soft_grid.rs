@@ -739,8 +739,8 @@ fn the_grid_is_rebuilt_only_when_the_shadow_map_changes() {
     );
 }
 
-/// A light without a radius, a directional light, a shadow map of the wrong light and sizes
-/// out of range are typed errors naming the input.
+/// A light without a radius, a directional light, a shadow map of the wrong light, sizes out
+/// of range and a grid too large to build on the device are typed errors naming the input.
 #[test]
 fn the_grid_rejects_what_it_cannot_use() {
     let gpu = common::gpu();
@@ -861,6 +861,39 @@ fn the_grid_rejects_what_it_cannot_use() {
         soft.encode(&mut encoder, None),
         Err(Error::NotPrepared { .. })
     ));
+    // The largest grid (2048² directions × 64 slices × 6 layers, 1.6e9 cells): its build's
+    // list of cells to estimate is beyond the device's storage buffers, an error at prepare
+    // (before anything is allocated) naming the size.
+    let mut huge = SoftShadowNode::new(
+        &gpu.device,
+        &cache,
+        SoftShadowSize {
+            directions: SoftShadowSize::MAX_DIRECTIONS,
+            slices: SoftShadowSize::MAX_SLICES,
+        },
+    )
+    .unwrap();
+    let e = huge
+        .prepare(
+            &gpu.device,
+            &gpu.queue,
+            &SoftShadowInputs {
+                light: &soft_point,
+                shadow_map: shadow.shadow_map().unwrap(),
+            },
+        )
+        .err();
+    eprintln!("{e:?}");
+    assert!(
+        matches!(
+            e,
+            Some(Error::InvalidSetting {
+                field: "soft shadow size",
+                ..
+            })
+        ),
+        "{e:?}"
+    );
 }
 
 /// A ground (an open plane, 60 × 60) under a light of radius 0.3, 3 above it, with a sphere

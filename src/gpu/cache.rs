@@ -78,6 +78,8 @@ pub(crate) enum Binding {
     Storage(wgpu::TextureFormat),
     /// A 3D float texture read through a filtering sampler.
     Volume,
+    /// A 3D float texture read with `textureLoad` (any float format, 32-bit ones included).
+    VolumeLoad,
     /// A write-only 3D storage texture.
     StorageVolume(wgpu::TextureFormat),
     /// A filtering sampler.
@@ -131,6 +133,13 @@ impl Binding {
             Binding::Volume => (
                 texture(
                     wgpu::TextureSampleType::Float { filterable: true },
+                    wgpu::TextureViewDimension::D3,
+                ),
+                stages,
+            ),
+            Binding::VolumeLoad => (
+                texture(
+                    wgpu::TextureSampleType::Float { filterable: false },
                     wgpu::TextureViewDimension::D3,
                 ),
                 stages,

@@ -47,7 +47,7 @@ use crate::gpu::{
     depth_view, texture_2d, texture_3d, Cache, GpuTimer, UniformBuffer,
 };
 use crate::nodes::extents::Extents;
-use crate::nodes::shadow_map::ShadowMap;
+use crate::nodes::shadow_map::{standard_cube_near, ShadowMap};
 use crate::nodes::soft_shadow::{cell_angle, soft_params, SoftShadow, MAX_SOFT_SPHERES};
 use crate::nodes::{AirlightTableNode, Scale};
 use crate::plan::Pass;
@@ -317,7 +317,8 @@ struct MarchUniform {
     tan_half_angle: f32,
     tex_width: f32,
     tex_mips: f32,
-    _pad: [u32; 3],
+    cube_near: f32,
+    _pad: [u32; 2],
     soft: [f32; 4],
     spheres: [[f32; 4]; MAX_SOFT_SPHERES],
     planes: [[f32; 4]; MAX_SOFT_SPHERES],
@@ -740,7 +741,7 @@ impl MarchNode {
             [[0.0; 4]; MAX_SOFT_SPHERES],
             [[0.0; 4]; MAX_SOFT_SPHERES],
         );
-        let (mut depth_bias, mut extents_near) = (0.0, 0.0);
+        let (mut depth_bias, mut extents_near, mut cube_near) = (0.0, 0.0, 0.0);
         let mode = match &inputs.shadows {
             None if self.settings.method == MarchMethod::Textbook => Mode::Textbook,
             None => Mode::Analytic,
@@ -749,6 +750,9 @@ impl MarchNode {
                     *slot = face.to_cols_array();
                 }
                 depth_bias = s.shadow_map.depth_bias;
+                if let Light::Point(point) = inputs.light {
+                    cube_near = standard_cube_near(s.shadow_map.faces, point.position());
+                }
                 if soft {
                     (soft_consts, spheres, planes) = soft_params(inputs.light, &s.shadow_map);
                 }
@@ -797,7 +801,8 @@ impl MarchNode {
                 tan_half_angle,
                 tex_width,
                 tex_mips,
-                _pad: [0; 3],
+                cube_near,
+                _pad: [0; 2],
                 soft: soft_consts,
                 spheres,
                 planes,

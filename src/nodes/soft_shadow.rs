@@ -13,23 +13,33 @@
 //! from the light is `radius · (1/d_blocker − 1/d)`, linear in `q`, so the slices are uniform
 //! steps in penumbra width and the last one reaches infinity.
 //!
-//! The build estimates only where interpolation would not do, in two passes. The first
+//! The build estimates only where interpolation would not do, in two stages. The first
 //! estimates the directions at even indices (a quarter of them), at their even slices and the
 //! last, and at an odd slice only where its two neighbours differ (else their mean). The
 //! second fills each other direction with the mean of its two or four neighbours of the first
-//! pass where they agree, and estimates it where not. Neighbours agree where none is marked
+//! stage where they agree, and estimates it where not. Neighbours agree where none is marked
 //! sharp (below) and their fractions are within 5% of the larger (lit, umbra; relative, so
 //! the deep penumbra is kept), or where they lie on a penumbra at least 4 cells wide away
 //! from its foot (the smaller fraction at least 0.7 of the larger: near the umbra a fraction
 //! grows as a power of the distance, which a mean overestimates). Measured on the report's
-//! soft scene, alternating with the single-pass build in one process: 0.73–0.86 of its time
-//! for the point light, 0.77–0.86 for a spot (four runs); that scene's penumbra fills most of
-//! the occluder's cone, so most cells of the second pass still take an estimate (without
-//! any, both passes take 0.32–0.40). A mean of neighbours also averages their taps' pattern
-//! noise: the report's soft scene p95 2.6% → 2.1%, the sphere below 0.68% → 0.73%, the dense
+//! soft scene, alternating with the single-stage build in one process: 0.73–0.86 of its time
+//! for the point light, 0.77–0.86 for a spot (four runs). A mean of neighbours also averages
+//! their taps' pattern noise: the report's soft scene p95 2.6% → 2.1%, the sphere below 0.68% → 0.73%, the dense
 //! torus 1.58% → 1.41%, overlapping penumbrae 2.9% → 2.5%. With an absolute bound of 0.02
 //! in place of the relative one, the deep penumbra was interpolated away (the eye in an umbra
 //! looking away from the light: p95 22.9%).
+//!
+//! The estimates run from lists, one cell a thread. The passes that decide (the anchors'
+//! even slices, their odd slices, the other directions) each list the cells they cannot
+//! interpolate, and an indirect dispatch estimates the list before the next pass reads it. A
+//! SIMD batch (8 lanes on llvmpipe) pays for its busiest lane: when each thread estimated its
+//! own cells, most batches waited on one lane's list while the others had none (on the
+//! report's soft scene 5 400 of the other directions' 295 000 cells fail the test for
+//! interpolation, besides 11 800 in a layer's last row or column; estimated in place, those
+//! in a penumbra cone took more than half the build). Measured on that scene
+//! (2026-11-24, llvmpipe): the other directions' cells listed, against estimated in place in
+//! one process, 0.73–0.79 of the build; with the anchors' cells listed too, the build took
+//! 26–30 ms against 48–50 ms before (three pairs of runs), the same grid bit for bit.
 //!
 //! A thread holds its directions' slices, so it also sees where the visibility jumps
 //! between two slices (an occluder's surface between them). Such cells, and those whose
@@ -133,34 +143,92 @@
 //! where an occluder's surface lies between it and a neighbouring slice, else 0.
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{bind_group, compute_pipeline, dispatch, layout, module, Binding};
+use crate::gpu::cache::{bind_group, compute_pipeline, layout, module, Binding};
 use crate::gpu::{
     check_depth_layers, depth_array_view, texture_3d, Cache, GpuTimer, UniformBuffer,
 };
-use crate::nodes::shadow_map::ShadowMap;
+use crate::nodes::shadow_map::{standard_cube_near, ShadowMap};
 use crate::plan::Pass;
 use crate::scene::Light;
 
-/// The binding table of `build_anchors` in `shaders/soft_shadow.wgsl`: `@binding(i)` is
-/// entry `i`.
-const ANCHOR_BINDINGS: [Binding; 6] = [
-    Binding::Params,                                          // mp
-    Binding::DepthArray,                                      // shadow_map
-    Binding::Comparison,                                      // shadow_sampler
-    Binding::StorageVolume(wgpu::TextureFormat::Rgba16Float), // volume
-    Binding::DepthArray,                                      // shadow_back
-    Binding::StorageVolume(wgpu::TextureFormat::Rgba16Float), // anchors_out
-];
-
-/// `build_rest`'s: the same, but reading the anchors.
-const REST_BINDINGS: [Binding; 6] = [
+/// The binding tables of the build's entry points in `shaders/soft_shadow.wgsl`
+/// (`@binding(i)` is entry `i`): each binds every slot, with the type its entry point
+/// declares where it uses the slot. Slots: 0 `mp`, 1 `shadow_map`, 2 `shadow_sampler`,
+/// 3 `volume` (the grid), 4 `shadow_back`, 5 the anchors, 6 the cells before their marks,
+/// 7 a list of cells to estimate, 8 its dispatch, 9 the rest's listed columns, 10 the
+/// anchors' slice ranges.
+const fn bindings(
+    anchors: Binding,
+    rest: Binding,
+    list: Binding,
+    columns: Binding,
+    ranges: Binding,
+) -> [Binding; 11] {
+    [
+        Binding::Params,
+        Binding::DepthArray,
+        Binding::Comparison,
+        Binding::StorageVolume(wgpu::TextureFormat::Rgba16Float),
+        Binding::DepthArray,
+        anchors,
+        rest,
+        list,
+        list,
+        columns,
+        ranges,
+    ]
+}
+const ANCHORS_WRITTEN: Binding = Binding::StorageVolume(wgpu::TextureFormat::Rgba16Float);
+const REST_WRITTEN: Binding = Binding::StorageVolume(REST_FORMAT);
+/// `build_anchors`: fills a list and the anchors' ranges.
+const ANCHOR_BINDINGS: [Binding; 11] = bindings(
+    ANCHORS_WRITTEN,
+    REST_WRITTEN,
+    Binding::ReadWrite,
+    Binding::ReadWrite,
+    Binding::ReadWrite,
+);
+/// `between_anchors` and `store_anchors`: read the estimated cells and the ranges, fill a list
+/// or write the anchors.
+const BETWEEN_BINDINGS: [Binding; 11] = bindings(
+    ANCHORS_WRITTEN,
+    Binding::VolumeLoad,
+    Binding::ReadWrite,
+    Binding::ReadWrite,
     Binding::Params,
-    Binding::DepthArray,
-    Binding::Comparison,
-    Binding::StorageVolume(wgpu::TextureFormat::Rgba16Float),
-    Binding::DepthArray,
-    Binding::Volume, // anchors_in
-];
+);
+/// `build_rest`: reads the anchors, writes cells before their marks, fills a list.
+const REST_BINDINGS: [Binding; 11] = bindings(
+    Binding::Volume,
+    REST_WRITTEN,
+    Binding::ReadWrite,
+    Binding::ReadWrite,
+    Binding::Params,
+);
+/// `estimate_listed`: reads a list and its dispatch (which cannot be bound for writing while
+/// it dispatches), writes the cells.
+const ESTIMATE_BINDINGS: [Binding; 11] = bindings(
+    Binding::Volume,
+    REST_WRITTEN,
+    Binding::Params,
+    Binding::Params,
+    Binding::Params,
+);
+/// `store_rest`: reads the cells back.
+const STORE_BINDINGS: [Binding; 11] = bindings(
+    Binding::Volume,
+    Binding::VolumeLoad,
+    Binding::ReadWrite,
+    Binding::Params,
+    Binding::Params,
+);
+
+/// Cells before their marks (see `shaders/soft_shadow.wgsl`): exact f32, so that the marks
+/// are those of the values the estimates gave.
+const REST_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Float;
+/// The three lists' dispatches, each in its own slot of the dispatch buffer (a storage
+/// binding's offset is a multiple of 256 bytes on every device).
+const LIST_SLOT: u64 = 256;
 
 /// Most occluder bounding spheres the soft shadow tests a point against; more are merged into
 /// one sphere around them all.
@@ -308,18 +376,25 @@ struct SoftShadowUniform {
     planes: [[f32; 4]; MAX_SOFT_SPHERES],
 }
 
-/// The two passes of a build (see `shaders/soft_shadow.wgsl`) for one kind of light.
+/// The passes of a build (see `shaders/soft_shadow.wgsl`) for one kind of light.
 #[derive(Clone)]
 struct Build {
     anchors: wgpu::ComputePipeline,
+    between: wgpu::ComputePipeline,
+    store_anchors: wgpu::ComputePipeline,
     rest: wgpu::ComputePipeline,
+    estimate: wgpu::ComputePipeline,
+    store_rest: wgpu::ComputePipeline,
 }
 
 /// The node's layouts and its pipelines (point and spot), held by the [`Cache`].
 #[derive(Clone)]
 pub(crate) struct Pipelines {
     anchor_layout: wgpu::BindGroupLayout,
+    between_layout: wgpu::BindGroupLayout,
     rest_layout: wgpu::BindGroupLayout,
+    estimate_layout: wgpu::BindGroupLayout,
+    store_layout: wgpu::BindGroupLayout,
     point: Build,
     spot: Build,
 }
@@ -327,36 +402,37 @@ pub(crate) struct Pipelines {
 impl Pipelines {
     pub(crate) fn new(device: &wgpu::Device) -> Self {
         let label = "volshadow soft shadow";
-        let anchor_layout = layout(device, label, wgpu::ShaderStages::COMPUTE, &ANCHOR_BINDINGS);
-        let rest_layout = layout(device, label, wgpu::ShaderStages::COMPUTE, &REST_BINDINGS);
+        let stages = wgpu::ShaderStages::COMPUTE;
+        let anchor_layout = layout(device, label, stages, &ANCHOR_BINDINGS);
+        let between_layout = layout(device, label, stages, &BETWEEN_BINDINGS);
+        let rest_layout = layout(device, label, stages, &REST_BINDINGS);
+        let estimate_layout = layout(device, label, stages, &ESTIMATE_BINDINGS);
+        let store_layout = layout(device, label, stages, &STORE_BINDINGS);
         let source = concat!(
             include_str!("../../shaders/pcss.wgsl"),
             include_str!("../../shaders/soft_shadow.wgsl")
         );
         let module = module(device, "volshadow soft_shadow.wgsl", source);
-        let build = |constants: &[(&str, f64)]| Build {
-            anchors: compute_pipeline(
-                device,
-                label,
-                &anchor_layout,
-                &module,
-                "build_anchors",
-                constants,
-            ),
-            rest: compute_pipeline(
-                device,
-                label,
-                &rest_layout,
-                &module,
-                "build_rest",
-                constants,
-            ),
+        let build = |constants: &[(&str, f64)]| {
+            let pipeline =
+                |layout, entry| compute_pipeline(device, label, layout, &module, entry, constants);
+            Build {
+                anchors: pipeline(&anchor_layout, "build_anchors"),
+                between: pipeline(&between_layout, "between_anchors"),
+                store_anchors: pipeline(&between_layout, "store_anchors"),
+                rest: pipeline(&rest_layout, "build_rest"),
+                estimate: pipeline(&estimate_layout, "estimate_listed"),
+                store_rest: pipeline(&store_layout, "store_rest"),
+            }
         };
         let point = build(&[]);
         let spot = build(&[("SPOT", 1.0)]);
         Self {
             anchor_layout,
+            between_layout,
             rest_layout,
+            estimate_layout,
+            store_layout,
             point,
             spot,
         }
@@ -368,8 +444,153 @@ struct Bound {
     map: wgpu::Texture,
     back: wgpu::Texture,
     grid: wgpu::Texture,
+    groups: Groups,
+}
+
+/// The build's bind groups: one per pass, and the estimates' one per list.
+struct Groups {
     anchors: wgpu::BindGroup,
+    between: wgpu::BindGroup,
+    store_anchors: wgpu::BindGroup,
     rest: wgpu::BindGroup,
+    estimates: [wgpu::BindGroup; 3],
+    store_rest: wgpu::BindGroup,
+}
+
+/// The build's own textures and buffers (see `shaders/soft_shadow.wgsl`), sized with the
+/// grid.
+struct Scratch {
+    /// The anchors' cells with what decides interpolation (`anchor_count()`² per layer).
+    anchors: wgpu::Texture,
+    /// Cells before their marks, the grid's extent, exact f32.
+    rest: wgpu::Texture,
+    /// A list of cells to estimate (the lists take turns in it), room for every cell of the
+    /// other directions, the longest list.
+    work: wgpu::Buffer,
+    /// The three lists' indirect dispatches and counts, a slot of `LIST_SLOT` bytes each.
+    work_args: wgpu::Buffer,
+    /// Per block of 2 × 2 directions: which of its other columns have listed cells.
+    listed_columns: wgpu::Buffer,
+    /// Per anchor: its slices inside a penumbra cone.
+    anchor_ranges: wgpu::Buffer,
+}
+
+impl Scratch {
+    /// For a grid of `n`² directions by `s` slices in `layers` layers. Errors where the
+    /// longest list would not fit the device's storage-buffer limits (a grid of more than
+    /// about 44 million cells at the core limits, a third of a gigabyte itself).
+    fn new(device: &wgpu::Device, n: u32, layers: u32, s: u32) -> Result<Self> {
+        let a = n.div_ceil(2);
+        let limits = device.limits();
+        let rest_cells = u64::from(n * n - a * a) * u64::from(layers * s);
+        let bytes = 4 * rest_cells.max(1);
+        let limit = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        if bytes > limit {
+            return Err(Error::InvalidSetting {
+                field: "soft shadow size",
+                problem: format!(
+                    "{n}² directions × {s} slices × {layers} layers need a list of {bytes} \
+                     bytes to build, beyond this device's storage buffers ({limit} bytes)"
+                ),
+            });
+        }
+        let buffer = |label, size, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage: wgpu::BufferUsages::STORAGE | usage,
+                mapped_at_creation: false,
+            })
+        };
+        let blocks = 4 * u64::from(a * a * layers);
+        Ok(Self {
+            anchors: texture_3d(
+                device,
+                "volshadow soft shadow anchors",
+                (a, a, layers * s),
+                wgpu::TextureFormat::Rgba16Float,
+                wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+            ),
+            rest: texture_3d(
+                device,
+                "volshadow soft shadow cells",
+                (n, n, layers * s),
+                REST_FORMAT,
+                wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+            ),
+            work: buffer(
+                "volshadow soft shadow list",
+                bytes,
+                wgpu::BufferUsages::empty(),
+            ),
+            // COPY_DST: cleared before each build (every list starts empty).
+            work_args: buffer(
+                "volshadow soft shadow list dispatch",
+                3 * LIST_SLOT,
+                wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_DST,
+            ),
+            listed_columns: buffer(
+                "volshadow soft shadow listed columns",
+                blocks,
+                wgpu::BufferUsages::empty(),
+            ),
+            anchor_ranges: buffer(
+                "volshadow soft shadow anchor ranges",
+                blocks,
+                wgpu::BufferUsages::empty(),
+            ),
+        })
+    }
+
+    /// The passes' bind groups, with `common` the bindings 0 to 4 (parameters, shadow map,
+    /// sampler, grid, back faces).
+    fn bind(
+        &self,
+        device: &wgpu::Device,
+        pipelines: &Pipelines,
+        common: [wgpu::BindingResource<'_>; 5],
+    ) -> Groups {
+        let anchors = self.anchors.create_view(&Default::default());
+        let rest = self.rest.create_view(&Default::default());
+        let slot = |i: u64| {
+            wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                buffer: &self.work_args,
+                offset: i * LIST_SLOT,
+                size: wgpu::BufferSize::new(16),
+            })
+        };
+        let group = |layout: &wgpu::BindGroupLayout, list: u64| {
+            let [c0, c1, c2, c3, c4] = common.clone();
+            bind_group(
+                device,
+                "volshadow soft shadow",
+                layout,
+                [
+                    c0,
+                    c1,
+                    c2,
+                    c3,
+                    c4,
+                    wgpu::BindingResource::TextureView(&anchors),
+                    wgpu::BindingResource::TextureView(&rest),
+                    self.work.as_entire_binding(),
+                    slot(list),
+                    self.listed_columns.as_entire_binding(),
+                    self.anchor_ranges.as_entire_binding(),
+                ],
+            )
+        };
+        Groups {
+            anchors: group(&pipelines.anchor_layout, 0),
+            between: group(&pipelines.between_layout, 1),
+            store_anchors: group(&pipelines.between_layout, 1),
+            rest: group(&pipelines.rest_layout, 2),
+            estimates: [0, 1, 2].map(|list| group(&pipelines.estimate_layout, list)),
+            store_rest: group(&pipelines.store_layout, 2),
+        }
+    }
 }
 
 /// Builds the soft-shadow grid of one light (see the module docs). `prepare` decides whether
@@ -381,10 +602,10 @@ pub struct SoftShadowNode {
     uniform: UniformBuffer<SoftShadowUniform>,
     sampler: wgpu::Sampler,
     texture: Option<wgpu::Texture>,
-    /// The anchors' cells (see `shaders/soft_shadow.wgsl`), made with `texture`.
-    anchors: Option<wgpu::Texture>,
-    /// The bind groups of the two passes, and the shadow map, its back faces and the grid
-    /// they were made for.
+    /// The build's own textures and buffers, made with `texture`.
+    scratch: Option<Scratch>,
+    /// The bind groups of the passes, and the shadow map, its back faces and the grid they
+    /// were made for.
     bound: Option<Bound>,
     pipeline: Option<Build>,
     layers: u32,
@@ -415,7 +636,7 @@ impl SoftShadowNode {
                 ..Default::default()
             }),
             texture: None,
-            anchors: None,
+            scratch: None,
             bound: None,
             pipeline: None,
             layers: 0,
@@ -450,8 +671,10 @@ impl SoftShadowNode {
     /// # Errors
     ///
     /// [`Error::InvalidSetting`] naming `light` for a light without a radius or a directional
-    /// light; [`Error::InvalidTexture`] naming `shadow_map` for a shadow map whose layers or
-    /// face matrices do not match the light.
+    /// light, or naming `soft shadow size` for a grid whose build needs a list of cells
+    /// larger than the device's storage buffers (at the core limit of 128 MiB, more than
+    /// about 44 million cells); [`Error::InvalidTexture`] naming `shadow_map` for a shadow map
+    /// whose layers or face matrices do not match the light.
     pub fn prepare(
         &mut self,
         device: &wgpu::Device,
@@ -494,6 +717,7 @@ impl SoftShadowNode {
             .as_ref()
             .is_none_or(|t| (t.width(), t.height(), t.depth_or_array_layers()) != extent)
         {
+            let scratch = Scratch::new(device, n, layers, s)?;
             self.pending = true;
             self.texture = Some(texture_3d(
                 device,
@@ -506,48 +730,32 @@ impl SoftShadowNode {
                     | wgpu::TextureUsages::TEXTURE_BINDING
                     | wgpu::TextureUsages::COPY_SRC,
             ));
-            let a = n.div_ceil(2);
-            self.anchors = Some(texture_3d(
-                device,
-                "volshadow soft shadow anchors",
-                (a, a, layers * s),
-                wgpu::TextureFormat::Rgba16Float,
-                wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
-            ));
+            self.scratch = Some(scratch);
         }
         let texture = self.texture.as_ref().expect("created above");
-        let anchors = self.anchors.as_ref().expect("created with the grid");
+        let scratch = self.scratch.as_ref().expect("created with the grid");
         let back = map.back.unwrap_or(map.texture);
         if self
             .bound
             .as_ref()
             .is_none_or(|b| b.map != *map.texture || b.back != *back || b.grid != *texture)
         {
-            let shadow_view = depth_array_view(map.texture);
-            let back_view = depth_array_view(back);
-            let grid_view = texture.create_view(&Default::default());
-            let anchor_view = anchors.create_view(&Default::default());
-            let group = |layout: &wgpu::BindGroupLayout| {
-                bind_group(
-                    device,
-                    "volshadow soft shadow",
-                    layout,
-                    [
-                        self.uniform.binding(),
-                        wgpu::BindingResource::TextureView(&shadow_view),
-                        wgpu::BindingResource::Sampler(&self.sampler),
-                        wgpu::BindingResource::TextureView(&grid_view),
-                        wgpu::BindingResource::TextureView(&back_view),
-                        wgpu::BindingResource::TextureView(&anchor_view),
-                    ],
-                )
-            };
+            let groups = scratch.bind(
+                device,
+                &self.pipelines,
+                [
+                    self.uniform.binding(),
+                    wgpu::BindingResource::TextureView(&depth_array_view(map.texture)),
+                    wgpu::BindingResource::Sampler(&self.sampler),
+                    wgpu::BindingResource::TextureView(&texture.create_view(&Default::default())),
+                    wgpu::BindingResource::TextureView(&depth_array_view(back)),
+                ],
+            );
             self.bound = Some(Bound {
                 map: map.texture.clone(),
                 back: back.clone(),
                 grid: texture.clone(),
-                anchors: group(&self.pipelines.anchor_layout),
-                rest: group(&self.pipelines.rest_layout),
+                groups,
             });
             self.pending = true;
         }
@@ -576,7 +784,9 @@ impl SoftShadowNode {
             SoftShadowUniform {
                 faces,
                 world_from_clip,
-                light: position.extend(0.0).to_array(),
+                light: position
+                    .extend(standard_cube_near(map.faces, position))
+                    .to_array(),
                 depth_bias: map.depth_bias,
                 size: n,
                 slices: s,
@@ -608,7 +818,7 @@ impl SoftShadowNode {
         encoder: &mut wgpu::CommandEncoder,
         timer: Option<&mut GpuTimer>,
     ) -> Result<()> {
-        let (Some(bound), Some(build)) = (&self.bound, &self.pipeline) else {
+        let (Some(Bound { groups, .. }), Some(build)) = (&self.bound, &self.pipeline) else {
             return Err(Error::NotPrepared {
                 reason: "SoftShadowNode::prepare has not succeeded yet",
             });
@@ -616,19 +826,35 @@ impl SoftShadowNode {
         if !std::mem::take(&mut self.pending) {
             return Ok(());
         }
+        let scratch = self.scratch.as_ref().expect("created with the grid");
+        // Every list starts empty, its dispatch 0 workgroups until a pass lists a cell.
+        encoder.clear_buffer(&scratch.work_args, 0, None);
         // Anchors, and blocks of 2 × 2 directions: 8 × 8 a workgroup.
         let a = self.size.directions.div_ceil(2);
-        let groups = (a.div_ceil(8), a.div_ceil(8), self.layers);
-        dispatch(
-            encoder,
-            timer,
-            Pass::SoftShadow,
-            "volshadow soft shadow",
-            &[
-                (&build.anchors, &bound.anchors, groups),
-                (&build.rest, &bound.rest, groups),
-            ],
-        );
+        let (x, y, z) = (a.div_ceil(8), a.div_ceil(8), self.layers);
+        let timestamp_writes = timer.and_then(|t| t.compute_pass(Pass::SoftShadow));
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("volshadow soft shadow"),
+            timestamp_writes,
+        });
+        // Each pass that fills a list is followed by the list's estimates.
+        let passes = [
+            (&build.anchors, &groups.anchors, Some(0)),
+            (&build.between, &groups.between, Some(1)),
+            (&build.store_anchors, &groups.store_anchors, None),
+            (&build.rest, &groups.rest, Some(2)),
+            (&build.store_rest, &groups.store_rest, None),
+        ];
+        for (pipeline, group, list) in passes {
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, group, &[]);
+            pass.dispatch_workgroups(x, y, z);
+            if let Some(list) = list {
+                pass.set_pipeline(&build.estimate);
+                pass.set_bind_group(0, &groups.estimates[list], &[]);
+                pass.dispatch_workgroups_indirect(&scratch.work_args, list as u64 * LIST_SLOT);
+            }
+        }
         Ok(())
     }
 

@@ -312,6 +312,7 @@ pub struct ShadowPasses<'a> {
     shadow_resolution: u32,
     filter: volshadow::nodes::UpsampleFilter,
     texture: Option<&'a wgpu::Texture>,
+    face_scale: f32,
 }
 
 impl<'a> ShadowPasses<'a> {
@@ -332,6 +333,7 @@ impl<'a> ShadowPasses<'a> {
             shadow_resolution: 1024,
             filter: volshadow::nodes::UpsampleFilter::DepthAware3x3,
             texture: None,
+            face_scale: 1.0,
         }
     }
 
@@ -356,6 +358,13 @@ impl<'a> ShadowPasses<'a> {
     pub fn texture(self, texture: Option<&'a wgpu::Texture>) -> Self {
         Self { texture, ..self }
     }
+
+    /// The shadow map's face matrices as the soft-shadow grid and the march receive them,
+    /// times `face_scale`: a caller's faces that project the same as the node's (clip
+    /// coordinates scaled, the same ndc) but are not the node's own matrices.
+    pub fn face_scale(self, face_scale: f32) -> Self {
+        Self { face_scale, ..self }
+    }
 }
 
 /// Runs `passes` (see [`ShadowPasses`]).
@@ -370,6 +379,7 @@ pub fn shadow_frame(gpu: &HeadlessGpu, cache: &Cache, passes: &ShadowPasses) -> 
         shadow_resolution,
         filter,
         texture,
+        face_scale,
     } = *passes;
     let mut light_texture = texture.map(|t| {
         let mut node = volshadow::nodes::LightTextureNode::new(&gpu.device, cache).unwrap();
@@ -419,6 +429,13 @@ pub fn shadow_frame(gpu: &HeadlessGpu, cache: &Cache, passes: &ShadowPasses) -> 
             },
         )
         .unwrap();
+    let faces: Vec<glam::Mat4> = shadow
+        .shadow_map()
+        .unwrap()
+        .faces
+        .iter()
+        .map(|f| *f * face_scale)
+        .collect();
     // A light with a radius: the soft-shadow grid, for the methods that read it.
     let mut soft = (light.radius() > 0.0
         && matches!(
@@ -437,7 +454,10 @@ pub fn shadow_frame(gpu: &HeadlessGpu, cache: &Cache, passes: &ShadowPasses) -> 
             &gpu.queue,
             &volshadow::nodes::SoftShadowInputs {
                 light,
-                shadow_map: shadow.shadow_map().unwrap(),
+                shadow_map: volshadow::nodes::ShadowMap {
+                    faces: &faces,
+                    ..shadow.shadow_map().unwrap()
+                },
             },
         )
         .unwrap();
@@ -459,7 +479,10 @@ pub fn shadow_frame(gpu: &HeadlessGpu, cache: &Cache, passes: &ShadowPasses) -> 
                 table: &table,
                 scene_depth: depth,
                 shadows: Some(Shadows {
-                    shadow_map: shadow.shadow_map().unwrap(),
+                    shadow_map: volshadow::nodes::ShadowMap {
+                        faces: &faces,
+                        ..shadow.shadow_map().unwrap()
+                    },
                     extents: extents.extents(),
                     soft: soft.as_ref().and_then(|n| n.output()),
                 }),
