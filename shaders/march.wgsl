@@ -238,11 +238,27 @@ fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: TT, t1: TT, n
     var weights = vec3<f32>(0.0);
     var lit = vec3<f32>(0.0);
     var plain = 0.0;
+    // The half angles at the steps' midpoints, δ/2 = s·w/2 at the light and u = β/2 at the
+    // point (β = (1 − s)·w), as (cos, sin), each turned by ds·w/2 a step: dT/ds (as
+    // `table_integrand`) and x (as `x_of_s`, x = D sin δ / sin β) without a sine or cosine.
+    // cos u starts as sin((γ + δ)/2), exact where β is near π. Measured on the report's soft
+    // scene (2026-11-24, alternated in one process): 0.90 of the march at ½, the same p95.
+    let mid0 = s0 + 0.5 * ds;
+    let turn = 0.5 * ds * r.w;
+    let rot = vec2<f32>(cos(turn), sin(turn));
+    var half_delta = vec2<f32>(cos(0.5 * mid0 * r.w), sin(0.5 * mid0 * r.w));
+    var half_beta = vec2<f32>(sin(0.5 * (r.gamma + mid0 * r.w)), sin(0.5 * (1.0 - mid0) * r.w));
     for (var i = 0u; i < n; i++) {
-        let mid = s0 + ds * (f32(i) + 0.5);
-        let w = table_integrand(air, mid, r.w, r.sin_half_gamma);
+        let su = half_beta.y;
+        let cu = half_beta.x;
+        let ratio = min(half_delta.y / max(su, 1.0e-30), 1.0e20);
+        let tau = (2.0 * air.distance * r.sin_half_gamma * ratio) * air.sigma_t;
+        let w = phase(air, 2.0 * cu * cu, 2.0 * su * su) * exp(-tau);
+        let x = air.distance * (half_delta.y * half_delta.x) / max(su * cu, 1.0e-30);
+        half_delta = vec2<f32>(half_delta.x * rot.x - half_delta.y * rot.y, half_delta.y * rot.x + half_delta.x * rot.y);
+        half_beta = vec2<f32>(half_beta.x * rot.x + half_beta.y * rot.y, half_beta.y * rot.x - half_beta.x * rot.y);
         weights += w;
-        let p = air.eye + x_of_s(r, mid) * ray.dir;
+        let p = air.eye + x * ray.dir;
         let g = soft_grid(p);
         if ((g.y > 0.0 || g.z > 0.0) && count < MAX_SHARP_STEPS) {
             sharp[count] = i;

@@ -182,21 +182,76 @@ fn list_todo(count: u32, layer: u32) {
     atomicMax(&work_args[2], 1u);
 }
 
-// One listed cell a thread: `soft_estimate` at its point, to `rest_out`.
+// The cells of a workgroup of `estimate_listed` that a stage leaves to the next (their list
+// index and filter width; the filter's fraction for the deep penumbra), and their counts.
+var<workgroup> filter_cells: array<u32, LIST_GROUP>;
+var<workgroup> filter_widths: array<f32, LIST_GROUP>;
+var<workgroup> filter_count: atomic<u32>;
+var<workgroup> deep_cells: array<u32, LIST_GROUP>;
+var<workgroup> deep_widths: array<f32, LIST_GROUP>;
+var<workgroup> deep_fractions: array<f32, LIST_GROUP>;
+var<workgroup> deep_count: atomic<u32>;
+
+// The grid cell of list entry `cell`, and its point.
+fn listed_texel(cell: u32) -> vec3<u32> {
+    return vec3<u32>(cell & 0x7ffu, (cell >> 11u) & 0x7ffu, cell >> 22u);
+}
+
+fn listed_point(t: vec3<u32>) -> vec3<f32> {
+    let dir = cell_direction(t.x, t.y, t.z / mp.slices);
+    return cell_point(dir, t.z % mp.slices, min(mp.slices, MAX_SLICES));
+}
+
+// One listed cell a thread: `soft_estimate` at its point, to `rest_out`, a stage at a time
+// over the workgroup: the blocker search for every cell, then the filter for the cells the
+// search left open, then the deep penumbra's taps for those the filter found in it, each
+// stage's cells gathered onto the workgroup's first threads. A SIMD batch pays for its
+// busiest lane: in one pass over the stages a batch with one lane in the deep penumbra
+// (145 taps) held its other seven, most at 9 or 49. The same values as `soft_estimate`.
 @compute @workgroup_size(64, 1, 1)
-fn estimate_listed(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+fn estimate_listed(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(local_invocation_index) local: u32,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
     let i = gid.x + gid.y * groups.x * LIST_GROUP;
-    if (i >= min(listed_args[3], arrayLength(&listed))) {
-        return;
+    if (local == 0u) {
+        atomicStore(&filter_count, 0u);
+        atomicStore(&deep_count, 0u);
     }
-    let cell = listed[i];
-    let x = cell & 0x7ffu;
-    let y = (cell >> 11u) & 0x7ffu;
-    let z = cell >> 22u;
-    let s = min(mp.slices, MAX_SLICES);
-    let dir = cell_direction(x, y, z / mp.slices);
-    let e = soft_estimate(cell_point(dir, z % mp.slices, s));
-    textureStore(rest_out, vec3<u32>(x, y, z), vec4<f32>(e, 0.0, 0.0));
+    workgroupBarrier();
+    if (i < min(listed_args[3], arrayLength(&listed))) {
+        let t = listed_texel(listed[i]);
+        let found = soft_search(listed_point(t));
+        if (found.z < 0.0) {
+            textureStore(rest_out, t, vec4<f32>(found.xy, 0.0, 0.0));
+        } else {
+            let slot = atomicAdd(&filter_count, 1u);
+            filter_cells[slot] = listed[i];
+            filter_widths[slot] = found.z;
+        }
+    }
+    workgroupBarrier();
+    if (local < atomicLoad(&filter_count)) {
+        let t = listed_texel(filter_cells[local]);
+        let width = filter_widths[local];
+        let f = soft_filter_at(listed_point(t), width);
+        if (soft_is_deep(f)) {
+            let slot = atomicAdd(&deep_count, 1u);
+            deep_cells[slot] = filter_cells[local];
+            deep_widths[slot] = width;
+            deep_fractions[slot] = f;
+        } else {
+            textureStore(rest_out, t, vec4<f32>(f, width, 0.0, 0.0));
+        }
+    }
+    workgroupBarrier();
+    if (local < atomicLoad(&deep_count)) {
+        let t = listed_texel(deep_cells[local]);
+        let width = deep_widths[local];
+        let f = soft_deepen(listed_point(t), width, deep_fractions[local]);
+        textureStore(rest_out, t, vec4<f32>(f, width, 0.0, 0.0));
+    }
 }
 
 // g of a cell: 1 where the estimate's region was narrower than SHARP_CELLS cells (a
@@ -355,6 +410,24 @@ fn build_rest(@builtin(global_invocation_id) gid: vec3<u32>) {
     let below = gid.y + 1u < a && 2u * gid.y + 2u < n;
     let ax = vec2<u32>(gid.x, min(gid.x + 1u, a - 1u));
     let ay = vec2<u32>(gid.y, min(gid.y + 1u, a - 1u));
+    // Four anchors outside every penumbra cone: all lit, as the mean of their lit cells
+    // would be (the same values, without the loads).
+    var lit_block = true;
+    for (var i = 0u; i < 4u; i++) {
+        let packed = anchor_ranges_in[ax[i & 1u] + a * (ay[i >> 1u] + a * layer)];
+        lit_block = lit_block && (packed & 0xffu) >= (packed >> 8u);
+    }
+    if (lit_block) {
+        listed_columns[gid.x + a * (gid.y + a * layer)] = 0u;
+        for (var j = 0u; j < 3u; j++) {
+            if (xy[j].x < n && xy[j].y < n) {
+                for (var k = 0u; k < s; k++) {
+                    textureStore(volume, vec3<u32>(xy[j], layer * mp.slices + k), vec4<f32>(1.0, 0.0, 0.0, 1.0));
+                }
+            }
+        }
+        return;
+    }
     var dirs: array<vec3<f32>, 3>;
     for (var j = 0u; j < 3u; j++) {
         dirs[j] = cell_direction(min(xy[j].x, n - 1u), min(xy[j].y, n - 1u), layer);

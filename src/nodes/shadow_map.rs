@@ -26,7 +26,8 @@
 //! their geometric mean), where a convex occluder's outline lies; the front surface alone is
 //! nearer and made the deep penumbra up to
 //! 41% too bright (see [`SoftShadowNode`](crate::nodes::SoftShadowNode)). It doubles the
-//! pass's draws for such a light.
+//! pass's draws for such a light, less the cube faces no occluder's bounding sphere reaches:
+//! their front layer holds no blocker, so their back layer is never read, and is not drawn.
 
 use glam::{Mat4, Vec3, Vec4};
 
@@ -155,7 +156,9 @@ pub struct ShadowMap<'a> {
     /// occluders, and the nearest faces of open ones, same size, format and layout as
     /// `texture`. Along a direction, a distance between the two surfaces estimates where the
     /// lines from a point to the light's disc graze the occluder (a sphere's silhouette), which
-    /// the front surface alone puts too near the light. `None`: the front surface is taken.
+    /// the front surface alone puts too near the light. It is read only where `texture`
+    /// holds a blocker (the node leaves a cube face no occluder reaches undrawn). `None`: the
+    /// front surface is taken.
     pub back: Option<&'a wgpu::Texture>,
     /// Changes whenever the map's contents do, so that what is derived from it (the
     /// [`SoftShadowNode`](crate::nodes::SoftShadowNode)'s grid) is rebuilt only then:
@@ -260,6 +263,9 @@ pub struct ShadowMapNode {
     faces: Vec<Mat4>,
     bounds: Vec<Vec4>,
     planes: Vec<Vec4>,
+    /// Per layer, whether `back` is drawn there: a cube face no occluder's bounding sphere
+    /// reaches holds no blocker in the front layer, so its back layer is never read.
+    back_layers: Vec<bool>,
     face_buffer: wgpu::Buffer,
     instance_buffer: Option<wgpu::Buffer>,
     bind_group: Option<wgpu::BindGroup>,
@@ -293,6 +299,29 @@ fn cube_faces(position: Vec3, near: f32) -> [Mat4; 6] {
         (Vec3::NEG_Z, Vec3::Y),
     ]
     .map(|(dir, up)| proj * look_to_mat4(position, dir, up))
+}
+
+/// Which of a point light's cube faces (+X, −X, +Y, −Y, +Z, −Z) at `position` the spheres
+/// `(centre, radius)` may reach, conservatively: a face's pyramid is four half-spaces through
+/// the light (`±x_a ≥ |x_b|` for the face's axis `a` and each other axis `b`), and a sphere
+/// inside it reaches into each of them. The back layer of a face none reaches is not drawn:
+/// on the report's soft scene three of the six, and the shadow map took 7.4 ms against
+/// 9.2–9.5 ms with all six (llvmpipe, 2026-11-24, alternated in one process).
+fn cube_faces_touched(position: Vec3, spheres: &[Vec4]) -> [bool; 6] {
+    let mut touched = [false; 6];
+    for sphere in spheres {
+        let c = sphere.truncate() - position;
+        let r = sphere.w * std::f32::consts::SQRT_2;
+        for (face, reached) in touched.iter_mut().enumerate() {
+            let a = face / 2;
+            let along = if face % 2 == 0 { c[a] } else { -c[a] };
+            let (b, d) = ((a + 1) % 3, (a + 2) % 3);
+            // n·c ≥ −r for n = (±e_a ∓ e_b)/√2, times √2; a non-finite sphere reaches all.
+            let inside = along - c[b].abs() >= -r && along - c[d].abs() >= -r;
+            *reached |= inside || !(along.is_finite() && r.is_finite());
+        }
+    }
+    touched
 }
 
 /// The near plane of `faces` where they are the cube faces this node draws for a point light
@@ -358,6 +387,7 @@ impl ShadowMapNode {
             back: None,
             faces: Vec::new(),
             bounds: Vec::new(),
+            back_layers: Vec::new(),
             planes: Vec::new(),
             face_buffer: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("volshadow shadow faces"),
@@ -681,6 +711,10 @@ impl ShadowMapNode {
             self.faces = Self::face_matrices(light, near, self.occluder_distance);
         }
         self.bounds = occluders.iter().map(|o| o.world_sphere()).collect();
+        self.back_layers = match light {
+            Light::Point(point) => cube_faces_touched(point.position(), &self.bounds).to_vec(),
+            _ => vec![true; self.faces.len()],
+        };
         self.planes = occluders
             .iter()
             .map(|o| {
@@ -790,6 +824,15 @@ impl ShadowMapNode {
         let targets = std::iter::once((texture, false)).chain(self.back.iter().map(|b| (b, true)));
         for (target, back) in targets {
             for layer in 0..target.depth_or_array_layers() {
+                if back
+                    && !self
+                        .back_layers
+                        .get(layer as usize)
+                        .copied()
+                        .unwrap_or(true)
+                {
+                    continue;
+                }
                 let view = target.create_view(&wgpu::TextureViewDescriptor {
                     label: Some("volshadow shadow face"),
                     dimension: Some(wgpu::TextureViewDimension::D2),
@@ -981,5 +1024,55 @@ mod tests {
             assert_eq!(standard_cube_near(&faces, position + Vec3::X * scale), 0.0);
         }
         assert!(wrong_sign_failed > 7000, "{wrong_sign_failed}");
+    }
+
+    /// Every point of a sphere lies in a face `cube_faces_touched` marks (2000 seeded spheres
+    /// around lights at scales 1e-3 to 1e5, 200 points each, on and inside the surface), and a
+    /// small sphere on an axis marks its face alone, so the test can skip faces. Marking only
+    /// the face of the sphere's centre leaves points out, so the test can tell.
+    #[test]
+    fn every_point_of_a_sphere_lies_in_a_touched_face() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f32 / (1u64 << 53) as f32 * 2.0 - 1.0
+        };
+        let face_of = |p: Vec3| {
+            let m = p.abs();
+            let a = if m.x >= m.y && m.x >= m.z {
+                0
+            } else if m.y >= m.z {
+                1
+            } else {
+                2
+            };
+            2 * a + usize::from(p[a] < 0.0)
+        };
+        let mut centre_only_missed = 0;
+        for i in 0..2000 {
+            let scale = [1.0e-3_f32, 1.0, 1.0e5][i % 3];
+            let light = Vec3::new(next(), next(), next()) * scale;
+            let centre = light + Vec3::new(next(), next(), next()) * 2.0 * scale;
+            let radius = (0.5 * next() + 0.55) * scale;
+            let touched = cube_faces_touched(light, &[centre.extend(radius)]);
+            for _ in 0..200 {
+                let dir = Vec3::new(next(), next(), next()).normalize_or(Vec3::X);
+                let depth = if next() > 0.0 { 1.0 } else { next().abs() };
+                let p = centre + dir * radius * depth - light;
+                assert!(
+                    touched[face_of(p)],
+                    "sphere {centre} r {radius}, light {light}: point {p} in face {}, marked {touched:?}",
+                    face_of(p)
+                );
+                if face_of(p) != face_of(centre - light) {
+                    centre_only_missed += 1;
+                }
+            }
+        }
+        assert!(centre_only_missed > 1000, "{centre_only_missed}");
+        let small = cube_faces_touched(Vec3::ZERO, &[Vec4::new(0.0, 0.0, -5.0, 1.0)]);
+        assert_eq!(small, [false, false, false, false, false, true]);
     }
 }

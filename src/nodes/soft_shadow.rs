@@ -39,7 +39,13 @@
 //! in a penumbra cone took more than half the build). Measured on that scene
 //! (2026-11-24, llvmpipe): the other directions' cells listed, against estimated in place in
 //! one process, 0.73–0.79 of the build; with the anchors' cells listed too, the build took
-//! 26–30 ms against 48–50 ms before (three pairs of runs), the same grid bit for bit.
+//! 26–30 ms against 48–50 ms before (three pairs of runs), the same grid bit for bit. On
+//! that scene the lists hold 3 513, 1 537 and 8 689 cells. A list's workgroup runs the
+//! estimate's stages in turn over its cells, each stage's cells gathered onto its first
+//! threads (the search for all, the filter for those the search left open, the deep
+//! penumbra's 96 taps for those the filter found in it): 0.90–0.91 of the build against the
+//! stages in one go per thread, the same grid. A block of the other directions whose four
+//! anchors lie outside every penumbra cone is lit without reading them: 0.88–0.90.
 //!
 //! A thread holds its directions' slices, so it also sees where the visibility jumps
 //! between two slices (an occluder's surface between them). Such cells, and those whose
