@@ -388,23 +388,34 @@ fn interpolable(lo: vec3<f32>, hi: vec3<f32>) -> bool {
     return hi.y == 0.0 && (flat || wide);
 }
 
-// The other directions: one thread per block of 2 × 2 directions (its anchor's, at even
-// indices, and the three others), reading the four anchors around the three once a slice.
-@compute @workgroup_size(8, 8, 1)
-fn build_rest(@builtin(global_invocation_id) gid: vec3<u32>) {
+// Whether thread `gid` of `build_rest` and `store_rest` holds a block of 2 × 2 directions
+// (its anchor's, at even indices, and the three others), whose other directions it puts in
+// `column_xy`: (1, 0), (0, 1), (1, 1) from the anchor.
+fn rest_block(gid: vec3<u32>) -> bool {
     let a = anchor_count();
-    let n = mp.size;
-    let s = min(mp.slices, MAX_SLICES);
-    let layer = gid.z;
-    if (gid.x >= a || gid.y >= a || layer >= mp.layers) {
-        return;
+    if (gid.x >= a || gid.y >= a || gid.z >= mp.layers) {
+        return false;
     }
-    // The block's directions other than the anchor: (1, 0), (0, 1), (1, 1) from it.
-    var xy = array<vec2<u32>, 3>(
+    column_xy = array<vec2<u32>, 3>(
         vec2<u32>(2u * gid.x + 1u, 2u * gid.y),
         vec2<u32>(2u * gid.x, 2u * gid.y + 1u),
         vec2<u32>(2u * gid.x + 1u, 2u * gid.y + 1u),
     );
+    return true;
+}
+
+// The other directions: one thread per block (see `rest_block`), reading the four anchors
+// around the three once a slice.
+@compute @workgroup_size(8, 8, 1)
+fn build_rest(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if (!rest_block(gid)) {
+        return;
+    }
+    let a = anchor_count();
+    let n = mp.size;
+    let s = min(mp.slices, MAX_SLICES);
+    let layer = gid.z;
+    let xy = column_xy;
     // Each interpolates its anchor neighbours where they all exist: x ± 1 where x is odd.
     let right = gid.x + 1u < a && 2u * gid.x + 2u < n;
     let below = gid.y + 1u < a && 2u * gid.y + 2u < n;
@@ -477,7 +488,6 @@ fn build_rest(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var i = 0u; i < count; i++) {
         listed_mask |= 1u << (todo[i] / MAX_SLICES);
     }
-    column_xy = xy;
     list_todo(count, layer);
     listed_columns[gid.x + a * (gid.y + a * layer)] = listed_mask;
     // A column with listed cells waits for them in `rest_out`; the others are complete.
@@ -498,18 +508,13 @@ fn build_rest(@builtin(global_invocation_id) gid: vec3<u32>) {
 // marks: one thread a block, as `build_rest`.
 @compute @workgroup_size(8, 8, 1)
 fn store_rest(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let a = anchor_count();
-    let n = mp.size;
-    let s = min(mp.slices, MAX_SLICES);
-    let layer = gid.z;
-    if (gid.x >= a || gid.y >= a || layer >= mp.layers) {
+    if (!rest_block(gid)) {
         return;
     }
-    var xy = array<vec2<u32>, 3>(
-        vec2<u32>(2u * gid.x + 1u, 2u * gid.y),
-        vec2<u32>(2u * gid.x, 2u * gid.y + 1u),
-        vec2<u32>(2u * gid.x + 1u, 2u * gid.y + 1u),
-    );
+    let a = anchor_count();
+    let s = min(mp.slices, MAX_SLICES);
+    let layer = gid.z;
+    let xy = column_xy;
     let listed_mask = listed_columns_in[gid.x + a * (gid.y + a * layer)];
     for (var j = 0u; j < 3u; j++) {
         if ((listed_mask & (1u << j)) != 0u) {

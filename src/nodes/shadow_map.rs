@@ -947,6 +947,16 @@ mod tests {
         );
     }
 
+    /// Seeded numbers uniform in [−1, 1) (xorshift64).
+    fn uniform(mut seed: u64) -> impl FnMut() -> f32 {
+        move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f32 / (1u64 << 53) as f32 * 2.0 - 1.0
+        }
+    }
+
     /// `cube_clip` of shaders/pcss.wgsl, line for line: a face's clip coordinates as a signed
     /// permutation of the offset from the light.
     fn cube_clip(face: usize, rel: Vec3, near: f32) -> Vec4 {
@@ -966,13 +976,7 @@ mod tests {
     /// permutation with one sign wrong fails the projection check, so it can tell.
     #[test]
     fn the_node_s_cube_faces_project_by_permutation() {
-        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f32 / (1u64 << 53) as f32 * 2.0 - 1.0
-        };
+        let mut next = uniform(0x2545_f491_4f6c_dd1d);
         let mut wrong_sign_failed = 0;
         for &scale in &[1.0e-3_f32, 1.0, 37.0, 1.0e5] {
             let position = Vec3::new(next(), next(), next()) * scale;
@@ -1032,13 +1036,7 @@ mod tests {
     /// the face of the sphere's centre leaves points out, so the test can tell.
     #[test]
     fn every_point_of_a_sphere_lies_in_a_touched_face() {
-        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f32 / (1u64 << 53) as f32 * 2.0 - 1.0
-        };
+        let mut next = uniform(0x9e37_79b9_7f4a_7c15);
         let face_of = |p: Vec3| {
             let m = p.abs();
             let a = if m.x >= m.y && m.x >= m.z {
