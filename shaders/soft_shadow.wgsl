@@ -50,11 +50,12 @@ struct SoftShadowParams {
 @group(0) @binding(7) var<storage, read> listed: array<u32>;
 @group(0) @binding(8) var<storage, read_write> work_args: array<atomic<u32>, 4>;
 @group(0) @binding(8) var<storage, read> listed_args: array<u32, 4>;
-// Per block of `build_rest` (x + a · (y + a · layer), a = anchor_count()): bit j set where its
+// Per block of `build_rest` (see `block_index`): bit j set where its
 // column j has listed cells, which `store_rest` then stores; `build_rest` stores the others.
 @group(0) @binding(9) var<storage, read_write> listed_columns: array<u32>;
 @group(0) @binding(9) var<storage, read> listed_columns_in: array<u32>;
-// Per anchor (the same index): its slices inside a penumbra cone, [lo, hi) as lo | hi << 8.
+// Per anchor (its block's `block_index`): its slices inside a penumbra cone, [lo, hi) as
+// lo | hi << 8.
 @group(0) @binding(10) var<storage, read_write> anchor_ranges: array<u32>;
 @group(0) @binding(10) var<storage, read> anchor_ranges_in: array<u32>;
 
@@ -279,21 +280,34 @@ fn store_column(x: u32, y: u32, layer: u32, j: u32, s: u32) {
     }
 }
 
+// Whether thread `gid` of a pass over the blocks of 2 × 2 directions (one per anchor, at
+// even indices) has one: x, y below `anchor_count()`, z a layer.
+fn on_block(gid: vec3<u32>) -> bool {
+    let a = anchor_count();
+    return gid.x < a && gid.y < a && gid.z < mp.layers;
+}
+
+// The index of thread `gid`'s block in the per-block buffers (`anchor_ranges`,
+// `listed_columns`).
+fn block_index(gid: vec3<u32>) -> u32 {
+    let a = anchor_count();
+    return gid.x + a * (gid.y + a * gid.z);
+}
+
 // One thread per anchor direction, through all its slices (a cell's surface mark needs its
 // neighbours in depth), in three passes with the lists' estimates between them. The slices
 // inside a penumbra cone (the others take no tap) and the first list: the even slices and
 // the last.
 @compute @workgroup_size(8, 8, 1)
 fn build_anchors(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let a = anchor_count();
-    let s = min(mp.slices, MAX_SLICES);
-    if (gid.x >= a || gid.y >= a || gid.z >= mp.layers) {
+    if (!on_block(gid)) {
         return;
     }
+    let s = min(mp.slices, MAX_SLICES);
     let layer = gid.z;
     column_xy[0] = 2u * gid.xy;
     let range = cone_slices(cell_direction(column_xy[0].x, column_xy[0].y, layer), s);
-    anchor_ranges[gid.x + a * (gid.y + a * layer)] = range.x | (range.y << 8u);
+    anchor_ranges[block_index(gid)] = range.x | (range.y << 8u);
     var count = 0u;
     for (var k = range.x; k < range.y; k++) {
         if (k % 2u == 0u || k + 1u == s) {
@@ -309,10 +323,9 @@ fn build_anchors(@builtin(global_invocation_id) gid: vec3<u32>) {
 // neighbours where they are `interpolable` (else from `rest_in`, `between_anchors` having
 // listed it). Returns the number of odd slices to list in `todo` (without `between`).
 fn anchor_column(gid: vec3<u32>, s: u32, between: bool) -> u32 {
-    let a = anchor_count();
     let layer = gid.z;
     column_xy[0] = 2u * gid.xy;
-    let packed = anchor_ranges_in[gid.x + a * (gid.y + a * layer)];
+    let packed = anchor_ranges_in[block_index(gid)];
     let range = vec2<u32>(packed & 0xffu, packed >> 8u);
     for (var k = 0u; k < s; k++) {
         columns[0][k] = vec2<f32>(1.0, -1.0);
@@ -343,22 +356,20 @@ fn anchor_column(gid: vec3<u32>, s: u32, between: bool) -> u32 {
 // The second list: the anchors' odd slices between two that do not agree.
 @compute @workgroup_size(8, 8, 1)
 fn between_anchors(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let a = anchor_count();
-    let s = min(mp.slices, MAX_SLICES);
-    if (gid.x >= a || gid.y >= a || gid.z >= mp.layers) {
+    if (!on_block(gid)) {
         return;
     }
+    let s = min(mp.slices, MAX_SLICES);
     list_todo(anchor_column(gid, s, false), gid.z);
 }
 
 // The anchors' columns, complete, to the grid and to the anchors `build_rest` reads.
 @compute @workgroup_size(8, 8, 1)
 fn store_anchors(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let a = anchor_count();
-    let s = min(mp.slices, MAX_SLICES);
-    if (gid.x >= a || gid.y >= a || gid.z >= mp.layers) {
+    if (!on_block(gid)) {
         return;
     }
+    let s = min(mp.slices, MAX_SLICES);
     anchor_column(gid, s, true);
     let layer = gid.z;
     store_column(column_xy[0].x, column_xy[0].y, layer, 0u, s);
@@ -392,8 +403,7 @@ fn interpolable(lo: vec3<f32>, hi: vec3<f32>) -> bool {
 // (its anchor's, at even indices, and the three others), whose other directions it puts in
 // `column_xy`: (1, 0), (0, 1), (1, 1) from the anchor.
 fn rest_block(gid: vec3<u32>) -> bool {
-    let a = anchor_count();
-    if (gid.x >= a || gid.y >= a || gid.z >= mp.layers) {
+    if (!on_block(gid)) {
         return false;
     }
     column_xy = array<vec2<u32>, 3>(
@@ -429,7 +439,7 @@ fn build_rest(@builtin(global_invocation_id) gid: vec3<u32>) {
         lit_block = lit_block && (packed & 0xffu) >= (packed >> 8u);
     }
     if (lit_block) {
-        listed_columns[gid.x + a * (gid.y + a * layer)] = 0u;
+        listed_columns[block_index(gid)] = 0u;
         for (var j = 0u; j < 3u; j++) {
             if (xy[j].x < n && xy[j].y < n) {
                 for (var k = 0u; k < s; k++) {
@@ -489,7 +499,7 @@ fn build_rest(@builtin(global_invocation_id) gid: vec3<u32>) {
         listed_mask |= 1u << (todo[i] / MAX_SLICES);
     }
     list_todo(count, layer);
-    listed_columns[gid.x + a * (gid.y + a * layer)] = listed_mask;
+    listed_columns[block_index(gid)] = listed_mask;
     // A column with listed cells waits for them in `rest_out`; the others are complete.
     for (var j = 0u; j < 3u; j++) {
         if (xy[j].x < n && xy[j].y < n) {
@@ -515,7 +525,7 @@ fn store_rest(@builtin(global_invocation_id) gid: vec3<u32>) {
     let s = min(mp.slices, MAX_SLICES);
     let layer = gid.z;
     let xy = column_xy;
-    let listed_mask = listed_columns_in[gid.x + a * (gid.y + a * layer)];
+    let listed_mask = listed_columns_in[block_index(gid)];
     for (var j = 0u; j < 3u; j++) {
         if ((listed_mask & (1u << j)) != 0u) {
             for (var k = 0u; k < s; k++) {
