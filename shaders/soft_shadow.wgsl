@@ -21,6 +21,12 @@ struct SoftShadowParams {
                                              // and the angle (radians) a cell subtends
     spheres: array<vec4<f32>, 8>,            // occluders' bounding spheres
     planes: array<vec4<f32>, 8>,             // and their planes, as the march's
+    // Per layer, in blocks of 2 × 2 directions (the anchor's index, see `rest_block`),
+    // [x0, y0) to [x1, y1): those the build runs over (`built`: the penumbra cones reach
+    // their directions or their neighbours'; the grid is lit elsewhere), and those `fill_lit`
+    // sets lit first (`lit`: the last build's, which may hold a shadow no longer there).
+    built: array<vec4<u32>, 6>,
+    lit: array<vec4<u32>, 6>,
 }
 
 @group(0) @binding(0) var<storage, read> mp: SoftShadowParams;
@@ -280,18 +286,54 @@ fn store_column(x: u32, y: u32, layer: u32, j: u32, s: u32) {
     }
 }
 
-// Whether thread `gid` of a pass over the blocks of 2 × 2 directions (one per anchor, at
-// even indices) has one: x, y below `anchor_count()`, z a layer.
-fn on_block(gid: vec3<u32>) -> bool {
-    let a = anchor_count();
-    return gid.x < a && gid.y < a && gid.z < mp.layers;
+// The block (its anchor's index x, y, and its layer) of thread `thread` of a pass over
+// `built`'s blocks: the dispatch covers the largest layer's, from each layer's corner.
+fn block_of(thread: vec3<u32>) -> vec3<u32> {
+    let corner = mp.built[min(thread.z, 5u)].xy;
+    return vec3<u32>(thread.xy + corner, thread.z);
 }
 
-// The index of thread `gid`'s block in the per-block buffers (`anchor_ranges`,
-// `listed_columns`).
+// Whether block `gid` (see `block_of`) is one of `built`'s; with `anchors`, also one past
+// them right and below (their anchors, which `build_rest` reads as neighbours).
+fn on_block(gid: vec3<u32>, anchors: bool) -> bool {
+    if (gid.z >= mp.layers) {
+        return false;
+    }
+    let r = mp.built[gid.z];
+    if (r.z <= r.x || r.w <= r.y) {
+        return false; // no block of this layer
+    }
+    let end = min(r.zw + select(0u, 1u, anchors), vec2<u32>(anchor_count()));
+    return gid.x < end.x && gid.y < end.y;
+}
+
+// The index of block `gid`'s in the per-block buffers (`anchor_ranges`, `listed_columns`).
 fn block_index(gid: vec3<u32>) -> u32 {
     let a = anchor_count();
     return gid.x + a * (gid.y + a * gid.z);
+}
+
+// The cells of the last build's blocks (`lit`), lit: the grid is lit outside `built`, and a
+// cell the last build shadowed may be outside it now. Before the build, which writes its
+// own blocks again.
+@compute @workgroup_size(8, 8, 1)
+fn fill_lit(@builtin(global_invocation_id) thread: vec3<u32>) {
+    if (thread.z >= mp.layers) {
+        return;
+    }
+    let r = mp.lit[thread.z];
+    let b = thread.xy + r.xy;
+    if (b.x >= r.z || b.y >= r.w) {
+        return;
+    }
+    for (var j = 0u; j < 4u; j++) {
+        let xy = 2u * b + vec2<u32>(j & 1u, j >> 1u);
+        if (xy.x < mp.size && xy.y < mp.size) {
+            for (var k = 0u; k < mp.slices; k++) {
+                textureStore(volume, vec3<u32>(xy, thread.z * mp.slices + k), vec4<f32>(1.0, 0.0, 0.0, 1.0));
+            }
+        }
+    }
 }
 
 // One thread per anchor direction, through all its slices (a cell's surface mark needs its
@@ -299,8 +341,9 @@ fn block_index(gid: vec3<u32>) -> u32 {
 // inside a penumbra cone (the others take no tap) and the first list: the even slices and
 // the last.
 @compute @workgroup_size(8, 8, 1)
-fn build_anchors(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if (!on_block(gid)) {
+fn build_anchors(@builtin(global_invocation_id) thread: vec3<u32>) {
+    let gid = block_of(thread);
+    if (!on_block(gid, true)) {
         return;
     }
     let s = min(mp.slices, MAX_SLICES);
@@ -355,8 +398,9 @@ fn anchor_column(gid: vec3<u32>, s: u32, between: bool) -> u32 {
 
 // The second list: the anchors' odd slices between two that do not agree.
 @compute @workgroup_size(8, 8, 1)
-fn between_anchors(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if (!on_block(gid)) {
+fn between_anchors(@builtin(global_invocation_id) thread: vec3<u32>) {
+    let gid = block_of(thread);
+    if (!on_block(gid, true)) {
         return;
     }
     let s = min(mp.slices, MAX_SLICES);
@@ -365,8 +409,9 @@ fn between_anchors(@builtin(global_invocation_id) gid: vec3<u32>) {
 
 // The anchors' columns, complete, to the grid and to the anchors `build_rest` reads.
 @compute @workgroup_size(8, 8, 1)
-fn store_anchors(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if (!on_block(gid)) {
+fn store_anchors(@builtin(global_invocation_id) thread: vec3<u32>) {
+    let gid = block_of(thread);
+    if (!on_block(gid, true)) {
         return;
     }
     let s = min(mp.slices, MAX_SLICES);
@@ -399,11 +444,11 @@ fn interpolable(lo: vec3<f32>, hi: vec3<f32>) -> bool {
     return hi.y == 0.0 && (flat || wide);
 }
 
-// Whether thread `gid` of `build_rest` and `store_rest` holds a block of 2 × 2 directions
-// (its anchor's, at even indices, and the three others), whose other directions it puts in
-// `column_xy`: (1, 0), (0, 1), (1, 1) from the anchor.
+// Whether block `gid` (see `block_of`) of `build_rest` and `store_rest` is one of `built`'s:
+// 2 × 2 directions (its anchor's, at even indices, and the three others), whose other
+// directions it puts in `column_xy`: (1, 0), (0, 1), (1, 1) from the anchor.
 fn rest_block(gid: vec3<u32>) -> bool {
-    if (!on_block(gid)) {
+    if (!on_block(gid, false)) {
         return false;
     }
     column_xy = array<vec2<u32>, 3>(
@@ -417,7 +462,8 @@ fn rest_block(gid: vec3<u32>) -> bool {
 // The other directions: one thread per block (see `rest_block`), reading the four anchors
 // around the three once a slice.
 @compute @workgroup_size(8, 8, 1)
-fn build_rest(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn build_rest(@builtin(global_invocation_id) thread: vec3<u32>) {
+    let gid = block_of(thread);
     if (!rest_block(gid)) {
         return;
     }
@@ -517,7 +563,8 @@ fn build_rest(@builtin(global_invocation_id) gid: vec3<u32>) {
 // The other directions' columns with listed cells, from `rest_in`, to the grid with their
 // marks: one thread a block, as `build_rest`.
 @compute @workgroup_size(8, 8, 1)
-fn store_rest(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn store_rest(@builtin(global_invocation_id) thread: vec3<u32>) {
+    let gid = block_of(thread);
     if (!rest_block(gid)) {
         return;
     }

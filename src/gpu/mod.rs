@@ -42,6 +42,11 @@ impl<T: bytemuck::Pod + PartialEq> UniformBuffer<T> {
         true
     }
 
+    /// The last value written.
+    pub(crate) fn last(&self) -> Option<&T> {
+        self.last.as_ref()
+    }
+
     pub(crate) fn binding(&self) -> wgpu::BindingResource<'_> {
         self.buffer.as_entire_binding()
     }

@@ -914,7 +914,7 @@ fn separating_plane(lo: Vec3, hi: Vec3, centre: Vec3, radius: f32) -> Vec4 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// The plane is the face the light's sphere lies farthest beyond; none when the sphere
@@ -948,7 +948,7 @@ mod tests {
     }
 
     /// Seeded numbers uniform in [−1, 1) (xorshift64).
-    fn uniform(mut seed: u64) -> impl FnMut() -> f32 {
+    pub(crate) fn uniform(mut seed: u64) -> impl FnMut() -> f32 {
         move || {
             seed ^= seed << 13;
             seed ^= seed >> 7;

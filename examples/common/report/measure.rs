@@ -5,11 +5,14 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Instant;
 
-use volshadow::glam::DVec3;
+use volshadow::glam::{DVec3, Vec3};
 use volshadow::nodes::{MarchMethod, MarchSettings, Scale};
 use volshadow::plan::Pass;
 use volshadow::scene_file::SceneDescription;
-use volshadow::{Cache, Frame, HeadlessGpu, Light, Settings, Surfaces, VolumetricShadows};
+use volshadow::{
+    Cache, DirectionalLight, Frame, FrameLight, HeadlessGpu, Light, PointLight, Settings,
+    SpotLight, Surfaces, VolumetricShadows,
+};
 
 use super::cache::cached_reference;
 use super::metrics::{errors, keep_mask};
@@ -497,8 +500,47 @@ pub fn measure(
     Ok((medians, image))
 }
 
+/// `lights`, each moved by a hundred-thousandth of its distance from the origin (at least
+/// 1e-5): a frame between it and the original is one in which the light moved, so every
+/// pass that depends on the light runs, and no resource is recreated (as when a light moves
+/// in an app; [`VolumetricShadows::invalidate`] also recreates them, and a new grid is set
+/// lit everywhere before its first build).
+fn moved_lights<'a>(lights: &[FrameLight<'a>]) -> Result<Vec<FrameLight<'a>>, BoxError> {
+    lights
+        .iter()
+        .map(|l| {
+            let nudge = |p: Vec3| p + Vec3::splat(1e-5 * p.length().max(1.0));
+            let light = match l.light {
+                Light::Point(p) => Light::Point(
+                    PointLight::new(nudge(p.position()), p.intensity())?.with_radius(p.radius())?,
+                ),
+                Light::Spot(s) => Light::Spot(
+                    SpotLight::new(
+                        nudge(s.position()),
+                        s.direction(),
+                        s.cone_angle(),
+                        s.intensity(),
+                    )?
+                    .with_radius(s.radius())?,
+                ),
+                Light::Directional(d) => {
+                    let moved =
+                        DirectionalLight::new(nudge(d.direction()).normalize(), d.irradiance())?;
+                    Light::Directional(match d.shadow_distance() {
+                        Some(distance) => moved.with_shadow_distance(distance)?,
+                        None => moved,
+                    })
+                }
+                other => other,
+            };
+            Ok(FrameLight { light, ..*l })
+        })
+        .collect()
+}
+
 /// Times `settings` on a soft frame and its hard twin in the same rounds (see [`HardTwin`]):
-/// every pass of both, rebuilt every frame, one soft frame then one hard frame a round,
+/// every pass of both, the light moving every frame ([`moved_lights`]), one soft frame then
+/// one hard frame a round,
 /// `2 · frames + 1` rounds after a warm-up round; each pass's median over the rounds.
 /// Returns the costs (p95 left 0) and the hard image.
 fn soft_against_hard(
@@ -509,12 +551,24 @@ fn soft_against_hard(
     view: &wgpu::Texture,
 ) -> Result<(HardTwin, Vec<DVec3>), BoxError> {
     let new = || VolumetricShadows::new(&ctx.gpu.device, &ctx.gpu.queue, &ctx.cache, settings);
+    let (soft_moved, hard_moved) = (moved_lights(soft.lights)?, moved_lights(hard.lights)?);
+    let moved = [
+        Frame {
+            lights: &soft_moved,
+            ..*soft
+        },
+        Frame {
+            lights: &hard_moved,
+            ..*hard
+        },
+    ];
     let mut runs = [(new()?, soft), (new()?, hard)];
     let mut samples: [BTreeMap<&'static str, Vec<f64>>; 2] = Default::default();
     let mut hard_image = Vec::new();
     for index in 0..=2 * ctx.frames + 1 {
         for (k, (facade, frame)) in runs.iter_mut().enumerate() {
-            facade.invalidate();
+            // The light moves every frame, between the frame's and a moved copy.
+            let frame = if index % 2 == 1 { &moved[k] } else { *frame };
             let times = run_frame(ctx, facade, frame, view, &[])?;
             if index == 0 {
                 if k == 1 {
@@ -550,7 +604,8 @@ fn soft_against_hard(
 }
 
 /// Times the passes that are the same for every configuration of a scene (F′ table, shadow
-/// map, composite), median of `frames` frames in which everything is rebuilt.
+/// map, soft-shadow grid, composite), median of `frames` frames in which the light moves
+/// ([`moved_lights`]).
 pub fn time_fixed(
     ctx: &Context,
     settings: Settings,
@@ -560,8 +615,14 @@ pub fn time_fixed(
     let mut volumetric =
         VolumetricShadows::new(&ctx.gpu.device, &ctx.gpu.queue, &ctx.cache, settings)?;
     let mut samples: BTreeMap<&'static str, Vec<f64>> = BTreeMap::new();
+    let lights = moved_lights(frame.lights)?;
+    let moved = Frame {
+        lights: &lights,
+        ..*frame
+    };
     for index in 0..=ctx.frames {
-        volumetric.invalidate();
+        // The light moves every frame, between the frame's and a moved copy.
+        let frame = if index % 2 == 1 { &moved } else { frame };
         // The march and what feeds it do not change these passes' work: left out (the
         // composite reads an in-scatter texture of the same size either way).
         let times = run_frame(
