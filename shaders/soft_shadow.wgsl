@@ -293,8 +293,9 @@ fn block_of(thread: vec3<u32>) -> vec3<u32> {
     return vec3<u32>(thread.xy + corner, thread.z);
 }
 
-// Whether block `gid` (see `block_of`) is one of `built`'s; with `anchors`, also one past
-// them right and below (their anchors, which `build_rest` reads as neighbours).
+// Whether block `gid` (see `block_of`, which starts at `built`'s corner) is one of `built`'s;
+// with `anchors`, also one past them right and below (their anchors, which `build_rest`
+// reads as neighbours).
 fn on_block(gid: vec3<u32>, anchors: bool) -> bool {
     if (gid.z >= mp.layers) {
         return false;
@@ -313,9 +314,9 @@ fn block_index(gid: vec3<u32>) -> u32 {
     return gid.x + a * (gid.y + a * gid.z);
 }
 
-// The cells of the last build's blocks (`lit`), lit: the grid is lit outside `built`, and a
-// cell the last build shadowed may be outside it now. Before the build, which writes its
-// own blocks again.
+// The cells of the last build's blocks (`lit`) outside this build's (`built`, whose cells
+// the build writes), lit: the grid is lit outside `built`, and a cell the last build
+// shadowed may be outside it now.
 @compute @workgroup_size(8, 8, 1)
 fn fill_lit(@builtin(global_invocation_id) thread: vec3<u32>) {
     if (thread.z >= mp.layers) {
@@ -323,8 +324,9 @@ fn fill_lit(@builtin(global_invocation_id) thread: vec3<u32>) {
     }
     let r = mp.lit[thread.z];
     let b = thread.xy + r.xy;
-    if (b.x >= r.z || b.y >= r.w) {
-        return;
+    let inside = all(b >= mp.built[thread.z].xy) && on_block(vec3<u32>(b, thread.z), false);
+    if (b.x >= r.z || b.y >= r.w || inside) {
+        return; // not the last build's, or this build's (which writes all its cells)
     }
     for (var j = 0u; j < 4u; j++) {
         let xy = 2u * b + vec2<u32>(j & 1u, j >> 1u);

@@ -51,7 +51,8 @@
 //! a penumbra cone may reach: per layer, a rectangle bounding the cones' directions as the
 //! layer projects them (every direction of a cone lies within its half-angle of its axis, seen
 //! from the light). The grid is lit elsewhere, as the whole build would leave it; before each
-//! build the last build's blocks are set lit, so a shadow that moved leaves nothing behind. On
+//! build the last build's blocks outside this build's are set lit, so a shadow that moved
+//! leaves nothing behind. On
 //! the report's soft scene the rectangles hold 1 664 of 6 144 blocks (three of the six cube
 //! faces, none of the others), the same grid bit for bit.
 //!
