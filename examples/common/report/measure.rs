@@ -121,7 +121,7 @@ pub fn run_scene(
     };
 
     // Passes whose work does not depend on the configuration (F′ table, shadow map,
-    // composite): timed once per scene, in frames that rebuild everything.
+    // composite): timed once per scene, in frames in which the light moves.
     let fixed = time_fixed(
         ctx,
         settings(MarchMethod::Hybrid, 8, Scale::Full, Filter::None, 0),

@@ -292,7 +292,7 @@ pub fn write_outputs(
     }
     // Markdown.
     let mut md = format!(
-        "# volshadow: error against time\n\n{date}, {adapter}, {}x{} pixels. Timing: {}, median of {} frames after a warm-up frame; F' table and shadow map timed in frames that rebuild everything and counted in every total. Error against the f64 reference: RMSE relative to the mean in-scatter; p95/p99 of the per-pixel relative error where the reference is above 1% of its 99th percentile (not of its maximum, which a light in view puts in its own glow); the light's own pixels left out. Regenerate: `cargo run --release --example report`.\n\n",
+        "# volshadow: error against time\n\n{date}, {adapter}, {}x{} pixels. Timing: {}, median of {} frames after a warm-up frame; F' table, shadow map and soft-shadow grid timed in frames in which the light moves (every pass that depends on it runs; no resource is recreated) and counted in every total. Error against the f64 reference: RMSE relative to the mean in-scatter; p95/p99 of the per-pixel relative error where the reference is above 1% of its 99th percentile (not of its maximum, which a light in view puts in its own glow); the light's own pixels left out. Regenerate: `cargo run --release --example report`.\n\n",
         options.size,
         options.size,
         match clock {
