@@ -293,9 +293,8 @@ fn block_of(thread: vec3<u32>) -> vec3<u32> {
     return vec3<u32>(thread.xy + corner, thread.z);
 }
 
-// Whether block `gid` (see `block_of`, which starts at `built`'s corner) is one of `built`'s;
-// with `anchors`, also one past them right and below (their anchors, which `build_rest`
-// reads as neighbours).
+// Whether block `gid` (see `block_of`) is one of `built`'s; with `anchors`, also one past
+// them right and below (their anchors, which `build_rest` reads as neighbours).
 fn on_block(gid: vec3<u32>, anchors: bool) -> bool {
     if (gid.z >= mp.layers) {
         return false;
@@ -305,7 +304,7 @@ fn on_block(gid: vec3<u32>, anchors: bool) -> bool {
         return false; // no block of this layer
     }
     let end = min(r.zw + select(0u, 1u, anchors), vec2<u32>(anchor_count()));
-    return gid.x < end.x && gid.y < end.y;
+    return all(gid.xy >= r.xy) && all(gid.xy < end);
 }
 
 // The index of block `gid`'s in the per-block buffers (`anchor_ranges`, `listed_columns`).
@@ -324,8 +323,7 @@ fn fill_lit(@builtin(global_invocation_id) thread: vec3<u32>) {
     }
     let r = mp.lit[thread.z];
     let b = thread.xy + r.xy;
-    let inside = all(b >= mp.built[thread.z].xy) && on_block(vec3<u32>(b, thread.z), false);
-    if (b.x >= r.z || b.y >= r.w || inside) {
+    if (b.x >= r.z || b.y >= r.w || on_block(vec3<u32>(b, thread.z), false)) {
         return; // not the last build's, or this build's (which writes all its cells)
     }
     for (var j = 0u; j < 4u; j++) {
