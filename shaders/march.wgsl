@@ -360,8 +360,9 @@ fn penumbra_cone(dir: vec3<f32>, x_end: f32, c: vec3<f32>, rho: f32) -> vec2<f32
     var hull = vec2<f32>(FAR, -1.0);
     let cos_t = sqrt(c2);
     for (var i = 0u; i < k; i++) {
-        let a = cuts.x[i];
-        let b = cuts.x[i + 1u];
+        let piece = cut_piece(cuts, i);
+        let a = piece.x;
+        let b = piece.y;
         var mid = 0.5 * (a + b);
         if (b >= FAR) {
             mid = a + 1.0 + 2.0 * abs(a) + 1.0e3 * air.distance;
