@@ -22,7 +22,7 @@ fn build(@builtin(global_invocation_id) gid: vec3<u32>) {
     // π − γ = π (1 − t)(1 + t) keeps relative precision near γ = π; the last row (γ = π,
     // light exactly behind) uses the limit w → 0, approached through a tiny w.
     let w = max(PI * (1.0 - t) * (1.0 + t), 1.0e-6);
-    let sin_half_gamma = sin(0.5 * gamma);
+    let sin_half_gamma = vs_sin(0.5 * gamma);
     let ds = 1.0 / f32(n - 1u);
     // Columns [0, n): T from the eye (s = 0) to s_j. Columns [n, 2n): the tail, T from s_j to
     // the end (s = 1), summed from that end: an interval far from where the integrand peaks

@@ -73,7 +73,7 @@ fn fs_composite(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     // Sky: an infinite homogeneous medium hides it, unless a channel does not attenuate at all.
     var transmittance = select(vec3<f32>(0.0), vec3<f32>(1.0), comp.sigma_t == vec3<f32>(0.0));
     if (ray.distance >= 0.0) {
-        transmittance = exp(-comp.sigma_t * ray.distance);
+        transmittance = vs_exp3(-comp.sigma_t * ray.distance);
     }
     // One in-scatter texture per light; unused slots hold placeholders and are not read.
     var sctr = vec3<f32>(0.0);

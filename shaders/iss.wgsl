@@ -24,9 +24,9 @@ const VOLSHADOW_ISS_MAX: f32 = 1.0e30;
 // Table coordinates (u, v) ∈ [0, 1]² of optical distance τ and cos α.
 fn volshadow_iss_coords(tau: f32, cos_alpha: f32) -> vec2<f32> {
     let t = clamp(tau, VOLSHADOW_ISS_TAU_MIN, VOLSHADOW_ISS_TAU_MAX);
-    let u = log(t / VOLSHADOW_ISS_TAU_MIN) / log(VOLSHADOW_ISS_TAU_MAX / VOLSHADOW_ISS_TAU_MIN);
+    let u = vs_log(t / VOLSHADOW_ISS_TAU_MIN) / vs_log(VOLSHADOW_ISS_TAU_MAX / VOLSHADOW_ISS_TAU_MIN);
     let s = VOLSHADOW_ISS_WARP + t;
-    let v = 0.5 - asinh(s * clamp(cos_alpha, -1.0, 1.0)) / (2.0 * asinh(s));
+    let v = 0.5 - vs_asinh(s * clamp(cos_alpha, -1.0, 1.0)) / (2.0 * vs_asinh(s));
     return clamp(vec2<f32>(u, v), vec2<f32>(0.0), vec2<f32>(1.0));
 }
 
@@ -47,7 +47,7 @@ fn volshadow_iss_ln_g(table: texture_2d<f32>, uv: vec2<f32>, c: u32) -> f32 {
 fn volshadow_iss_g(table: texture_2d<f32>, tau: vec3<f32>, cos_alpha: f32) -> vec3<f32> {
     var g = vec3<f32>(0.0);
     for (var c = 0u; c < 3u; c++) {
-        g[c] = exp(volshadow_iss_ln_g(table, volshadow_iss_coords(tau[c], cos_alpha), c));
+        g[c] = vs_exp(volshadow_iss_ln_g(table, volshadow_iss_coords(tau[c], cos_alpha), c));
     }
     return g;
 }
@@ -68,6 +68,6 @@ fn volshadow_iss(table: texture_2d<f32>, p: vec3<f32>, n: vec3<f32>, light_pos: 
     let g = volshadow_iss_g(table, sigma_t * d, cos_alpha);
     // In log space: exp(−σt·D) underflows f32 where I0·exp(−σt·D) may still be visible;
     // log(0) = −inf gives 0, never NaN.
-    let scale = exp(log(intensity) + log(sigma_s) - sigma_t * d) / max(d, 1.0e-30);
+    let scale = vs_exp3(vs_log3(intensity) + vs_log3(sigma_s) - sigma_t * d) / max(d, 1.0e-30);
     return min(scale * g, vec3<f32>(VOLSHADOW_ISS_MAX));
 }

@@ -45,7 +45,7 @@ fn iss_peak_widths() -> vec2<f32> {
 // Geometric grading levels for a segment of length `len` whose integrand changes over `scale`
 // at one end: enough halvings that the smallest piece is an eighth of the scale.
 fn iss_levels(len: f32, scale: f32) -> u32 {
-    return u32(clamp(ceil(log2(max(len / scale, 1.0))) + 3.0, 1.0, 18.0));
+    return u32(clamp(ceil(vs_log2(max(len / scale, 1.0))) + 3.0, 1.0, 18.0));
 }
 
 // The integrand of b in s = ξ − γ/2 ∈ [0, width], width = (π − γ)/2, all channels.
@@ -53,15 +53,15 @@ fn iss_b_integrand(s: f32, tau: vec3<f32>, half_gamma: f32, width: f32) -> vec3<
     var sin_xi: f32;
     var cos_xi: f32;
     if (half_gamma + s <= 0.25 * PI) {
-        sin_xi = sin(half_gamma + s);
-        cos_xi = cos(half_gamma + s);
+        sin_xi = vs_sin(half_gamma + s);
+        cos_xi = vs_cos(half_gamma + s);
     } else {
         // cos ξ = sin(width − s) keeps its relative precision as ξ → π/2.
-        sin_xi = cos(width - s);
-        cos_xi = sin(width - s);
+        sin_xi = vs_cos(width - s);
+        cos_xi = vs_sin(width - s);
     }
-    let k = 2.0 * sin(half_gamma) * sin(s) / max(cos_xi, 1.0e-30);
-    return 2.0 * phase(air, 2.0 * sin_xi * sin_xi, 2.0 * cos_xi * cos_xi) * exp(-tau * min(k, 1.0e30));
+    let k = 2.0 * vs_sin(half_gamma) * vs_sin(s) / max(cos_xi, 1.0e-30);
+    return 2.0 * phase(air, 2.0 * sin_xi * sin_xi, 2.0 * cos_xi * cos_xi) * vs_exp3(-tau * min(k, 1.0e30));
 }
 
 // ∫ over [a, b] of the b integrand, 8-point Gauss–Legendre.
@@ -86,7 +86,7 @@ fn iss_b(tau: vec3<f32>, gamma: f32, widths: vec2<f32>) -> vec3<f32> {
     }
     let t = max(max(tau.x, tau.y), tau.z);
     // Decay rate at the start, 2τ·tan(γ/2); the forward peak sits at s = −γ/2.
-    let rate = 2.0 * t * tan(min(half_gamma, 0.5 * PI - 1.0e-6));
+    let rate = 2.0 * t * vs_tan(min(half_gamma, 0.5 * PI - 1.0e-6));
     let start_scale = min(1.0 / max(rate, 1.0e-30), max(half_gamma, widths.x));
     let mid = 0.5 * width;
     var acc = vec3<f32>(0.0);
@@ -111,14 +111,14 @@ fn iss_b(tau: vec3<f32>, gamma: f32, widths: vec2<f32>) -> vec3<f32> {
 
 // W(α, γ) = ∫₀^{2π} (a + c cos φ)₊ dφ, a = cos α cos γ, c = sin α sin γ ≥ 0.
 fn iss_w(cos_a: f32, sin_a: f32, gamma: f32) -> f32 {
-    let a = cos_a * cos(gamma);
-    let c = sin_a * sin(gamma);
+    let a = cos_a * vs_cos(gamma);
+    let c = sin_a * vs_sin(gamma);
     if (c <= abs(a)) {
         return 2.0 * PI * max(a, 0.0);
     }
-    let phi0 = acos(clamp(-a / c, -1.0, 1.0));
+    let phi0 = vs_acos(clamp(-a / c, -1.0, 1.0));
     // c · sin φ0 = sqrt((c − a)(c + a)).
-    return 2.0 * (a * phi0 + sqrt(max((c - a) * (c + a), 0.0)));
+    return 2.0 * (a * phi0 + vs_sqrt(max((c - a) * (c + a), 0.0)));
 }
 
 fn iss_g_segment(a: f32, b: f32, tau: vec3<f32>, cos_a: f32, sin_a: f32, widths: vec2<f32>) -> vec3<f32> {
@@ -169,14 +169,14 @@ fn build(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let u = f32(gid.x) / f32(n_tau - 1u);
     let v = f32(gid.y) / f32(n_alpha - 1u);
-    let t = VOLSHADOW_ISS_TAU_MIN * exp(u * log(VOLSHADOW_ISS_TAU_MAX / VOLSHADOW_ISS_TAU_MIN));
+    let t = VOLSHADOW_ISS_TAU_MIN * vs_exp(u * vs_log(VOLSHADOW_ISS_TAU_MAX / VOLSHADOW_ISS_TAU_MIN));
     let s = VOLSHADOW_ISS_WARP + t;
-    let cos_a = clamp(sinh((1.0 - 2.0 * v) * asinh(s)) / s, -1.0, 1.0);
-    let sin_a = sqrt(max((1.0 - cos_a) * (1.0 + cos_a), 0.0));
+    let cos_a = clamp(vs_sinh((1.0 - 2.0 * v) * vs_asinh(s)) / s, -1.0, 1.0);
+    let sin_a = vs_sqrt(max((1.0 - cos_a) * (1.0 + cos_a), 0.0));
     let tau = vec3<f32>(t);
     let widths = iss_peak_widths();
     // The kinks of W: γ = e and π − e, e = |π/2 − α| = |asin(cos α)|.
-    let e = abs(asin(cos_a));
+    let e = abs(vs_asin(cos_a));
     // Near γ = 0 the integrand changes over the glow's width ~1/τ and the forward peak's 2·w;
     // near γ = π over the backward peak's.
     let near0 = min(1.0 / t, 2.0 * widths.x);
@@ -185,6 +185,6 @@ fn build(@builtin(global_invocation_id) gid: vec3<u32>) {
     var g = iss_g_region(0.0, e, near0, max(0.1 * e, 1.0e-6), tau, cos_a, sin_a, widths);
     g += iss_g_region(e, PI - e, max(near0, e), max(nearpi, e), tau, cos_a, sin_a, widths);
     g += iss_g_region(PI - e, PI, max(0.1 * e, 1.0e-6), nearpi, tau, cos_a, sin_a, widths);
-    let ln_g = max(log(max(g, vec3<f32>(1.0e-37))), vec3<f32>(ISS_LN_FLOOR));
+    let ln_g = max(vs_log3(max(g, vec3<f32>(1.0e-37))), vec3<f32>(ISS_LN_FLOOR));
     textureStore(table_out, vec2<u32>(gid.x, gid.y), vec4<f32>(ln_g, 0.0));
 }

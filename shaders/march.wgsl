@@ -93,8 +93,8 @@ fn x_of_s(r: AirRay, s: f32) -> f32 {
     let sc = min(s, 1.0 - 1.0e-6);
     let beta = (1.0 - sc) * r.w;
     // sin β = sin(γ + δ): the same angle's supplement, taken where it is the smaller one.
-    let sin_beta = sin(select(beta, r.gamma + sc * r.w, beta > 0.5 * PI));
-    return air.distance * sin(sc * r.w) / max(sin_beta, 1.0e-30);
+    let sin_beta = vs_sin(select(beta, r.gamma + sc * r.w, beta > 0.5 * PI));
+    return air.distance * vs_sin(sc * r.w) / max(sin_beta, 1.0e-30);
 }
 
 // The shared hard and soft visibility (shaders/pcss.wgsl) reads the light from here.
@@ -249,15 +249,15 @@ fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: TT, t1: TT, n
     // scene (2026-11-24, alternated in one process): 0.90 of the march at ½, the same p95.
     let mid0 = s0 + 0.5 * ds;
     let turn = 0.5 * ds * r.w;
-    let rot = vec2<f32>(cos(turn), sin(turn));
-    var half_delta = vec2<f32>(cos(0.5 * mid0 * r.w), sin(0.5 * mid0 * r.w));
-    var half_beta = vec2<f32>(sin(0.5 * (r.gamma + mid0 * r.w)), sin(0.5 * (1.0 - mid0) * r.w));
+    let rot = vec2<f32>(vs_cos(turn), vs_sin(turn));
+    var half_delta = vec2<f32>(vs_cos(0.5 * mid0 * r.w), vs_sin(0.5 * mid0 * r.w));
+    var half_beta = vec2<f32>(vs_sin(0.5 * (r.gamma + mid0 * r.w)), vs_sin(0.5 * (1.0 - mid0) * r.w));
     for (var i = 0u; i < n; i++) {
         let su = half_beta.y;
         let cu = half_beta.x;
         let ratio = min(half_delta.y / max(su, 1.0e-30), 1.0e20);
         let tau = (2.0 * air.distance * r.sin_half_gamma * ratio) * air.sigma_t;
-        let w = phase(air, 2.0 * cu * cu, 2.0 * su * su) * exp(-tau);
+        let w = phase(air, 2.0 * cu * cu, 2.0 * su * su) * vs_exp3(-tau);
         let x = air.distance * (half_delta.y * half_delta.x) / max(su * cu, 1.0e-30);
         half_delta = vec2<f32>(half_delta.x * rot.x - half_delta.y * rot.y, half_delta.y * rot.x + half_delta.x * rot.y);
         half_beta = vec2<f32>(half_beta.x * rot.x + half_beta.y * rot.y, half_beta.y * rot.x - half_beta.x * rot.y);
@@ -358,7 +358,7 @@ fn penumbra_cone(dir: vec3<f32>, x_end: f32, c: vec3<f32>, rho: f32) -> vec2<f32
     var cuts = cone_cuts(apex, axis, c2, air.eye, dir, x_end);
     let k = cuts.count;
     var hull = vec2<f32>(FAR, -1.0);
-    let cos_t = sqrt(c2);
+    let cos_t = vs_sqrt(c2);
     for (var i = 0u; i < k; i++) {
         let piece = cut_piece(cuts, i);
         let a = piece.x;
@@ -443,7 +443,7 @@ fn light_texture(p: vec3<f32>, step_angle: f32) -> vec3<f32> {
     let k = 1.0 / (max(-v.z, 1.0e-30) * mp.tan_half_angle);
     let uv = vec2<f32>(0.5 + 0.5 * v.x * k, 0.5 - 0.5 * v.y * k);
     let texel_angle = 2.0 * mp.tan_half_angle / mp.tex_width;
-    let lod = clamp(log2(max(step_angle / texel_angle, 1.0)), 0.0, mp.tex_mips - 1.0);
+    let lod = clamp(vs_log2(max(step_angle / texel_angle, 1.0)), 0.0, mp.tex_mips - 1.0);
     return textureSampleLevel(light_tex, light_sampler, uv, lod).xyz;
 }
 
@@ -609,7 +609,7 @@ fn march_textbook(ray: PixelRay, r: AirRay, x_end: f32, n: u32) -> Textbook {
             let d = max(length(to_p), d_min);
             let mu = dot(to_p, -ray.dir) / max(length(to_p), 1.0e-30);
             var f = air.sigma_s * air.intensity * phase(air, 1.0 - mu, 1.0 + mu)
-                  * exp(-air.sigma_t * (d + x)) / (d * d) * dx;
+                  * vs_exp3(-air.sigma_t * (d + x)) / (d * d) * dx;
             if (TEXTURED) {
                 f *= light_texture(p, dx / d);
             }
@@ -631,7 +631,7 @@ fn march_textbook_directional(ray: PixelRay, r: AirRay, x_end: f32, n: u32) -> T
     let dx = x_cap / f32(n);
     for (var k = 0u; k < n; k++) {
         let x = (f32(k) + 0.5) * dx;
-        let f = r.prefactor * exp(-air.sigma_t * x) * dx;
+        let f = r.prefactor * vs_exp3(-air.sigma_t * x) * dx;
         out.open += f;
         out.lit += f * visibility(air.eye + x * ray.dir);
     }

@@ -129,7 +129,7 @@ fn tap_frame(b: SoftBasis) -> TapFrame {
 // map's neighbouring face) as any point.
 fn tap_point(f: TapFrame, b: SoftBasis, t: f32, cs: vec2<f32>) -> MapPoint {
     let d = b.u + t * (cs.x * b.e1 + cs.y * b.e2);
-    let k = b.dist * inverseSqrt(dot(d, d));
+    let k = b.dist * vs_inverse_sqrt(dot(d, d));
     let m = map_point_of_clip(f.face, f.light + k * (f.u + t * (cs.x * f.e1 + cs.y * f.e2)));
     if (m.inside || SPOT) {
         return m;
@@ -139,7 +139,7 @@ fn tap_point(f: TapFrame, b: SoftBasis, t: f32, cs: vec2<f32>) -> MapPoint {
 
 // Tap k of n on the spiral: its radius on the unit disc (equal areas).
 fn spiral_radius(k: u32, n: u32) -> f32 {
-    return sqrt((f32(k) + 0.5) / f32(n));
+    return vs_sqrt((f32(k) + 0.5) / f32(n));
 }
 
 // The next tap's direction on the spiral: `cs` turned by the golden angle. A rotation per tap
@@ -184,7 +184,7 @@ fn blocker_ratio_of(m: MapPoint) -> f32 {
         // and +0.269 with g; −0.026 with the taps).
         let mid = 0.5 * (front + back);
         // (max: a point so far that its depth is 0 has mid = 0, and 0/0 would be NaN.)
-        return mid * sqrt(sqrt(sqrt(front * back) / max(mid, 1.0e-30)));
+        return mid * vs_sqrt(vs_sqrt(vs_sqrt(front * back) / max(mid, 1.0e-30)));
     }
     return 2.0;
 }
@@ -253,7 +253,7 @@ fn soft_basis(p: vec3<f32>) -> SoftBasis {
     let u = rel / dist;
     let frame = soft_frame(u);
     let turn = soft_turn(p);
-    return SoftBasis(dist, u, frame[0], frame[1], vec2<f32>(cos(turn), sin(turn)));
+    return SoftBasis(dist, u, frame[0], frame[1], vec2<f32>(vs_cos(turn), vs_sin(turn)));
 }
 
 // The first stage of `soft_estimate`, the blocker search: (visibility, region, −1) where it
@@ -331,7 +331,7 @@ fn soft_search(p: vec3<f32>) -> vec3<f32> {
         // hides the tap's direction at its width (the union, not a product of fractions).
         // Measured (tests/soft_grid.rs, overlapping penumbrae): p95 4.63% → 4.13%; scenes
         // with one occluder never take this branch.
-        let split = sqrt(sum * least);
+        let split = vs_sqrt(sum * least);
         var near = least;
         for (var k = 0u; k < SOFT_FOUND_TAPS; k++) {
             if (found[k] < split) {
@@ -434,7 +434,7 @@ fn soft_frame(u: vec3<f32>) -> array<vec3<f32>, 2> {
 // The spiral's turn at p: a hash of the point, so that successive steps of a ray see
 // different taps and the pattern's error averages out along it instead of adding up.
 fn soft_turn(p: vec3<f32>) -> f32 {
-    return 2.0 * PI * fract(sin(dot(p, vec3<f32>(12.9898, 78.233, 37.719))) * 43758.5453);
+    return 2.0 * PI * fract(vs_sin(dot(p, vec3<f32>(12.9898, 78.233, 37.719))) * 43758.5453);
 }
 
 // The relative margin on the sine of a penumbra cone's half-angle (`may_be_hidden`, and the
@@ -469,7 +469,7 @@ fn may_be_hidden(p: vec3<f32>) -> bool {
         }
         let axis = to_c / l;
         let rel = p - (pcss_light() + axis * (l * radius / (radius + rho)));
-        if (dot(axis, rel) >= sqrt(1.0 - sin_t * sin_t) * length(rel)) {
+        if (dot(axis, rel) >= vs_sqrt(1.0 - sin_t * sin_t) * length(rel)) {
             return true;
         }
     }

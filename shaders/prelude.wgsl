@@ -51,7 +51,7 @@ fn phase(a: Airlight, one_minus_mu: f32, one_plus_mu: f32) -> vec3<f32> {
         if (g < 0.0) {
             denom = (1.0 + g) * (1.0 + g) - 2.0 * g * one_plus_mu;
         }
-        p += a.w_hg.xyz * (1.0 - g * g) * INV_4PI / (denom * sqrt(denom));
+        p += a.w_hg.xyz * (1.0 - g * g) * INV_4PI / (denom * vs_sqrt(denom));
     }
     let half_fwd = 0.5 * one_plus_mu;          // (1 + cos θ) / 2
     let h2 = half_fwd * half_fwd;
@@ -83,9 +83,9 @@ fn air_ray(a: Airlight, ray: PixelRay) -> AirRay {
     var r: AirRay;
     r.c = length(cross(dir, to_light));
     r.dotv = dot(dir, to_light);
-    r.gamma = atan2(r.c, r.dotv);
-    r.w = atan2(r.c, -r.dotv);
-    r.sin_half_gamma = sin(0.5 * r.gamma);
+    r.gamma = vs_atan2(r.c, r.dotv);
+    r.w = vs_atan2(r.c, -r.dotv);
+    r.sin_half_gamma = vs_sin(0.5 * r.gamma);
     // The singular 1/h of form (2): clamped by the pixel's footprint at the light when looking
     // towards it (a point light seen through fog is infinitely bright at γ = 0); towards γ = π
     // the ratio w / sin γ tends to 1 and needs no clamp.
@@ -99,7 +99,7 @@ fn air_ray(a: Airlight, ray: PixelRay) -> AirRay {
     }
     // In log space: at σt·D = 100, exp(−σt D) = 4e-44 is below f32's normal range while
     // I0 · exp(−σt D) may still be a visible radiance. log(0) = −inf gives exp = 0, no NaN.
-    r.prefactor = exp(log(a.intensity) + log(a.sigma_s) - a.sigma_t * d) * (ratio / d);
+    r.prefactor = vs_exp3(vs_log3(a.intensity) + vs_log3(a.sigma_s) - a.sigma_t * d) * (ratio / d);
     return r;
 }
 
@@ -128,7 +128,7 @@ fn one_minus_exp_ratio(z: vec3<f32>) -> vec3<f32> {
     for (var k = 11.0; k >= 2.0; k -= 1.0) {
         f = 1.0 - z / k * f;
     }
-    return select(f, (1.0 - exp(-z)) / max(z, vec3<f32>(1.0e-30)), z >= vec3<f32>(1.0));
+    return select(f, (1.0 - vs_exp3(-z)) / max(z, vec3<f32>(1.0e-30)), z >= vec3<f32>(1.0));
 }
 
 // A directional light's T(x) = ∫₀ˣ e^{−σt x'} dx' = (1 − e^{−σt x}) / σt per channel: x at
@@ -136,7 +136,7 @@ fn one_minus_exp_ratio(z: vec3<f32>) -> vec3<f32> {
 fn directional_t(a: Airlight, x: f32) -> vec3<f32> {
     let z = a.sigma_t * x;
     let small = x * one_minus_exp_ratio(min(z, vec3<f32>(1.0)));
-    let large = (1.0 - exp(-z)) / max(a.sigma_t, vec3<f32>(1.0e-38));
+    let large = (1.0 - vs_exp3(-z)) / max(a.sigma_t, vec3<f32>(1.0e-38));
     return select(small, large, z >= vec3<f32>(1.0));
 }
 
@@ -169,26 +169,26 @@ fn table_integrand(a: Airlight, s: f32, w: f32, sin_half_gamma: f32) -> vec3<f32
 fn table_integrand_split(a: Airlight, s: f32, one_minus_s: f32, w: f32, sin_half_gamma: f32) -> vec3<f32> {
     let half_a = 0.5 * s * w;
     let u = 0.5 * one_minus_s * w;
-    let su = sin(u);
-    let cu = cos(u);
-    let ratio = min(sin(half_a) / max(su, 1.0e-30), 1.0e20);
+    let su = vs_sin(u);
+    let cu = vs_cos(u);
+    let ratio = min(vs_sin(half_a) / max(su, 1.0e-30), 1.0e20);
     let tau = (2.0 * a.distance * sin_half_gamma * ratio) * a.sigma_t;
-    return phase(a, 2.0 * cu * cu, 2.0 * su * su) * exp(-tau);
+    return phase(a, 2.0 * cu * cu, 2.0 * su * su) * vs_exp3(-tau);
 }
 
 // Normalised scattering angle of the point at distance x along the ray, from the two angles of
 // the eye–point–light triangle: δ at the light and β at the point, s = δ / (δ + β).
 fn scattering_s(a: Airlight, r: AirRay, x: f32) -> f32 {
     let d = a.distance;
-    let delta = atan2(x * r.c, d * d - x * r.dotv);
-    let beta = atan2(r.c, x - r.dotv);
+    let delta = vs_atan2(x * r.c, d * d - x * r.dotv);
+    let beta = vs_atan2(r.c, x - r.dotv);
     return clamp(delta / max(delta + beta, 1.0e-30), 0.0, 1.0);
 }
 
 // Reads T at (row, entry) of the table with the γ rows interpolated linearly.
 fn table_row_mix(table: texture_2d<f32>, a: Airlight, gamma: f32, j: u32) -> vec3<f32> {
     let rows = a.table_across;
-    let tg = sqrt(clamp(gamma / PI, 0.0, 1.0)) * f32(rows - 1u);
+    let tg = vs_sqrt(clamp(gamma / PI, 0.0, 1.0)) * f32(rows - 1u);
     let i0 = min(u32(tg), rows - 2u);
     let f = clamp(tg - f32(i0), 0.0, 1.0);
     let t0 = textureLoad(table, vec2<u32>(j, i0), 0).xyz;
@@ -198,7 +198,7 @@ fn table_row_mix(table: texture_2d<f32>, a: Airlight, gamma: f32, j: u32) -> vec
     // linearly with γ there), and a linear mix overestimates it: mix the logarithms instead.
     let lo = min(t0, t1);
     let hi = max(t0, t1);
-    let geometric = t0 * pow(t1 / max(t0, vec3<f32>(1.0e-37)), vec3<f32>(f));
+    let geometric = t0 * vs_pow3(t1 / max(t0, vec3<f32>(1.0e-37)), vec3<f32>(f));
     return select(mix(t0, t1, f), geometric, (lo > vec3<f32>(0.0)) & (hi > ROW_RATIO * lo));
 }
 
@@ -313,7 +313,7 @@ fn cone_cuts(apex: vec3<f32>, axis: vec3<f32>, c2: f32, eye: vec3<f32>, dir: vec
     if (abs(qa) > 1.0e-6 * max(av * av, c2)) {
         let disc = qb * qb - 4.0 * qa * qc;
         if (disc >= 0.0) {
-            let q = -0.5 * (qb + select(-1.0, 1.0, qb >= 0.0) * sqrt(disc));
+            let q = -0.5 * (qb + select(-1.0, 1.0, qb >= 0.0) * vs_sqrt(disc));
             let r0 = q / qa;
             let r1 = select(r0, qc / q, q != 0.0);
             roots = array<f32, 2>(min(r0, r1), max(r0, r1));
@@ -450,7 +450,7 @@ fn pixel_ray(v: View, pixel: vec2<f32>, depth: f32) -> PixelRay {
     out.distance = -1.0;
     out.depth_to_distance = length(m * dir_view) / max(-dir_view.z, 1.0e-30);
     let cos_axis = clamp(-dir_view.z / length(dir_view), 0.0, 1.0);
-    out.footprint = cos_axis * sqrt(cos_axis);
+    out.footprint = cos_axis * vs_sqrt(cos_axis);
     if (depth != far_depth) {
         let p = v.view_from_clip * vec4<f32>(ndc, depth, 1.0);
         // Behind the far end (w of the wrong sign or zero) reads as sky too.

@@ -92,7 +92,7 @@ fn upsample(@builtin(global_invocation_id) gid: vec3<u32>) {
                 }
                 if (delta <= SAME_SURFACE) {
                     let d = vec2<f32>(c) - q;
-                    let w = exp(-0.5 * dot(d, d));
+                    let w = vs_exp(-0.5 * dot(d, d));
                     sum += w * s.xyz;
                     weight += w;
                 }
@@ -106,7 +106,7 @@ fn upsample(@builtin(global_invocation_id) gid: vec3<u32>) {
 fn bilateral_weight(offset: f32, delta: f32) -> f32 {
     let s = offset / up.sigma_spatial;
     let d = delta / up.sigma_depth;
-    return exp(-0.5 * (s * s + d * d));
+    return vs_exp(-0.5 * (s * s + d * d));
 }
 
 // One direction of the separable bilateral around the continuous coordinate `c`: along x of

@@ -196,7 +196,7 @@ pub use error::GltfError;
 pub use error::{Error, Result, SceneFileError};
 pub use facade::{Frame, FrameLight, Settings, Surfaces, VolumetricShadows};
 pub use gpu::headless::HeadlessGpu;
-pub use gpu::Cache;
+pub use gpu::{Cache, ErrorSign, ShaderPrecision};
 pub use gpu::{Occluder, OccluderMesh};
 pub use load::{Limit, LoadOptions};
 pub use plan::Plan;
@@ -210,10 +210,15 @@ pub use wgpu;
 /// medium scatters onto a Lambertian surface point (unshadowed, the medium extending to
 /// infinity around it) from a point light; multiply by the surface's `kd` (`ρ/π` for an albedo
 /// `ρ`) for the radiance it adds. `table` is [`nodes::IssTableNode::view`] (a
-/// `texture_2d<f32>`, non-filterable: read with `textureLoad`, no sampler). All names start
-/// with `volshadow_iss` / `VOLSHADOW_ISS`. See [`nodes::IssTableNode`] for the maths and the
-/// table's measured accuracy.
-pub const ISS_WGSL: &str = include_str!("../shaders/iss.wgsl");
+/// `texture_2d<f32>`, non-filterable: read with `textureLoad`, no sampler). Its names start
+/// with `volshadow_iss` / `VOLSHADOW_ISS`, and with `vs_` / `VS_` / `VOLSHADOW_PRECISION` for
+/// the precision wrappers it calls its built-ins through (at [`ShaderPrecision::Native`]: the
+/// built-ins themselves). See [`nodes::IssTableNode`] for the maths and the table's measured
+/// accuracy.
+pub const ISS_WGSL: &str = concat!(
+    include_str!("../shaders/precision.wgsl"),
+    include_str!("../shaders/iss.wgsl")
+);
 
 /// A self-contained WGSL module for shadowing a caller's surfaces with the shadow maps volshadow
 /// renders for its volumetric shadows: `volshadow_shadow(map, cmp, params, p, n) -> f32`, the

@@ -14,7 +14,10 @@ use glam::{Mat4, Vec3};
 use volshadow::nodes::{MarchMethod, MarchSettings};
 use volshadow::reference::TexturedSpot;
 use volshadow::scene::{shapes, LightTexture};
-use volshadow::{Cache, Camera, HeadlessGpu, Light, Medium, PhaseFunction, PointLight, SpotLight};
+use volshadow::{
+    Cache, Camera, HeadlessGpu, Light, Medium, PhaseFunction, PointLight, ShaderPrecision,
+    SpotLight,
+};
 
 const SIZE: u32 = 64;
 /// Exact mode: p95 and RMSE bounds of the issue (0.5%).
@@ -574,8 +577,18 @@ fn seeds() -> Vec<u64> {
 /// reference come from the same ray cast, so no pixel's first surface differs between them.
 #[test]
 fn g_random_scenes_against_the_reference() {
+    random_scenes_at(ShaderPrecision::Native);
+}
+
+/// The same scenes and bar with every transcendental built-in off by the most WGSL allows.
+#[test]
+fn g_random_scenes_against_the_reference_worst_case() {
+    random_scenes_at(common::WORST_CASE);
+}
+
+fn random_scenes_at(precision: ShaderPrecision) {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = Cache::with_precision(&gpu.device, precision);
     let mut results = Vec::new();
     for seed in seeds() {
         let s = random_scene(seed);
@@ -615,7 +628,7 @@ fn g_random_scenes_against_the_reference() {
         .unwrap();
     let overflowed = results.iter().filter(|r| r.3.overflowed > 0).count();
     println!(
-        "{} random scenes: median p95 {:.4}%, worst p95 {:.4}% at seed {} ({}: {}); {} scenes had overflowing pixels",
+        "{precision:?}: {} random scenes: median p95 {:.4}%, worst p95 {:.4}% at seed {} ({}: {}); {} scenes had overflowing pixels",
         results.len(),
         100.0 * p95[p95.len() / 2],
         100.0 * worst.1.p95,
@@ -631,7 +644,7 @@ fn g_random_scenes_against_the_reference() {
         .collect();
     assert!(
         failed.is_empty(),
-        "{} scene(s) over p95 1% or non-finite; rerun one with VOLSHADOW_SEED=<seed>:\n{}",
+        "{precision:?}: {} scene(s) over p95 1% or non-finite; rerun one with VOLSHADOW_SEED=<seed>:\n{}",
         failed.len(),
         failed.join("\n")
     );
@@ -741,8 +754,18 @@ fn intersecting_occluders_with_a_low_light() {
 /// (`AirlightTableNode`).
 #[test]
 fn thick_fog_spot_scenes_against_the_reference() {
+    thick_fog_spot_scenes_at(ShaderPrecision::Native);
+}
+
+/// The same scenes and bars with every transcendental built-in off by the most WGSL allows.
+#[test]
+fn thick_fog_spot_scenes_against_the_reference_worst_case() {
+    thick_fog_spot_scenes_at(common::WORST_CASE);
+}
+
+fn thick_fog_spot_scenes_at(precision: ShaderPrecision) {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = Cache::with_precision(&gpu.device, precision);
     let regime = Regime {
         log_tau: (1.0, 2.0),
         spot: true,
@@ -759,14 +782,14 @@ fn thick_fog_spot_scenes_against_the_reference() {
         if e.p95 <= 0.01 {
             within += 1;
         } else {
-            println!("seed {seed} ({}): {e}", s.summary);
+            println!("{precision:?}: seed {seed} ({}): {e}", s.summary);
         }
         if e.non_finite > 0 || e.p95 > 0.02 {
             failed.push(format!("seed {seed} ({}): {e}", s.summary));
         }
     }
     println!(
-        "200 thick-fog spot scenes: {within} within p95 1%, worst p95 {:.3}%",
+        "{precision:?}: 200 thick-fog spot scenes: {within} within p95 1%, worst p95 {:.3}%",
         100.0 * worst
     );
     assert!(

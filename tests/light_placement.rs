@@ -9,7 +9,7 @@ use common::scene::{MeshScene, Shot};
 use glam::Vec3;
 use volshadow::nodes::{MarchMethod, MarchSettings};
 use volshadow::scene::shapes;
-use volshadow::{Cache, Light, Medium, PhaseFunction, PointLight, SpotLight};
+use volshadow::{Cache, Light, Medium, PhaseFunction, PointLight, ShaderPrecision, SpotLight};
 
 /// The exact method's bound everywhere else (tests/exact.rs): p95 and RMSE ≤ 0.5%.
 const EXACT_P95: f64 = 0.005;
@@ -97,8 +97,19 @@ fn a_wide_spot_cone_keeps_an_occluder_near_its_edge_in_the_shadow_map() {
 /// must meet its usual bar.
 #[test]
 fn a_light_a_millionth_above_a_sphere_keeps_its_shadow() {
+    a_light_a_millionth_above_a_sphere_at(ShaderPrecision::Native);
+}
+
+#[test]
+fn a_light_a_millionth_above_a_sphere_keeps_its_shadow_worst_case() {
+    for precision in common::WORST_CASES {
+        a_light_a_millionth_above_a_sphere_at(precision);
+    }
+}
+
+fn a_light_a_millionth_above_a_sphere_at(precision: ShaderPrecision) {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = Cache::with_precision(&gpu.device, precision);
     let (medium, mut scene) = haze_over_ground();
     scene.add(shapes::uv_sphere(Vec3::new(0.0, 1.0, 0.0), 1.0, 48, 24).unwrap());
     let camera = common::look_at(EYE, TARGET, 60.0, 1.0);
@@ -125,13 +136,13 @@ fn a_light_a_millionth_above_a_sphere_keeps_its_shadow() {
         let lit = Shot::new(&empty, &camera, &light, &medium, 64)
             .measure(&gpu, &cache, exact, &reference);
         println!(
-            "{name}: exact {}\n  sphere ignored {}",
+            "{precision:?}: {name}: exact {}\n  sphere ignored {}",
             m.errors, lit.errors
         );
         assert_eq!(m.errors.non_finite, 0, "{name}: NaN, Inf or negative");
         assert!(
             m.errors.p95 <= EXACT_P95 && m.errors.rmse <= EXACT_RMSE,
-            "{name}: exact {}",
+            "{precision:?}: {name}: exact {}",
             m.errors
         );
         assert!(lit.errors.rmse > EXACT_RMSE, "{name}: {}", lit.errors);

@@ -17,7 +17,8 @@ use volshadow::nodes::{
 use volshadow::reference::{self, Cuboid, Sphere};
 use volshadow::scene::shapes;
 use volshadow::{
-    Cache, Camera, DirectionalLight, Error, Light, Medium, PhaseFunction, PointLight, SpotLight,
+    Cache, Camera, DirectionalLight, Error, Light, Medium, PhaseFunction, PointLight,
+    ShaderPrecision, SpotLight,
 };
 
 const RMSE_BAR: f64 = 0.02;
@@ -239,8 +240,12 @@ fn random_soft_box_scenes_against_the_reference() {
         .map(|seed| random_box_scene(seed, (-4.0, 0.0)))
         .collect();
     let count = scenes.len();
-    let (worst, hard_worst, within, telling) =
-        check_scenes_sized(&scenes, (RMSE_BAR, BOX_P95_LIMIT), BOX_SIZE);
+    let (worst, hard_worst, within, telling) = check_scenes_sized(
+        &scenes,
+        (RMSE_BAR, BOX_P95_LIMIT),
+        BOX_SIZE,
+        ShaderPrecision::Native,
+    );
     eprintln!(
         "boxes: {within} of {count} within, worst p95 {:.2}%, hard worst {:.2}%, {telling} telling",
         100.0 * worst,
@@ -286,6 +291,18 @@ fn random_soft_scenes_against_the_reference() {
         hard_worst > 0.10,
         "hard shadows within {hard_worst} of every soft reference: the scenes cannot tell"
     );
+}
+
+/// The same seeded scenes and bars with every transcendental built-in off by the most WGSL
+/// allows.
+#[test]
+fn random_soft_scenes_against_the_reference_worst_case() {
+    let scenes: Vec<RandomScene> = (0..SEEDS)
+        .map(|seed| random_scene(seed, (-4.0, 0.0)))
+        .collect();
+    let (worst, _, _, _) =
+        check_scenes_sized(&scenes, (RMSE_BAR, P95_BAR), SIZE, common::WORST_CASE);
+    eprintln!("worst case: worst p95 {:.2}%", 100.0 * worst);
 }
 
 /// Seeded scenes with a spot light whose cone's edge crosses the sphere or passes near it
@@ -406,10 +423,22 @@ fn ground_scene() -> RandomScene {
 /// penumbrae 3.65%, beyond their bar.
 #[test]
 fn a_ground_that_casts_shadows_under_a_soft_light() {
+    a_ground_that_casts_shadows_at(ShaderPrecision::Native);
+}
+
+#[test]
+fn a_ground_that_casts_shadows_under_a_soft_light_worst_case() {
+    for precision in common::WORST_CASES {
+        a_ground_that_casts_shadows_at(precision);
+    }
+}
+
+fn a_ground_that_casts_shadows_at(precision: ShaderPrecision) {
     const GROUND_P95_BAR: f64 = 0.05;
-    let (worst, hard, _, _) = check_scenes_sized(&[ground_scene()], (RMSE_BAR, GROUND_P95_BAR), 32);
+    let (worst, hard, _, _) =
+        check_scenes_sized(&[ground_scene()], (RMSE_BAR, GROUND_P95_BAR), 32, precision);
     eprintln!(
-        "ground: p95 {:.2}%, hard {:.2}%",
+        "{precision:?}: ground: p95 {:.2}%, hard {:.2}%",
         100.0 * worst,
         100.0 * hard
     );
@@ -545,7 +574,8 @@ fn check_scenes(scenes: &[RandomScene], bars: (f64, f64)) -> (f64, f64) {
 /// `check_scenes`, also returning how many scenes were within the bars (RMSE_BAR,
 /// P95_BAR), which may be tighter than `bars`.
 fn check_scenes_counted(scenes: &[RandomScene], bars: (f64, f64)) -> (f64, f64, usize) {
-    let (worst, hard_worst, within, _) = check_scenes_sized(scenes, bars, SIZE);
+    let (worst, hard_worst, within, _) =
+        check_scenes_sized(scenes, bars, SIZE, ShaderPrecision::Native);
     (worst, hard_worst, within)
 }
 
@@ -555,11 +585,12 @@ fn check_scenes_sized(
     scenes: &[RandomScene],
     bars: (f64, f64),
     size: u32,
+    precision: ShaderPrecision,
 ) -> (f64, f64, usize, usize) {
     let mut within = 0;
     let mut telling = 0;
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = Cache::with_precision(&gpu.device, precision);
     let mut hard_worst: f64 = 0.0;
     let mut unshadowed_least = f64::INFINITY;
     let mut worst: f64 = 0.0;

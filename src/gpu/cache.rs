@@ -11,6 +11,61 @@ use crate::nodes;
 use crate::plan::Pass;
 
 const PRELUDE: &str = include_str!("../../shaders/prelude.wgsl");
+const PRECISION: &str = include_str!("../../shaders/precision.wgsl");
+/// The line of `precision.wgsl` that selects what its wrappers compute (see [`ShaderPrecision`]).
+const PRECISION_LINE: &str = "const VOLSHADOW_PRECISION: u32 = 0u;";
+
+/// How the shaders evaluate WGSL's transcendental built-ins (`sin`, `exp`, `atan2`, …), each of
+/// which they call through one wrapper.
+///
+/// A renderer uses [`ShaderPrecision::Native`], the default. WGSL promises far less of these
+/// functions than most drivers give (`sin` and `cos`: an absolute error of 2^-11; `atan2`: 4096
+/// ULP; `exp`: 3 + 2·|x| ULP; subnormals may flush to zero), and a CPU driver such as lavapipe
+/// is nearly exact, so an image that is right there may still be wrong on a GPU.
+/// [`ShaderPrecision::WorstCase`] makes every wrapper return the built-in's result moved by the
+/// largest error WGSL allows and flush subnormal results to zero: the crate's accuracy tests run
+/// in it on lavapipe, with their usual bounds. It costs time and is never a renderer's setting.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub enum ShaderPrecision {
+    /// The built-ins as the driver implements them.
+    #[default]
+    Native,
+    /// Each built-in's result moved by the largest error WGSL allows for it, in the direction
+    /// given, and subnormal results flushed to zero (a test mode).
+    WorstCase(ErrorSign),
+}
+
+/// The direction of [`ShaderPrecision::WorstCase`]'s errors.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ErrorSign {
+    /// Every result moved up.
+    Up,
+    /// Every result moved down.
+    Down,
+    /// Up or down by a hash of the argument's bits, as a real GPU's error changes sign from
+    /// one argument to the next.
+    Mixed,
+}
+
+impl ShaderPrecision {
+    /// Every precision, the native one first.
+    pub const ALL: [ShaderPrecision; 4] = [
+        ShaderPrecision::Native,
+        ShaderPrecision::WorstCase(ErrorSign::Up),
+        ShaderPrecision::WorstCase(ErrorSign::Down),
+        ShaderPrecision::WorstCase(ErrorSign::Mixed),
+    ];
+
+    /// `VOLSHADOW_PRECISION` in `precision.wgsl`.
+    fn mode(self) -> u32 {
+        match self {
+            ShaderPrecision::Native => 0,
+            ShaderPrecision::WorstCase(ErrorSign::Up) => 1,
+            ShaderPrecision::WorstCase(ErrorSign::Down) => 2,
+            ShaderPrecision::WorstCase(ErrorSign::Mixed) => 3,
+        }
+    }
+}
 
 /// Every node's layouts and pipelines on one device. Cloning is cheap (handles).
 ///
@@ -26,6 +81,7 @@ pub struct Cache {
     pub(crate) composite: nodes::composite::Pipelines,
     pub(crate) iss_table: nodes::iss_table::Pipelines,
     pub(crate) soft_shadow: nodes::soft_shadow::Pipelines,
+    precision: ShaderPrecision,
 }
 
 impl Cache {
@@ -35,17 +91,31 @@ impl Cache {
     ///
     /// Used in the [crate-level example](crate#example).
     pub fn new(device: &wgpu::Device) -> Self {
+        Self::with_precision(device, ShaderPrecision::Native)
+    }
+
+    /// As [`new`](Self::new), with the shaders' transcendental functions evaluated as
+    /// `precision` says: [`ShaderPrecision::WorstCase`] is a test mode that shows, on a driver
+    /// whose maths is nearly exact, what the least precise GPU that WGSL allows does to the
+    /// images.
+    pub fn with_precision(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
         Self {
-            light_texture: nodes::light_texture::Pipelines::new(device),
-            shadow_map: nodes::shadow_map::Pipelines::new(device),
-            extents: nodes::extents::Pipelines::new(device),
-            table: nodes::airlight_table::Pipelines::new(device),
-            march: nodes::march::Pipelines::new(device),
-            upsample: nodes::upsample::Pipelines::new(device),
-            composite: nodes::composite::Pipelines::new(device),
-            iss_table: nodes::iss_table::Pipelines::new(device),
-            soft_shadow: nodes::soft_shadow::Pipelines::new(device),
+            light_texture: nodes::light_texture::Pipelines::new(device, precision),
+            shadow_map: nodes::shadow_map::Pipelines::new(device, precision),
+            extents: nodes::extents::Pipelines::new(device, precision),
+            table: nodes::airlight_table::Pipelines::new(device, precision),
+            march: nodes::march::Pipelines::new(device, precision),
+            upsample: nodes::upsample::Pipelines::new(device, precision),
+            composite: nodes::composite::Pipelines::new(device, precision),
+            iss_table: nodes::iss_table::Pipelines::new(device, precision),
+            soft_shadow: nodes::soft_shadow::Pipelines::new(device, precision),
+            precision,
         }
+    }
+
+    /// The precision the shaders were compiled with.
+    pub fn precision(&self) -> ShaderPrecision {
+        self.precision
     }
 }
 
@@ -218,16 +288,27 @@ pub(crate) fn cached<K: std::hash::Hash + Eq, V: Clone>(
         .clone()
 }
 
-/// The prelude followed by one node's WGSL, as compiled.
-pub(crate) fn compose(node_source: &str) -> String {
-    format!("{PRELUDE}\n{node_source}")
+/// The precision wrappers (at `precision`) and the prelude followed by one node's WGSL, as
+/// compiled.
+pub(crate) fn compose(node_source: &str, precision: ShaderPrecision) -> String {
+    let wrappers = PRECISION.replacen(
+        PRECISION_LINE,
+        &format!("const VOLSHADOW_PRECISION: u32 = {}u;", precision.mode()),
+        1,
+    );
+    format!("{wrappers}\n{PRELUDE}\n{node_source}")
 }
 
 /// Creates a shader module from the prelude followed by one node's WGSL.
-pub(crate) fn module(device: &wgpu::Device, label: &str, node_source: &str) -> wgpu::ShaderModule {
+pub(crate) fn module(
+    device: &wgpu::Device,
+    label: &str,
+    node_source: &str,
+    precision: ShaderPrecision,
+) -> wgpu::ShaderModule {
     device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(label),
-        source: wgpu::ShaderSource::Wgsl(compose(node_source).into()),
+        source: wgpu::ShaderSource::Wgsl(compose(node_source, precision).into()),
     })
 }
 
@@ -372,22 +453,25 @@ pub(crate) fn fullscreen_pipeline(
 
 #[cfg(test)]
 mod tests {
-    use super::compose;
+    use super::{compose, ShaderPrecision};
 
     /// Where line `line` (1-based) of `compose`'s output for `file` comes from: `(file, line)` in
     /// that file or in `prelude.wgsl` (naga numbers the composed source's lines).
     fn source_line(file: &str, line: usize) -> (&str, usize) {
-        let prelude = super::PRELUDE.lines().count() + 1; // `compose` adds a line break
-        match line.checked_sub(prelude) {
-            Some(l) if l > 0 => (file, l),
-            _ => ("prelude.wgsl", line),
+        // `compose` adds a line break after each.
+        let precision = super::PRECISION.lines().count() + 1;
+        let prelude = precision + super::PRELUDE.lines().count() + 1;
+        match (line.checked_sub(prelude), line.checked_sub(precision)) {
+            (Some(l), _) if l > 0 => (file, l),
+            (_, Some(l)) if l > 0 => ("prelude.wgsl", l),
+            _ => ("precision.wgsl", line),
         }
     }
 
     /// Parses and validates `source` composed with the prelude; an error names the file and
     /// line it comes from.
-    fn check(file: &str, source: &str) -> Result<(), String> {
-        let composed = compose(source);
+    fn check(file: &str, source: &str, precision: ShaderPrecision) -> Result<(), String> {
+        let composed = compose(source, precision);
         let at = |location: Option<naga::SourceLocation>, message: String| {
             let line = location.map_or(0, |l| l.line_number as usize);
             let (file, line) = source_line(file, line);
@@ -448,8 +532,10 @@ mod tests {
                 ),
             ),
         ] {
-            if let Err(e) = check(file, source) {
-                panic!("{e}");
+            for precision in ShaderPrecision::ALL {
+                if let Err(e) = check(file, source, precision) {
+                    panic!("{precision:?}: {e}");
+                }
             }
         }
     }
@@ -458,7 +544,7 @@ mod tests {
     fn errors_point_at_the_node_file_and_line() {
         // A syntax error on line 3 of a node's source, not on line 3 + the prelude's length.
         let source = "// a node\nfn f() -> f32 {\n    let x = ;\n    return 1.0;\n}\n";
-        let e = check("node.wgsl", source).unwrap_err();
+        let e = check("node.wgsl", source, ShaderPrecision::Native).unwrap_err();
         assert!(e.starts_with("node.wgsl:3:"), "{e}");
     }
 }

@@ -7,7 +7,7 @@ mod mesh;
 mod timer;
 pub(crate) mod uniforms;
 
-pub use cache::Cache;
+pub use cache::{Cache, ErrorSign, ShaderPrecision};
 pub use mesh::{Occluder, OccluderMesh};
 pub use timer::{GpuTimer, PassTime};
 

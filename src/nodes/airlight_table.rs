@@ -35,7 +35,9 @@
 //! off by up to 106% from heads alone (see `docs/METHOD.md`).
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{bind_group, compute_pipeline, dispatch, layout, module, Binding};
+use crate::gpu::cache::{
+    bind_group, compute_pipeline, dispatch, layout, module, Binding, ShaderPrecision,
+};
 use crate::gpu::uniforms::AirlightUniform;
 use crate::gpu::{texture_2d, Cache, GpuTimer, UniformBuffer};
 use crate::plan::Pass;
@@ -108,11 +110,11 @@ pub(crate) struct Pipelines {
 }
 
 impl Pipelines {
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
+    pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
         let label = "volshadow F' table";
         let layout = layout(device, label, wgpu::ShaderStages::COMPUTE, &BINDINGS);
         let source = include_str!("../../shaders/airlight_table.wgsl");
-        let module = module(device, "volshadow airlight_table.wgsl", source);
+        let module = module(device, "volshadow airlight_table.wgsl", source, precision);
         let build = compute_pipeline(device, label, &layout, &module, "build", &[]);
         Self { layout, build }
     }

@@ -25,7 +25,9 @@ use std::sync::{Arc, Mutex};
 use bytemuck::Zeroable;
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{bind_group, cached, fullscreen_pipeline, layout, module, Binding};
+use crate::gpu::cache::{
+    bind_group, cached, fullscreen_pipeline, layout, module, Binding, ShaderPrecision,
+};
 use crate::gpu::uniforms::{CompositeUniform, SurfacesUniform, ViewUniform};
 use crate::gpu::{
     check_depth_texture, check_float_texture, check_size, depth_view, texture_2d, Cache, GpuTimer,
@@ -61,7 +63,7 @@ pub(crate) struct Pipelines {
 }
 
 impl Pipelines {
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
+    pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
         let label = "volshadow composite";
         let source = concat!(
             include_str!("../../shaders/iss.wgsl"),
@@ -69,7 +71,7 @@ impl Pipelines {
         );
         Self {
             layout: layout(device, label, wgpu::ShaderStages::FRAGMENT, &BINDINGS),
-            module: module(device, "volshadow composite.wgsl", source),
+            module: module(device, "volshadow composite.wgsl", source, precision),
             formats: Arc::default(),
         }
     }

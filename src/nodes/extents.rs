@@ -33,7 +33,9 @@
 use glam::Mat4;
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{bind_group, compute_pipeline, depth_pipeline, layout, module, Binding};
+use crate::gpu::cache::{
+    bind_group, compute_pipeline, depth_pipeline, layout, module, Binding, ShaderPrecision,
+};
 use crate::gpu::uniforms::ViewUniform;
 use crate::gpu::{
     check_depth_texture, check_target_size, depth_view, Cache, GpuTimer, Occluder, UniformBuffer,
@@ -76,7 +78,7 @@ pub(crate) struct Pipelines {
 }
 
 impl Pipelines {
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
+    pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
         let fragment = wgpu::ShaderStages::FRAGMENT;
         let extrude_layout = layout(
             device,
@@ -94,7 +96,7 @@ impl Pipelines {
             &CROSSINGS_BINDINGS,
         );
         let source = include_str!("../../shaders/extents.wgsl");
-        let module = module(device, "volshadow extents.wgsl", source);
+        let module = module(device, "volshadow extents.wgsl", source, precision);
         let compute =
             |label, entry| compute_pipeline(device, label, &extrude_layout, &module, entry, &[]);
         let volume_vertices = [wgpu::VertexBufferLayout {

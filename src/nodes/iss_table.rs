@@ -51,7 +51,9 @@
 //! device, and hardware filtering's 8-bit weights would cost the table its accuracy.
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{bind_group, compute_pipeline, dispatch, layout, module, Binding};
+use crate::gpu::cache::{
+    bind_group, compute_pipeline, dispatch, layout, module, Binding, ShaderPrecision,
+};
 use crate::gpu::uniforms::AirlightUniform;
 use crate::gpu::{texture_2d, Cache, GpuTimer, UniformBuffer};
 use crate::plan::Pass;
@@ -115,14 +117,14 @@ pub(crate) struct Pipelines {
 }
 
 impl Pipelines {
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
+    pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
         let label = "volshadow ISS table";
         let layout = layout(device, label, wgpu::ShaderStages::COMPUTE, &BINDINGS);
         let source = concat!(
             include_str!("../../shaders/iss.wgsl"),
             include_str!("../../shaders/iss_table.wgsl")
         );
-        let module = module(device, "volshadow iss_table.wgsl", source);
+        let module = module(device, "volshadow iss_table.wgsl", source, precision);
         let build = compute_pipeline(device, label, &layout, &module, "build", &[]);
         Self { layout, build }
     }

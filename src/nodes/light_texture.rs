@@ -11,7 +11,9 @@
 //! rebuilt only when the input texture changes.
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{bind_group, fullscreen_pipeline, layout, module, Binding};
+use crate::gpu::cache::{
+    bind_group, fullscreen_pipeline, layout, module, Binding, ShaderPrecision,
+};
 use crate::gpu::{Cache, GpuTimer};
 use crate::plan::Pass;
 
@@ -29,11 +31,11 @@ pub(crate) struct Pipelines {
 }
 
 impl Pipelines {
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
+    pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
         let label = "volshadow light texture";
         let layout = layout(device, label, wgpu::ShaderStages::FRAGMENT, &BINDINGS);
         let source = include_str!("../../shaders/light_texture.wgsl");
-        let module = module(device, "volshadow light_texture.wgsl", source);
+        let module = module(device, "volshadow light_texture.wgsl", source, precision);
         let format = wgpu::TextureFormat::Rgba16Float;
         let levels = ["fs_copy", "fs_down"]
             .map(|entry| fullscreen_pipeline(device, label, &layout, &module, entry, format, &[]));

@@ -40,7 +40,9 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{bind_group, cached, compute_pipeline, dispatch, layout, module, Binding};
+use crate::gpu::cache::{
+    bind_group, cached, compute_pipeline, dispatch, layout, module, Binding, ShaderPrecision,
+};
 use crate::gpu::uniforms::{AirlightUniform, ViewUniform};
 use crate::gpu::{
     check_depth_layers, check_depth_texture, check_size, check_target_size, depth_array_view,
@@ -109,7 +111,7 @@ pub(crate) struct Pipelines {
 }
 
 impl Pipelines {
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
+    pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
         let source = concat!(
             include_str!("../../shaders/pcss.wgsl"),
             include_str!("../../shaders/march.wgsl")
@@ -121,7 +123,7 @@ impl Pipelines {
                 wgpu::ShaderStages::COMPUTE,
                 &BINDINGS,
             ),
-            module: module(device, "volshadow march.wgsl", source),
+            module: module(device, "volshadow march.wgsl", source, precision),
             variants: Arc::default(),
         }
     }

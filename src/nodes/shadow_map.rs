@@ -32,7 +32,7 @@
 use glam::{Mat4, Vec3, Vec4};
 
 use crate::error::{finite, Error, Result};
-use crate::gpu::cache::{bind_group, depth_pipeline, layout, module, Binding};
+use crate::gpu::cache::{bind_group, depth_pipeline, layout, module, Binding, ShaderPrecision};
 use crate::gpu::{Cache, GpuTimer, Occluder};
 use crate::plan::Pass;
 use crate::scene::{Camera, DirectionalLight, Light};
@@ -54,11 +54,11 @@ pub(crate) struct Pipelines {
 }
 
 impl Pipelines {
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
+    pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
         let label = "volshadow shadow map";
         let layout = layout(device, label, wgpu::ShaderStages::VERTEX, &BINDINGS);
         let source = include_str!("../../shaders/shadow_map.wgsl");
-        let module = module(device, "volshadow shadow_map.wgsl", source);
+        let module = module(device, "volshadow shadow_map.wgsl", source, precision);
         let pipeline = |cull_mode| {
             depth_pipeline(
                 device,

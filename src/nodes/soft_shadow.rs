@@ -164,7 +164,7 @@
 //! quarters of the cells (4 bytes each): about 7.9 MiB in all at the default size.
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{bind_group, compute_pipeline, layout, module, Binding};
+use crate::gpu::cache::{bind_group, compute_pipeline, layout, module, Binding, ShaderPrecision};
 use crate::gpu::{
     check_depth_layers, depth_array_view, texture_3d, Cache, GpuTimer, UniformBuffer,
 };
@@ -566,7 +566,7 @@ pub(crate) struct Pipelines {
 }
 
 impl Pipelines {
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
+    pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
         let label = "volshadow soft shadow";
         let stages = wgpu::ShaderStages::COMPUTE;
         let anchor_layout = layout(device, label, stages, &ANCHOR_BINDINGS);
@@ -578,7 +578,7 @@ impl Pipelines {
             include_str!("../../shaders/pcss.wgsl"),
             include_str!("../../shaders/soft_shadow.wgsl")
         );
-        let module = module(device, "volshadow soft_shadow.wgsl", source);
+        let module = module(device, "volshadow soft_shadow.wgsl", source, precision);
         let build = |constants: &[(&str, f64)]| {
             let pipeline =
                 |layout, entry| compute_pipeline(device, label, layout, &module, entry, constants);

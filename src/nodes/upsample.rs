@@ -111,7 +111,9 @@ impl UpsampleFilter {
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
-use crate::gpu::cache::{bind_group, cached, compute_pipeline, layout, module, Binding};
+use crate::gpu::cache::{
+    bind_group, cached, compute_pipeline, layout, module, Binding, ShaderPrecision,
+};
 use crate::gpu::uniforms::ViewUniform;
 use crate::gpu::{check_depth_texture, check_float_texture, Cache, GpuTimer, UniformBuffer};
 use crate::plan::Pass;
@@ -145,12 +147,12 @@ pub(crate) struct Pipelines {
 }
 
 impl Pipelines {
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
+    pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
         let label = "volshadow upsample";
         let source = include_str!("../../shaders/upsample.wgsl");
         Self {
             layout: layout(device, label, wgpu::ShaderStages::COMPUTE, &BINDINGS),
-            module: module(device, "volshadow upsample.wgsl", source),
+            module: module(device, "volshadow upsample.wgsl", source, precision),
             lights: Arc::default(),
         }
     }

@@ -16,6 +16,21 @@ pub fn gpu() -> HeadlessGpu {
     }
 }
 
+/// WGSL's worst case for the shaders' transcendental built-ins, each result moved by the largest
+/// error WGSL allows and subnormals flushed to zero (see `volshadow::ShaderPrecision`). The
+/// accuracy tests run in it beside the driver's own maths, with the same bounds: lavapipe's maths
+/// is nearly exact, a GPU's need not be, and an NVIDIA H200 failed six tests that lavapipe
+/// passed until the shaders were written for WGSL's guarantees.
+pub const WORST_CASE: volshadow::ShaderPrecision =
+    volshadow::ShaderPrecision::WorstCase(volshadow::ErrorSign::Mixed);
+
+/// The worst case with each of its error signs (up, down, mixed), for the cheaper tests.
+pub const WORST_CASES: [volshadow::ShaderPrecision; 3] = [
+    volshadow::ShaderPrecision::WorstCase(volshadow::ErrorSign::Up),
+    volshadow::ShaderPrecision::WorstCase(volshadow::ErrorSign::Down),
+    WORST_CASE,
+];
+
 /// NDC depth of a world point seen by `camera`, in f64.
 pub fn ndc_depth(camera: &Camera, point: DVec3) -> f32 {
     let clip = (camera.projection().as_dmat4() * camera.view().as_dmat4())
