@@ -1,4 +1,5 @@
-// F′ table builder: one invocation per row γ_i = π t_i², t_i = i / (rows − 1).
+// F′ table builder: one invocation per row γ_i = π t_i², t_i = i / (rows − 1). Its sines are
+// `vs_sin_poly` (relative precision; see `table_integrand`).
 // Entry j holds T(γ_i, s_j) = ∫₀^{s_j} p exp(−σt (d + x − D)) ds, s_j = j / (n − 1), integrated
 // by 8-point Gauss–Legendre per cell and a compensated running sum along the row; entry n + j
 // the tail ∫_{s_j}^1, summed from s = 1.
@@ -22,7 +23,7 @@ fn build(@builtin(global_invocation_id) gid: vec3<u32>) {
     // π − γ = π (1 − t)(1 + t) keeps relative precision near γ = π; the last row (γ = π,
     // light exactly behind) uses the limit w → 0, approached through a tiny w.
     let w = max(PI * (1.0 - t) * (1.0 + t), 1.0e-6);
-    let sin_half_gamma = vs_sin(0.5 * gamma);
+    let sin_half_gamma = vs_sin_poly(0.5 * gamma);
     let ds = 1.0 / f32(n - 1u);
     // Columns [0, n): T from the eye (s = 0) to s_j. Columns [n, 2n): the tail, T from s_j to
     // the end (s = 1), summed from that end: an interval far from where the integrand peaks
@@ -33,7 +34,7 @@ fn build(@builtin(global_invocation_id) gid: vec3<u32>) {
     textureStore(table_out, vec2<u32>(0u, i), vec4<f32>(0.0));
     for (var j = 1u; j < n; j++) {
         // Kahan summation: a row of 255 cells keeps the f32 sum to ~1e-7 relative.
-        let y = cell(j, n, ds, w, sin_half_gamma) - carry;
+        let y = cell(j, n, ds, w, gamma, sin_half_gamma) - carry;
         let next = sum + y;
         carry = (next - sum) - y;
         sum = next;
@@ -43,7 +44,7 @@ fn build(@builtin(global_invocation_id) gid: vec3<u32>) {
     carry = vec3<f32>(0.0);
     textureStore(table_out, vec2<u32>(2u * n - 1u, i), vec4<f32>(0.0));
     for (var j = n - 1u; j >= 1u; j--) {
-        let y = cell(j, n, ds, w, sin_half_gamma) - carry;
+        let y = cell(j, n, ds, w, gamma, sin_half_gamma) - carry;
         let next = sum + y;
         carry = (next - sum) - y;
         sum = next;
@@ -52,9 +53,9 @@ fn build(@builtin(global_invocation_id) gid: vec3<u32>) {
 }
 
 // ∫ over cell j, [s_{j−1}, s_j], of a row.
-fn cell(j: u32, n: u32, ds: f32, w: f32, sin_half_gamma: f32) -> vec3<f32> {
+fn cell(j: u32, n: u32, ds: f32, w: f32, gamma: f32, sin_half_gamma: f32) -> vec3<f32> {
     if (j + 1u < n) {
-        return gl8(0.5 * ds, (f32(j) - 0.5) * ds, w, sin_half_gamma);
+        return gl8(0.5 * ds, (f32(j) - 0.5) * ds, w, gamma, sin_half_gamma);
     }
     // The last cell ends at s = 1 (x = ∞), where exp(−σt (d + x − D)) drops to zero within a
     // sliver of width ~ 1/(σt D) that one Gauss–Legendre rule cannot see: split it
@@ -63,32 +64,32 @@ fn cell(j: u32, n: u32, ds: f32, w: f32, sin_half_gamma: f32) -> vec3<f32> {
     var hi = ds;
     for (var k = 0u; k < 24u; k++) {
         let lo = select(0.25 * hi, 0.0, k == 23u);
-        acc += gl8_tail(0.5 * (hi - lo), 0.5 * (hi + lo), w, sin_half_gamma);
+        acc += gl8_tail(0.5 * (hi - lo), 0.5 * (hi + lo), w, gamma, sin_half_gamma);
         hi = lo;
     }
     return acc;
 }
 
 // ∫ over [mid − half, mid + half] in s.
-fn gl8(half: f32, mid: f32, w: f32, sin_half_gamma: f32) -> vec3<f32> {
+fn gl8(half: f32, mid: f32, w: f32, gamma: f32, sin_half_gamma: f32) -> vec3<f32> {
     var acc = vec3<f32>(0.0);
     for (var k = 0u; k < 4u; k++) {
         let off = half * GL8_X[k];
-        acc += GL8_W[k] * (table_integrand(air, mid - off, w, sin_half_gamma)
-                         + table_integrand(air, mid + off, w, sin_half_gamma));
+        acc += GL8_W[k] * (table_integrand(air, mid - off, w, gamma, sin_half_gamma)
+                         + table_integrand(air, mid + off, w, gamma, sin_half_gamma));
     }
     return acc * half;
 }
 
 // ∫ over 1 − s ∈ [mid − half, mid + half].
-fn gl8_tail(half: f32, mid: f32, w: f32, sin_half_gamma: f32) -> vec3<f32> {
+fn gl8_tail(half: f32, mid: f32, w: f32, gamma: f32, sin_half_gamma: f32) -> vec3<f32> {
     var acc = vec3<f32>(0.0);
     for (var k = 0u; k < 4u; k++) {
         let off = half * GL8_X[k];
         let r0 = mid - off;
         let r1 = mid + off;
-        acc += GL8_W[k] * (table_integrand_split(air, 1.0 - r0, r0, w, sin_half_gamma)
-                         + table_integrand_split(air, 1.0 - r1, r1, w, sin_half_gamma));
+        acc += GL8_W[k] * (table_integrand_split(air, 1.0 - r0, r0, w, gamma, sin_half_gamma)
+                         + table_integrand_split(air, 1.0 - r1, r1, w, gamma, sin_half_gamma));
     }
     return acc * half;
 }

@@ -53,14 +53,15 @@ fn iss_b_integrand(s: f32, tau: vec3<f32>, half_gamma: f32, width: f32) -> vec3<
     var sin_xi: f32;
     var cos_xi: f32;
     if (half_gamma + s <= 0.25 * PI) {
-        sin_xi = vs_sin(half_gamma + s);
-        cos_xi = vs_cos(half_gamma + s);
+        sin_xi = vs_sin_poly(half_gamma + s);
+        cos_xi = vs_cos_poly(half_gamma + s);
     } else {
         // cos ξ = sin(width − s) keeps its relative precision as ξ → π/2.
-        sin_xi = vs_cos(width - s);
-        cos_xi = vs_sin(width - s);
+        sin_xi = vs_cos_poly(width - s);
+        cos_xi = vs_sin_poly(width - s);
     }
-    let k = 2.0 * vs_sin(half_gamma) * vs_sin(s) / max(cos_xi, 1.0e-30);
+    // Small sines by `vs_sin_poly` (relative precision; WGSL's sin is absolute 2^-11).
+    let k = 2.0 * vs_sin_poly(half_gamma) * vs_sin_poly(s) / max(cos_xi, 1.0e-30);
     return 2.0 * phase(air, 2.0 * sin_xi * sin_xi, 2.0 * cos_xi * cos_xi) * vs_exp3(-tau * min(k, 1.0e30));
 }
 
@@ -86,7 +87,7 @@ fn iss_b(tau: vec3<f32>, gamma: f32, widths: vec2<f32>) -> vec3<f32> {
     }
     let t = max(max(tau.x, tau.y), tau.z);
     // Decay rate at the start, 2τ·tan(γ/2); the forward peak sits at s = −γ/2.
-    let rate = 2.0 * t * vs_tan(min(half_gamma, 0.5 * PI - 1.0e-6));
+    let rate = 2.0 * t * vs_tan_poly(min(half_gamma, 0.5 * PI - 1.0e-6));
     let start_scale = min(1.0 / max(rate, 1.0e-30), max(half_gamma, widths.x));
     let mid = 0.5 * width;
     var acc = vec3<f32>(0.0);
@@ -111,12 +112,13 @@ fn iss_b(tau: vec3<f32>, gamma: f32, widths: vec2<f32>) -> vec3<f32> {
 
 // W(α, γ) = ∫₀^{2π} (a + c cos φ)₊ dφ, a = cos α cos γ, c = sin α sin γ ≥ 0.
 fn iss_w(cos_a: f32, sin_a: f32, gamma: f32) -> f32 {
-    let a = cos_a * vs_cos(gamma);
-    let c = sin_a * vs_sin(gamma);
+    let cs = vs_cos_sin_pi(gamma);
+    let a = cos_a * cs.x;
+    let c = sin_a * cs.y;
     if (c <= abs(a)) {
         return 2.0 * PI * max(a, 0.0);
     }
-    let phi0 = vs_acos(clamp(-a / c, -1.0, 1.0));
+    let phi0 = vs_acos_poly(clamp(-a / c, -1.0, 1.0));
     // c · sin φ0 = sqrt((c − a)(c + a)).
     return 2.0 * (a * phi0 + vs_sqrt(max((c - a) * (c + a), 0.0)));
 }
@@ -176,7 +178,7 @@ fn build(@builtin(global_invocation_id) gid: vec3<u32>) {
     let tau = vec3<f32>(t);
     let widths = iss_peak_widths();
     // The kinks of W: γ = e and π − e, e = |π/2 − α| = |asin(cos α)|.
-    let e = abs(vs_asin(cos_a));
+    let e = abs(vs_asin_poly(cos_a));
     // Near γ = 0 the integrand changes over the glow's width ~1/τ and the forward peak's 2·w;
     // near γ = π over the backward peak's.
     let near0 = min(1.0 / t, 2.0 * widths.x);

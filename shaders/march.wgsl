@@ -84,17 +84,18 @@ struct MarchParams {
 @group(0) @binding(18) var shadow_back: texture_depth_2d_array;
 
 // Distance along the ray of the point with normalised scattering angle s (law of sines in the
-// eye–point–light triangle: x = D sin δ / sin β, δ = s w, β = (1 − s) w). sin β is taken as
-// sin(γ + δ) when β is near π, where it is small and f32 would lose it.
+// eye–point–light triangle: x = D sin δ / sin β, δ = s w, β = (1 − s) w). Each sine is taken
+// of the angle or its supplement (sin β = sin(γ + δ), sin δ = sin(γ + β)), whichever is smaller,
+// by `vs_sin_poly`: a small sine keeps its relative precision.
 fn x_of_s(r: AirRay, s: f32) -> f32 {
     if (DIRECTIONAL) {
         return directional_x(air, s);
     }
     let sc = min(s, 1.0 - 1.0e-6);
     let beta = (1.0 - sc) * r.w;
-    // sin β = sin(γ + δ): the same angle's supplement, taken where it is the smaller one.
-    let sin_beta = vs_sin(select(beta, r.gamma + sc * r.w, beta > 0.5 * PI));
-    return air.distance * vs_sin(sc * r.w) / max(sin_beta, 1.0e-30);
+    let delta = sc * r.w;
+    let sin_beta = sin_supplement(beta, r.gamma + delta);
+    return air.distance * sin_supplement(delta, r.gamma + beta) / max(sin_beta, 1.0e-30);
 }
 
 // The shared hard and soft visibility (shaders/pcss.wgsl) reads the light from here.
@@ -249,9 +250,10 @@ fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: TT, t1: TT, n
     // scene (2026-11-24, alternated in one process): 0.90 of the march at ½, the same p95.
     let mid0 = s0 + 0.5 * ds;
     let turn = 0.5 * ds * r.w;
-    let rot = vec2<f32>(vs_cos(turn), vs_sin(turn));
-    var half_delta = vec2<f32>(vs_cos(0.5 * mid0 * r.w), vs_sin(0.5 * mid0 * r.w));
-    var half_beta = vec2<f32>(vs_sin(0.5 * (r.gamma + mid0 * r.w)), vs_sin(0.5 * (1.0 - mid0) * r.w));
+    let rot = cos_sin(turn, 0.5 * PI - turn);
+    // δ/2 = s·w/2 with complement (γ + β)/2, β/2 with complement (γ + δ)/2.
+    var half_delta = cos_sin(0.5 * mid0 * r.w, 0.5 * (r.gamma + (1.0 - mid0) * r.w));
+    var half_beta = cos_sin(0.5 * (1.0 - mid0) * r.w, 0.5 * (r.gamma + mid0 * r.w));
     for (var i = 0u; i < n; i++) {
         let su = half_beta.y;
         let cu = half_beta.x;
@@ -295,7 +297,7 @@ fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: TT, t1: TT, n
         var piece_plain = 0.0;
         for (var j = 0u; j < pieces; j++) {
             let mid = s0 + ds * f32(step) + dp * (f32(j) + 0.5);
-            let w = table_integrand(air, mid, r.w, r.sin_half_gamma);
+            let w = table_integrand(air, mid, r.w, r.gamma, r.sin_half_gamma);
             let v = soft_grid_visibility(air.eye + x_of_s(r, mid) * ray.dir, true);
             piece_lit += v * w;
             piece_weights += w;
@@ -303,7 +305,7 @@ fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: TT, t1: TT, n
         }
         let v_step = piece_plain / f32(pieces);
         // dT/ds at the step's midpoint, as the step loop took it (to rounding).
-        let w_step = table_integrand(air, s0 + ds * (f32(step) + 0.5), r.w, r.sin_half_gamma);
+        let w_step = table_integrand(air, s0 + ds * (f32(step) + 0.5), r.w, r.gamma, r.sin_half_gamma);
         let v_mean = select(vec3<f32>(v_step), piece_lit / piece_weights, piece_weights > vec3<f32>(0.0));
         lit += v_mean * w_step;
         plain += v_step;
@@ -587,6 +589,7 @@ fn march_textbook(ray: PixelRay, r: AirRay, x_end: f32, n: u32) -> Textbook {
     let d_light = air.distance;
     let sigma_min = min(air.sigma_t.x, min(air.sigma_t.y, air.sigma_t.z));
     let x_cap = min(x_end, select(100.0 * d_light, TEXTBOOK_DEPTH / sigma_min, sigma_min > 0.0));
+    let log_si = vs_log3(air.sigma_s) + vs_log3(air.intensity);
     var sup: Support;
     sup.count = 1u;
     sup.x[0] = vec2<f32>(0.0, x_cap);
@@ -608,8 +611,10 @@ fn march_textbook(ray: PixelRay, r: AirRay, x_end: f32, n: u32) -> Textbook {
             let to_p = p - air.light_pos;
             let d = max(length(to_p), d_min);
             let mu = dot(to_p, -ray.dir) / max(length(to_p), 1.0e-30);
-            var f = air.sigma_s * air.intensity * phase(air, 1.0 - mu, 1.0 + mu)
-                  * vs_exp3(-air.sigma_t * (d + x)) / (d * d) * dx;
+            // σs I e^{−σt (d + x)} / d² in log space: e^{−σt (d + x)} alone may be subnormal
+            // (a GPU may flush it to zero) where the product is a visible radiance.
+            var f = phase(air, 1.0 - mu, 1.0 + mu)
+                  * vs_exp3(log_si - air.sigma_t * (d + x) - vec3<f32>(2.0 * vs_log(d))) * dx;
             if (TEXTURED) {
                 f *= light_texture(p, dx / d);
             }

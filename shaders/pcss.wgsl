@@ -253,6 +253,8 @@ fn soft_basis(p: vec3<f32>) -> SoftBasis {
     let u = rel / dist;
     let frame = soft_frame(u);
     let turn = soft_turn(p);
+    // Any rotation will do: WGSL's 2^-11 on each of cos and sin scales the taps' radius by at
+    // most 7e-4.
     return SoftBasis(dist, u, frame[0], frame[1], vec2<f32>(vs_cos(turn), vs_sin(turn)));
 }
 
@@ -431,10 +433,21 @@ fn soft_frame(u: vec3<f32>) -> array<vec3<f32>, 2> {
     );
 }
 
-// The spiral's turn at p: a hash of the point, so that successive steps of a ray see
-// different taps and the pattern's error averages out along it instead of adding up.
+// The spiral's turn at p, in [−π, π): a hash of the point, so that successive steps of a ray
+// see different taps and the pattern's error averages out along it instead of adding up. An
+// integer hash of the coordinates' bits, the same on every GPU (`sin` of a large argument,
+// the usual shader hash, has no precision WGSL promises outside [−π, π], and gave each GPU its
+// own pattern). The pattern is noise the soft tests' measured limits sit within: see the
+// soft-shadow notes in docs/METHOD.md for how the constant was chosen.
 fn soft_turn(p: vec3<f32>) -> f32 {
-    return 2.0 * PI * fract(vs_sin(dot(p, vec3<f32>(12.9898, 78.233, 37.719))) * 43758.5453);
+    let b = bitcast<vec3<u32>>(p);
+    var h = (b.x * 0x8da6b343u) ^ (b.y * 0xd8163841u) ^ (b.z * 0xcb1ab31fu) ^ 0x89abcdefu;
+    h ^= h >> 16u;
+    h *= 0x7feb352du;
+    h ^= h >> 15u;
+    h *= 0x846ca68bu;
+    h ^= h >> 16u;
+    return (f32(h >> 8u) * (1.0 / 8388608.0) - 1.0) * PI;
 }
 
 // The relative margin on the sine of a penumbra cone's half-angle (`may_be_hidden`, and the

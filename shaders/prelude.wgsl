@@ -83,9 +83,12 @@ fn air_ray(a: Airlight, ray: PixelRay) -> AirRay {
     var r: AirRay;
     r.c = length(cross(dir, to_light));
     r.dotv = dot(dir, to_light);
-    r.gamma = vs_atan2(r.c, r.dotv);
-    r.w = vs_atan2(r.c, -r.dotv);
-    r.sin_half_gamma = vs_sin(0.5 * r.gamma);
+    // Both angles from their own well-conditioned atan2 (relative precision to the last few
+    // bits whichever is small): γ near π (the light behind the eye) makes w small, and the
+    // table's integrand divides by the sines of fractions of w.
+    r.gamma = vs_atan2_poly(r.c, r.dotv);
+    r.w = vs_atan2_poly(r.c, -r.dotv);
+    r.sin_half_gamma = vs_sin_poly(0.5 * r.gamma);
     // The singular 1/h of form (2): clamped by the pixel's footprint at the light when looking
     // towards it (a point light seen through fog is infinitely bright at γ = 0); towards γ = π
     // the ratio w / sin γ tends to 1 and needs no clamp.
@@ -97,9 +100,11 @@ fn air_ray(a: Airlight, ray: PixelRay) -> AirRay {
     } else if (sin_gamma > 1.0e-30) {
         ratio = r.w / sin_gamma;
     }
-    // In log space: at σt·D = 100, exp(−σt D) = 4e-44 is below f32's normal range while
-    // I0 · exp(−σt D) may still be a visible radiance. log(0) = −inf gives exp = 0, no NaN.
-    r.prefactor = vs_exp3(vs_log3(a.intensity) + vs_log3(a.sigma_s) - a.sigma_t * d) * (ratio / d);
+    // In log space, every factor in the one exponent: at σt·D = 100, exp(−σt D) = 4e-44 is
+    // below f32's normal range (a GPU may flush it to zero) while I0 · exp(−σt D) · w / (D sin γ)
+    // may still be a visible radiance. log(0) = −inf gives exp = 0, no NaN.
+    r.prefactor = vs_exp3(vs_log3(a.intensity) + vs_log3(a.sigma_s) - a.sigma_t * d
+                          + vec3<f32>(vs_log(ratio / d)));
     return r;
 }
 
@@ -156,22 +161,43 @@ fn directional_x(a: Airlight, s: f32) -> f32 {
     return min(a.distance * s / (1.0 - s), FAR);
 }
 
+// (cos h, sin h) of an angle h ∈ [0, π/2] whose complement π/2 − h the caller computed
+// without cancellation (`co`), each to a few ULP relative: the sine of a small h, and the
+// cosine of an h near π/2, are the quantities whose relative precision WGSL's `sin` and `cos`
+// (absolute 2^-11) do not keep.
+fn cos_sin(h: f32, co: f32) -> vec2<f32> {
+    if (h > 0.25 * PI) {
+        return vec2<f32>(vs_sin_poly(co), vs_cos_poly(co));
+    }
+    return vec2<f32>(vs_cos_poly(h), vs_sin_poly(h));
+}
+
+// sin θ for θ ∈ [0, π] given θ and its supplement π − θ (computed without cancellation), to a
+// few ULP relative.
+fn sin_supplement(theta: f32, supplement: f32) -> f32 {
+    return vs_sin_poly(min(theta, supplement));
+}
+
 // The bounded integrand of form (2) in the normalised scattering angle s = (2ξ − γ)/(π − γ):
 // T(γ, s) = ∫₀^s p(cos 2ξ) exp(−σt (d + x − D)) ds'. Everything is computed from
 // a = ξ − γ/2 and u = π/2 − ξ, so no difference of nearly equal numbers appears:
 //   d + x − D = 2 D sin(γ/2) sin(a) / sin(u),   1 ± cos 2ξ = 2 sin²(u) resp. 2 cos²(u).
-fn table_integrand(a: Airlight, s: f32, w: f32, sin_half_gamma: f32) -> vec3<f32> {
-    return table_integrand_split(a, s, 1.0 - s, w, sin_half_gamma);
+// The sines and cosines are `vs_sin_poly` / `vs_cos_poly` (relative precision): the light
+// behind the eye makes w = π − γ small, and sin(u) of a small u with WGSL's absolute 2^-11
+// error moved the table's tails by up to 33 times their value.
+fn table_integrand(a: Airlight, s: f32, w: f32, gamma: f32, sin_half_gamma: f32) -> vec3<f32> {
+    return table_integrand_split(a, s, 1.0 - s, w, gamma, sin_half_gamma);
 }
 
 // The same with 1 − s given separately, so the tail next to s = 1 (where the attenuation
 // falls to zero within a sliver of width ~ 1/(σt·D)) keeps its relative precision.
-fn table_integrand_split(a: Airlight, s: f32, one_minus_s: f32, w: f32, sin_half_gamma: f32) -> vec3<f32> {
+fn table_integrand_split(a: Airlight, s: f32, one_minus_s: f32, w: f32, gamma: f32, sin_half_gamma: f32) -> vec3<f32> {
     let half_a = 0.5 * s * w;
-    let u = 0.5 * one_minus_s * w;
-    let su = vs_sin(u);
-    let cu = vs_cos(u);
-    let ratio = min(vs_sin(half_a) / max(su, 1.0e-30), 1.0e20);
+    // u = (1 − s)·w/2 and π/2 − u = (γ + s·w)/2 (γ + w = π).
+    let u = cos_sin(0.5 * one_minus_s * w, 0.5 * (gamma + s * w));
+    let cu = u.x;
+    let su = u.y;
+    let ratio = min(vs_sin_poly(half_a) / max(su, 1.0e-30), 1.0e20);
     let tau = (2.0 * a.distance * sin_half_gamma * ratio) * a.sigma_t;
     return phase(a, 2.0 * cu * cu, 2.0 * su * su) * vs_exp3(-tau);
 }
@@ -180,8 +206,8 @@ fn table_integrand_split(a: Airlight, s: f32, one_minus_s: f32, w: f32, sin_half
 // the eye–point–light triangle: δ at the light and β at the point, s = δ / (δ + β).
 fn scattering_s(a: Airlight, r: AirRay, x: f32) -> f32 {
     let d = a.distance;
-    let delta = vs_atan2(x * r.c, d * d - x * r.dotv);
-    let beta = vs_atan2(r.c, x - r.dotv);
+    let delta = vs_atan2_poly(x * r.c, d * d - x * r.dotv);
+    let beta = vs_atan2_poly(r.c, x - r.dotv);
     return clamp(delta / max(delta + beta, 1.0e-30), 0.0, 1.0);
 }
 
@@ -230,9 +256,9 @@ fn table_partial(a: Airlight, r: AirRay, s: f32, j: u32) -> vec3<f32> {
     }
     let mid = s0 + half_len;
     let k = 0.7745966692414834 * half_len;
-    let f = 0.5555555555555556 * (table_integrand(a, mid - k, r.w, r.sin_half_gamma)
-                                + table_integrand(a, mid + k, r.w, r.sin_half_gamma))
-          + 0.8888888888888888 * table_integrand(a, mid, r.w, r.sin_half_gamma);
+    let f = 0.5555555555555556 * (table_integrand(a, mid - k, r.w, r.gamma, r.sin_half_gamma)
+                                + table_integrand(a, mid + k, r.w, r.gamma, r.sin_half_gamma))
+          + 0.8888888888888888 * table_integrand(a, mid, r.w, r.gamma, r.sin_half_gamma);
     return f * half_len;
 }
 

@@ -265,7 +265,7 @@ fn estimate_listed(
 // penumbra, or the edge between lit and umbra, too sharp for the grid's interpolation across
 // directions): the march blends in the shadow map's own visibility there.
 fn is_sharp(e: vec2<f32>) -> bool {
-    return e.y >= 0.0 && e.y < SHARP_CELLS * vs_tan(mp.soft.w);
+    return e.y >= 0.0 && e.y < SHARP_CELLS * vs_tan_poly(mp.soft.w);
 }
 
 // Writes a direction's column to the grid. b: 1 where the visibility jumps to a neighbouring
@@ -428,7 +428,7 @@ fn store_anchors(@builtin(global_invocation_id) thread: vec3<u32>) {
 // tap: nothing to resolve).
 fn summary(e: vec2<f32>) -> vec3<f32> {
     let sharp = select(0.0, 1.0, is_sharp(e));
-    let wide = select(min(e.y / vs_tan(mp.soft.w), 1.0e4), 1.0e4, e.y < 0.0);
+    let wide = select(min(e.y / vs_tan_poly(mp.soft.w), 1.0e4), 1.0e4, e.y < 0.0);
     return vec3<f32>(e.x, sharp, wide);
 }
 

@@ -15,7 +15,9 @@ use volshadow::nodes::{
 use volshadow::reference::{
     surface_inscatter, surface_inscatter_normalised, surface_inscatter_scale,
 };
-use volshadow::{Cache, Camera, HeadlessGpu, Light, Medium, PhaseFunction, PointLight};
+use volshadow::{
+    Cache, Camera, HeadlessGpu, Light, Medium, PhaseFunction, PointLight, ShaderPrecision,
+};
 
 const PHASES: [(&str, PhaseFunction); 3] = [
     ("isotropic", PhaseFunction::Isotropic),
@@ -70,8 +72,18 @@ fn build(
 /// elsewhere.
 #[test]
 fn entries_match_the_reference() {
+    entries_match_the_reference_at(ShaderPrecision::Native);
+}
+
+/// The same entries and bar with every transcendental built-in off by the most WGSL allows.
+#[test]
+fn entries_match_the_reference_worst_case() {
+    entries_match_the_reference_at(common::WORST_CASE);
+}
+
+fn entries_match_the_reference_at(precision: ShaderPrecision) {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = Cache::with_precision(&gpu.device, precision);
     let size = IssTableSize { tau: 33, alpha: 65 };
     let (nu, nv) = (size.tau as usize, size.alpha as usize);
     let mut failures = Vec::new();
@@ -107,7 +119,7 @@ fn entries_match_the_reference() {
             }
         }
         eprintln!(
-            "{name}: {} entries, max relative error {:.2e} (at τ {:.3e}, α {:.4}); reference {:.1?}",
+            "{precision:?}: {name}: {} entries, max relative error {:.2e} (at τ {:.3e}, α {:.4}); reference {:.1?}",
             checked.len(),
             worst.0,
             worst.1,
@@ -120,7 +132,7 @@ fn entries_match_the_reference() {
     }
     assert!(
         failures.is_empty(),
-        "entries off by more than 1e-3: {failures:?}"
+        "{precision:?}: entries off by more than 1e-3: {failures:?}"
     );
 }
 

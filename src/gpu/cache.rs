@@ -6,67 +6,12 @@
 use std::collections::HashMap;
 use std::sync::Mutex;
 
+use crate::gpu::precision::{self, ShaderPrecision};
 use crate::gpu::GpuTimer;
 use crate::nodes;
 use crate::plan::Pass;
 
 const PRELUDE: &str = include_str!("../../shaders/prelude.wgsl");
-const PRECISION: &str = include_str!("../../shaders/precision.wgsl");
-/// The line of `precision.wgsl` that selects what its wrappers compute (see [`ShaderPrecision`]).
-const PRECISION_LINE: &str = "const VOLSHADOW_PRECISION: u32 = 0u;";
-
-/// How the shaders evaluate WGSL's transcendental built-ins (`sin`, `exp`, `atan2`, …), each of
-/// which they call through one wrapper.
-///
-/// A renderer uses [`ShaderPrecision::Native`], the default. WGSL promises far less of these
-/// functions than most drivers give (`sin` and `cos`: an absolute error of 2^-11; `atan2`: 4096
-/// ULP; `exp`: 3 + 2·|x| ULP; subnormals may flush to zero), and a CPU driver such as lavapipe
-/// is nearly exact, so an image that is right there may still be wrong on a GPU.
-/// [`ShaderPrecision::WorstCase`] makes every wrapper return the built-in's result moved by the
-/// largest error WGSL allows and flush subnormal results to zero: the crate's accuracy tests run
-/// in it on lavapipe, with their usual bounds. It costs time and is never a renderer's setting.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
-pub enum ShaderPrecision {
-    /// The built-ins as the driver implements them.
-    #[default]
-    Native,
-    /// Each built-in's result moved by the largest error WGSL allows for it, in the direction
-    /// given, and subnormal results flushed to zero (a test mode).
-    WorstCase(ErrorSign),
-}
-
-/// The direction of [`ShaderPrecision::WorstCase`]'s errors.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum ErrorSign {
-    /// Every result moved up.
-    Up,
-    /// Every result moved down.
-    Down,
-    /// Up or down by a hash of the argument's bits, as a real GPU's error changes sign from
-    /// one argument to the next.
-    Mixed,
-}
-
-impl ShaderPrecision {
-    /// Every precision, the native one first.
-    pub const ALL: [ShaderPrecision; 4] = [
-        ShaderPrecision::Native,
-        ShaderPrecision::WorstCase(ErrorSign::Up),
-        ShaderPrecision::WorstCase(ErrorSign::Down),
-        ShaderPrecision::WorstCase(ErrorSign::Mixed),
-    ];
-
-    /// `VOLSHADOW_PRECISION` in `precision.wgsl`.
-    fn mode(self) -> u32 {
-        match self {
-            ShaderPrecision::Native => 0,
-            ShaderPrecision::WorstCase(ErrorSign::Up) => 1,
-            ShaderPrecision::WorstCase(ErrorSign::Down) => 2,
-            ShaderPrecision::WorstCase(ErrorSign::Mixed) => 3,
-        }
-    }
-}
-
 /// Every node's layouts and pipelines on one device. Cloning is cheap (handles).
 ///
 /// Used in the [crate-level example](crate#example).
@@ -291,11 +236,7 @@ pub(crate) fn cached<K: std::hash::Hash + Eq, V: Clone>(
 /// The precision wrappers (at `precision`) and the prelude followed by one node's WGSL, as
 /// compiled.
 pub(crate) fn compose(node_source: &str, precision: ShaderPrecision) -> String {
-    let wrappers = PRECISION.replacen(
-        PRECISION_LINE,
-        &format!("const VOLSHADOW_PRECISION: u32 = {}u;", precision.mode()),
-        1,
-    );
+    let wrappers = precision::wgsl(precision);
     format!("{wrappers}\n{PRELUDE}\n{node_source}")
 }
 
@@ -453,13 +394,14 @@ pub(crate) fn fullscreen_pipeline(
 
 #[cfg(test)]
 mod tests {
-    use super::{compose, ShaderPrecision};
+    use super::compose;
+    use crate::gpu::ShaderPrecision;
 
     /// Where line `line` (1-based) of `compose`'s output for `file` comes from: `(file, line)` in
     /// that file or in `prelude.wgsl` (naga numbers the composed source's lines).
     fn source_line(file: &str, line: usize) -> (&str, usize) {
         // `compose` adds a line break after each.
-        let precision = super::PRECISION.lines().count() + 1;
+        let precision = super::precision::WGSL.lines().count() + 1;
         let prelude = precision + super::PRELUDE.lines().count() + 1;
         match (line.checked_sub(prelude), line.checked_sub(precision)) {
             (Some(l), _) if l > 0 => (file, l),

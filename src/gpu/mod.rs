@@ -4,11 +4,13 @@
 pub(crate) mod cache;
 pub mod headless;
 mod mesh;
+pub(crate) mod precision;
 mod timer;
 pub(crate) mod uniforms;
 
-pub use cache::{Cache, ErrorSign, ShaderPrecision};
+pub use cache::Cache;
 pub use mesh::{Occluder, OccluderMesh};
+pub use precision::{ErrorSign, ShaderPrecision};
 pub use timer::{GpuTimer, PassTime};
 
 use crate::error::{Error, Result};

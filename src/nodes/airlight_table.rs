@@ -35,10 +35,9 @@
 //! off by up to 106% from heads alone (see `docs/METHOD.md`).
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{
-    bind_group, compute_pipeline, dispatch, layout, module, Binding, ShaderPrecision,
-};
+use crate::gpu::cache::{bind_group, compute_pipeline, dispatch, layout, module, Binding};
 use crate::gpu::uniforms::AirlightUniform;
+use crate::gpu::ShaderPrecision;
 use crate::gpu::{texture_2d, Cache, GpuTimer, UniformBuffer};
 use crate::plan::Pass;
 use crate::scene::{Light, Medium};

@@ -25,10 +25,9 @@ use std::sync::{Arc, Mutex};
 use bytemuck::Zeroable;
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{
-    bind_group, cached, fullscreen_pipeline, layout, module, Binding, ShaderPrecision,
-};
+use crate::gpu::cache::{bind_group, cached, fullscreen_pipeline, layout, module, Binding};
 use crate::gpu::uniforms::{CompositeUniform, SurfacesUniform, ViewUniform};
+use crate::gpu::ShaderPrecision;
 use crate::gpu::{
     check_depth_texture, check_float_texture, check_size, depth_view, texture_2d, Cache, GpuTimer,
     UniformBuffer,

@@ -33,10 +33,9 @@
 use glam::Mat4;
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{
-    bind_group, compute_pipeline, depth_pipeline, layout, module, Binding, ShaderPrecision,
-};
+use crate::gpu::cache::{bind_group, compute_pipeline, depth_pipeline, layout, module, Binding};
 use crate::gpu::uniforms::ViewUniform;
+use crate::gpu::ShaderPrecision;
 use crate::gpu::{
     check_depth_texture, check_target_size, depth_view, Cache, GpuTimer, Occluder, UniformBuffer,
 };

@@ -51,10 +51,9 @@
 //! device, and hardware filtering's 8-bit weights would cost the table its accuracy.
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{
-    bind_group, compute_pipeline, dispatch, layout, module, Binding, ShaderPrecision,
-};
+use crate::gpu::cache::{bind_group, compute_pipeline, dispatch, layout, module, Binding};
 use crate::gpu::uniforms::AirlightUniform;
+use crate::gpu::ShaderPrecision;
 use crate::gpu::{texture_2d, Cache, GpuTimer, UniformBuffer};
 use crate::plan::Pass;
 use crate::scene::Medium;

@@ -11,9 +11,8 @@
 //! rebuilt only when the input texture changes.
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{
-    bind_group, fullscreen_pipeline, layout, module, Binding, ShaderPrecision,
-};
+use crate::gpu::cache::{bind_group, fullscreen_pipeline, layout, module, Binding};
+use crate::gpu::ShaderPrecision;
 use crate::gpu::{Cache, GpuTimer};
 use crate::plan::Pass;
 

@@ -40,10 +40,9 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{
-    bind_group, cached, compute_pipeline, dispatch, layout, module, Binding, ShaderPrecision,
-};
+use crate::gpu::cache::{bind_group, cached, compute_pipeline, dispatch, layout, module, Binding};
 use crate::gpu::uniforms::{AirlightUniform, ViewUniform};
+use crate::gpu::ShaderPrecision;
 use crate::gpu::{
     check_depth_layers, check_depth_texture, check_size, check_target_size, depth_array_view,
     depth_view, texture_2d, texture_3d, Cache, GpuTimer, UniformBuffer,

@@ -32,7 +32,8 @@
 use glam::{Mat4, Vec3, Vec4};
 
 use crate::error::{finite, Error, Result};
-use crate::gpu::cache::{bind_group, depth_pipeline, layout, module, Binding, ShaderPrecision};
+use crate::gpu::cache::{bind_group, depth_pipeline, layout, module, Binding};
+use crate::gpu::ShaderPrecision;
 use crate::gpu::{Cache, GpuTimer, Occluder};
 use crate::plan::Pass;
 use crate::scene::{Camera, DirectionalLight, Light};

@@ -164,7 +164,8 @@
 //! quarters of the cells (4 bytes each): about 7.9 MiB in all at the default size.
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{bind_group, compute_pipeline, layout, module, Binding, ShaderPrecision};
+use crate::gpu::cache::{bind_group, compute_pipeline, layout, module, Binding};
+use crate::gpu::ShaderPrecision;
 use crate::gpu::{
     check_depth_layers, depth_array_view, texture_3d, Cache, GpuTimer, UniformBuffer,
 };

@@ -111,10 +111,9 @@ impl UpsampleFilter {
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
-use crate::gpu::cache::{
-    bind_group, cached, compute_pipeline, layout, module, Binding, ShaderPrecision,
-};
+use crate::gpu::cache::{bind_group, cached, compute_pipeline, layout, module, Binding};
 use crate::gpu::uniforms::ViewUniform;
+use crate::gpu::ShaderPrecision;
 use crate::gpu::{check_depth_texture, check_float_texture, Cache, GpuTimer, UniformBuffer};
 use crate::plan::Pass;
 use crate::scene::Camera;
