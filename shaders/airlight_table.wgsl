@@ -1,21 +1,22 @@
-// F′ table builder: one invocation per row γ_i = π t_i², t_i = i / (rows − 1). Its sines are
-// `vs_sin_poly` (relative precision; see `table_integrand`).
-// Entry j holds T(γ_i, s_j) = ∫₀^{s_j} p exp(−σt (d + x − D)) ds, s_j = j / (n − 1), integrated
-// by 8-point Gauss–Legendre per cell and a compensated running sum along the row; entry n + j
-// the tail ∫_{s_j}^1, summed from s = 1.
+// F′ table builder, first pass: one invocation per cell (j, i) of row γ_i = π t_i²,
+// t_i = i / (rows − 1): the cell's integral ∫_{s_{j−1}}^{s_j} p exp(−σt (d + x − D)) ds,
+// s_j = j / (n − 1), by 8-point Gauss–Legendre, into column j of `cells_out`. The second pass
+// (airlight_table_sum.wgsl) sums each row's cells into the heads T(γ_i, s_j) and the tails.
+// Its sines are `vs_sin_poly` (relative precision; see `table_integrand`).
 
 @group(0) @binding(0) var<storage, read> air: Airlight;
-@group(0) @binding(1) var table_out: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(1) var cells_out: texture_storage_2d<rgba32float, write>;
 
 const GL8_X = array<f32, 4>(0.1834346424956498, 0.5255324099163290, 0.7966664774136267, 0.9602898564975363);
 const GL8_W = array<f32, 4>(0.3626837833783620, 0.3137066458778873, 0.2223810344533745, 0.1012285362903763);
 
 @compute @workgroup_size(64)
-fn build(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn cells(@builtin(global_invocation_id) gid: vec3<u32>) {
     let rows = air.table_across;
     let n = air.table_along;
-    let i = gid.x;
-    if (i >= rows) {
+    let j = gid.x + 1u;
+    let i = gid.y;
+    if (j >= n || i >= rows) {
         return;
     }
     let t = f32(i) / f32(rows - 1u);
@@ -25,31 +26,7 @@ fn build(@builtin(global_invocation_id) gid: vec3<u32>) {
     let w = max(PI * (1.0 - t) * (1.0 + t), 1.0e-6);
     let sin_half_gamma = vs_sin_poly(0.5 * gamma);
     let ds = 1.0 / f32(n - 1u);
-    // Columns [0, n): T from the eye (s = 0) to s_j. Columns [n, 2n): the tail, T from s_j to
-    // the end (s = 1), summed from that end: an interval far from where the integrand peaks
-    // (an optically thick medium) is a small difference of two large heads, but of two small
-    // tails when it lies beyond the peak (see `t_between` in prelude.wgsl).
-    var sum = vec3<f32>(0.0);
-    var carry = vec3<f32>(0.0);
-    textureStore(table_out, vec2<u32>(0u, i), vec4<f32>(0.0));
-    for (var j = 1u; j < n; j++) {
-        // Kahan summation: a row of 255 cells keeps the f32 sum to ~1e-7 relative.
-        let y = cell(j, n, ds, w, gamma, sin_half_gamma) - carry;
-        let next = sum + y;
-        carry = (next - sum) - y;
-        sum = next;
-        textureStore(table_out, vec2<u32>(j, i), vec4<f32>(sum, 0.0));
-    }
-    sum = vec3<f32>(0.0);
-    carry = vec3<f32>(0.0);
-    textureStore(table_out, vec2<u32>(2u * n - 1u, i), vec4<f32>(0.0));
-    for (var j = n - 1u; j >= 1u; j--) {
-        let y = cell(j, n, ds, w, gamma, sin_half_gamma) - carry;
-        let next = sum + y;
-        carry = (next - sum) - y;
-        sum = next;
-        textureStore(table_out, vec2<u32>(n + j - 1u, i), vec4<f32>(sum, 0.0));
-    }
+    textureStore(cells_out, vec2<u32>(j, i), vec4<f32>(cell(j, n, ds, w, gamma, sin_half_gamma), 0.0));
 }
 
 // ∫ over cell j, [s_{j−1}, s_j], of a row.

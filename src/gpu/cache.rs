@@ -435,6 +435,10 @@ mod tests {
                 include_str!("../../shaders/airlight_table.wgsl"),
             ),
             (
+                "airlight_table_sum.wgsl",
+                include_str!("../../shaders/airlight_table_sum.wgsl"),
+            ),
+            (
                 "composite.wgsl",
                 concat!(
                     include_str!("../../shaders/iss.wgsl"),

@@ -1,4 +1,8 @@
-//! The per-frame airlight table F′, built by a compute pass.
+//! The per-frame airlight table F′, built by a compute pass of two dispatches: each cell's
+//! integral (8-point Gauss–Legendre), one invocation a cell, into an intermediate
+//! `Rgba32Float` texture of `along_ray × across_rays`; then each row's compensated sums of its
+//! cells, from either end, one invocation a row. The cells are the work (every integrand
+//! evaluation), so they spread over the GPU; the sums are additions.
 //!
 //! Within a frame D = |P − E|, σt and the phase are fixed, so the bounded integral of the
 //! stable form of Sun et al.'s airlight (see [`crate::reference`]) is a function of two numbers: the ray's angle γ to the light and the
@@ -95,27 +99,52 @@ impl TableSize {
     }
 }
 
-/// The table's binding table: `@binding(i)` of `shaders/airlight_table.wgsl` is entry `i`.
-const BINDINGS: [Binding; 2] = [
+/// The first pass's binding table: `@binding(i)` of `shaders/airlight_table.wgsl` is entry `i`.
+const CELL_BINDINGS: [Binding; 2] = [
     Binding::Params,                                    // air
+    Binding::Storage(wgpu::TextureFormat::Rgba32Float), // cells_out
+];
+
+/// The second pass's: `@binding(i)` of `shaders/airlight_table_sum.wgsl` is entry `i`.
+const SUM_BINDINGS: [Binding; 3] = [
+    Binding::Params,                                    // air
+    Binding::Texture,                                   // cells_in
     Binding::Storage(wgpu::TextureFormat::Rgba32Float), // table_out
 ];
 
-/// The table's layout and pipeline, held by the [`Cache`].
+/// The table's layouts and pipelines, held by the [`Cache`]: the cells' integrals, one
+/// invocation each, then their sums along each row.
 #[derive(Clone)]
 pub(crate) struct Pipelines {
-    layout: wgpu::BindGroupLayout,
-    build: wgpu::ComputePipeline,
+    cell_layout: wgpu::BindGroupLayout,
+    sum_layout: wgpu::BindGroupLayout,
+    cells: wgpu::ComputePipeline,
+    sum: wgpu::ComputePipeline,
 }
 
 impl Pipelines {
     pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
-        let label = "volshadow F' table";
-        let layout = layout(device, label, wgpu::ShaderStages::COMPUTE, &BINDINGS);
+        let label = "volshadow F' table cells";
+        let cell_layout = layout(device, label, wgpu::ShaderStages::COMPUTE, &CELL_BINDINGS);
         let source = include_str!("../../shaders/airlight_table.wgsl");
-        let module = module(device, "volshadow airlight_table.wgsl", source, precision);
-        let build = compute_pipeline(device, label, &layout, &module, "build", &[]);
-        Self { layout, build }
+        let cell_module = module(device, "volshadow airlight_table.wgsl", source, precision);
+        let cells = compute_pipeline(device, label, &cell_layout, &cell_module, "cells", &[]);
+        let label = "volshadow F' table sums";
+        let sum_layout = layout(device, label, wgpu::ShaderStages::COMPUTE, &SUM_BINDINGS);
+        let source = include_str!("../../shaders/airlight_table_sum.wgsl");
+        let sum_module = module(
+            device,
+            "volshadow airlight_table_sum.wgsl",
+            source,
+            precision,
+        );
+        let sum = compute_pipeline(device, label, &sum_layout, &sum_module, "sum", &[]);
+        Self {
+            cell_layout,
+            sum_layout,
+            cells,
+            sum,
+        }
     }
 }
 
@@ -136,8 +165,9 @@ pub struct AirlightTableNode {
     size: TableSize,
     texture: wgpu::Texture,
     uniform: UniformBuffer<AirlightUniform>,
-    bind_group: wgpu::BindGroup,
-    pipeline: wgpu::ComputePipeline,
+    cell_group: wgpu::BindGroup,
+    sum_group: wgpu::BindGroup,
+    pipelines: Pipelines,
     pending: bool,
 }
 
@@ -158,20 +188,44 @@ impl AirlightTableNode {
                 | wgpu::TextureUsages::TEXTURE_BINDING
                 | wgpu::TextureUsages::COPY_SRC,
         );
+        // Each cell's integral (column j: the cell [s_{j−1}, s_j]; column 0 unused), between
+        // the two passes.
+        let cells = texture_2d(
+            device,
+            "volshadow F' table cells",
+            (size.along_ray, size.across_rays, 1),
+            wgpu::TextureFormat::Rgba32Float,
+            wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+        );
         let uniform = UniformBuffer::new(device, "volshadow F' table uniform");
         let view = texture.create_view(&Default::default());
-        let bind_group = bind_group(
+        let cells_view = cells.create_view(&Default::default());
+        let cell_group = bind_group(
             device,
-            "volshadow F' table",
-            &cache.table.layout,
-            [uniform.binding(), wgpu::BindingResource::TextureView(&view)],
+            "volshadow F' table cells",
+            &cache.table.cell_layout,
+            [
+                uniform.binding(),
+                wgpu::BindingResource::TextureView(&cells_view),
+            ],
+        );
+        let sum_group = bind_group(
+            device,
+            "volshadow F' table sums",
+            &cache.table.sum_layout,
+            [
+                uniform.binding(),
+                wgpu::BindingResource::TextureView(&cells_view),
+                wgpu::BindingResource::TextureView(&view),
+            ],
         );
         Ok(Self {
             size,
             texture,
             uniform,
-            bind_group,
-            pipeline: cache.table.build.clone(),
+            cell_group,
+            sum_group,
+            pipelines: cache.table.clone(),
             pending: false,
         })
     }
@@ -202,14 +256,17 @@ impl AirlightTableNode {
         if !std::mem::take(&mut self.pending) {
             return Ok(());
         }
-        let groups = (self.size.across_rays.div_ceil(64), 1, 1);
-        let (pipeline, bind_group) = (&self.pipeline, &self.bind_group);
+        let (n, rows) = (self.size.along_ray, self.size.across_rays);
+        let p = &self.pipelines;
         dispatch(
             encoder,
             timer,
             Pass::AirlightTable,
             "volshadow F' table",
-            &[(pipeline, bind_group, groups)],
+            &[
+                (&p.cells, &self.cell_group, ((n - 1).div_ceil(64), rows, 1)),
+                (&p.sum, &self.sum_group, (rows.div_ceil(64), 1, 1)),
+            ],
         );
         Ok(())
     }

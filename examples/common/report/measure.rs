@@ -505,7 +505,7 @@ pub fn measure(
 /// pass that depends on the light runs, and no resource is recreated (as when a light moves
 /// in an app; [`VolumetricShadows::invalidate`] also recreates them, and a new grid is set
 /// lit everywhere before its first build).
-fn moved_lights<'a>(lights: &[FrameLight<'a>]) -> Result<Vec<FrameLight<'a>>, BoxError> {
+pub fn moved_lights<'a>(lights: &[FrameLight<'a>]) -> Result<Vec<FrameLight<'a>>, BoxError> {
     lights
         .iter()
         .map(|l| {

@@ -71,6 +71,9 @@ use output::{today, write_outputs};
 // For `tests/examples.rs`.
 #[allow(unused_imports)]
 pub use {cache::reference_sources, metrics::errors};
+// For `benches/frame.rs`.
+#[allow(unused_imports)]
+pub use measure::moved_lights;
 
 use super::render_scene;
 use super::{read_inscatter, with_aspect, BoxError};

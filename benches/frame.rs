@@ -1,0 +1,338 @@
+//! The whole-frame cost of the facade on the standard scenes, the light and the camera moving
+//! every frame.
+//!
+//! ```text
+//! cargo bench --bench frame [-- [--size WxH] [--scenes A.json,B.json] [--method METHOD]
+//!                                [--frames N] [--warmup N] [--passes] [--out FILE.json]]
+//! ```
+//!
+//! Per scene (default: every `scenes/*.json`), after `--warmup` frames (default 5), `--frames`
+//! frames (default 30) are recorded and submitted back to back, as an application's frame loop
+//! would: each frame moves the lights (by a hundred-thousandth of their distance) and turns the
+//! camera (by 1e-4 rad), so every pass that depends on them runs and nothing is recreated. The
+//! application's own colour and depth are drawn once (a real application redraws them; their
+//! cost is not volshadow's).
+//!
+//! * **GPU time per frame**: on a GPU, one timestamp pair around each frame's passes (an empty
+//!   compute pass before and after them); on a CPU adapter (lavapipe), whose timestamps do not
+//!   bracket compute dispatches, the wall clock of the frame's submission waited for alone
+//!   (there the submission is the run). Median, p10 and p90 over the frames.
+//! * **Wall time per frame**: the frames submitted back to back without waiting, the time to
+//!   the last one's completion divided by their number (prepare and recording included).
+//! * `--passes`: each pass's median GPU time as well (`HeadlessGpu::run_timed`, one extra
+//!   round of frames).
+//!
+//! `--size` defaults to 1920x1080 on a GPU and 256x144 on a CPU adapter; `--method` to each
+//! scene's own (`render`'s syntax: `exact[:SCALE]`, `hybrid:STEPS:SCALE`, `brute:STEPS`,
+//! `textbook:STEPS`, `analytic`). Prints a table and writes JSON (default
+//! `target/bench-frame.json`). Adapter choice: `WGPU_BACKEND`, `WGPU_ADAPTER_NAME`.
+
+#[path = "../examples/common/mod.rs"]
+mod common;
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use common::render_scene::{GpuScene, RenderMethod};
+use common::report::moved_lights;
+use common::{parse_size, with_aspect, BoxError};
+use lexopt::prelude::*;
+use volshadow::glam::Mat4;
+use volshadow::scene_file::{Method, SceneDescription};
+use volshadow::{Cache, Camera, FrameLight, HeadlessGpu, Settings, VolumetricShadows};
+
+struct Options {
+    size: Option<(u32, u32)>,
+    scenes: Vec<PathBuf>,
+    method: Option<RenderMethod>,
+    frames: usize,
+    warmup: usize,
+    passes: bool,
+    out: PathBuf,
+}
+
+const USAGE: &str = "usage: cargo bench --bench frame [-- [--size WxH] [--scenes A.json,B.json] \
+[--method METHOD] [--frames N] [--warmup N] [--passes] [--out FILE.json]]";
+
+fn parse() -> Result<Options, BoxError> {
+    let mut o = Options {
+        size: None,
+        scenes: Vec::new(),
+        method: None,
+        frames: 30,
+        warmup: 5,
+        passes: false,
+        out: PathBuf::from("target/bench-frame.json"),
+    };
+    let mut parser = lexopt::Parser::from_env();
+    while let Some(arg) = parser.next()? {
+        match arg {
+            Long("size") => o.size = Some(parse_size(&parser.value()?.string()?)?),
+            Long("scenes") => {
+                o.scenes = parser
+                    .value()?
+                    .string()?
+                    .split(',')
+                    .map(PathBuf::from)
+                    .collect()
+            }
+            Long("method") => o.method = Some(RenderMethod::parse(&parser.value()?.string()?)?),
+            Long("frames") => o.frames = parser.value()?.parse()?,
+            Long("warmup") => o.warmup = parser.value()?.parse()?,
+            Long("passes") => o.passes = true,
+            Long("out") => o.out = parser.value()?.into(),
+            // `cargo bench` passes `--bench` to every bench binary.
+            Long("bench") => {}
+            Long("help") | Short('h') => {
+                println!("{USAGE}");
+                std::process::exit(0);
+            }
+            _ => return Err(format!("{}\n{USAGE}", arg.unexpected()).into()),
+        }
+    }
+    if o.frames == 0 {
+        return Err("--frames must be at least 1".into());
+    }
+    if o.scenes.is_empty() {
+        let mut all: Vec<PathBuf> = std::fs::read_dir("scenes")?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|x| x == "json"))
+            .collect();
+        all.sort();
+        o.scenes = all;
+    }
+    Ok(o)
+}
+
+/// The value at quantile `q` of sorted `v`.
+fn quantile(v: &[f64], q: f64) -> f64 {
+    v[((v.len() - 1) as f64 * q).round() as usize]
+}
+
+struct Row {
+    scene: String,
+    method: String,
+    frame_ms: [f64; 3],
+    wall_ms: f64,
+    passes: Vec<(String, f64)>,
+}
+
+fn bench_scene(gpu: &HeadlessGpu, o: &Options, path: &PathBuf) -> Result<Row, BoxError> {
+    let cpu = gpu.adapter.get_info().device_type == wgpu::DeviceType::Cpu;
+    let scene = SceneDescription::load(path)?;
+    let size = o
+        .size
+        .unwrap_or(if cpu { (256, 144) } else { (1920, 1080) });
+    let camera = with_aspect(&scene.camera, size.0 as f32 / size.1 as f32)?;
+    let turned = Camera::new(
+        Mat4::from_rotation_y(1e-4) * camera.view(),
+        camera.projection(),
+    )?;
+    let method = o
+        .method
+        .unwrap_or_else(|| RenderMethod::from_scene(scene.method));
+    if method == RenderMethod::Reference {
+        return Err("--method reference is the CPU reference, not a GPU frame".into());
+    }
+    let gpu_scene = GpuScene::new(gpu, &scene, &camera, size, method != RenderMethod::Analytic)?;
+    let gpu_method = match method {
+        RenderMethod::Gpu(m) => m,
+        _ => Method::default(),
+    };
+    let settings = Settings {
+        march: gpu_method
+            .march_settings()
+            .ok_or("a GPU method has march settings")?,
+        upsample: gpu_method.upsample(),
+        output_format: wgpu::TextureFormat::Rgba32Float,
+        ..Settings::default()
+    };
+    let cache = Cache::new(&gpu.device);
+    let mut vs = VolumetricShadows::new(&gpu.device, &gpu.queue, &cache, settings)?;
+    let output = gpu_scene.output(gpu);
+    let lights = gpu_scene.lights();
+    let moved: Vec<FrameLight> = moved_lights(&lights)?;
+    let occluders = gpu_scene.occluders();
+    // Frame k: the lights and the camera as they were, or moved.
+    let frame_of = |k: usize| {
+        let mut f = gpu_scene.frame(
+            if k.is_multiple_of(2) { &lights } else { &moved },
+            &occluders,
+        );
+        f.camera = if k.is_multiple_of(2) {
+            &camera
+        } else {
+            &turned
+        };
+        f
+    };
+    let run = |vs: &mut VolumetricShadows, k: usize, wait: bool| -> Result<(), BoxError> {
+        vs.prepare(&gpu.device, &gpu.queue, &frame_of(k))?;
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        vs.encode(&mut encoder, &output)?;
+        if wait {
+            gpu.submit_and_wait(encoder)?;
+        } else {
+            gpu.queue.submit([encoder.finish()]);
+        }
+        Ok(())
+    };
+    for k in 0..o.warmup.max(2) {
+        run(&mut vs, k, true)?;
+    }
+
+    // GPU time per frame.
+    let mut frame_ms = Vec::with_capacity(o.frames);
+    if cpu {
+        for k in 0..o.frames {
+            vs.prepare(&gpu.device, &gpu.queue, &frame_of(k))?;
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            vs.encode(&mut encoder, &output)?;
+            let start = Instant::now();
+            gpu.submit_and_wait(encoder)?;
+            frame_ms.push(start.elapsed().as_secs_f64() * 1e3);
+        }
+    } else if gpu
+        .device
+        .features()
+        .contains(wgpu::Features::TIMESTAMP_QUERY)
+    {
+        let count = 2 * o.frames as u32;
+        let set = gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("bench frame timestamps"),
+            ty: wgpu::QueryType::Timestamp,
+            count,
+        });
+        let resolve = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("bench frame timestamps"),
+            size: u64::from(count) * 8,
+            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let stamp = |encoder: &mut wgpu::CommandEncoder, index: u32, begin: bool| {
+            let writes = wgpu::ComputePassTimestampWrites {
+                query_set: &set,
+                beginning_of_pass_write_index: begin.then_some(index),
+                end_of_pass_write_index: (!begin).then_some(index),
+            };
+            encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("bench frame timestamp"),
+                timestamp_writes: Some(writes),
+            });
+        };
+        for k in 0..o.frames {
+            vs.prepare(&gpu.device, &gpu.queue, &frame_of(k))?;
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            stamp(&mut encoder, 2 * k as u32, true);
+            vs.encode(&mut encoder, &output)?;
+            stamp(&mut encoder, 2 * k as u32 + 1, false);
+            gpu.queue.submit([encoder.finish()]);
+        }
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        encoder.resolve_query_set(&set, 0..count, &resolve, 0);
+        gpu.submit_and_wait(encoder)?;
+        let ticks: Vec<u64> = bytemuck::pod_collect_to_vec(&gpu.read_buffer_bytes(&resolve)?);
+        let period = f64::from(gpu.queue.get_timestamp_period()) * 1e-6;
+        frame_ms = ticks
+            .chunks(2)
+            .map(|t| t[1].saturating_sub(t[0]) as f64 * period)
+            .collect();
+    }
+    frame_ms.sort_by(f64::total_cmp);
+    let frame = if frame_ms.is_empty() {
+        [f64::NAN; 3]
+    } else {
+        [
+            quantile(&frame_ms, 0.5),
+            quantile(&frame_ms, 0.1),
+            quantile(&frame_ms, 0.9),
+        ]
+    };
+
+    // Wall time per frame, back to back.
+    let start = Instant::now();
+    for k in 0..o.frames {
+        run(&mut vs, k, false)?;
+    }
+    gpu.submit_and_wait(gpu.device.create_command_encoder(&Default::default()))?;
+    let wall_ms = start.elapsed().as_secs_f64() * 1e3 / o.frames as f64;
+
+    // Per pass.
+    let mut passes: Vec<(String, Vec<f64>)> = Vec::new();
+    if o.passes {
+        for k in 0..o.frames {
+            vs.prepare(&gpu.device, &gpu.queue, &frame_of(k))?;
+            for t in gpu.run_timed(&mut vs, &output, &[])? {
+                let name = match t.light {
+                    Some(l) => format!("{} (light {l})", t.pass),
+                    None => t.pass.to_string(),
+                };
+                match passes.iter_mut().find(|(n, _)| *n == name) {
+                    Some((_, v)) => v.push(t.ms),
+                    None => passes.push((name, vec![t.ms])),
+                }
+            }
+        }
+    }
+    let passes = passes
+        .into_iter()
+        .map(|(name, mut v)| {
+            v.sort_by(f64::total_cmp);
+            (name, quantile(&v, 0.5))
+        })
+        .collect();
+    Ok(Row {
+        scene: scene.name.clone(),
+        method: method.describe(),
+        frame_ms: frame,
+        wall_ms,
+        passes,
+    })
+}
+
+fn main() {
+    common::headless_env::quiet_display_probe();
+    if let Err(e) = run() {
+        eprintln!("error: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn run() -> Result<(), BoxError> {
+    let o = parse()?;
+    let gpu = HeadlessGpu::with_optional_features(wgpu::Features::TIMESTAMP_QUERY)?;
+    let adapter = gpu.adapter_summary();
+    println!("adapter: {adapter}");
+    let mut rows = Vec::new();
+    for path in &o.scenes {
+        let row = bench_scene(&gpu, &o, path)?;
+        println!(
+            "{:<14} {:<44} frame {:>9.3} ms (p10 {:.3}, p90 {:.3}), wall {:>9.3} ms/frame",
+            row.scene, row.method, row.frame_ms[0], row.frame_ms[1], row.frame_ms[2], row.wall_ms
+        );
+        for (name, ms) in &row.passes {
+            println!("    {name:<32} {ms:>9.3} ms");
+        }
+        rows.push(row);
+    }
+    let size = o.size.map(|(w, h)| format!("{w}x{h}"));
+    let json = serde_json::json!({
+        "adapter": adapter,
+        "size": size,
+        "frames": o.frames,
+        "warmup": o.warmup,
+        "scenes": rows.iter().map(|r| serde_json::json!({
+            "scene": r.scene,
+            "method": r.method,
+            "frame_ms": { "median": r.frame_ms[0], "p10": r.frame_ms[1], "p90": r.frame_ms[2] },
+            "wall_ms_per_frame": r.wall_ms,
+            "passes_ms": r.passes.iter().map(|(n, ms)| serde_json::json!({ "pass": n, "median": ms })).collect::<Vec<_>>(),
+        })).collect::<Vec<_>>(),
+    });
+    if let Some(dir) = o.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)?;
+    }
+    std::fs::write(&o.out, serde_json::to_string_pretty(&json)?)?;
+    println!("wrote {}", o.out.display());
+    Ok(())
+}
