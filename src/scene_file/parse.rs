@@ -121,7 +121,8 @@ impl Ctx<'_> {
     }
 
     /// Reads the file named `named` at `path`: confined to the scene's folder unless allowed.
-    #[cfg_attr(not(any(feature = "gltf", feature = "image")), allow(dead_code))]
+    /// Only image files are read through it (glTF files are confined and read by the loader).
+    #[cfg_attr(not(feature = "image"), allow(dead_code))]
     fn read(&mut self, named: &str, path: &str) -> P<(PathBuf, Vec<u8>)> {
         let folder = self
             .folder
