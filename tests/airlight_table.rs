@@ -110,17 +110,11 @@ fn table_error(
     worst
 }
 
-#[test]
-fn table_matches_reference_over_optical_depths_angles_and_phases() {
-    table_matches_reference_at(ShaderPrecision::Native);
-}
-
-#[test]
-fn table_matches_reference_worst_case() {
-    for precision in common::WORST_CASES {
-        table_matches_reference_at(precision);
-    }
-}
+crate::at_each_precision!(
+    table_matches_reference_at => table_matches_reference_over_optical_depths_angles_and_phases,
+    table_matches_reference_worst_case,
+    common::WORST_CASES
+);
 
 fn table_matches_reference_at(precision: ShaderPrecision) {
     let gpu = common::gpu();

@@ -571,21 +571,18 @@ fn seeds() -> Vec<u64> {
     }
 }
 
+crate::at_each_precision!(
+    random_scenes_at => g_random_scenes_against_the_reference,
+    g_random_scenes_against_the_reference_worst_case,
+    [common::WORST_CASE]
+);
+
 /// Random scenes nobody chose, exact mode against the reference: every scene p95 ≤ 1% (the
 /// issue's bar for this test: half the hand-picked cases' margin, for scenes at 24² whose
 /// percentile rests on few pixels), and nothing non-finite. The depth buffer and the
 /// reference come from the same ray cast, so no pixel's first surface differs between them.
-#[test]
-fn g_random_scenes_against_the_reference() {
-    random_scenes_at(ShaderPrecision::Native);
-}
-
-/// The same scenes and bar with every transcendental built-in off by the most WGSL allows.
-#[test]
-fn g_random_scenes_against_the_reference_worst_case() {
-    random_scenes_at(common::WORST_CASE);
-}
-
+/// The `_worst_case` test: the same with every transcendental built-in off by the most WGSL
+/// allows.
 fn random_scenes_at(precision: ShaderPrecision) {
     let gpu = common::gpu();
     let cache = Cache::with_precision(&gpu.device, precision);
@@ -738,6 +735,12 @@ fn intersecting_occluders_with_a_low_light() {
     );
 }
 
+crate::at_each_precision!(
+    thick_fog_spot_scenes_at => thick_fog_spot_scenes_against_the_reference,
+    thick_fog_spot_scenes_against_the_reference_worst_case,
+    [common::WORST_CASE]
+);
+
 /// Seeded spot-light scenes in thick fog, σt·D from 10 to 100 (the generator of
 /// `g_random_scenes_against_the_reference` otherwise, the light 1e15 times as bright so that
 /// the in-scatter, which falls as e^{−σt·D}, stays within f32's normal range), exact method
@@ -752,17 +755,8 @@ fn intersecting_occluders_with_a_low_light() {
 /// put 13 of these 200 over 1%, the worst at p95 100% (seed 95 of the random scenes, at σt·D 81
 /// brightened, was off by up to 106%), before the table kept the tails too
 /// (`AirlightTableNode`).
-#[test]
-fn thick_fog_spot_scenes_against_the_reference() {
-    thick_fog_spot_scenes_at(ShaderPrecision::Native);
-}
-
-/// The same scenes and bars with every transcendental built-in off by the most WGSL allows.
-#[test]
-fn thick_fog_spot_scenes_against_the_reference_worst_case() {
-    thick_fog_spot_scenes_at(common::WORST_CASE);
-}
-
+/// The `_worst_case` test: the same with every transcendental built-in off by the most WGSL
+/// allows.
 fn thick_fog_spot_scenes_at(precision: ShaderPrecision) {
     let gpu = common::gpu();
     let cache = Cache::with_precision(&gpu.device, precision);

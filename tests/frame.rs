@@ -114,17 +114,11 @@ fn camera() -> Camera {
 // the frame's maximum.
 const FRAME_TOLERANCE: f64 = 5e-3;
 
-#[test]
-fn ground_plane_with_sky_and_light_in_view() {
-    ground_plane_with_sky_and_light_in_view_at(ShaderPrecision::Native);
-}
-
-#[test]
-fn ground_plane_with_sky_and_light_in_view_worst_case() {
-    for precision in common::WORST_CASES {
-        ground_plane_with_sky_and_light_in_view_at(precision);
-    }
-}
+crate::at_each_precision!(
+    ground_plane_with_sky_and_light_in_view_at => ground_plane_with_sky_and_light_in_view,
+    ground_plane_with_sky_and_light_in_view_worst_case,
+    common::WORST_CASES
+);
 
 fn ground_plane_with_sky_and_light_in_view_at(precision: ShaderPrecision) {
     let gpu = common::gpu();
@@ -162,17 +156,11 @@ fn ground_plane_with_sky_and_light_in_view_at(precision: ShaderPrecision) {
     }
 }
 
-#[test]
-fn light_behind_the_camera() {
-    light_behind_the_camera_at(ShaderPrecision::Native);
-}
-
-#[test]
-fn light_behind_the_camera_worst_case() {
-    for precision in common::WORST_CASES {
-        light_behind_the_camera_at(precision);
-    }
-}
+crate::at_each_precision!(
+    light_behind_the_camera_at => light_behind_the_camera,
+    light_behind_the_camera_worst_case,
+    common::WORST_CASES
+);
 
 fn light_behind_the_camera_at(precision: ShaderPrecision) {
     let gpu = common::gpu();
@@ -198,15 +186,11 @@ fn light_behind_the_camera_at(precision: ShaderPrecision) {
     );
 }
 
-#[test]
-fn absorption_three_times_scattering() {
-    absorption_three_times_scattering_at(ShaderPrecision::Native);
-}
-
-#[test]
-fn absorption_three_times_scattering_worst_case() {
-    absorption_three_times_scattering_at(common::WORST_CASE);
-}
+crate::at_each_precision!(
+    absorption_three_times_scattering_at => absorption_three_times_scattering,
+    absorption_three_times_scattering_worst_case,
+    [common::WORST_CASE]
+);
 
 fn absorption_three_times_scattering_at(precision: ShaderPrecision) {
     let gpu = common::gpu();
@@ -254,20 +238,14 @@ fn absorption_three_times_scattering_at(precision: ShaderPrecision) {
     );
 }
 
+crate::at_each_precision!(
+    stiff_optical_depths_random_distances_at => stiff_optical_depths_random_distances,
+    stiff_optical_depths_random_distances_worst_case,
+    common::WORST_CASES
+);
+
 /// Random rays with random surface distances (1e-2·D … 1e3·D, and sky) at every optical depth of
 /// DESIGN §5, seen through a reversed-Z infinite projection, with the light in view and behind.
-#[test]
-fn stiff_optical_depths_random_distances() {
-    stiff_optical_depths_random_distances_at(ShaderPrecision::Native);
-}
-
-#[test]
-fn stiff_optical_depths_random_distances_worst_case() {
-    for precision in common::WORST_CASES {
-        stiff_optical_depths_random_distances_at(precision);
-    }
-}
-
 fn stiff_optical_depths_random_distances_at(precision: ShaderPrecision) {
     let gpu = common::gpu();
     let cache = Cache::with_precision(&gpu.device, precision);

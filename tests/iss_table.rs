@@ -65,22 +65,19 @@ fn build(
     gpu.read_rgba32f(node.texture()).unwrap()
 }
 
+crate::at_each_precision!(
+    entries_match_the_reference_at => entries_match_the_reference,
+    entries_match_the_reference_worst_case,
+    [common::WORST_CASE]
+);
+
 /// The table's entries against the reference: within 1e-3 relative wherever G is above 1e-6 of
 /// its maximum over the checked nodes (the bar the table must meet), every entry finite. A
 /// 33 × 65 table's nodes are checked where σt·D ∈ [1e-3, 50]: every other τ node, and every
 /// α node in the sixth of the axis about α = π/2 (where G falls over ~1/τ) and every third
 /// elsewhere.
-#[test]
-fn entries_match_the_reference() {
-    entries_match_the_reference_at(ShaderPrecision::Native);
-}
-
-/// The same entries and bar with every transcendental built-in off by the most WGSL allows.
-#[test]
-fn entries_match_the_reference_worst_case() {
-    entries_match_the_reference_at(common::WORST_CASE);
-}
-
+/// The `_worst_case` test: the same with every transcendental built-in off by the most WGSL
+/// allows.
 fn entries_match_the_reference_at(precision: ShaderPrecision) {
     let gpu = common::gpu();
     let cache = Cache::with_precision(&gpu.device, precision);

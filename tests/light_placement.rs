@@ -91,22 +91,16 @@ fn a_wide_spot_cone_keeps_an_occluder_near_its_edge_in_the_shadow_map() {
     }
 }
 
+crate::at_each_precision!(
+    a_light_a_millionth_above_a_sphere_at => a_light_a_millionth_above_a_sphere_keeps_its_shadow,
+    a_light_a_millionth_above_a_sphere_keeps_its_shadow_worst_case,
+    common::WORST_CASES
+);
+
 /// A light 1e-6 above a unit sphere (about 4 f32 steps of its coordinates): the shadow map's
 /// near plane follows the nearest occluder down to one f32 step, so the sphere keeps its
 /// shadow below the light. Hardening reports quoted up to 1900% error here; the exact method
 /// must meet its usual bar.
-#[test]
-fn a_light_a_millionth_above_a_sphere_keeps_its_shadow() {
-    a_light_a_millionth_above_a_sphere_at(ShaderPrecision::Native);
-}
-
-#[test]
-fn a_light_a_millionth_above_a_sphere_keeps_its_shadow_worst_case() {
-    for precision in common::WORST_CASES {
-        a_light_a_millionth_above_a_sphere_at(precision);
-    }
-}
-
 fn a_light_a_millionth_above_a_sphere_at(precision: ShaderPrecision) {
     let gpu = common::gpu();
     let cache = Cache::with_precision(&gpu.device, precision);

@@ -412,6 +412,13 @@ fn ground_scene() -> RandomScene {
     }
 }
 
+// One sign (mixed): each costs the scene's reference again (about 30 s).
+crate::at_each_precision!(
+    a_ground_that_casts_shadows_at => a_ground_that_casts_shadows_under_a_soft_light,
+    a_ground_that_casts_shadows_under_a_soft_light_worst_case,
+    [common::WORST_CASE]
+);
+
 /// A ground that casts shadows (`ground_scene`), 32² (the reference samples the light's disc
 /// for the plane's triangles everywhere above it: about 30 s in a release build). Bars: RMSE
 /// the 2%; p95 5%, a measured limit (2026-11-24: 4.61%, RMSE 1.33%; at 64² 3.82%; at
@@ -423,17 +430,6 @@ fn ground_scene() -> RandomScene {
 /// within 0.9 of the point's distance: 3.01% at 128² exact full (3.51% with it, alternated in
 /// one process), but two spheres with overlapping
 /// penumbrae 3.65%, beyond their bar.
-#[test]
-fn a_ground_that_casts_shadows_under_a_soft_light() {
-    a_ground_that_casts_shadows_at(ShaderPrecision::Native);
-}
-
-#[test]
-fn a_ground_that_casts_shadows_under_a_soft_light_worst_case() {
-    // One sign (mixed): each costs the scene's reference again (about 30 s).
-    a_ground_that_casts_shadows_at(common::WORST_CASE);
-}
-
 fn a_ground_that_casts_shadows_at(precision: ShaderPrecision) {
     const GROUND_P95_BAR: f64 = 0.05;
     let (worst, hard, _, _) =

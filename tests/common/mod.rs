@@ -31,6 +31,25 @@ pub const WORST_CASES: [volshadow::ShaderPrecision; 3] = [
     WORST_CASE,
 ];
 
+/// Two tests of one body: `$native` runs `$body(ShaderPrecision::Native)`, `$worst` runs it at
+/// each precision of `$cases` (WGSL's worst case: [`WORST_CASES`] or `[WORST_CASE]`).
+#[macro_export]
+macro_rules! at_each_precision {
+    ($body:ident => $native:ident, $worst:ident, $cases:expr) => {
+        #[test]
+        fn $native() {
+            $body(volshadow::ShaderPrecision::Native);
+        }
+
+        #[test]
+        fn $worst() {
+            for precision in $cases {
+                $body(precision);
+            }
+        }
+    };
+}
+
 /// NDC depth of a world point seen by `camera`, in f64.
 pub fn ndc_depth(camera: &Camera, point: DVec3) -> f32 {
     let clip = (camera.projection().as_dmat4() * camera.view().as_dmat4())
