@@ -165,11 +165,14 @@ fn directional_x(a: Airlight, s: f32) -> f32 {
 // without cancellation (`co`), each to a few ULP relative: the sine of a small h, and the
 // cosine of an h near π/2, are the quantities whose relative precision WGSL's `sin` and `cos`
 // (absolute 2^-11) do not keep.
+// Branch-free: one sine and one cosine polynomial of whichever angle is the smaller (a SIMD
+// machine that runs both sides of a branch would evaluate four).
 fn cos_sin(h: f32, co: f32) -> vec2<f32> {
-    if (h > 0.25 * PI) {
-        return vec2<f32>(vs_sin_poly(co), vs_cos_poly(co));
-    }
-    return vec2<f32>(vs_cos_poly(h), vs_sin_poly(h));
+    let swap = h > 0.25 * PI;
+    let x = select(h, co, swap);
+    let c = vs_cos_poly(x);
+    let s = vs_sin_poly(x);
+    return select(vec2<f32>(c, s), vec2<f32>(s, c), swap);
 }
 
 // sin θ for θ ∈ [0, π] given θ and its supplement π − θ (computed without cancellation), to a
@@ -192,12 +195,15 @@ fn table_integrand(a: Airlight, s: f32, w: f32, gamma: f32, sin_half_gamma: f32)
 // The same with 1 − s given separately, so the tail next to s = 1 (where the attenuation
 // falls to zero within a sliver of width ~ 1/(σt·D)) keeps its relative precision.
 fn table_integrand_split(a: Airlight, s: f32, one_minus_s: f32, w: f32, gamma: f32, sin_half_gamma: f32) -> vec3<f32> {
-    let half_a = 0.5 * s * w;
     // u = (1 − s)·w/2 and π/2 − u = (γ + s·w)/2 (γ + w = π).
     let u = cos_sin(0.5 * one_minus_s * w, 0.5 * (gamma + s * w));
-    let cu = u.x;
-    let su = u.y;
-    let ratio = min(vs_sin_poly(half_a) / max(su, 1.0e-30), 1.0e20);
+    return table_integrand_trig(a, u.x, u.y, vs_sin_poly(0.5 * s * w), sin_half_gamma);
+}
+
+// The same from cos u, sin u and sin(s·w/2), however the caller got them (the table builder
+// turns them from a cell's middle to each quadrature node).
+fn table_integrand_trig(a: Airlight, cu: f32, su: f32, sin_half_a: f32, sin_half_gamma: f32) -> vec3<f32> {
+    let ratio = min(sin_half_a / max(su, 1.0e-30), 1.0e20);
     let tau = (2.0 * a.distance * sin_half_gamma * ratio) * a.sigma_t;
     return phase(a, 2.0 * cu * cu, 2.0 * su * su) * vs_exp3(-tau);
 }

@@ -1,8 +1,11 @@
-//! The per-frame airlight table F′, built by a compute pass of two dispatches: each cell's
-//! integral (8-point Gauss–Legendre), one invocation a cell, into an intermediate
-//! `Rgba32Float` texture of `along_ray × across_rays`; then each row's compensated sums of its
-//! cells, from either end, one invocation a row. The cells are the work (every integrand
-//! evaluation), so they spread over the GPU; the sums are additions.
+//! The per-frame airlight table F′, built by a compute pass of two dispatches. First each
+//! cell's integral, one invocation a cell, by 2-, 3- or 8-point Gauss–Legendre (the fewest
+//! points the integrand's smoothness on the cell allows; the last cell of a row, which ends
+//! where the attenuation drops to zero, in 12 geometric pieces), into an intermediate storage
+//! buffer. Then each row's sums of its cells from either end: on a GPU one workgroup a row, a
+//! scan across it; on a CPU adapter (lavapipe) one invocation a row, in runs of 16, as the
+//! scan's barriers there cost more than the sums. See `docs/METHOD.md` §2 for the rules and
+//! the measured times.
 //!
 //! Within a frame D = |P − E|, σt and the phase are fixed, so the bounded integral of the
 //! stable form of Sun et al.'s airlight (see [`crate::reference`]) is a function of two numbers: the ray's angle γ to the light and the
@@ -42,7 +45,7 @@ use crate::error::{Error, Result};
 use crate::gpu::cache::{bind_group, compute_pipeline, dispatch, layout, module, Binding};
 use crate::gpu::uniforms::AirlightUniform;
 use crate::gpu::ShaderPrecision;
-use crate::gpu::{texture_2d, Cache, GpuTimer, UniformBuffer};
+use crate::gpu::{check_buffer_size, texture_2d, Cache, GpuTimer, UniformBuffer};
 use crate::plan::Pass;
 use crate::scene::{Light, Medium};
 
@@ -99,18 +102,46 @@ impl TableSize {
     }
 }
 
+/// The pieces of each row's last cell, which ends where the attenuation drops to zero: piece k
+/// spans `1 − s ∈ [ds·4^−(k+1), ds·4^−k]` (the last one down to 0), each its own invocation.
+/// The last piece holds at most 4^−11 = 2.4e-7 of the cell wherever the integrand is bounded
+/// across it, so however poorly its 8 points see an attenuation that falls to zero inside it,
+/// the cell keeps f32 precision.
+const TAIL_PIECES: u32 = 12;
+
 /// The first pass's binding table: `@binding(i)` of `shaders/airlight_table.wgsl` is entry `i`.
 const CELL_BINDINGS: [Binding; 2] = [
-    Binding::Params,                                    // air
-    Binding::Storage(wgpu::TextureFormat::Rgba32Float), // cells_out
+    Binding::Params,    // air
+    Binding::ReadWrite, // cells_out
 ];
 
 /// The second pass's: `@binding(i)` of `shaders/airlight_table_sum.wgsl` is entry `i`.
 const SUM_BINDINGS: [Binding; 3] = [
     Binding::Params,                                    // air
-    Binding::Texture,                                   // cells_in
+    Binding::Params,                                    // cells_in (read-only storage)
     Binding::Storage(wgpu::TextureFormat::Rgba32Float), // table_out
 ];
+
+/// How the second pass sums each row: `sum_scan` or `sum_serial` of
+/// `shaders/airlight_table_sum.wgsl` (the same sums).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum RowSum {
+    /// One workgroup of 256 a row, its runs' totals scanned across it (a GPU).
+    Scan,
+    /// One invocation a row (a CPU adapter, where a workgroup barrier switches between
+    /// invocations: the scan took 8 times the serial sum's time on lavapipe).
+    Serial,
+}
+
+impl RowSum {
+    /// The row sum for `device`'s kind of adapter.
+    pub(crate) fn for_device(device: &wgpu::Device) -> Self {
+        match device.adapter_info().device_type {
+            wgpu::DeviceType::Cpu => RowSum::Serial,
+            _ => RowSum::Scan,
+        }
+    }
+}
 
 /// The table's layouts and pipelines, held by the [`Cache`]: the cells' integrals, one
 /// invocation each, then their sums along each row.
@@ -120,15 +151,32 @@ pub(crate) struct Pipelines {
     sum_layout: wgpu::BindGroupLayout,
     cells: wgpu::ComputePipeline,
     sum: wgpu::ComputePipeline,
+    row_sum: RowSum,
 }
 
 impl Pipelines {
     pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
+        Self::with_row_sum(device, precision, RowSum::for_device(device))
+    }
+
+    pub(crate) fn with_row_sum(
+        device: &wgpu::Device,
+        precision: ShaderPrecision,
+        row_sum: RowSum,
+    ) -> Self {
         let label = "volshadow F' table cells";
         let cell_layout = layout(device, label, wgpu::ShaderStages::COMPUTE, &CELL_BINDINGS);
         let source = include_str!("../../shaders/airlight_table.wgsl");
         let cell_module = module(device, "volshadow airlight_table.wgsl", source, precision);
-        let cells = compute_pipeline(device, label, &cell_layout, &cell_module, "cells", &[]);
+        let constants = [("TAIL_PIECES", f64::from(TAIL_PIECES))];
+        let cells = compute_pipeline(
+            device,
+            label,
+            &cell_layout,
+            &cell_module,
+            "cells",
+            &constants,
+        );
         let label = "volshadow F' table sums";
         let sum_layout = layout(device, label, wgpu::ShaderStages::COMPUTE, &SUM_BINDINGS);
         let source = include_str!("../../shaders/airlight_table_sum.wgsl");
@@ -138,12 +186,17 @@ impl Pipelines {
             source,
             precision,
         );
-        let sum = compute_pipeline(device, label, &sum_layout, &sum_module, "sum", &[]);
+        let entry = match row_sum {
+            RowSum::Scan => "sum_scan",
+            RowSum::Serial => "sum_serial",
+        };
+        let sum = compute_pipeline(device, label, &sum_layout, &sum_module, entry, &constants);
         Self {
             cell_layout,
             sum_layout,
             cells,
             sum,
+            row_sum,
         }
     }
 }
@@ -176,9 +229,33 @@ impl AirlightTableNode {
     ///
     /// # Errors
     ///
-    /// [`Error::InvalidSize`] for a table size out of range.
+    /// [`Error::InvalidSize`] for a table size out of range;
+    /// [`Error::DeviceLimitExceeded`] when the cells of a large table (16 bytes each,
+    /// `(along_ray + 11) × across_rays` of them) do not fit one storage buffer binding on
+    /// `device` (128 MiB by default, which holds 4096 × 2042).
     pub fn new(device: &wgpu::Device, cache: &Cache, size: TableSize) -> Result<Self> {
+        Self::with_pipelines(device, cache.table.clone(), size)
+    }
+
+    pub(crate) fn with_pipelines(
+        device: &wgpu::Device,
+        pipelines: Pipelines,
+        size: TableSize,
+    ) -> Result<Self> {
         size.validate()?;
+        // Each cell's integral, row by row, between the two passes: entry j < n − 1 of a row
+        // is the cell [s_{j−1}, s_j] (entry 0 unused), entries n − 1 onwards the last cell's
+        // pieces.
+        let cell_bytes = u64::from(size.along_ray + TAIL_PIECES - 1)
+            * u64::from(size.across_rays)
+            * std::mem::size_of::<[f32; 4]>() as u64;
+        check_buffer_size(device, "airlight table cells", cell_bytes)?;
+        let cells = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("volshadow F' table cells"),
+            size: cell_bytes,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
         let texture = texture_2d(
             device,
             "volshadow F' table",
@@ -188,34 +265,21 @@ impl AirlightTableNode {
                 | wgpu::TextureUsages::TEXTURE_BINDING
                 | wgpu::TextureUsages::COPY_SRC,
         );
-        // Each cell's integral (column j: the cell [s_{j−1}, s_j]; column 0 unused), between
-        // the two passes.
-        let cells = texture_2d(
-            device,
-            "volshadow F' table cells",
-            (size.along_ray, size.across_rays, 1),
-            wgpu::TextureFormat::Rgba32Float,
-            wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
-        );
         let uniform = UniformBuffer::new(device, "volshadow F' table uniform");
         let view = texture.create_view(&Default::default());
-        let cells_view = cells.create_view(&Default::default());
         let cell_group = bind_group(
             device,
             "volshadow F' table cells",
-            &cache.table.cell_layout,
-            [
-                uniform.binding(),
-                wgpu::BindingResource::TextureView(&cells_view),
-            ],
+            &pipelines.cell_layout,
+            [uniform.binding(), cells.as_entire_binding()],
         );
         let sum_group = bind_group(
             device,
             "volshadow F' table sums",
-            &cache.table.sum_layout,
+            &pipelines.sum_layout,
             [
                 uniform.binding(),
-                wgpu::BindingResource::TextureView(&cells_view),
+                cells.as_entire_binding(),
                 wgpu::BindingResource::TextureView(&view),
             ],
         );
@@ -225,7 +289,7 @@ impl AirlightTableNode {
             uniform,
             cell_group,
             sum_group,
-            pipelines: cache.table.clone(),
+            pipelines,
             pending: false,
         })
     }
@@ -258,14 +322,22 @@ impl AirlightTableNode {
         }
         let (n, rows) = (self.size.along_ray, self.size.across_rays);
         let p = &self.pipelines;
+        let sum_groups = match p.row_sum {
+            RowSum::Scan => (rows, 1, 1),
+            RowSum::Serial => (rows.div_ceil(64), 1, 1),
+        };
         dispatch(
             encoder,
             timer,
             Pass::AirlightTable,
             "volshadow F' table",
             &[
-                (&p.cells, &self.cell_group, ((n - 1).div_ceil(64), rows, 1)),
-                (&p.sum, &self.sum_group, (rows.div_ceil(64), 1, 1)),
+                (
+                    &p.cells,
+                    &self.cell_group,
+                    ((n + TAIL_PIECES - 2).div_ceil(64), rows, 1),
+                ),
+                (&p.sum, &self.sum_group, sum_groups),
             ],
         );
         Ok(())
@@ -279,5 +351,91 @@ impl AirlightTableNode {
     /// The table's size.
     pub fn size(&self) -> TableSize {
         self.size
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{AirlightTableNode, Pipelines, RowSum, TableInputs, TableSize};
+    use crate::{HeadlessGpu, Light, Medium, PhaseFunction, PointLight, ShaderPrecision};
+    use glam::Vec3;
+
+    fn table(
+        gpu: &HeadlessGpu,
+        row_sum: RowSum,
+        size: TableSize,
+        medium: &Medium,
+    ) -> Vec<[f32; 4]> {
+        let pipelines = Pipelines::with_row_sum(&gpu.device, ShaderPrecision::Native, row_sum);
+        let mut node = AirlightTableNode::with_pipelines(&gpu.device, pipelines, size).unwrap();
+        let eye = Vec3::new(0.5, 1.0, -2.0);
+        let light: Light = PointLight::new(eye + Vec3::new(0.0, 0.0, 3.0), Vec3::ONE)
+            .unwrap()
+            .into();
+        let inputs = TableInputs {
+            eye,
+            light: &light,
+            medium,
+        };
+        assert!(node.prepare(&gpu.device, &gpu.queue, &inputs).unwrap());
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        node.encode(&mut encoder, None).unwrap();
+        gpu.submit_and_wait(encoder).unwrap();
+        gpu.read_rgba32f(node.texture()).unwrap()
+    }
+
+    /// The row sums a GPU gets (a scan across a workgroup) and a CPU adapter gets (one
+    /// invocation a row, in runs of 16) fill the same table, at lengths that give each
+    /// invocation of the scan one cell (256), none for most of the workgroup (8), and runs of
+    /// four with a shorter last run (1000), in thin and thick media. Every cell is positive,
+    /// so each sum's relative error is at most its depth times 2^-24: the two may differ by
+    /// the sum of their depths, (⌈(n − 1)/16⌉ + 16) + (⌈(n − 1)/256⌉ + 8) additions, 2^-24
+    /// each (2.5e-6 at 256 entries). The default's entries are checked against the f64
+    /// reference by `tests/airlight_table.rs`; this ties the other to it. A scan that shifted
+    /// a run by one cell, or dropped the last cell, is off by a whole cell (~1/n).
+    #[test]
+    fn scan_and_serial_row_sums_agree() {
+        let gpu = match HeadlessGpu::new() {
+            Ok(gpu) => gpu,
+            Err(e) => panic!("GPU tests need a wgpu adapter (lavapipe works): {e}"),
+        };
+        for along_ray in [256, 8, 1000] {
+            let size = TableSize {
+                along_ray,
+                across_rays: 128,
+            };
+            for optical_depth in [1e-3_f32, 1.0, 60.0] {
+                let sigma_t = optical_depth / 3.0;
+                let medium = Medium::new(
+                    Vec3::splat(0.6 * sigma_t),
+                    Vec3::splat(0.4 * sigma_t),
+                    PhaseFunction::HenyeyGreenstein { g: 0.7 },
+                )
+                .unwrap();
+                let scan = table(&gpu, RowSum::Scan, size, &medium);
+                let serial = table(&gpu, RowSum::Serial, size, &medium);
+                let mut worst: f32 = 0.0;
+                for (a, b) in scan.iter().zip(&serial) {
+                    for c in 0..3 {
+                        let scale = a[c].abs().max(b[c].abs());
+                        if scale > 1e-30 {
+                            worst = worst.max((a[c] - b[c]).abs() / scale);
+                        }
+                    }
+                }
+                let nonzero = serial.iter().filter(|t| t[0] > 0.0).count();
+                println!(
+                    "{along_ray} × 128, σt·D = {optical_depth}: scan vs serial, largest relative \
+                     difference {worst:.2e} ({nonzero} non-zero entries)"
+                );
+                assert!(nonzero > serial.len() / 2, "the table is mostly empty");
+                let depths = (along_ray - 1).div_ceil(16) + 16 + (along_ray - 1).div_ceil(256) + 8;
+                let bound = depths as f32 * f32::EPSILON / 2.0;
+                assert!(
+                    worst <= bound,
+                    "{along_ray}, σt·D = {optical_depth}: {worst:.2e} > {bound:.2e}"
+                );
+            }
+        }
     }
 }
