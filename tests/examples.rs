@@ -15,6 +15,7 @@ mod files;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use common_examples::cli::{self, Parsed, WouldOverwriteInput};
 use common_examples::render_scene::{self, RenderMethod};
 
 /// Test image size: keeps the f64 reference (O(triangles) per ray) fast.
@@ -363,6 +364,258 @@ fn render_rejects_bad_arguments_and_files() {
     }
 }
 
+/// The bytes of every file in `dir` (names and contents), to show a refused run wrote nothing.
+fn snapshot(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    let mut files: Vec<(PathBuf, Vec<u8>)> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.is_file())
+        .map(|p| {
+            let bytes = std::fs::read(&p).unwrap();
+            (p, bytes)
+        })
+        .collect();
+    files.sort();
+    files
+}
+
+/// A refused run: the error is [`WouldOverwriteInput`] naming the input (its file name) and
+/// the output, and nothing in `dir` changed.
+fn assert_refused<T>(
+    result: Result<T, common_examples::BoxError>,
+    input: &str,
+    dir: &Path,
+    before: &[(PathBuf, Vec<u8>)],
+    case: &str,
+) {
+    let error = match result {
+        Ok(_) => panic!("{case}: the run was not refused"),
+        Err(e) => e,
+    };
+    let refusal = error
+        .downcast_ref::<WouldOverwriteInput>()
+        .unwrap_or_else(|| panic!("{case}: another error than the refusal: {error}"));
+    let message = error.to_string();
+    println!("{case}: {message}");
+    assert!(
+        refusal.input.ends_with(input) && message.contains(&refusal.output.display().to_string()),
+        "{case}: {message}"
+    );
+    assert_eq!(snapshot(dir), before, "{case}: files changed");
+}
+
+/// `render` never writes over its input: an output path naming the scene file (`-o` with its
+/// stem, with its extension, through `.` or `..`, through a symbolic link to the file or to
+/// its folder, or a hard link: the same file under another name) is refused before anything
+/// is written, and every file in the folder keeps its bytes. Without `-o` the outputs go to `out/STEM`,
+/// not beside the input. No GPU: the refusal comes first.
+#[test]
+fn render_never_overwrites_its_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("lamp.json");
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/lamp_wall.json"),
+        &scene,
+    )
+    .unwrap();
+    let d = dir.path().to_str().unwrap();
+    std::fs::create_dir(dir.path().join("sub")).unwrap();
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink(&scene, dir.path().join("alias.json")).unwrap();
+        std::os::unix::fs::symlink(dir.path(), dir.path().join("here")).unwrap();
+        std::fs::hard_link(&scene, dir.path().join("hard.json")).unwrap();
+    }
+    let before = snapshot(dir.path());
+    let mut cases = vec![
+        format!("{d}/lamp"),
+        format!("{d}/lamp.json"),
+        format!("{d}/./lamp"),
+        format!("{d}/sub/../lamp"),
+    ];
+    if cfg!(unix) {
+        // A link to the file, a link to its folder, a second name of the same file.
+        cases.extend([
+            format!("{d}/alias"),
+            format!("{d}/here/lamp"),
+            format!("{d}/hard"),
+        ]);
+    }
+    for out in &cases {
+        let result = render_scene::run(&args(&[
+            scene.to_str().unwrap(),
+            "-o",
+            out,
+            "--size",
+            "16x16",
+        ]));
+        assert_refused(result, "lamp.json", dir.path(), &before, out);
+    }
+    // The outputs' default: `out/STEM`, whatever folder the scene is in.
+    let Parsed::Run(options) =
+        render_scene::Options::parse(&args(&[scene.to_str().unwrap()])).unwrap()
+    else {
+        panic!("not a run")
+    };
+    assert_eq!(options.out, Path::new(cli::OUT_DIR).join("lamp"));
+    for output in options.outputs() {
+        assert!(output.starts_with(cli::OUT_DIR), "{}", output.display());
+    }
+}
+
+/// A file the scene names (a spot light's texture `glass.png`) is an input too: `-o glass`
+/// would write `glass.png` over it.
+#[cfg(feature = "image")]
+#[test]
+fn render_never_overwrites_a_file_the_scene_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/stained_glass.json"),
+    )
+    .unwrap();
+    let text = text.replace(
+        r#""texture": { "stained_glass": { "size": 256, "cells": 8, "seed": 2024 } }"#,
+        r#""texture": { "file": "glass.png" }"#,
+    );
+    assert!(text.contains("glass.png"), "the scene's texture line moved");
+    let scene = dir.path().join("spot.json");
+    std::fs::write(&scene, text).unwrap();
+    image::RgbImage::from_fn(8, 8, |x, y| {
+        image::Rgb([(x * 30) as u8, (y * 30) as u8, 200])
+    })
+    .save(dir.path().join("glass.png"))
+    .unwrap();
+    // A valid scene that reads the texture.
+    volshadow::scene_file::SceneDescription::load(&scene).unwrap();
+    let before = snapshot(dir.path());
+    let out = dir.path().join("glass");
+    let result = render_scene::run(&args(&[
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--size",
+        "16x16",
+    ]));
+    assert_refused(result, "glass.png", dir.path(), &before, "-o glass");
+}
+
+/// `--help` and `-h` are a request for the usage, not an error, for every example's parser,
+/// whatever else is on the line; and `render`'s help lists every method its parser accepts
+/// (both come from `METHODS`).
+#[test]
+fn every_example_answers_help() {
+    for flag in ["--help", "-h"] {
+        let scene = "scenes/sphere.json";
+        for line in [
+            vec![flag],
+            vec![scene, flag],
+            vec![scene, "--method", "bogus", flag],
+        ] {
+            let line = args(&line);
+            assert!(
+                render_scene::Options::parse(&line).unwrap().is_help(),
+                "render {line:?}"
+            );
+            #[cfg(feature = "gltf")]
+            assert!(
+                common_examples::gltf_scene::Options::parse(&line)
+                    .unwrap()
+                    .is_help(),
+                "gltf {line:?}"
+            );
+        }
+        let line = args(&[flag]);
+        assert!(cli::parse_quickstart(&line).unwrap().is_help());
+        assert!(cli::parse_interactive(&line).unwrap().is_help());
+        assert!(cli::parse_probe(&args(&["storage", flag]))
+            .unwrap()
+            .is_help());
+    }
+    // Without --help, the same parsers run (or refuse) as before.
+    assert!(!render_scene::Options::parse(&args(&["s.json"]))
+        .unwrap()
+        .is_help());
+    assert!(render_scene::Options::parse(&args(&["--bogus"])).is_err());
+    assert!(cli::parse_interactive(&args(&["--bogus"])).is_err());
+    assert_eq!(cli::parse_interactive(&[]).unwrap(), Parsed::Run(()));
+
+    let help = render_scene::help();
+    for m in &render_scene::METHODS {
+        assert!(
+            help.contains(&m.syntax()),
+            "{} missing from:\n{help}",
+            m.syntax()
+        );
+        for name in std::iter::once(&m.name).chain(m.aliases) {
+            RenderMethod::parse(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+        }
+    }
+    for method in ["exact", "exact:2:separable:16", "textbook:32:4"] {
+        RenderMethod::parse(method).unwrap_or_else(|e| panic!("{method}: {e}"));
+    }
+    let unknown = RenderMethod::parse("fast").unwrap_err().to_string();
+    for m in &render_scene::METHODS {
+        assert!(unknown.contains(m.name), "{unknown}");
+    }
+    assert!(RenderMethod::parse("textbook:32:4:1").is_err());
+    // The interactive keys: each listed key does what it says, every action has a key.
+    let keys = cli::keys_help();
+    for (key, name, action, _) in cli::KEYS {
+        assert_eq!(cli::action_of(key), Some(action));
+        assert!(keys.contains(name) && cli::interactive_help().contains(name));
+    }
+    assert!(
+        keys.contains("exact -> hybrid -> brute force -> textbook"),
+        "{keys}"
+    );
+}
+
+/// The small examples' options: quickstart writes to `out/quickstart.png` unless told
+/// otherwise (one PNG path); uniform_probe's arguments are checked, not unwrapped.
+#[test]
+fn small_examples_parse_their_options() {
+    let run = |list: &[&str]| match cli::parse_quickstart(&args(list)).unwrap() {
+        Parsed::Run(o) => o.output,
+        Parsed::Help => panic!("help"),
+    };
+    assert_eq!(run(&[]), Path::new(cli::OUT_DIR).join("quickstart.png"));
+    assert_eq!(run(&["a/b.png"]), Path::new("a/b.png"));
+    assert_eq!(run(&["-o", "c.PNG"]), Path::new("c.PNG"));
+    for bad in [
+        &["a.png", "b.png"][..],
+        &["-o", "x.jpg"],
+        &["--bogus"],
+        &["-o"],
+    ] {
+        assert!(cli::parse_quickstart(&args(bad)).is_err(), "{bad:?}");
+    }
+    let probe = |list: &[&str]| cli::parse_probe(&args(list));
+    assert_eq!(
+        probe(&["storage", "100", "composite"]).unwrap(),
+        Parsed::Run(cli::ProbeOptions {
+            storage: true,
+            frames: 100,
+            composite: true
+        })
+    );
+    assert_eq!(
+        probe(&[]).unwrap(),
+        Parsed::Run(cli::ProbeOptions {
+            storage: false,
+            frames: 2000,
+            composite: false
+        })
+    );
+    for bad in [
+        &["bogus"][..],
+        &["uniform", "x"],
+        &["uniform", "0"],
+        &["uniform", "9", "y"],
+    ] {
+        assert!(probe(bad).is_err(), "{bad:?}");
+    }
+}
+
 /// A box of half extents (1, 0.5, 0.75) as a binary glTF, placed 1.5 above the origin.
 #[cfg(feature = "gltf")]
 fn box_glb() -> Vec<u8> {
@@ -452,6 +705,59 @@ fn gltf_renders_a_box() {
         gltf_scene::run(&args(&[png.to_str().unwrap()])).is_err(),
         "a PNG is not a glTF"
     );
+}
+
+/// `gltf` never writes over its input: a model whose own name an output takes (`-o` naming
+/// `box.png` when the model is a GLB called `box.png`) or an image the model names (`tex.png`
+/// of a `.gltf`) is refused before anything is written; without `-o` the outputs go to
+/// `out/STEM`.
+#[cfg(feature = "gltf")]
+#[test]
+fn gltf_never_overwrites_its_input() {
+    use common_examples::gltf_scene;
+    let dir = tempfile::tempdir().unwrap();
+    // A GLB under a PNG's name: `-o box` would write box.png over it.
+    let glb = dir.path().join("box.png");
+    std::fs::write(&glb, box_glb()).unwrap();
+    // A .gltf whose buffer and image are files beside it: `-o tex` would write tex.png.
+    let bytes = box_glb();
+    let json_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let bin = &bytes[28 + json_len..];
+    std::fs::write(dir.path().join("box data.bin"), bin).unwrap();
+    std::fs::write(dir.path().join("tex.png"), b"an image").unwrap();
+    let json: String = String::from_utf8(bytes[20..20 + json_len].to_vec()).unwrap();
+    let json = json.replace(
+        r#""buffers": [{"byteLength": 168}]"#,
+        r#""buffers": [{"byteLength": 168, "uri": "box%20data.bin"}],
+        "images": [{"uri": "tex.png"}]"#,
+    );
+    assert!(json.contains("tex.png"));
+    let gltf = dir.path().join("model.gltf");
+    std::fs::write(&gltf, json).unwrap();
+    // Both are models the loader reads.
+    volshadow::gltf::load(&glb).unwrap();
+    volshadow::gltf::load(&gltf).unwrap();
+    let before = snapshot(dir.path());
+    let d = dir.path().to_str().unwrap();
+    for (model, out, input) in [
+        (&glb, format!("{d}/box"), "box.png"),
+        (&glb, format!("{d}/./box.png"), "box.png"),
+        (&gltf, format!("{d}/tex"), "tex.png"),
+    ] {
+        let result = gltf_scene::run(&args(&[
+            model.to_str().unwrap(),
+            "-o",
+            &out,
+            "--size",
+            "16x16",
+        ]));
+        assert_refused(result, input, dir.path(), &before, &out);
+    }
+    let Parsed::Run(options) = gltf_scene::Options::parse(&args(&[glb.to_str().unwrap()])).unwrap()
+    else {
+        panic!("not a run")
+    };
+    assert_eq!(options.out, Path::new(cli::OUT_DIR).join("box"));
 }
 
 #[test]
