@@ -525,6 +525,11 @@ fn every_example_answers_help() {
             );
         }
         let line = args(&[flag]);
+        assert!(
+            common_examples::report::Options::parse(&args(&["--size", "64", flag]))
+                .unwrap()
+                .is_help()
+        );
         assert!(cli::parse_quickstart(&line).unwrap().is_help());
         assert!(cli::parse_interactive(&line).unwrap().is_help());
         assert!(cli::parse_probe(&args(&["storage", flag]))
@@ -835,8 +840,26 @@ fn report_runs_every_kind_of_configuration_and_writes_its_files() {
             "{r:?}"
         );
     }
-    // Three tolerances per scene were checked.
+    // Three tolerances per scene were checked, none judged at 48x48 (the error table was
+    // built at 512x512): the run's verdict (the binary's exit status) is a success whatever
+    // the p95, and the report says why.
     assert_eq!(report.checks.len(), 6);
+    use common_examples::report::Verdict;
+    assert!(report
+        .checks
+        .iter()
+        .all(|c| c.size == 48 && c.verdict() == Verdict::NotJudged));
+    assert!(report.verdict().is_ok());
+    let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
+    assert_eq!(
+        md.matches("not judged (table built at 512²)").count(),
+        6,
+        "{md}"
+    );
+    assert!(!md.contains("FAIL"), "{md}");
+    assert!(std::fs::read_to_string(dir.path().join("error_table.rs"))
+        .unwrap()
+        .contains("at 48x48"));
     // On the sphere the hybrid at full resolution beats brute force at 16 steps (measured at
     // 48x48: p95 0.2% vs 16%), and the unshadowed floor is far off (89%).
     use common_examples::report::Curve;
@@ -858,6 +881,168 @@ fn report_runs_every_kind_of_configuration_and_writes_its_files() {
     // The 2% accuracy target, met by the hybrid at 8 steps; brute force at 16 does worse.
     const TARGET_P95: f64 = 0.02;
     assert!(hybrid < TARGET_P95 && hybrid < brute && brute < floor);
+}
+
+/// The error-target checks are judged only at the size the planner's table was built for
+/// (512²): there a p95 over the tolerance is a FAIL, the summary says so and the run's verdict
+/// (the binary's exit status 1) is an error; at another size the same p95 is "not judged"
+/// and the verdict a success.
+#[test]
+fn report_judges_error_targets_at_the_table_size_only() {
+    use common_examples::report::{summary, Check, Report, Verdict, ERROR_TABLE_SIZE};
+    assert_eq!(ERROR_TABLE_SIZE, 512);
+    let check = |size: u32, p95: f64| Check {
+        scene: "window".into(),
+        tolerance: 0.05,
+        p95,
+        size,
+    };
+    let report = |checks: Vec<Check>| Report {
+        rows: Vec::new(),
+        checks,
+        files: Vec::new(),
+    };
+    assert_eq!(check(512, 0.071).verdict(), Verdict::Fail);
+    assert_eq!(check(512, f64::INFINITY).verdict(), Verdict::Fail);
+    assert_eq!(check(512, 0.049).verdict(), Verdict::Pass);
+    assert_eq!(check(256, 0.071).verdict(), Verdict::NotJudged);
+    assert_eq!(check(256, 0.001).verdict(), Verdict::NotJudged);
+
+    let judged = report(vec![check(512, 0.049), check(512, 0.071)]);
+    let error = judged.verdict().unwrap_err().to_string();
+    println!("{error}");
+    assert!(error.contains("1 error-target check(s) FAIL") && error.contains("window"));
+    let text = summary(&[], &judged.checks);
+    assert!(
+        text.contains("| window | 5% | 0.049% | pass |")
+            || text.contains("| window | 5% | 4.900% | pass |"),
+        "{text}"
+    );
+    assert!(text.contains("FAIL by 2.10 points"), "{text}");
+
+    let elsewhere = report(vec![check(256, 0.071), check(256, 0.001)]);
+    assert!(elsewhere.verdict().is_ok());
+    let text = summary(&[], &elsewhere.checks);
+    assert_eq!(
+        text.matches("not judged (table built at 512²)").count(),
+        2,
+        "{text}"
+    );
+    assert!(!text.contains("FAIL") && !text.contains("pass"), "{text}");
+}
+
+/// The report never writes over its input: a scene file where an output would go (here a
+/// scene saved as `report.md` in the output folder) is refused before anything is written
+/// (no cache folder, no other file). Its default output folder is `target/volshadow-report`,
+/// and its default run the quick set.
+#[test]
+fn report_never_overwrites_its_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("report.md");
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sphere.json"),
+        &scene,
+    )
+    .unwrap();
+    let before = snapshot(dir.path());
+    let d = dir.path().to_str().unwrap();
+    for out in [d.to_string(), format!("{d}/.")] {
+        let result = common_examples::report::run(&args(&[
+            "--quick",
+            "--size",
+            "8",
+            "--frames",
+            "1",
+            "--scenes",
+            scene.to_str().unwrap(),
+            "--out",
+            &out,
+        ]));
+        assert_refused(result, "report.md", dir.path(), &before, &out);
+        assert!(
+            !dir.path().join("cache").exists(),
+            "{out}: the cache folder was made"
+        );
+    }
+    use common_examples::report::Options;
+    let Parsed::Run(defaults) = Options::parse(&[]).unwrap() else {
+        panic!("not a run")
+    };
+    assert_eq!(defaults.out, Path::new("target/volshadow-report"));
+    assert_eq!(defaults.size, common_examples::report::DEFAULT_SIZE);
+    assert_eq!(
+        defaults.scenes,
+        common_examples::report::DEFAULT_SCENES
+            .map(|n| Path::new("scenes").join(format!("{n}.json")))
+    );
+    assert!(!defaults.full);
+    // `--full`: every scene file at the table's size; `--size` still applies.
+    let Parsed::Run(full) = Options::parse(&args(&["--full"])).unwrap() else {
+        panic!("not a run")
+    };
+    assert_eq!(full.size, 512);
+    assert_eq!(full.scenes.len(), scene_files().len());
+    let Parsed::Run(full) = Options::parse(&args(&["--full", "--size", "64"])).unwrap() else {
+        panic!("not a run")
+    };
+    assert!(full.full && full.size == 64);
+    // Scenes named on the command line: at the table's size, as before the quick set.
+    let Parsed::Run(named) = Options::parse(&args(&["--scenes", "soft"])).unwrap() else {
+        panic!("not a run")
+    };
+    assert_eq!(named.size, 512);
+    assert_eq!(named.scenes, [Path::new("scenes/soft.json")]);
+}
+
+/// `error_vs_time.svg`: every series the report can plot (13 in a full run) has its own
+/// colour, and its own colour and marker together; none is the analytic floor's grey; and
+/// the legend's entries, at the widths their names need, neither overlap nor leave the header.
+#[test]
+fn report_plot_series_and_legend_are_distinct() {
+    use common_examples::report::FLOOR_GREY;
+    use common_examples::report::{legend_box, legend_layout, series_style, Curve, Filter};
+    let mut curves = vec![Curve::Brute, Curve::Paper003, Curve::Textbook];
+    for (d, f) in [(1, Filter::None), (2, Filter::Box3), (2, Filter::Separable)] {
+        curves.push(Curve::Exact(d, f));
+        curves.push(Curve::Hybrid(d, f, 2));
+    }
+    for f in [Filter::Box3, Filter::Separable] {
+        curves.push(Curve::Exact(4, f));
+        curves.push(Curve::Hybrid(4, f, 2));
+    }
+    assert_eq!(curves.len(), 13);
+    let styles: Vec<_> = (0..curves.len()).map(series_style).collect();
+    for (i, a) in styles.iter().enumerate() {
+        assert_ne!(a.0, FLOOR_GREY);
+        for (j, b) in styles.iter().enumerate().skip(i + 1) {
+            assert_ne!(a.0, b.0, "series {i} and {j} share a colour");
+        }
+    }
+    let pairs: Vec<_> = (0..60).map(series_style).collect();
+    for (i, a) in pairs.iter().enumerate() {
+        assert!(!pairs[i + 1..].contains(a), "style {i} repeats");
+    }
+    let mut names: Vec<String> = curves.iter().map(|c| c.name()).collect();
+    names.push("analytic floor (its time)".into());
+    for width in [1200, 800] {
+        let (places, header) = legend_layout(&names, width);
+        let boxes: Vec<_> = names
+            .iter()
+            .zip(&places)
+            .map(|(n, &p)| legend_box(n, p))
+            .collect();
+        for (i, a) in boxes.iter().enumerate() {
+            assert!(
+                a.2 <= width && a.3 <= header,
+                "{:?} leaves the header",
+                names[i]
+            );
+            for (j, b) in boxes.iter().enumerate().skip(i + 1) {
+                let apart = a.2 <= b.0 || b.2 <= a.0 || a.3 <= b.1 || b.3 <= a.1;
+                assert!(apart, "{:?} and {:?} overlap", names[i], names[j]);
+            }
+        }
+    }
 }
 
 /// The report's reference cache is keyed by every source the reference depends on: the files
