@@ -261,6 +261,29 @@ pub fn summary(rows: &[Row], checks: &[Check]) -> String {
     out
 }
 
+/// The options that reproduce this run.
+fn regenerate(options: &Options) -> String {
+    let scenes: Vec<String> = options
+        .scenes
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect();
+    let mut text = format!(
+        "--scenes {} --size {} --frames {} --out {}",
+        scenes.join(","),
+        options.size,
+        options.frames,
+        options.out.display()
+    );
+    for (flag, on) in [("--full", options.full), ("--quick", options.quick)] {
+        if on {
+            text.push(' ');
+            text.push_str(flag);
+        }
+    }
+    text
+}
+
 pub fn write_outputs(
     options: &Options,
     adapter: &str,
@@ -306,14 +329,15 @@ pub fn write_outputs(
     }
     // Markdown.
     let mut md = format!(
-        "# volshadow: error against time\n\n{date}, {adapter}, {}x{} pixels. Timing: {}, median of {} frames after a warm-up frame; F' table, shadow map and soft-shadow grid timed in frames in which the light moves (every pass that depends on it runs; no resource is recreated) and counted in every total. Error against the f64 reference: RMSE relative to the mean in-scatter; p95/p99 of the per-pixel relative error where the reference is above 1% of its 99th percentile (not of its maximum, which a light in view puts in its own glow); the light's own pixels left out. Regenerate: `cargo run --release --example report`.\n\n",
+        "# volshadow: error against time\n\n{date}, {adapter}, {}x{} pixels. Timing: {}, median of {} frames after a warm-up frame; F' table, shadow map and soft-shadow grid timed in frames in which the light moves (every pass that depends on it runs; no resource is recreated) and counted in every total. Error against the f64 reference: RMSE relative to the mean in-scatter; p95/p99 of the per-pixel relative error where the reference is above 1% of its 99th percentile (not of its maximum, which a light in view puts in its own glow); the light's own pixels left out. Regenerate: `cargo run --release --example report -- {}`.\n\n",
         options.size,
         options.size,
         match clock {
             Clock::WallPerPass => "each pass submitted alone and timed by the wall clock (CPU adapter)",
             Clock::Timestamps => "timestamp queries",
         },
-        options.frames
+        options.frames,
+        regenerate(options)
     );
     md.push_str(&summary(rows, checks));
     md.push_str("\n## All configurations\n\n| scene | method | steps | ");
@@ -398,7 +422,7 @@ pub fn error_table(rows: &[Row], size: u32) -> String {
         } else {
             format!(
                 "\n// Not comparable with volshadow::plan::ERROR_TABLE, measured at \
-                 {ERROR_TABLE_SIZE}x{ERROR_TABLE_SIZE} (`--full`)."
+                 {ERROR_TABLE_SIZE}x{ERROR_TABLE_SIZE} (`--scenes all`)."
             )
         }
     );
