@@ -465,7 +465,8 @@ pub(crate) fn occluder_bound(
 }
 
 /// A configuration the error target can pick, with what the report
-/// (`cargo run --release --example report`) measured for it on the standard scenes.
+/// (`cargo run --release --example report -- --scenes all`, at 512×512) measured for it on the
+/// standard scenes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MeasuredConfig {
     /// The march method (exact or hybrid).

@@ -15,6 +15,7 @@ mod files;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use common_examples::cli::{self, Parsed, WouldOverwriteInput};
 use common_examples::render_scene::{self, RenderMethod};
 
 /// Test image size: keeps the f64 reference (O(triangles) per ray) fast.
@@ -363,6 +364,263 @@ fn render_rejects_bad_arguments_and_files() {
     }
 }
 
+/// The bytes of every file in `dir` (names and contents), to show a refused run wrote nothing.
+fn snapshot(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    let mut files: Vec<(PathBuf, Vec<u8>)> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.is_file())
+        .map(|p| {
+            let bytes = std::fs::read(&p).unwrap();
+            (p, bytes)
+        })
+        .collect();
+    files.sort();
+    files
+}
+
+/// A refused run: the error is [`WouldOverwriteInput`] naming the input (its file name) and
+/// the output, and nothing in `dir` changed.
+fn assert_refused<T>(
+    result: Result<T, common_examples::BoxError>,
+    input: &str,
+    dir: &Path,
+    before: &[(PathBuf, Vec<u8>)],
+    case: &str,
+) {
+    let error = match result {
+        Ok(_) => panic!("{case}: the run was not refused"),
+        Err(e) => e,
+    };
+    let refusal = error
+        .downcast_ref::<WouldOverwriteInput>()
+        .unwrap_or_else(|| panic!("{case}: another error than the refusal: {error}"));
+    let message = error.to_string();
+    println!("{case}: {message}");
+    assert!(
+        refusal.input.ends_with(input) && message.contains(&refusal.output.display().to_string()),
+        "{case}: {message}"
+    );
+    assert_eq!(snapshot(dir), before, "{case}: files changed");
+}
+
+/// `render` never writes over its input: an output path naming the scene file (`-o` with its
+/// stem, with its extension, through `.` or `..`, through a symbolic link to the file or to
+/// its folder, or a hard link: the same file under another name) is refused before anything
+/// is written, and every file in the folder keeps its bytes. Without `-o` the outputs go to `out/STEM`,
+/// not beside the input. No GPU: the refusal comes first.
+#[test]
+fn render_never_overwrites_its_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("lamp.json");
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/lamp_wall.json"),
+        &scene,
+    )
+    .unwrap();
+    let d = dir.path().to_str().unwrap();
+    std::fs::create_dir(dir.path().join("sub")).unwrap();
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink(&scene, dir.path().join("alias.json")).unwrap();
+        std::os::unix::fs::symlink(dir.path(), dir.path().join("here")).unwrap();
+        std::fs::hard_link(&scene, dir.path().join("hard.json")).unwrap();
+    }
+    let before = snapshot(dir.path());
+    let mut cases = vec![
+        format!("{d}/lamp"),
+        format!("{d}/lamp.json"),
+        format!("{d}/./lamp"),
+        format!("{d}/sub/../lamp"),
+    ];
+    if cfg!(unix) {
+        // A link to the file, a link to its folder, a second name of the same file.
+        cases.extend([
+            format!("{d}/alias"),
+            format!("{d}/here/lamp"),
+            format!("{d}/hard"),
+        ]);
+    }
+    for out in &cases {
+        let result = render_scene::run(&args(&[
+            scene.to_str().unwrap(),
+            "-o",
+            out,
+            "--size",
+            "16x16",
+        ]));
+        assert_refused(result, "lamp.json", dir.path(), &before, out);
+    }
+    // The outputs' default: `out/STEM`, whatever folder the scene is in.
+    let Parsed::Run(options) =
+        render_scene::Options::parse(&args(&[scene.to_str().unwrap()])).unwrap()
+    else {
+        panic!("not a run")
+    };
+    assert_eq!(options.out, Path::new(cli::OUT_DIR).join("lamp"));
+    for output in options.outputs() {
+        assert!(output.starts_with(cli::OUT_DIR), "{}", output.display());
+    }
+}
+
+/// A file the scene names (a spot light's texture `glass.png`) is an input too: `-o glass`
+/// would write `glass.png` over it.
+#[cfg(feature = "image")]
+#[test]
+fn render_never_overwrites_a_file_the_scene_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/stained_glass.json"),
+    )
+    .unwrap();
+    let text = text.replace(
+        r#""texture": { "stained_glass": { "size": 256, "cells": 8, "seed": 2024 } }"#,
+        r#""texture": { "file": "glass.png" }"#,
+    );
+    assert!(text.contains("glass.png"), "the scene's texture line moved");
+    let scene = dir.path().join("spot.json");
+    std::fs::write(&scene, text).unwrap();
+    image::RgbImage::from_fn(8, 8, |x, y| {
+        image::Rgb([(x * 30) as u8, (y * 30) as u8, 200])
+    })
+    .save(dir.path().join("glass.png"))
+    .unwrap();
+    // A valid scene that reads the texture.
+    volshadow::scene_file::SceneDescription::load(&scene).unwrap();
+    let before = snapshot(dir.path());
+    let out = dir.path().join("glass");
+    let result = render_scene::run(&args(&[
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--size",
+        "16x16",
+    ]));
+    assert_refused(result, "glass.png", dir.path(), &before, "-o glass");
+}
+
+/// `--help` and `-h` are a request for the usage, not an error, for every example's parser,
+/// whatever else is on the line; and `render`'s help lists every method its parser accepts
+/// (both come from `METHODS`).
+#[test]
+fn every_example_answers_help() {
+    for flag in ["--help", "-h"] {
+        let scene = "scenes/sphere.json";
+        for line in [
+            vec![flag],
+            vec![scene, flag],
+            vec![scene, "--method", "bogus", flag],
+        ] {
+            let line = args(&line);
+            assert!(
+                render_scene::Options::parse(&line).unwrap().is_help(),
+                "render {line:?}"
+            );
+            #[cfg(feature = "gltf")]
+            assert!(
+                common_examples::gltf_scene::Options::parse(&line)
+                    .unwrap()
+                    .is_help(),
+                "gltf {line:?}"
+            );
+        }
+        let line = args(&[flag]);
+        assert!(
+            common_examples::report::Options::parse(&args(&["--size", "64", flag]))
+                .unwrap()
+                .is_help()
+        );
+        assert!(cli::parse_quickstart(&line).unwrap().is_help());
+        assert!(cli::parse_interactive(&line).unwrap().is_help());
+        assert!(cli::parse_probe(&args(&["storage", flag]))
+            .unwrap()
+            .is_help());
+    }
+    // Without --help, the same parsers run (or refuse) as before.
+    assert!(!render_scene::Options::parse(&args(&["s.json"]))
+        .unwrap()
+        .is_help());
+    assert!(render_scene::Options::parse(&args(&["--bogus"])).is_err());
+    assert!(cli::parse_interactive(&args(&["--bogus"])).is_err());
+    assert_eq!(cli::parse_interactive(&[]).unwrap(), Parsed::Run(()));
+
+    let help = render_scene::help();
+    for m in &render_scene::METHODS {
+        assert!(
+            help.contains(&m.syntax()),
+            "{} missing from:\n{help}",
+            m.syntax()
+        );
+        for name in std::iter::once(&m.name).chain(m.aliases) {
+            RenderMethod::parse(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+        }
+    }
+    for method in ["exact", "exact:2:separable:16", "textbook:32:4"] {
+        RenderMethod::parse(method).unwrap_or_else(|e| panic!("{method}: {e}"));
+    }
+    let unknown = RenderMethod::parse("fast").unwrap_err().to_string();
+    for m in &render_scene::METHODS {
+        assert!(unknown.contains(m.name), "{unknown}");
+    }
+    assert!(RenderMethod::parse("textbook:32:4:1").is_err());
+    // The interactive keys: each listed key does what it says, every action has a key.
+    let keys = cli::keys_help();
+    for (key, name, action, _) in cli::KEYS {
+        assert_eq!(cli::action_of(key), Some(action));
+        assert!(keys.contains(name) && cli::interactive_help().contains(name));
+    }
+    assert!(
+        keys.contains("exact -> hybrid -> brute force -> textbook"),
+        "{keys}"
+    );
+}
+
+/// The small examples' options: quickstart writes to `out/quickstart.png` unless told
+/// otherwise (one PNG path); uniform_probe's arguments are checked, not unwrapped.
+#[test]
+fn small_examples_parse_their_options() {
+    let run = |list: &[&str]| match cli::parse_quickstart(&args(list)).unwrap() {
+        Parsed::Run(o) => o.output,
+        Parsed::Help => panic!("help"),
+    };
+    assert_eq!(run(&[]), Path::new(cli::OUT_DIR).join("quickstart.png"));
+    assert_eq!(run(&["a/b.png"]), Path::new("a/b.png"));
+    assert_eq!(run(&["-o", "c.PNG"]), Path::new("c.PNG"));
+    for bad in [
+        &["a.png", "b.png"][..],
+        &["-o", "x.jpg"],
+        &["--bogus"],
+        &["-o"],
+    ] {
+        assert!(cli::parse_quickstart(&args(bad)).is_err(), "{bad:?}");
+    }
+    let probe = |list: &[&str]| cli::parse_probe(&args(list));
+    assert_eq!(
+        probe(&["storage", "100", "composite"]).unwrap(),
+        Parsed::Run(cli::ProbeOptions {
+            storage: true,
+            frames: 100,
+            composite: true
+        })
+    );
+    assert_eq!(
+        probe(&[]).unwrap(),
+        Parsed::Run(cli::ProbeOptions {
+            storage: false,
+            frames: 2000,
+            composite: false
+        })
+    );
+    for bad in [
+        &["bogus"][..],
+        &["uniform", "x"],
+        &["uniform", "0"],
+        &["uniform", "9", "y"],
+    ] {
+        assert!(probe(bad).is_err(), "{bad:?}");
+    }
+}
+
 /// A box of half extents (1, 0.5, 0.75) as a binary glTF, placed 1.5 above the origin.
 #[cfg(feature = "gltf")]
 fn box_glb() -> Vec<u8> {
@@ -454,6 +712,59 @@ fn gltf_renders_a_box() {
     );
 }
 
+/// `gltf` never writes over its input: a model whose own name an output takes (`-o` naming
+/// `box.png` when the model is a GLB called `box.png`) or an image the model names (`tex.png`
+/// of a `.gltf`) is refused before anything is written; without `-o` the outputs go to
+/// `out/STEM`.
+#[cfg(feature = "gltf")]
+#[test]
+fn gltf_never_overwrites_its_input() {
+    use common_examples::gltf_scene;
+    let dir = tempfile::tempdir().unwrap();
+    // A GLB under a PNG's name: `-o box` would write box.png over it.
+    let glb = dir.path().join("box.png");
+    std::fs::write(&glb, box_glb()).unwrap();
+    // A .gltf whose buffer and image are files beside it: `-o tex` would write tex.png.
+    let bytes = box_glb();
+    let json_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let bin = &bytes[28 + json_len..];
+    std::fs::write(dir.path().join("box data.bin"), bin).unwrap();
+    std::fs::write(dir.path().join("tex.png"), b"an image").unwrap();
+    let json: String = String::from_utf8(bytes[20..20 + json_len].to_vec()).unwrap();
+    let json = json.replace(
+        r#""buffers": [{"byteLength": 168}]"#,
+        r#""buffers": [{"byteLength": 168, "uri": "box%20data.bin"}],
+        "images": [{"uri": "tex.png"}]"#,
+    );
+    assert!(json.contains("tex.png"));
+    let gltf = dir.path().join("model.gltf");
+    std::fs::write(&gltf, json).unwrap();
+    // Both are models the loader reads.
+    volshadow::gltf::load(&glb).unwrap();
+    volshadow::gltf::load(&gltf).unwrap();
+    let before = snapshot(dir.path());
+    let d = dir.path().to_str().unwrap();
+    for (model, out, input) in [
+        (&glb, format!("{d}/box"), "box.png"),
+        (&glb, format!("{d}/./box.png"), "box.png"),
+        (&gltf, format!("{d}/tex"), "tex.png"),
+    ] {
+        let result = gltf_scene::run(&args(&[
+            model.to_str().unwrap(),
+            "-o",
+            &out,
+            "--size",
+            "16x16",
+        ]));
+        assert_refused(result, input, dir.path(), &before, &out);
+    }
+    let Parsed::Run(options) = gltf_scene::Options::parse(&args(&[glb.to_str().unwrap()])).unwrap()
+    else {
+        panic!("not a run")
+    };
+    assert_eq!(options.out, Path::new(cli::OUT_DIR).join("box"));
+}
+
 #[test]
 fn report_metrics_measure_what_they_say() {
     use common_examples::report::errors;
@@ -529,8 +840,26 @@ fn report_runs_every_kind_of_configuration_and_writes_its_files() {
             "{r:?}"
         );
     }
-    // Three tolerances per scene were checked.
+    // Three tolerances per scene were checked, none judged at 48x48 (the error table was
+    // built at 512x512): the run's verdict (the binary's exit status) is a success whatever
+    // the p95, and the report says why.
     assert_eq!(report.checks.len(), 6);
+    use common_examples::report::Verdict;
+    assert!(report
+        .checks
+        .iter()
+        .all(|c| c.size == 48 && c.verdict() == Verdict::NotJudged));
+    assert!(report.verdict().is_ok());
+    let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
+    assert_eq!(
+        md.matches("not judged (table built at 512²)").count(),
+        6,
+        "{md}"
+    );
+    assert!(!md.contains("FAIL"), "{md}");
+    assert!(std::fs::read_to_string(dir.path().join("error_table.rs"))
+        .unwrap()
+        .contains("at 48x48"));
     // On the sphere the hybrid at full resolution beats brute force at 16 steps (measured at
     // 48x48: p95 0.2% vs 16%), and the unshadowed floor is far off (89%).
     use common_examples::report::Curve;
@@ -552,6 +881,168 @@ fn report_runs_every_kind_of_configuration_and_writes_its_files() {
     // The 2% accuracy target, met by the hybrid at 8 steps; brute force at 16 does worse.
     const TARGET_P95: f64 = 0.02;
     assert!(hybrid < TARGET_P95 && hybrid < brute && brute < floor);
+}
+
+/// The error-target checks are judged only at the size the planner's table was built for
+/// (512²): there a p95 over the tolerance is a FAIL, the summary says so and the run's verdict
+/// (the binary's exit status 1) is an error; at another size the same p95 is "not judged"
+/// and the verdict a success.
+#[test]
+fn report_judges_error_targets_at_the_table_size_only() {
+    use common_examples::report::{summary, Check, Report, Verdict, ERROR_TABLE_SIZE};
+    assert_eq!(ERROR_TABLE_SIZE, 512);
+    let check = |size: u32, p95: f64| Check {
+        scene: "window".into(),
+        tolerance: 0.05,
+        p95,
+        size,
+    };
+    let report = |checks: Vec<Check>| Report {
+        rows: Vec::new(),
+        checks,
+        files: Vec::new(),
+    };
+    assert_eq!(check(512, 0.071).verdict(), Verdict::Fail);
+    assert_eq!(check(512, f64::INFINITY).verdict(), Verdict::Fail);
+    assert_eq!(check(512, 0.049).verdict(), Verdict::Pass);
+    assert_eq!(check(256, 0.071).verdict(), Verdict::NotJudged);
+    assert_eq!(check(256, 0.001).verdict(), Verdict::NotJudged);
+
+    let judged = report(vec![check(512, 0.049), check(512, 0.071)]);
+    let error = judged.verdict().unwrap_err().to_string();
+    println!("{error}");
+    assert!(error.contains("1 error-target check(s) FAIL") && error.contains("window"));
+    let text = summary(&[], &judged.checks);
+    assert!(
+        text.contains("| window | 5% | 0.049% | pass |")
+            || text.contains("| window | 5% | 4.900% | pass |"),
+        "{text}"
+    );
+    assert!(text.contains("FAIL by 2.10 points"), "{text}");
+
+    let elsewhere = report(vec![check(256, 0.071), check(256, 0.001)]);
+    assert!(elsewhere.verdict().is_ok());
+    let text = summary(&[], &elsewhere.checks);
+    assert_eq!(
+        text.matches("not judged (table built at 512²)").count(),
+        2,
+        "{text}"
+    );
+    assert!(!text.contains("FAIL") && !text.contains("pass"), "{text}");
+}
+
+/// The report never writes over its input: a scene file where an output would go (here a
+/// scene saved as `report.md` in the output folder) is refused before anything is written
+/// (no cache folder, no other file). Its default output folder is `target/volshadow-report`,
+/// and its default run the quick set.
+#[test]
+fn report_never_overwrites_its_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("report.md");
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sphere.json"),
+        &scene,
+    )
+    .unwrap();
+    let before = snapshot(dir.path());
+    let d = dir.path().to_str().unwrap();
+    for out in [d.to_string(), format!("{d}/.")] {
+        let result = common_examples::report::run(&args(&[
+            "--quick",
+            "--size",
+            "8",
+            "--frames",
+            "1",
+            "--scenes",
+            scene.to_str().unwrap(),
+            "--out",
+            &out,
+        ]));
+        assert_refused(result, "report.md", dir.path(), &before, &out);
+        assert!(
+            !dir.path().join("cache").exists(),
+            "{out}: the cache folder was made"
+        );
+    }
+    use common_examples::report::Options;
+    let Parsed::Run(defaults) = Options::parse(&[]).unwrap() else {
+        panic!("not a run")
+    };
+    assert_eq!(defaults.out, Path::new("target/volshadow-report"));
+    assert_eq!(defaults.size, common_examples::report::DEFAULT_SIZE);
+    assert_eq!(
+        defaults.scenes,
+        common_examples::report::DEFAULT_SCENES
+            .map(|n| Path::new("scenes").join(format!("{n}.json")))
+    );
+    assert!(!defaults.full);
+    // `--full`: every scene file at the table's size; `--size` still applies.
+    let Parsed::Run(full) = Options::parse(&args(&["--full"])).unwrap() else {
+        panic!("not a run")
+    };
+    assert_eq!(full.size, 512);
+    assert_eq!(full.scenes.len(), scene_files().len());
+    let Parsed::Run(full) = Options::parse(&args(&["--full", "--size", "64"])).unwrap() else {
+        panic!("not a run")
+    };
+    assert!(full.full && full.size == 64);
+    // Scenes named on the command line: at the table's size, as before the quick set.
+    let Parsed::Run(named) = Options::parse(&args(&["--scenes", "soft"])).unwrap() else {
+        panic!("not a run")
+    };
+    assert_eq!(named.size, 512);
+    assert_eq!(named.scenes, [Path::new("scenes/soft.json")]);
+}
+
+/// `error_vs_time.svg`: every series the report can plot (13 in a full run) has its own
+/// colour, and its own colour and marker together; none is the analytic floor's grey; and
+/// the legend's entries, at the widths their names need, neither overlap nor leave the header.
+#[test]
+fn report_plot_series_and_legend_are_distinct() {
+    use common_examples::report::FLOOR_GREY;
+    use common_examples::report::{legend_box, legend_layout, series_style, Curve, Filter};
+    let mut curves = vec![Curve::Brute, Curve::Paper003, Curve::Textbook];
+    for (d, f) in [(1, Filter::None), (2, Filter::Box3), (2, Filter::Separable)] {
+        curves.push(Curve::Exact(d, f));
+        curves.push(Curve::Hybrid(d, f, 2));
+    }
+    for f in [Filter::Box3, Filter::Separable] {
+        curves.push(Curve::Exact(4, f));
+        curves.push(Curve::Hybrid(4, f, 2));
+    }
+    assert_eq!(curves.len(), 13);
+    let styles: Vec<_> = (0..curves.len()).map(series_style).collect();
+    for (i, a) in styles.iter().enumerate() {
+        assert_ne!(a.0, FLOOR_GREY);
+        for (j, b) in styles.iter().enumerate().skip(i + 1) {
+            assert_ne!(a.0, b.0, "series {i} and {j} share a colour");
+        }
+    }
+    let pairs: Vec<_> = (0..60).map(series_style).collect();
+    for (i, a) in pairs.iter().enumerate() {
+        assert!(!pairs[i + 1..].contains(a), "style {i} repeats");
+    }
+    let mut names: Vec<String> = curves.iter().map(|c| c.name()).collect();
+    names.push("analytic floor (its time)".into());
+    for width in [1200, 800] {
+        let (places, header) = legend_layout(&names, width);
+        let boxes: Vec<_> = names
+            .iter()
+            .zip(&places)
+            .map(|(n, &p)| legend_box(n, p))
+            .collect();
+        for (i, a) in boxes.iter().enumerate() {
+            assert!(
+                a.2 <= width && a.3 <= header,
+                "{:?} leaves the header",
+                names[i]
+            );
+            for (j, b) in boxes.iter().enumerate().skip(i + 1) {
+                let apart = a.2 <= b.0 || b.2 <= a.0 || a.3 <= b.1 || b.3 <= a.1;
+                assert!(apart, "{:?} and {:?} overlap", names[i], names[j]);
+            }
+        }
+    }
 }
 
 /// The report's reference cache is keyed by every source the reference depends on: the files

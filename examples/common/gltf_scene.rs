@@ -19,8 +19,10 @@
 //! and what it means for the shadow volume, renders through `VolumetricShadows` with the
 //! default (real-time) settings, prints the plan and per-pass GPU times, and writes `OUT.png`
 //! (tone-mapped) and `OUT.inscatter.exr` (the in-scattered radiance alone, linear RGB, as
-//! `render` writes it). `OUT` defaults to the model's stem; a trailing `.png` or `.exr` is
-//! dropped. Size 800×500 unless `--size`.
+//! `render` writes it). `OUT` defaults to `out/STEM` (the model's stem, in the folder `out/`,
+//! created if missing); a trailing `.png` or `.exr` is dropped. A run that would write over an
+//! input (the model, or a buffer or image it names) is refused before anything is written.
+//! Size 800×500 unless `--size`. `-h` / `--help` prints [`HELP`].
 
 use std::path::PathBuf;
 
@@ -32,6 +34,7 @@ use volshadow::{
     PhaseFunction, PointLight, Settings, VolumetricShadows,
 };
 
+use super::cli::{default_output, input_files, refuse_overwrite, usage_line, Parsed};
 use super::raster::{
     default_ambient, draw_app_frame, surface_shadow_maps, texture_desc, DrawLight, DrawObject,
 };
@@ -40,8 +43,24 @@ use super::{
     BoxError, FrameStats,
 };
 
-/// The command line, for error messages.
-pub const USAGE: &str = "usage: gltf MODEL.gltf|MODEL.glb [-o OUT] [--size WxH]";
+/// `gltf --help` (its first line is the usage line of error messages).
+pub const HELP: &str = "\
+usage: gltf MODEL.gltf|MODEL.glb [-o OUT] [--size WxH] [-h | --help]
+
+Loads every mesh of a glTF model as an occluder, prints each mesh's topology (closed or open,
+boundary and non-manifold edges) and what it means for its shadow volume, frames the model over
+a ground plane with a point light above and behind it in hazy fog, and writes OUT.png
+(tone-mapped) and OUT.inscatter.exr (the in-scattered light alone, linear RGB).
+
+options:
+  -o, --output OUT  output path without extension (default: out/STEM, STEM the model's stem;
+                    a trailing .png or .exr is dropped; folders are created). A run that would
+                    write over an input file (the model, its buffers or images) is refused.
+  --size WxH        image size (default 800x500)
+  -h, --help        this help";
+
+/// The usage line, for error messages.
+pub const USAGE: &str = "usage: gltf MODEL.gltf|MODEL.glb [-o OUT] [--size WxH] [-h | --help]";
 
 /// The parsed command line.
 #[derive(Debug, Clone, PartialEq)]
@@ -55,29 +74,37 @@ pub struct Options {
 }
 
 impl Options {
-    /// Parses the arguments after the program name.
-    pub fn parse(args: &[String]) -> Result<Self, BoxError> {
+    /// Parses the arguments after the program name: the options, or [`Parsed::Help`] for
+    /// `-h` / `--help` (whatever else is given).
+    pub fn parse(args: &[String]) -> Result<Parsed<Self>, BoxError> {
+        if args.iter().any(|a| a == "-h" || a == "--help") {
+            return Ok(Parsed::Help);
+        }
         let (mut model, mut out, mut size) = (None, None, (800, 500));
         let mut parser = lexopt::Parser::from_args(args);
         while let Some(arg) = parser.next()? {
             match arg {
                 Short('o') | Long("output") => out = Some(PathBuf::from(parser.value()?)),
                 Long("size") => size = parse_size(&parser.value()?.string()?)?,
-                Short('h') | Long("help") => return Err(USAGE.into()),
+                Short('h') | Long("help") => return Ok(Parsed::Help),
                 Value(path) if model.is_none() => model = Some(PathBuf::from(path)),
                 _ => return Err(format!("{}\n{USAGE}", arg.unexpected()).into()),
             }
         }
         let model: PathBuf = model.ok_or_else(|| format!("no model given\n{USAGE}"))?;
-        let mut out: PathBuf =
-            out.unwrap_or_else(|| PathBuf::from(model.file_stem().unwrap_or("gltf".as_ref())));
+        let mut out: PathBuf = out.unwrap_or_else(|| default_output(&model, "gltf"));
         if matches!(
             out.extension().and_then(|e| e.to_str()),
             Some("png" | "exr")
         ) {
             out.set_extension("");
         }
-        Ok(Options { model, out, size })
+        Ok(Parsed::Run(Options { model, out, size }))
+    }
+
+    /// The files the run writes: `OUT.png` and `OUT.inscatter.exr`.
+    pub fn outputs(&self) -> Vec<PathBuf> {
+        vec![self.path(".png"), self.path(".inscatter.exr")]
     }
 
     /// `OUT` followed by `suffix` (e.g. `".inscatter.exr"`).
@@ -104,13 +131,20 @@ pub struct Rendered {
     pub stats: FrameStats,
 }
 
-/// Parses `args` (after the program name) and renders: the whole example.
+/// Parses `args` (after the program name) and renders (what the tests call; `--help`, which
+/// the binary prints, is an error here).
 pub fn run(args: &[String]) -> Result<Rendered, BoxError> {
-    render(&Options::parse(args)?)
+    match Options::parse(args)? {
+        Parsed::Run(options) => render(&options),
+        Parsed::Help => Err(format!("--help renders nothing\n{}", usage_line(HELP)).into()),
+    }
 }
 
-/// Renders the model as the [module docs](self) describe and writes the PNG.
+/// Renders the model as the [module docs](self) describe and writes the PNG and the EXR;
+/// refused with [`WouldOverwriteInput`](super::cli::WouldOverwriteInput) before anything is
+/// read or written when one of them is an input file.
 pub fn render(options: &Options) -> Result<Rendered, BoxError> {
+    refuse_overwrite(&input_files(&options.model), &options.outputs())?;
     let meshes = volshadow::gltf::load(&options.model)?;
     let (lo, hi) = meshes
         .iter()

@@ -1,5 +1,7 @@
 //! What the examples share, and what `tests/examples.rs` calls to run them as tests.
 //!
+//! * [`cli`]: `--help`, the default output folder (`out/`) and the refusal to overwrite an
+//!   input; the small examples' options.
 //! * [`raster`]: the application's own frame (colour + depth) from triangle meshes.
 //! * [`fullscreen`]: the app's full-screen ray-cast pass (`quickstart_scene`, `soak`), texture
 //!   descriptors.
@@ -14,6 +16,7 @@
 //! used by every includer.
 #![allow(dead_code)]
 
+pub mod cli;
 pub mod fullscreen;
 #[cfg(feature = "gltf")]
 pub mod gltf_scene;

@@ -9,19 +9,26 @@
 //! alone, summed over the lights, before the composite), `OUT.depth.exr` (eye distance per
 //! pixel in R, G and B; [`SKY_DISTANCE`] where nothing was drawn) and `OUT.json` (scene, size,
 //! method, adapter, the plan, GPU time per pass in ms for the last of three frames, their sum,
-//! and the wall-clock time of that frame). `OUT` defaults to the scene file's stem; a trailing
-//! `.png`, `.exr` or `.json` is dropped.
+//! and the wall-clock time of that frame). `OUT` defaults to `out/STEM` (the scene file's stem,
+//! in the folder `out/`, created if missing); a trailing `.png`, `.exr` or `.json` is dropped.
+//! A run that would write over one of its inputs (the scene file or a file it names) is
+//! refused before anything is written. `-h` / `--help` prints [`help`].
 //!
-//! `METHOD` (default: the scene file's own `method`):
+//! `METHOD` (default: the scene file's own `method`), one of [`METHODS`] (the parser and the
+//! help are both made from that list):
 //! * `reference`: the f64 CPU integrator ([`volshadow::reference::inscatter_image`]) with
 //!   exact visibility, composited on the CPU onto the same app-drawn frame;
 //! * `analytic`: the GPU with no occluders passed — unshadowed airlight, the cost floor;
-//! * `brute[:STEPS[:SCALE[:BISECTIONS]]]`: the GPU brute-force march;
-//! * `hybrid[:STEPS[:SCALE[:FILTER[:BISECTIONS]]]]`: the GPU hybrid, FILTER one of
-//!   `bilinear`, `3x3` (depth-aware 3×3, the default) or
-//!   `separable[,TAPS,SIGMA_SPATIAL,SIGMA_DEPTH]` (default `separable,7,1.5,0.05`).
+//! * `exact[:SCALE[:FILTER[:CROSSINGS]]]`: the GPU's exact integration between shadow-volume
+//!   crossings (the library's default method);
+//! * `brute[:STEPS[:SCALE[:BISECTIONS]]]` (or `brute_force`): the GPU brute-force march;
+//! * `hybrid[:STEPS[:SCALE[:FILTER[:BISECTIONS]]]]`: the GPU hybrid;
+//! * `textbook[:STEPS[:SCALE]]`: the Riemann sum in distance most engines use.
 //!
-//! Defaults: 64 steps, SCALE 1 (full resolution; 2 or 4 divide the output size), 0 bisections.
+//! FILTER is one of `bilinear`, `3x3` (depth-aware 3×3, the default) or
+//! `separable[,TAPS,SIGMA_SPATIAL,SIGMA_DEPTH]` (default `separable,7,1.5,0.05`).
+//! Defaults: 64 steps, SCALE 1 (full resolution; 2 or 4 divide the output size), 0 bisections,
+//! CROSSINGS [`volshadow::nodes::DEFAULT_CROSSINGS`].
 //! Everything else is `Settings::default()`'s (256² F′ table, 1024² shadow maps, occluders
 //! culled below 1e-3 of the in-scatter; `march_settings()`' 32 texture steps outside the extents).
 //! `--size` overrides the file's size (the camera keeps its vertical field of view);
@@ -49,6 +56,7 @@ use volshadow::{
     Surfaces, VolumetricShadows,
 };
 
+use super::cli::{default_output, input_files, refuse_overwrite, usage_line, Parsed};
 use super::raster::{
     default_ambient, draw_app_frame, surface_shadow_maps, texture_desc, AppFrame, DrawLight,
     DrawObject,
@@ -58,10 +66,126 @@ use super::{
     timings_json, tone_map, with_aspect, write_exr, write_png, BoxError, FRAMES, SKY_DISTANCE,
 };
 
-/// The command line, for error messages.
-pub const USAGE: &str = "usage: render SCENE.json [-o OUT] \
-[--method reference|analytic|brute[:STEPS[:SCALE[:BISECTIONS]]]|hybrid[:STEPS[:SCALE[:FILTER[:BISECTIONS]]]]] \
-[--size WxH] [--exposure E] [--surface-scatter]";
+/// The command line, for error messages (`--help` prints [`help`]).
+pub const USAGE: &str = "usage: render SCENE.json [-o OUT] [--method METHOD] [--size WxH] \
+[--exposure E] [--surface-scatter] [-h | --help]";
+
+/// Which method a [`METHODS`] entry is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MethodKind {
+    Reference,
+    Analytic,
+    Exact,
+    BruteForce,
+    Hybrid,
+    Textbook,
+}
+
+/// One `--method` the parser accepts: its name (and other spellings), its `:`-separated
+/// parameters in order, and what it is.
+#[derive(Debug, Clone, Copy)]
+pub struct MethodSyntax {
+    pub kind: MethodKind,
+    pub name: &'static str,
+    pub aliases: &'static [&'static str],
+    pub params: &'static [&'static str],
+    pub about: &'static str,
+}
+
+impl MethodSyntax {
+    /// `name[:P1[:P2]]`.
+    pub fn syntax(&self) -> String {
+        let mut text = self.name.to_string();
+        for p in self.params {
+            text.push_str("[:");
+            text.push_str(p);
+        }
+        text.push_str(&"]".repeat(self.params.len()));
+        text
+    }
+}
+
+/// Every method `--method` accepts: [`RenderMethod::parse`] looks names up here and [`help`]
+/// lists them, so the two cannot differ.
+pub const METHODS: [MethodSyntax; 6] = [
+    MethodSyntax {
+        kind: MethodKind::Reference,
+        name: "reference",
+        aliases: &[],
+        params: &[],
+        about: "the f64 CPU integrator with exact visibility, composited on the CPU",
+    },
+    MethodSyntax {
+        kind: MethodKind::Analytic,
+        name: "analytic",
+        aliases: &[],
+        params: &[],
+        about: "the GPU with no occluders passed: unshadowed airlight, the cost floor",
+    },
+    MethodSyntax {
+        kind: MethodKind::Exact,
+        name: "exact",
+        aliases: &[],
+        params: &["SCALE", "FILTER", "CROSSINGS"],
+        about: "the GPU's exact integration between shadow-volume crossings (the default)",
+    },
+    MethodSyntax {
+        kind: MethodKind::BruteForce,
+        name: "brute",
+        aliases: &["brute_force"],
+        params: &["STEPS", "SCALE", "BISECTIONS"],
+        about: "the GPU brute-force march over the whole ray",
+    },
+    MethodSyntax {
+        kind: MethodKind::Hybrid,
+        name: "hybrid",
+        aliases: &[],
+        params: &["STEPS", "SCALE", "FILTER", "BISECTIONS"],
+        about: "the GPU hybrid: marched only between the shadow volumes' extents",
+    },
+    MethodSyntax {
+        kind: MethodKind::Textbook,
+        name: "textbook",
+        aliases: &[],
+        params: &["STEPS", "SCALE"],
+        about: "the Riemann sum in distance most engines use (the report's baseline)",
+    },
+];
+
+/// `render --help`: the usage, every option and every method of [`METHODS`].
+pub fn help() -> String {
+    let mut methods = String::new();
+    for m in &METHODS {
+        let mut syntax = m.syntax();
+        for alias in m.aliases {
+            syntax.push_str(&format!(" (or {alias})"));
+        }
+        methods.push_str(&format!("      {syntax}\n          {}\n", m.about));
+    }
+    format!(
+        "{USAGE}
+
+Renders a JSON scene file headless: writes OUT.exr (linear radiance), OUT.png (tone-mapped),
+OUT.inscatter.exr (the in-scattered light alone), OUT.depth.exr (eye distance) and OUT.json
+(the plan and the timings), and OUT.surface.exr with --surface-scatter.
+
+options:
+  -o, --output OUT   output path without extension (default: out/STEM, STEM the scene file's
+                     stem; a trailing .png, .exr or .json is dropped; folders are created).
+                     A run that would write over an input file is refused.
+  --method METHOD    how the in-scatter is computed (default: the scene file's method), one of
+{methods}                     STEPS: steps per marched interval (default 64); SCALE: 1, 2 or 4, the
+                     scattering resolution's divisor (default 1); FILTER: bilinear, 3x3 (the
+                     default) or separable[,TAPS,SIGMA_SPATIAL,SIGMA_DEPTH]; BISECTIONS:
+                     default 0; CROSSINGS: shadow-volume faces kept per pixel (default {}).
+  --size WxH         image size (default: the scene file's; the vertical field of view is kept)
+  --exposure E       the PNG's exposure (default: automatic)
+  --surface-scatter  add the light the fog scatters onto the surfaces (GPU methods) and write
+                     OUT.surface.exr, that term alone
+  -h, --help         this help",
+        volshadow::nodes::DEFAULT_CROSSINGS
+    )
+}
 
 /// How to compute the in-scatter.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -83,86 +207,77 @@ impl RenderMethod {
         }
     }
 
-    /// Parses the `--method` syntax (see the [module docs](self)).
+    /// Parses the `--method` syntax: a name of [`METHODS`] and its `:`-separated parameters.
     pub fn parse(text: &str) -> Result<Self, BoxError> {
         let mut parts = text.split(':');
         let kind = parts.next().unwrap_or_default();
         let rest: Vec<&str> = parts.collect();
         let bad = |what: &str| -> BoxError { format!("--method {text:?}: {what}").into() };
-        let number = |i: usize, name: &str, default: u32| -> Result<u32, BoxError> {
-            rest.get(i).map_or(Ok(default), |s| {
+        let Some(entry) = METHODS
+            .iter()
+            .find(|m| m.name == kind || m.aliases.contains(&kind))
+        else {
+            let names: Vec<String> = METHODS.iter().map(|m| m.syntax()).collect();
+            return Err(bad(&format!("expected one of {}", names.join(", "))));
+        };
+        if rest.len() > entry.params.len() {
+            return Err(bad(&format!(
+                "at most {} ':'-separated parameters ({})",
+                entry.params.len(),
+                entry.syntax()
+            )));
+        }
+        // A parameter by its name in the entry, so the order is the table's.
+        let param = |name: &str| -> Option<&str> {
+            let i = entry.params.iter().position(|p| *p == name)?;
+            rest.get(i).copied()
+        };
+        let number = |name: &str, default: u32| -> Result<u32, BoxError> {
+            param(name).map_or(Ok(default), |s| {
                 s.parse()
                     .map_err(|_| bad(&format!("{name} must be a whole number, got {s:?}")))
             })
         };
-        let scale = |i: usize| -> Result<Scale, BoxError> {
-            Scale::from_divisor(number(i, "SCALE", 1)?).map_err(|e| bad(&e.to_string()))
+        let scale = || -> Result<Scale, BoxError> {
+            Scale::from_divisor(number("SCALE", 1)?).map_err(|e| bad(&e.to_string()))
         };
-        let too_many = |max: usize| -> Result<(), BoxError> {
-            if rest.len() > max {
-                Err(bad(&format!("at most {max} ':'-separated parameters")))
-            } else {
-                Ok(())
+        let filter = || -> Result<UpsampleFilter, BoxError> {
+            match param("FILTER") {
+                None => Ok(UpsampleFilter::DepthAware3x3),
+                Some(f) => parse_filter(f).map_err(|e| bad(&e.to_string())),
             }
         };
-        match kind {
-            "reference" | "analytic" => {
-                too_many(0)?;
-                Ok(if kind == "reference" {
-                    RenderMethod::Reference
-                } else {
-                    RenderMethod::Analytic
-                })
-            }
-            "brute" | "brute_force" => {
-                too_many(3)?;
-                Ok(RenderMethod::Gpu(Method::BruteForce {
-                    steps: number(0, "STEPS", 64)?,
-                    scale: scale(1)?,
-                    bisections: number(2, "BISECTIONS", 0)?,
-                }))
-            }
-            "hybrid" => {
-                too_many(4)?;
-                let upsample = match rest.get(2) {
-                    None => UpsampleFilter::DepthAware3x3,
-                    Some(f) => parse_filter(f).map_err(|e| bad(&e.to_string()))?,
-                };
-                Ok(RenderMethod::Gpu(Method::Hybrid {
-                    steps: number(0, "STEPS", 64)?,
-                    scale: scale(1)?,
-                    upsample,
-                    bisections: number(3, "BISECTIONS", 0)?,
-                    texture_steps: 32,
-                }))
-            }
-            "exact" => {
-                too_many(3)?;
-                let upsample = match rest.get(1) {
-                    None => UpsampleFilter::DepthAware3x3,
-                    Some(f) => parse_filter(f).map_err(|e| bad(&e.to_string()))?,
-                };
+        Ok(match entry.kind {
+            MethodKind::Reference => RenderMethod::Reference,
+            MethodKind::Analytic => RenderMethod::Analytic,
+            MethodKind::BruteForce => RenderMethod::Gpu(Method::BruteForce {
+                steps: number("STEPS", 64)?,
+                scale: scale()?,
+                bisections: number("BISECTIONS", 0)?,
+            }),
+            MethodKind::Hybrid => RenderMethod::Gpu(Method::Hybrid {
+                steps: number("STEPS", 64)?,
+                scale: scale()?,
+                upsample: filter()?,
+                bisections: number("BISECTIONS", 0)?,
+                texture_steps: 32,
+            }),
+            MethodKind::Exact => {
                 let defaults = volshadow::nodes::MarchSettings::default();
-                Ok(RenderMethod::Gpu(Method::Exact {
+                RenderMethod::Gpu(Method::Exact {
                     steps: defaults.steps,
-                    scale: scale(0)?,
-                    upsample,
+                    scale: scale()?,
+                    upsample: filter()?,
                     bisections: defaults.bisections,
                     texture_steps: 32,
-                    crossings: number(2, "CROSSINGS", volshadow::nodes::DEFAULT_CROSSINGS)?,
-                }))
+                    crossings: number("CROSSINGS", volshadow::nodes::DEFAULT_CROSSINGS)?,
+                })
             }
-            "textbook" => {
-                too_many(2)?;
-                Ok(RenderMethod::Gpu(Method::Textbook {
-                    steps: number(0, "STEPS", 64)?,
-                    scale: scale(1)?,
-                }))
-            }
-            _ => Err(bad(
-                "expected reference, analytic, exact[:..], brute[:..], hybrid[:..] or textbook[:..]",
-            )),
-        }
+            MethodKind::Textbook => RenderMethod::Gpu(Method::Textbook {
+                steps: number("STEPS", 64)?,
+                scale: scale()?,
+            }),
+        })
     }
 
     /// The method in the `--method` syntax, every parameter spelt out.
@@ -255,11 +370,15 @@ pub struct Options {
 }
 
 impl Options {
-    /// Parses the arguments after the program name.
-    pub fn parse(args: &[String]) -> Result<Self, BoxError> {
+    /// Parses the arguments after the program name: the options, or [`Parsed::Help`] for
+    /// `-h` / `--help` (whatever else is given).
+    pub fn parse(args: &[String]) -> Result<Parsed<Self>, BoxError> {
         let mut scene = None;
         let (mut out, mut method, mut size, mut exposure) = (None, None, None, None);
         let mut surface_scatter = false;
+        if args.iter().any(|a| a == "-h" || a == "--help") {
+            return Ok(Parsed::Help);
+        }
         let mut parser = lexopt::Parser::from_args(args);
         while let Some(arg) = parser.next()? {
             match arg {
@@ -274,28 +393,37 @@ impl Options {
                     exposure = Some(e);
                 }
                 Long("surface-scatter") => surface_scatter = true,
-                Short('h') | Long("help") => return Err(USAGE.into()),
+                Short('h') | Long("help") => return Ok(Parsed::Help),
                 Value(path) if scene.is_none() => scene = Some(PathBuf::from(path)),
                 _ => return Err(format!("{}\n{USAGE}", arg.unexpected()).into()),
             }
         }
         let scene: PathBuf = scene.ok_or_else(|| format!("no scene file given\n{USAGE}"))?;
-        let mut out =
-            out.unwrap_or_else(|| PathBuf::from(scene.file_stem().unwrap_or("render".as_ref())));
+        let mut out = out.unwrap_or_else(|| default_output(&scene, "render"));
         if matches!(
             out.extension().and_then(|e| e.to_str()),
             Some("png" | "exr" | "json")
         ) {
             out.set_extension("");
         }
-        Ok(Options {
+        Ok(Parsed::Run(Options {
             scene,
             out,
             method,
             size,
             exposure,
             surface_scatter,
-        })
+        }))
+    }
+
+    /// Every file the run writes: `OUT.exr`, `.png`, `.inscatter.exr`, `.depth.exr`, `.json`,
+    /// and `.surface.exr` with `--surface-scatter`.
+    pub fn outputs(&self) -> Vec<PathBuf> {
+        let mut suffixes = vec![".exr", ".png", ".inscatter.exr", ".depth.exr", ".json"];
+        if self.surface_scatter {
+            suffixes.push(".surface.exr");
+        }
+        suffixes.into_iter().map(|s| self.path(s)).collect()
     }
 
     /// `OUT` followed by `suffix` (e.g. `".inscatter.exr"`).
@@ -556,13 +684,20 @@ pub struct Rendered {
     pub report: serde_json::Value,
 }
 
-/// Parses `args` (after the program name) and renders: the whole example.
+/// Parses `args` (after the program name) and renders (what the tests call; `--help`, which
+/// the binary prints, is an error here).
 pub fn run(args: &[String]) -> Result<Rendered, BoxError> {
-    render(&Options::parse(args)?)
+    match Options::parse(args)? {
+        Parsed::Run(options) => render(&options),
+        Parsed::Help => Err(format!("--help renders nothing\n{}", usage_line(USAGE)).into()),
+    }
 }
 
-/// Renders a scene file as `options` say and writes the five files.
+/// Renders a scene file as `options` say and writes the five files (six with
+/// `--surface-scatter`); refused with [`WouldOverwriteInput`](super::cli::WouldOverwriteInput)
+/// before anything is read or written when one of them is an input file.
 pub fn render(options: &Options) -> Result<Rendered, BoxError> {
+    refuse_overwrite(&input_files(&options.scene), &options.outputs())?;
     let scene = SceneDescription::load(&options.scene)?;
     let size = options.size.unwrap_or(scene.size);
     let (width, height) = size;

@@ -9,19 +9,23 @@
 //! cargo run --release --features window --example interactive
 //! ```
 //!
-//! Controls: the mouse moves the light (in a plane behind the spheres); M switches the march
-//! method (hybrid / brute force); Up / Down double / halve the steps (4 ..= 512); R cycles the
-//! scattering resolution (full, 1/2, 1/4); S toggles shadows (no occluders: the planner skips
-//! the shadow map and extents); L cycles the light's radius (0: a point, hard shadows; 0.1,
-//! 0.25, 0.5: a sphere, soft shadows); V cycles the view: the frame, a split screen (left: the current
-//! method; right: the f64 reference), and the difference (per-pixel relative error of the
-//! in-scatter against the reference: black 0, blue 2%, yellow 5%, red 10% or more); Escape
-//! quits. The reference (`volshadow::reference`, exact sphere visibility) is computed in a
-//! background thread at 1/8 of the window's resolution for the current light and shadows, and
-//! recomputed when they change; it is sampled bilinearly, so its own resolution shows along
-//! shadow edges. The title shows the settings, the view (and whether the reference is current),
-//! the plan's passes run / skipped and the GPU time of each of volshadow's passes: timestamp
-//! queries when the device has them; else (a CPU adapter such as lavapipe) each pass is
+//! Controls (printed at start and by `--help`, listed in the window's title; the table is
+//! `KEYS` in `examples/common/cli.rs`, which the key handler reads): dragging with the left
+//! mouse button moves the light (in a plane behind the spheres; it starts above and between
+//! them, where the shafts show, and stays there until dragged); M cycles the march method
+//! (exact → hybrid → brute force → textbook → exact); Up / Down double / halve the steps
+//! (4 ..= 512); R cycles the scattering resolution (full, 1/2, 1/4); S toggles shadows (no
+//! occluders: the planner skips the shadow map and extents); L cycles the light's radius (0: a
+//! point, hard shadows; 0.1, 0.25, 0.5: a sphere, soft shadows); V cycles the view: the frame,
+//! a split screen (left: the current method; right: the f64 reference), and the difference
+//! (per-pixel relative error of the in-scatter against the reference: black 0, blue 2%,
+//! yellow 5%, red 10% or more); Escape quits. The reference (`volshadow::reference`, exact
+//! sphere visibility) is computed in a background thread at 1/8 of the window's resolution
+//! for the current light and shadows, and recomputed when they change; it is sampled
+//! bilinearly, so its own resolution shows along shadow edges. The title shows the settings,
+//! the view (and whether the reference is current), the plan's passes run / skipped, the GPU
+//! time of each of volshadow's passes and the keys: timestamp queries when the device has
+//! them; else (a CPU adapter such as lavapipe) each pass is
 //! submitted alone and timed by the wall clock. It is printed to stdout once a second too.
 
 use std::error::Error;
@@ -39,11 +43,13 @@ use volshadow::{
 };
 use winit::application::ApplicationHandler;
 use winit::dpi::{PhysicalPosition, PhysicalSize};
-use winit::event::{ElementState, WindowEvent};
+use winit::event::{ElementState, MouseButton, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop, OwnedDisplayHandle};
 use winit::keyboard::{Key, NamedKey};
 use winit::window::{Window, WindowId};
 
+#[path = "../common/cli.rs"]
+mod cli;
 #[path = "../common/fullscreen.rs"]
 mod fullscreen;
 #[path = "../common/quickstart_scene.rs"]
@@ -171,6 +177,20 @@ fn reference_inscatter(job: &ReferenceJob) -> Vec<DVec3> {
 }
 
 fn main() {
+    // Arguments first: `--help` (or a bad argument) opens no window.
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    match cli::parse_interactive(&args) {
+        Ok(cli::Parsed::Help) => {
+            println!("{}", cli::interactive_help());
+            return;
+        }
+        Ok(cli::Parsed::Run(())) => {}
+        Err(e) => {
+            eprintln!("interactive: {e}");
+            std::process::exit(1);
+        }
+    }
+    println!("keys:\n{}", cli::keys_help());
     if let Err(e) = run() {
         eprintln!("interactive: {e}");
         std::process::exit(1);
@@ -218,21 +238,49 @@ impl ApplicationHandler for App {
         match event {
             WindowEvent::CloseRequested => event_loop.exit(),
             WindowEvent::Resized(size) => state.resize(size),
-            WindowEvent::CursorMoved { position, .. } => state.move_light(position),
+            WindowEvent::CursorMoved { position, .. } => {
+                state.cursor = Some(position);
+                if state.dragging {
+                    state.move_light(position);
+                }
+            }
+            // A release outside the window may never arrive: the drag ends at its edge.
+            WindowEvent::CursorLeft { .. } => state.dragging = false,
+            WindowEvent::MouseInput {
+                state: pressed,
+                button: MouseButton::Left,
+                ..
+            } => {
+                state.dragging = pressed == ElementState::Pressed;
+                if let (true, Some(position)) = (state.dragging, state.cursor) {
+                    state.move_light(position);
+                }
+            }
             WindowEvent::KeyboardInput { event, .. } if event.state == ElementState::Pressed => {
-                match event.logical_key.as_ref() {
-                    Key::Named(NamedKey::Escape) => event_loop.exit(),
-                    Key::Named(NamedKey::ArrowUp) => state.change_steps(2.0),
-                    Key::Named(NamedKey::ArrowDown) => state.change_steps(0.5),
-                    Key::Character(c) if !event.repeat => match c.to_ascii_lowercase().as_str() {
-                        "m" => state.toggle_method(),
-                        "r" => state.cycle_scale(),
-                        "s" => state.shadows = !state.shadows,
-                        "l" => state.cycle_radius(),
-                        "v" => state.view = state.view.next(),
-                        _ => {}
-                    },
-                    _ => {}
+                let key = match event.logical_key.as_ref() {
+                    Key::Named(NamedKey::Escape) => Some(cli::Key::Escape),
+                    Key::Named(NamedKey::ArrowUp) => Some(cli::Key::Up),
+                    Key::Named(NamedKey::ArrowDown) => Some(cli::Key::Down),
+                    // Letters do not repeat while held; the arrows do.
+                    Key::Character(c) if !event.repeat => {
+                        let mut chars = c.chars().flat_map(char::to_lowercase);
+                        match (chars.next(), chars.next()) {
+                            (Some(c), None) => Some(cli::Key::Char(c)),
+                            _ => None,
+                        }
+                    }
+                    _ => None,
+                };
+                match key.and_then(cli::action_of) {
+                    Some(cli::Action::Quit) => event_loop.exit(),
+                    Some(cli::Action::MoreSteps) => state.change_steps(2.0),
+                    Some(cli::Action::FewerSteps) => state.change_steps(0.5),
+                    Some(cli::Action::CycleMethod) => state.toggle_method(),
+                    Some(cli::Action::CycleScale) => state.cycle_scale(),
+                    Some(cli::Action::ToggleShadows) => state.shadows = !state.shadows,
+                    Some(cli::Action::CycleRadius) => state.cycle_radius(),
+                    Some(cli::Action::CycleView) => state.view = state.view.next(),
+                    None => {}
                 }
             }
             WindowEvent::RedrawRequested => {
@@ -266,6 +314,10 @@ struct State {
     volumetric: VolumetricShadows,
     medium: Medium,
     light_position: Vec3,
+    /// The cursor's last position in the window, and whether the left button is held (the
+    /// light follows the cursor only while it is).
+    cursor: Option<PhysicalPosition<f64>>,
+    dragging: bool,
     /// The light's radius (L cycles it).
     light_radius: f32,
     shadows: bool,
@@ -305,7 +357,7 @@ impl State {
         let window = Arc::new(
             event_loop.create_window(
                 Window::default_attributes()
-                    .with_title("volshadow interactive")
+                    .with_title(format!("volshadow interactive | {}", cli::keys_short()))
                     .with_inner_size(PhysicalSize::new(960, 600)),
             )?,
         );
@@ -385,6 +437,8 @@ impl State {
             volumetric,
             medium,
             light_position: LIGHT_POSITION,
+            cursor: None,
+            dragging: false,
             light_radius: 0.0,
             shadows: true,
             stats: Stats {
@@ -456,6 +510,7 @@ impl State {
         }
     }
 
+    /// M: the next march method.
     fn toggle_method(&mut self) {
         self.update_settings(|s| {
             // The methods a user compares: exact → hybrid → brute force → textbook → exact.
@@ -753,7 +808,7 @@ impl State {
             (view, true) => format!(" | view: {}", view.name()),
             (view, false) => format!(" | view: {} (reference computing)", view.name()),
         };
-        let title = format!(
+        let status = format!(
             "volshadow: {}, {} steps, 1/{} res, shadows {}, light radius {}{view} | {} passes run, {} skipped | {time}",
             s.march.method,
             s.march.steps,
@@ -763,10 +818,11 @@ impl State {
             self.stats.passes_run,
             self.stats.passes_skipped,
         );
-        self.window.set_title(&title);
+        self.window
+            .set_title(&format!("{status} | keys: {}", cli::keys_short()));
         if now - self.stats.last_print >= PRINT_EVERY {
             self.stats.last_print = now;
-            println!("{title}");
+            println!("{status}");
         }
     }
 }

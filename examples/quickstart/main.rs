@@ -1,4 +1,4 @@
-//! Quickstart: a lit foggy scene rendered headless to `quickstart.png`.
+//! Quickstart: a lit foggy scene rendered headless to `out/quickstart.png`.
 //!
 //! The "application" here draws its own frame (a ground plane and two spheres, ray-cast in a
 //! fragment shader that writes colour and depth); volshadow then adds the light scattered in
@@ -6,11 +6,16 @@
 //! encoder by `VolumetricShadows` (its plan and per-pass GPU times are printed).
 //!
 //! ```text
-//! cargo run --release --example quickstart [-- OUTPUT.png]
+//! cargo run --release --example quickstart [-- -o OUTPUT.png]
 //! ```
+//!
+//! `--help` prints the options (`examples/common/cli.rs`). The scene is built in code, so no
+//! input file exists that the output could overwrite.
 
 use std::time::Instant;
 
+#[path = "../common/cli.rs"]
+mod cli;
 #[path = "../common/fullscreen.rs"]
 mod fullscreen;
 #[path = "../common/headless_env.rs"]
@@ -118,19 +123,38 @@ pub fn run(
     })
 }
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+fn main() {
     // No false `error: XDG_RUNTIME_DIR ...` line from Mesa's Vulkan layer when headless.
     headless_env::quiet_display_probe();
-    let output_path = std::env::args()
-        .nth(1)
-        .unwrap_or_else(|| "quickstart.png".into());
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let result = cli::parse_quickstart(&args).and_then(|parsed| match parsed {
+        cli::Parsed::Help => {
+            println!("{}", cli::QUICKSTART_HELP);
+            Ok(())
+        }
+        cli::Parsed::Run(options) => render_to(&options.output),
+    });
+    if let Err(e) = result {
+        eprintln!("error: {e}");
+        std::process::exit(1);
+    }
+}
+
+/// Renders the scene at 640×400 and writes the PNG to `output` (creating its folder).
+fn render_to(output: &std::path::Path) -> Result<(), Box<dyn std::error::Error>> {
     let gpu = HeadlessGpu::with_optional_features(wgpu::Features::TIMESTAMP_QUERY)?;
     println!("adapter: {}", gpu.adapter_summary());
     let (width, height) = (640, 400);
     // Two frames: the second shows what the planner skips when nothing changed.
     let rendered = run(&gpu, width, height, Settings::default(), 2)?;
-    tone_map(&rendered.output, width, height).save(&output_path)?;
-    println!("wrote {output_path}");
+    if let Some(dir) = output.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    }
+    tone_map(&rendered.output, width, height)
+        .save_with_format(output, image::ImageFormat::Png)
+        .map_err(|e| format!("cannot write {}: {e}", output.display()))?;
+    println!("wrote {}", output.display());
     Ok(())
 }
 

@@ -2,7 +2,7 @@
 //! OpenEXR, eye distance as OpenEXR, a tone-mapped PNG and a JSON timing report.
 //!
 //! ```text
-//! cargo run --release --example render -- scenes/fence.json -o fence [--method hybrid:32:2] [--size 256x256]
+//! cargo run --release --example render -- scenes/fence.json [-o out/fence] [--method hybrid:32:2] [--size 256x256]
 //! ```
 //!
 //! The example plays the application: it rasterises the scene's objects into its own colour
@@ -10,16 +10,27 @@
 //! `volshadow::SHADOW_WGSL`), then records volshadow's passes through `VolumetricShadows` into
 //! its encoder — or, with `--method reference`, computes the in-scatter with the f64 CPU
 //! reference. The options, methods and outputs are documented in
-//! `examples/common/render_scene.rs`. Bad arguments or files print the error and exit with
-//! status 1.
+//! `examples/common/render_scene.rs`; `--help` prints them. Outputs go to `out/` unless `-o`
+//! says otherwise, and a run that would write over an input is refused. Bad arguments or
+//! files print the error and exit with status 1.
 
 #[path = "../common/mod.rs"]
 mod common;
 
+use common::cli::Parsed;
+use common::render_scene::{help, render, Options};
+
 fn main() {
     common::headless_env::quiet_display_probe();
     let args: Vec<String> = std::env::args().skip(1).collect();
-    if let Err(e) = common::render_scene::run(&args) {
+    let result = Options::parse(&args).and_then(|parsed| match parsed {
+        Parsed::Help => {
+            println!("{}", help());
+            Ok(())
+        }
+        Parsed::Run(options) => render(&options).map(|_| ()),
+    });
+    if let Err(e) = result {
         eprintln!("error: {e}");
         std::process::exit(1);
     }

@@ -1,8 +1,10 @@
 //! Probe: does a driver compile (and keep) a shader variant per uniform-buffer value?
 //!
 //! ```text
-//! cargo run --release --example uniform_probe -- uniform|storage FRAMES [composite]
+//! cargo run --release --example uniform_probe -- [uniform|storage] [FRAMES] [composite]
 //! ```
+//!
+//! `--help` prints the options (`examples/common/cli.rs`); it writes no file.
 //!
 //! Without `composite`: a compute shader whose loop bound and branch read a uniform (or
 //! read-only storage) buffer that changes every frame. With `composite`: volshadow's composite
@@ -14,8 +16,14 @@
 //! compute shader stayed flat either way.
 use volshadow::HeadlessGpu;
 
+#[path = "../common/cli.rs"]
+mod cli;
+
+type BoxError = Box<dyn std::error::Error>;
+
+/// The resident set size in kB (0 where `/proc/self/status` cannot be read).
 fn rss_kb() -> u64 {
-    let s = std::fs::read_to_string("/proc/self/status").unwrap();
+    let s = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
     s.lines()
         .find(|l| l.starts_with("VmRSS:"))
         .and_then(|l| l.split_whitespace().nth(1))
@@ -24,15 +32,34 @@ fn rss_kb() -> u64 {
 }
 
 fn main() {
-    let mut args = std::env::args().skip(1);
-    let kind = args.next().unwrap_or_else(|| "uniform".into());
-    let frames: u32 = args.next().map_or(2000, |s| s.parse().unwrap());
-    let storage = kind == "storage";
-    let gpu = HeadlessGpu::new().unwrap();
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let result = cli::parse_probe(&args).and_then(|parsed| match parsed {
+        cli::Parsed::Help => {
+            println!("{}", cli::PROBE_HELP);
+            Ok(())
+        }
+        cli::Parsed::Run(options) => probe(&options),
+    });
+    if let Err(e) = result {
+        eprintln!("error: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn probe(options: &cli::ProbeOptions) -> Result<(), BoxError> {
+    let (storage, frames) = (options.storage, options.frames);
+    let kind = if storage { "storage" } else { "uniform" };
+    let cycle: u32 = match std::env::var("CYCLE") {
+        Err(_) => u32::MAX,
+        Ok(c) => match c.parse() {
+            Ok(n) if n > 0 => n,
+            _ => return Err(format!("CYCLE must be a positive whole number, got {c:?}").into()),
+        },
+    };
+    let gpu = HeadlessGpu::new()?;
     println!("{}", gpu.adapter_summary());
-    if args.next().as_deref() == Some("composite") {
-        composite(&gpu, storage, frames, &kind);
-        return;
+    if options.composite {
+        return composite(&gpu, storage, frames, kind, cycle);
     }
     let decl = if storage {
         "@group(0) @binding(0) var<storage, read> p: Params;"
@@ -110,7 +137,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {{
             pass.set_bind_group(0, &bg, &[]);
             pass.dispatch_workgroups(4, 1, 1);
         }
-        gpu.submit_and_wait(enc).unwrap();
+        gpu.submit_and_wait(enc)?;
         if (f + 1) % 250 == 0 {
             let now = std::time::Instant::now();
             println!(
@@ -122,9 +149,16 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {{
             last = now;
         }
     }
+    Ok(())
 }
 
-fn composite(gpu: &HeadlessGpu, storage: bool, frames: u32, kind: &str) {
+fn composite(
+    gpu: &HeadlessGpu,
+    storage: bool,
+    frames: u32,
+    kind: &str,
+    cycle: u32,
+) -> Result<(), BoxError> {
     let device = &gpu.device;
     let mut src = format!(
         "{}\n{}",
@@ -241,7 +275,6 @@ fn composite(gpu: &HeadlessGpu, storage: bool, frames: u32, kind: &str) {
     });
     let start = std::time::Instant::now();
     let mut last = start;
-    let cycle: u32 = std::env::var("CYCLE").map_or(u32::MAX, |c| c.parse().unwrap());
     for frame in 0..frames {
         let f = frame % cycle;
         let t = f as f32 * 0.01;
@@ -286,7 +319,7 @@ fn composite(gpu: &HeadlessGpu, storage: bool, frames: u32, kind: &str) {
             pass.set_bind_group(0, &bg, &[]);
             pass.draw(0..3, 0..1);
         }
-        gpu.submit_and_wait(enc).unwrap();
+        gpu.submit_and_wait(enc)?;
         if (frame + 1) % 250 == 0 {
             let now = std::time::Instant::now();
             println!(
@@ -298,4 +331,5 @@ fn composite(gpu: &HeadlessGpu, storage: bool, frames: u32, kind: &str) {
             last = now;
         }
     }
+    Ok(())
 }

@@ -1,7 +1,7 @@
 //! The on-disk cache of reference images, keyed by the scene file, the size and the sources
 //! the reference depends on.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use volshadow::glam::DVec3;
@@ -10,6 +10,33 @@ use volshadow::scene_file::SceneDescription;
 use super::measure::Context;
 use super::render_scene::reference_inscatter;
 use super::{BoxError, Options};
+
+/// The file `path`'s reference at `size` is cached in: `OUT/cache/NAME-WxH-KEY.f64`.
+pub fn cache_file(
+    options: &Options,
+    path: &Path,
+    scene: &SceneDescription,
+    size: (u32, u32),
+) -> Result<PathBuf, BoxError> {
+    let text = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let key = reference_key(&text, size);
+    Ok(options.out.join("cache").join(format!(
+        "{}-{}x{}-{key:016x}.f64",
+        scene.name, size.0, size.1
+    )))
+}
+
+/// Whether the reference is in the cache (a file of the right length).
+pub fn is_cached(
+    options: &Options,
+    path: &Path,
+    scene: &SceneDescription,
+    size: (u32, u32),
+) -> Result<bool, BoxError> {
+    let file = cache_file(options, path, scene, size)?;
+    let bytes = u64::from(size.0) * u64::from(size.1) * 24;
+    Ok(std::fs::metadata(file).is_ok_and(|m| m.is_file() && m.len() == bytes))
+}
 
 /// The reference in-scatter, from the cache or computed and cached.
 pub fn cached_reference(
@@ -20,12 +47,7 @@ pub fn cached_reference(
     camera: &volshadow::Camera,
     size: (u32, u32),
 ) -> Result<Vec<DVec3>, BoxError> {
-    let text = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    let key = reference_key(&text, size);
-    let file = options.out.join("cache").join(format!(
-        "{}-{}x{}-{key:016x}.f64",
-        scene.name, size.0, size.1
-    ));
+    let file = cache_file(options, path, scene, size)?;
     let pixels = (size.0 * size.1) as usize;
     if let Ok(bytes) = std::fs::read(&file) {
         if bytes.len() == pixels * 24 {
@@ -53,6 +75,7 @@ pub fn cached_reference(
         .flat_map(f64::to_le_bytes)
         .collect();
     std::fs::write(&file, bytes).map_err(|e| format!("cannot write {}: {e}", file.display()))?;
+    ctx.progress.reference_done(start.elapsed());
     ctx.progress(&format!(
         "  reference done in {:.1} s, cached as {}",
         start.elapsed().as_secs_f64(),

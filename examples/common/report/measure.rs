@@ -3,7 +3,7 @@
 
 use std::collections::BTreeMap;
 use std::path::Path;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use volshadow::glam::{DVec3, Vec3};
 use volshadow::nodes::{MarchMethod, MarchSettings, Scale};
@@ -17,7 +17,8 @@ use volshadow::{
 use super::cache::cached_reference;
 use super::metrics::{errors, keep_mask};
 use super::render_scene::GpuScene;
-use super::{read_inscatter, BoxError, Check, Curve, Filter, Options, Row};
+use super::ERROR_TABLE_SIZE;
+use super::{read_inscatter, BoxError, Check, Curve, Filter, Options, Row, Verdict};
 use super::{HardTwin, FIXED_PASSES, REFINE, SWEEP_STOP_P95, TOLERANCES};
 
 /// A step sweep's stop rule (see the module docs).
@@ -64,11 +65,260 @@ pub struct Context<'a> {
     pub clock: Clock,
     pub frames: usize,
     pub start: Instant,
+    /// What is left to do, for the estimate of the time left.
+    pub progress: Eta,
 }
 
 impl Context<'_> {
+    /// A progress line, to stderr.
     pub fn progress(&self, text: &str) {
-        println!("[{:7.1} s] {text}", self.start.elapsed().as_secs_f64());
+        eprintln!("[{:7.1} s] {text}", self.start.elapsed().as_secs_f64());
+    }
+}
+
+/// The estimate of the time left: the configurations still to measure, at the pace of those
+/// measured so far, plus the scenes still to set up (the app's frame, the passes timed once per
+/// scene) and the references still to compute, each at the mean time of those done (both kept
+/// out of the configurations' pace). A step sweep stops early (unless `--full`): a sweep not
+/// finished is expected to run the share of its steps that the finished sweeps ran (half
+/// before one has finished).
+#[derive(Debug)]
+pub struct Eta {
+    state: std::cell::RefCell<EtaState>,
+}
+
+#[derive(Debug)]
+struct EtaState {
+    start: Instant,
+    /// Configurations measured.
+    done: usize,
+    /// Planned configurations outside the sweeps, not measured yet.
+    fixed_left: usize,
+    /// The planned steps of the sweeps not finished, and the configurations they measured.
+    open_steps: usize,
+    open_ran: usize,
+    /// The planned steps of the finished sweeps, and the configurations they measured.
+    finished_steps: usize,
+    finished_ran: usize,
+    /// The share of its steps a sweep is expected to run before one has finished.
+    prior: f64,
+    references_left: usize,
+    references_done: usize,
+    reference_time: Duration,
+    setups_left: usize,
+    setups_done: usize,
+    setup_time: Duration,
+}
+
+impl Eta {
+    /// `full`: the sweeps run every step.
+    pub fn new(full: bool) -> Self {
+        Self {
+            state: std::cell::RefCell::new(EtaState {
+                start: Instant::now(),
+                done: 0,
+                fixed_left: 0,
+                open_steps: 0,
+                open_ran: 0,
+                finished_steps: 0,
+                finished_ran: 0,
+                prior: if full { 1.0 } else { 0.5 },
+                references_left: 0,
+                references_done: 0,
+                reference_time: Duration::ZERO,
+                setups_left: 0,
+                setups_done: 0,
+                setup_time: Duration::ZERO,
+            }),
+        }
+    }
+
+    /// Adds a scene: its planned configurations, and whether its reference is to compute.
+    pub fn plan(&self, planned: &Planned, reference: bool) {
+        let mut s = self.state.borrow_mut();
+        s.fixed_left += planned.fixed;
+        s.open_steps += planned.sweeps.iter().sum::<usize>();
+        s.references_left += usize::from(reference);
+        s.setups_left += 1;
+    }
+
+    /// One configuration measured (`sweep`: a step of a sweep).
+    pub fn measured(&self, sweep: bool) {
+        let mut s = self.state.borrow_mut();
+        s.done += 1;
+        if sweep {
+            s.open_ran += 1;
+        } else {
+            s.fixed_left = s.fixed_left.saturating_sub(1);
+        }
+    }
+
+    /// A planned configuration outside the sweeps that will not be measured.
+    pub fn fixed_skipped(&self) {
+        let mut s = self.state.borrow_mut();
+        s.fixed_left = s.fixed_left.saturating_sub(1);
+    }
+
+    /// A sweep of `steps` planned steps finished after measuring `ran` of them.
+    pub fn sweep_done(&self, steps: usize, ran: usize) {
+        let mut s = self.state.borrow_mut();
+        s.open_steps = s.open_steps.saturating_sub(steps);
+        s.open_ran = s.open_ran.saturating_sub(ran);
+        s.finished_steps += steps;
+        s.finished_ran += ran;
+    }
+
+    /// A scene set up in `time` (after its reference, before its first configuration).
+    pub fn setup_done(&self, time: Duration) {
+        let mut s = self.state.borrow_mut();
+        s.setups_left = s.setups_left.saturating_sub(1);
+        s.setups_done += 1;
+        s.setup_time += time;
+    }
+
+    /// A reference computed in `time`.
+    pub fn reference_done(&self, time: Duration) {
+        let mut s = self.state.borrow_mut();
+        s.references_left = s.references_left.saturating_sub(1);
+        s.references_done += 1;
+        s.reference_time += time;
+    }
+
+    /// `configuration k of about n, about T left`.
+    pub fn line(&self) -> String {
+        let s = self.state.borrow();
+        let share = if s.finished_steps > 0 {
+            s.finished_ran as f64 / s.finished_steps as f64
+        } else {
+            s.prior
+        };
+        let configurations_left =
+            s.fixed_left as f64 + (s.open_steps as f64 * share - s.open_ran as f64).max(0.0);
+        let elapsed = s
+            .start
+            .elapsed()
+            .saturating_sub(s.reference_time + s.setup_time);
+        let mut left =
+            (s.done > 0).then(|| elapsed.as_secs_f64() / s.done as f64 * configurations_left);
+        let mut unknown = Vec::new();
+        for (what, count, done, time) in [
+            (
+                "scene(s) to set up",
+                s.setups_left,
+                s.setups_done,
+                s.setup_time,
+            ),
+            (
+                "reference(s) to compute",
+                s.references_left,
+                s.references_done,
+                s.reference_time,
+            ),
+        ] {
+            if count == 0 {
+                continue;
+            }
+            if done > 0 {
+                let mean = time.as_secs_f64() / done as f64;
+                left = left.map(|l| l + mean * count as f64);
+            } else {
+                unknown.push(format!("{count} {what}"));
+            }
+        }
+        let mut text = format!(
+            "configuration {} of about {}",
+            s.done,
+            s.done + configurations_left.round() as usize
+        );
+        match left {
+            Some(left) => text.push_str(&format!(", about {} left", duration(left))),
+            None => text.push_str(", time left: estimating"),
+        }
+        if !unknown.is_empty() {
+            text.push_str(&format!(" + {}", unknown.join(" + ")));
+        }
+        text
+    }
+}
+
+/// `42 s`, `3 min 05 s`, `1 h 02 min`.
+fn duration(seconds: f64) -> String {
+    let s = seconds.max(0.0).round() as u64;
+    match s {
+        0..=59 => format!("{s} s"),
+        60..=3599 => format!("{} min {:02} s", s / 60, s % 60),
+        _ => format!("{} h {:02} min", s / 3600, s / 60 % 60),
+    }
+}
+
+/// The step counts of the brute-force, paper-003 and textbook sweeps.
+fn brute_sweep(options: &Options) -> Vec<u32> {
+    if options.quick {
+        vec![16, 32]
+    } else {
+        vec![16, 32, 64, 128, 256, 512, 1024]
+    }
+}
+
+/// The hybrid's step counts, scales and bisections.
+fn hybrid_sweep(options: &Options) -> (Vec<u32>, Vec<Scale>, Vec<u32>) {
+    if options.quick {
+        (
+            vec![8, 32],
+            vec![Scale::Full, Scale::Quarter],
+            vec![0, REFINE],
+        )
+    } else {
+        (
+            vec![8, 16, 32, 64, 128, 256],
+            vec![Scale::Full, Scale::Half, Scale::Quarter],
+            vec![0, REFINE],
+        )
+    }
+}
+
+/// The upsampling filters run at `scale` by the exact method (`hybrid: false`) or the hybrid.
+fn filters(scale: Scale, hybrid: bool) -> Vec<Filter> {
+    match (scale, hybrid) {
+        (Scale::Full, _) => vec![Filter::None],
+        (_, false) => vec![Filter::Box3, Filter::Separable],
+        (_, true) => vec![Filter::Box3, Filter::Separable, Filter::Bilinear],
+    }
+}
+
+/// What [`run_scene`] measures on a scene when no sweep stops early: the configurations
+/// outside the step sweeps, and each sweep's step count.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Planned {
+    pub fixed: usize,
+    pub sweeps: Vec<usize>,
+}
+
+/// What [`run_scene`] plans to measure on `scene`: what the estimate of the time left starts
+/// from.
+pub fn planned_configurations(options: &Options, scene: &SceneDescription) -> Planned {
+    if scene.lights.iter().any(|l| l.light.radius() > 0.0) {
+        // The floor, four grid configurations (each with its hard twin), brute force.
+        return Planned {
+            fixed: 6,
+            sweeps: Vec::new(),
+        };
+    }
+    let exact: usize = [Scale::Full, Scale::Half, Scale::Quarter]
+        .into_iter()
+        .map(|s| filters(s, false).len())
+        .sum();
+    // Brute force, paper 003 and the textbook march; the hybrid's curves.
+    let mut sweeps = vec![brute_sweep(options).len(); 3];
+    let (steps, scales, refines) = hybrid_sweep(options);
+    for _ in &refines {
+        for &scale in &scales {
+            sweeps.extend(filters(scale, true).iter().map(|_| steps.len()));
+        }
+    }
+    Planned {
+        fixed: 1 + exact + TOLERANCES.len(),
+        sweeps,
     }
 }
 
@@ -86,6 +336,7 @@ pub fn run_scene(
         super::with_aspect(&scene.camera, 1.0)?
     };
     let reference = cached_reference(ctx, options, path, scene, &camera, size)?;
+    let setup = Instant::now();
     let keep = keep_mask(scene, &camera, size);
     // Every configuration marches a textured spot's lit parts with the error target's budget,
     // the one its table was measured with.
@@ -149,6 +400,7 @@ pub fn run_scene(
         surface_term_cost(ctx, base, &surfaces, &shadowed, view)?;
     }
 
+    ctx.progress.setup_done(setup.elapsed());
     let rows = std::cell::RefCell::new(Vec::<Row>::new());
     let record = |curve: Curve,
                   settings: &Settings,
@@ -179,14 +431,22 @@ pub fn run_scene(
             hard: None,
             errors,
         };
+        // A step of a sweep (hard shadows: brute force, paper 003, textbook, hybrid).
+        let sweep = !row.soft
+            && matches!(
+                curve,
+                Curve::Brute | Curve::Paper003 | Curve::Textbook | Curve::Hybrid(..)
+            );
+        ctx.progress.measured(sweep);
         ctx.progress(&format!(
-            "  {:<42} {:>5} steps  {:>9.1} ms  p95 {:>7.3}%  p99 {:>7.3}%  RMSE {:>7.3}%",
+            "  {:<42} {:>5} steps  {:>9.1} ms  p95 {:>7.3}%  p99 {:>7.3}%  RMSE {:>7.3}%  [{}]",
             curve.name(),
             row.steps,
             row.total_ms,
             100.0 * errors.p95,
             100.0 * errors.p99,
-            100.0 * errors.rmse
+            100.0 * errors.rmse,
+            ctx.progress.line()
         ));
         rows.borrow_mut().push(row.clone());
         row
@@ -267,11 +527,7 @@ pub fn run_scene(
     }
 
     // Brute force, and paper 003's configuration.
-    let sweep: Vec<u32> = if options.quick {
-        vec![16, 32]
-    } else {
-        vec![16, 32, 64, 128, 256, 512, 1024]
-    };
+    let sweep = brute_sweep(options);
     for (curve, method, scale, filter) in [
         (
             Curve::Brute,
@@ -293,23 +549,22 @@ pub fn run_scene(
         ),
     ] {
         let mut sweep_state = Sweep::default();
+        let mut ran = 0;
         for &steps in &sweep {
             let s = settings(method, steps, scale, filter, 0);
             let (passes, image) = measure(s, &shadowed, false)?;
             let p95 = record(curve, &s, passes, &image, &fixed).errors.p95;
+            ran += 1;
             if !options.full && sweep_state.stops(ctx, curve, steps, p95) {
                 break;
             }
         }
+        ctx.progress.sweep_done(sweep.len(), ran);
     }
 
     // The exact method: no steps (they only march pixels whose crossing list overflowed).
     for scale in [Scale::Full, Scale::Half, Scale::Quarter] {
-        let filters = if scale == Scale::Full {
-            vec![Filter::None]
-        } else {
-            vec![Filter::Box3, Filter::Separable]
-        };
+        let filters = filters(scale, false);
         let mut march_passes: Option<BTreeMap<&'static str, f64>> = None;
         for filter in filters {
             let s = settings(MarchMethod::Exact, 64, scale, filter, REFINE);
@@ -326,30 +581,15 @@ pub fn run_scene(
     }
 
     // The hybrid.
-    let (steps_list, scales, refines): (Vec<u32>, Vec<Scale>, Vec<u32>) = if options.quick {
-        (
-            vec![8, 32],
-            vec![Scale::Full, Scale::Quarter],
-            vec![0, REFINE],
-        )
-    } else {
-        (
-            vec![8, 16, 32, 64, 128, 256],
-            vec![Scale::Full, Scale::Half, Scale::Quarter],
-            vec![0, REFINE],
-        )
-    };
+    let (steps_list, scales, refines) = hybrid_sweep(options);
     for &bisections in &refines {
         for &scale in &scales {
-            let filters = if scale == Scale::Full {
-                vec![Filter::None]
-            } else {
-                vec![Filter::Box3, Filter::Separable, Filter::Bilinear]
-            };
+            let filters = filters(scale, true);
             let mut sweeps = vec![Sweep::default(); filters.len()];
+            let mut ran = vec![0; filters.len()];
             for &steps in &steps_list {
                 let mut march_passes: Option<BTreeMap<&'static str, f64>> = None;
-                for (&filter, sweep_state) in filters.iter().zip(&mut sweeps) {
+                for ((&filter, sweep_state), ran) in filters.iter().zip(&mut sweeps).zip(&mut ran) {
                     if sweep_state.stopped {
                         continue;
                     }
@@ -358,6 +598,7 @@ pub fn run_scene(
                     share_march(&mut passes, &mut march_passes);
                     let curve = Curve::Hybrid(scale.divisor(), filter, bisections);
                     let p95 = record(curve, &s, passes, &image, &fixed).errors.p95;
+                    *ran += 1;
                     if !options.full {
                         sweep_state.stops(ctx, curve, steps, p95);
                     }
@@ -365,6 +606,9 @@ pub fn run_scene(
                 if sweeps.iter().all(|s| s.stopped) {
                     break;
                 }
+            }
+            for ran in ran {
+                ctx.progress.sweep_done(steps_list.len(), ran);
             }
         }
     }
@@ -380,7 +624,9 @@ pub fn run_scene(
                     scene: scene.name.clone(),
                     tolerance,
                     p95: f64::INFINITY,
+                    size: options.size,
                 });
+                ctx.progress.fixed_skipped();
                 continue;
             }
         };
@@ -414,6 +660,7 @@ pub fn run_scene(
         let measured = rows.borrow().iter().find(same).cloned();
         let row = match measured {
             Some(r) => {
+                ctx.progress.measured(false);
                 ctx.progress(&format!(
                     "  error target {:.0}%: the plan runs {} {} steps, measured above",
                     100.0 * tolerance,
@@ -429,18 +676,25 @@ pub fn run_scene(
                 record(curve, &s, passes, &image, &fixed)
             }
         };
-        let ok = row.errors.p95 <= f64::from(tolerance);
+        let check = Check {
+            scene: scene.name.clone(),
+            tolerance,
+            p95: row.errors.p95,
+            size: options.size,
+        };
         ctx.progress(&format!(
             "  error target {:.0}%: p95 {:.3}% {}",
             100.0 * tolerance,
             100.0 * row.errors.p95,
-            if ok { "meets it" } else { "MISSES it" }
+            match check.verdict() {
+                Verdict::Pass => "meets it".to_string(),
+                Verdict::Fail => "MISSES it".to_string(),
+                Verdict::NotJudged => format!(
+                    "(not judged: the table was built at {ERROR_TABLE_SIZE}x{ERROR_TABLE_SIZE})"
+                ),
+            }
         ));
-        checks.push(Check {
-            scene: scene.name.clone(),
-            tolerance,
-            p95: row.errors.p95,
-        });
+        checks.push(check);
     }
     Ok((rows.into_inner(), checks))
 }

@@ -6,7 +6,18 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use super::measure::Clock;
-use super::{BoxError, Check, ConfigKey, Curve, Filter, Options, Row, PASS_COLUMNS};
+use super::{
+    BoxError, Check, ConfigKey, Curve, Filter, Options, Row, Verdict, ERROR_TABLE_SIZE,
+    PASS_COLUMNS,
+};
+
+/// The files the report writes into its output folder (besides the reference cache).
+pub const FILES: [&str; 4] = [
+    "report.csv",
+    "report.md",
+    "error_vs_time.svg",
+    "error_table.rs",
+];
 
 /// Today's date (UTC), `YYYY-MM-DD`, from the system clock.
 pub fn today() -> String {
@@ -215,14 +226,17 @@ pub fn summary(rows: &[Row], checks: &[Check]) -> String {
     let _ = writeln!(out, "\n## Error-target check\n");
     let _ = writeln!(out, "| scene | tolerance (p95) | achieved p95 | result |");
     let _ = writeln!(out, "|---|---|---|---|");
-    for Check {
-        scene,
-        tolerance,
-        p95,
-    } in checks
-    {
+    for check in checks {
+        let Check {
+            scene,
+            tolerance,
+            p95,
+            ..
+        } = check;
         let tolerance = f64::from(*tolerance);
-        let result = if *p95 <= tolerance {
+        let result = if check.verdict() == Verdict::NotJudged {
+            format!("not judged (table built at {ERROR_TABLE_SIZE}²)")
+        } else if *p95 <= tolerance {
             "pass".to_string()
         } else if p95.is_infinite() {
             "FAIL: no configuration of the error table reaches it with headroom".to_string()
@@ -245,6 +259,29 @@ pub fn summary(rows: &[Row], checks: &[Check]) -> String {
         );
     }
     out
+}
+
+/// The options that reproduce this run.
+fn regenerate(options: &Options) -> String {
+    let scenes: Vec<String> = options
+        .scenes
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect();
+    let mut text = format!(
+        "--scenes {} --size {} --frames {} --out {}",
+        scenes.join(","),
+        options.size,
+        options.frames,
+        options.out.display()
+    );
+    for (flag, on) in [("--full", options.full), ("--quick", options.quick)] {
+        if on {
+            text.push(' ');
+            text.push_str(flag);
+        }
+    }
+    text
 }
 
 pub fn write_outputs(
@@ -292,14 +329,15 @@ pub fn write_outputs(
     }
     // Markdown.
     let mut md = format!(
-        "# volshadow: error against time\n\n{date}, {adapter}, {}x{} pixels. Timing: {}, median of {} frames after a warm-up frame; F' table, shadow map and soft-shadow grid timed in frames in which the light moves (every pass that depends on it runs; no resource is recreated) and counted in every total. Error against the f64 reference: RMSE relative to the mean in-scatter; p95/p99 of the per-pixel relative error where the reference is above 1% of its 99th percentile (not of its maximum, which a light in view puts in its own glow); the light's own pixels left out. Regenerate: `cargo run --release --example report`.\n\n",
+        "# volshadow: error against time\n\n{date}, {adapter}, {}x{} pixels. Timing: {}, median of {} frames after a warm-up frame; F' table, shadow map and soft-shadow grid timed in frames in which the light moves (every pass that depends on it runs; no resource is recreated) and counted in every total. Error against the f64 reference: RMSE relative to the mean in-scatter; p95/p99 of the per-pixel relative error where the reference is above 1% of its 99th percentile (not of its maximum, which a light in view puts in its own glow); the light's own pixels left out. Regenerate: `cargo run --release --example report -- {}`.\n\n",
         options.size,
         options.size,
         match clock {
             Clock::WallPerPass => "each pass submitted alone and timed by the wall clock (CPU adapter)",
             Clock::Timestamps => "timestamp queries",
         },
-        options.frames
+        options.frames,
+        regenerate(options)
     );
     md.push_str(&summary(rows, checks));
     md.push_str("\n## All configurations\n\n| scene | method | steps | ");
@@ -328,9 +366,9 @@ pub fn write_outputs(
             100.0 * r.errors.p99
         );
     }
-    let mut files = vec![write("report.csv", &csv)?, write("report.md", &md)?];
+    let mut files = vec![write(FILES[0], &csv)?, write(FILES[1], &md)?];
     files.push(plot(options, rows, adapter, date)?);
-    files.push(write("error_table.rs", &error_table(rows))?);
+    files.push(write(FILES[3], &error_table(rows, options.size))?);
     Ok(files)
 }
 
@@ -339,8 +377,9 @@ pub fn write_outputs(
 /// its penumbra whatever the method): the worst p95 and the mean cost relative to
 /// each scene's analytic floor, Pareto-optimal ones only, as rows of `volshadow::plan`'s table.
 /// Only configurations measured on every such scene count (a sweep that stopped early on one
-/// scene leaves its later step counts out).
-pub fn error_table(rows: &[Row]) -> String {
+/// scene leaves its later step counts out). `size`: the images' width and height, in the
+/// header (the planner's table is measured at [`ERROR_TABLE_SIZE`]²).
+pub fn error_table(rows: &[Row], size: u32) -> String {
     let rows: Vec<Row> = rows
         .iter()
         .filter(|r| !r.textured && !r.soft)
@@ -374,9 +413,18 @@ pub fn error_table(rows: &[Row]) -> String {
         })
         .collect();
     candidates.sort_by(|a, b| a.1.total_cmp(&b.1));
-    let mut out = String::from(
-        "// Measured by `cargo run --release --example report`: exact and hybrid configurations\n\
-         // on the Pareto front of worst-scene p95 against mean cost over the analytic floor.\n",
+    let mut out = format!(
+        "// Measured by `cargo run --release --example report` at {size}x{size}: exact and hybrid\n\
+         // configurations on the Pareto front of worst-scene p95 against mean cost over the\n\
+         // analytic floor.{}\n",
+        if size == ERROR_TABLE_SIZE {
+            String::new()
+        } else {
+            format!(
+                "\n// Not comparable with volshadow::plan::ERROR_TABLE, measured at \
+                 {ERROR_TABLE_SIZE}x{ERROR_TABLE_SIZE} (`--scenes all`)."
+            )
+        }
     );
     let mut best = f64::INFINITY;
     for (worst, cost, (exact, steps, scale, filter, bisections)) in candidates {
@@ -403,8 +451,119 @@ pub fn error_table(rows: &[Row]) -> String {
     out
 }
 
+/// A plotted series' marker.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Marker {
+    Circle,
+    Triangle,
+    Square,
+    Cross,
+}
+
+/// Distinct colours, none of them the analytic floor's grey ([`FLOOR_GREY`]).
+pub const PALETTE: [(u8, u8, u8); 15] = [
+    (31, 119, 180),
+    (214, 39, 40),
+    (44, 160, 44),
+    (255, 127, 14),
+    (148, 103, 189),
+    (0, 0, 0),
+    (140, 86, 75),
+    (227, 119, 194),
+    (23, 190, 207),
+    (188, 189, 34),
+    (0, 0, 128),
+    (128, 0, 0),
+    (0, 100, 0),
+    (204, 153, 0),
+    (0, 128, 128),
+];
+
+/// The analytic floor's vertical line.
+pub const FLOOR_GREY: (u8, u8, u8) = (170, 170, 170);
+
+const MARKERS: [Marker; 4] = [
+    Marker::Circle,
+    Marker::Triangle,
+    Marker::Square,
+    Marker::Cross,
+];
+
+/// The colour and marker of the `index`-th plotted series: no two of the first 60 share both,
+/// no two of the first 15 share a colour.
+pub fn series_style(index: usize) -> ((u8, u8, u8), Marker) {
+    (
+        PALETTE[index % PALETTE.len()],
+        MARKERS[index % MARKERS.len()],
+    )
+}
+
+/// The legend's text height and the width it allows a character (sans-serif at 13 px averages
+/// about 7 px a character; 8 leaves room).
+const LEGEND_FONT: u32 = 13;
+const LEGEND_CHAR: u32 = 8;
+/// The legend's line height, and its first line's top (below the title).
+const LEGEND_LINE: u32 = 22;
+const LEGEND_TOP: u32 = 38;
+/// A legend entry's sample (line and marker) and the gap before its text.
+const LEGEND_SAMPLE: u32 = 30;
+
+/// Where each legend entry goes in a header `width` wide: its top-left corner, each column
+/// as wide as the longest entry, and the header's height below the last line.
+pub fn legend_layout(names: &[String], width: u32) -> (Vec<(u32, u32)>, u32) {
+    let longest = names.iter().map(|n| n.chars().count()).max().unwrap_or(0) as u32;
+    let entry = LEGEND_SAMPLE + LEGEND_CHAR * longest + 20;
+    let usable = width.saturating_sub(20);
+    let columns = (usable / entry.max(1)).max(1);
+    let column_width = usable / columns;
+    let places: Vec<(u32, u32)> = (0..names.len() as u32)
+        .map(|i| {
+            (
+                10 + column_width * (i % columns),
+                LEGEND_TOP + LEGEND_LINE * (i / columns),
+            )
+        })
+        .collect();
+    let lines = (names.len() as u32).div_ceil(columns);
+    (places, LEGEND_TOP + LEGEND_LINE * lines + 10)
+}
+
+/// The box a legend entry's sample and text take at `place` (left, top, right, bottom).
+pub fn legend_box(name: &str, place: (u32, u32)) -> (u32, u32, u32, u32) {
+    (
+        place.0,
+        place.1,
+        place.0 + LEGEND_SAMPLE + LEGEND_CHAR * name.chars().count() as u32,
+        place.1 + LEGEND_FONT + 4,
+    )
+}
+
+/// Draws `marker` at `point` on `area` (a chart's plotting area or the header).
+fn draw_marker<DB, CT>(
+    area: &plotters::drawing::DrawingArea<DB, CT>,
+    point: CT::From,
+    marker: Marker,
+    color: plotters::style::RGBColor,
+) -> Result<(), BoxError>
+where
+    DB: plotters::prelude::DrawingBackend,
+    DB::ErrorType: 'static,
+    CT: plotters::coord::CoordTranslate,
+    CT::From: Clone,
+{
+    use plotters::prelude::*;
+    let result = match marker {
+        Marker::Circle => area.draw(&Circle::new(point, 4, color.filled())),
+        Marker::Triangle => area.draw(&TriangleMarker::new(point, 5, color.filled())),
+        Marker::Square => area
+            .draw(&(EmptyElement::at(point) + Rectangle::new([(-4, -4), (4, 4)], color.filled()))),
+        Marker::Cross => area.draw(&Cross::new(point, 4, color.stroke_width(2))),
+    };
+    result.map_err(|e| format!("plot: {e}").into())
+}
+
 /// `error_vs_time.svg`: per scene, p95 error (log) against total time (log), one curve per
-/// method.
+/// method, each with its own colour and marker ([`series_style`]) and one legend for all.
 pub fn plot(
     options: &Options,
     rows: &[Row],
@@ -412,18 +571,44 @@ pub fn plot(
     date: &str,
 ) -> Result<PathBuf, BoxError> {
     use plotters::prelude::*;
-    let path = options.out.join("error_vs_time.svg");
+    let path = options.out.join(FILES[2]);
     let mut scenes: Vec<&str> = Vec::new();
     for r in rows {
         if !scenes.contains(&r.scene.as_str()) {
             scenes.push(&r.scene);
         }
     }
+    // The plotted curves: brute force, paper 003, the textbook march, the exact method and
+    // the hybrid with refinement on.
+    let plotted = |c: Curve| match c {
+        Curve::Brute | Curve::Paper003 | Curve::Textbook | Curve::Exact(..) => true,
+        Curve::Hybrid(_, f, b) => b > 0 && f != Filter::Bilinear,
+        _ => false,
+    };
+    // One style per method across all panels, and one legend for all of them.
+    let mut curves: Vec<Curve> = rows
+        .iter()
+        .map(|r| r.curve)
+        .filter(|c| plotted(*c))
+        .collect();
+    curves.sort();
+    curves.dedup();
+    let rgb = |(r, g, b): (u8, u8, u8)| RGBColor(r, g, b);
+    let style_of = |c: Curve| {
+        let (color, marker) = series_style(curves.iter().position(|k| *k == c).unwrap_or(0));
+        (rgb(color), marker)
+    };
+    let floor_grey = rgb(FLOOR_GREY);
+    let mut names: Vec<String> = curves.iter().map(|c| c.name()).collect();
+    names.push("analytic floor (its time)".into());
+    let width = 1200;
+    let (places, header) = legend_layout(&names, width);
+
     let columns = 2usize;
     let panel_rows = scenes.len().div_ceil(columns).max(1);
     let file = path.clone();
-    let header = 90;
-    let root = SVGBackend::new(&file, (1200, header + 420 * panel_rows as u32)).into_drawing_area();
+    let root =
+        SVGBackend::new(&file, (width, header + 420 * panel_rows as u32)).into_drawing_area();
     root.fill(&WHITE)?;
     let (title, body) = root.split_vertically(header);
     title.draw(&Text::new(
@@ -434,51 +619,29 @@ pub fn plot(
         (10, 10),
         ("sans-serif", 16).into_font(),
     ))?;
-    let panels = body.split_evenly((panel_rows, columns));
-    // The plotted curves: brute force, paper 003, and the hybrid with refinement on.
-    let plotted = |c: Curve| match c {
-        Curve::Brute | Curve::Paper003 | Curve::Textbook | Curve::Exact(..) => true,
-        Curve::Hybrid(_, f, b) => b > 0 && f != Filter::Bilinear,
-        _ => false,
-    };
-    let palette = [
-        RGBColor(0, 0, 0),
-        RGBColor(120, 120, 120),
-        RGBColor(214, 39, 40),
-        RGBColor(31, 119, 180),
-        RGBColor(44, 160, 44),
-        RGBColor(255, 127, 14),
-        RGBColor(148, 103, 189),
-        RGBColor(140, 86, 75),
-    ];
-    // One colour per method across all panels, and one legend for all of them.
-    let mut curves: Vec<Curve> = rows
-        .iter()
-        .map(|r| r.curve)
-        .filter(|c| plotted(*c))
-        .collect();
-    curves.sort();
-    curves.dedup();
-    let color_of = |c: Curve| {
-        let i = curves.iter().position(|k| *k == c).unwrap_or(0);
-        palette[i % palette.len()]
-    };
-    let floor_grey = RGBColor(160, 160, 160);
-    let mut legend: Vec<(String, RGBColor)> =
-        curves.iter().map(|c| (c.name(), color_of(*c))).collect();
-    legend.push(("analytic floor (its time)".into(), floor_grey));
-    for (i, (name, color)) in legend.iter().enumerate() {
-        let (x, y) = (10 + 295 * (i % 4) as i32, 38 + 22 * (i / 4) as i32);
-        title.draw(&PathElement::new(
-            vec![(x, y + 7), (x + 24, y + 7)],
-            color.stroke_width(2),
-        ))?;
+    for (i, (name, &(x, y))) in names.iter().zip(&places).enumerate() {
+        let (x, y) = (x as i32, y as i32);
+        let middle = y + LEGEND_FONT as i32 / 2;
+        if i < curves.len() {
+            let (color, marker) = style_of(curves[i]);
+            title.draw(&PathElement::new(
+                vec![(x, middle), (x + 24, middle)],
+                color.stroke_width(2),
+            ))?;
+            draw_marker(&title, (x + 12, middle), marker, color)?;
+        } else {
+            title.draw(&PathElement::new(
+                vec![(x + 12, y - 2), (x + 12, y + LEGEND_FONT as i32 + 2)],
+                floor_grey.stroke_width(2),
+            ))?;
+        }
         title.draw(&Text::new(
             name.clone(),
-            (x + 30, y),
-            ("sans-serif", 13).into_font(),
+            (x + LEGEND_SAMPLE as i32, y),
+            ("sans-serif", LEGEND_FONT).into_font(),
         ))?;
     }
+    let panels = body.split_evenly((panel_rows, columns));
     for (panel, scene) in panels.iter().zip(&scenes) {
         let scene_rows: Vec<&Row> = rows.iter().filter(|r| r.scene == *scene).collect();
         let (mut t0, mut t1, mut e0, mut e1) = (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64);
@@ -519,7 +682,7 @@ pub fn plot(
             .iter()
             .filter(|c| scene_rows.iter().any(|r| r.curve == **c))
         {
-            let color = color_of(*curve);
+            let (color, marker) = style_of(*curve);
             let mut points: Vec<(f64, f64)> = scene_rows
                 .iter()
                 .filter(|r| r.curve == *curve && r.errors.p95 > 0.0)
@@ -527,11 +690,10 @@ pub fn plot(
                 .collect();
             points.sort_by(|a, b| a.0.total_cmp(&b.0));
             chart.draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))?;
-            chart.draw_series(
-                points
-                    .into_iter()
-                    .map(|p| Circle::new(p, 3, color.filled())),
-            )?;
+            let area = chart.plotting_area();
+            for p in points {
+                draw_marker(area, p, marker, color)?;
+            }
         }
         if let Some(floor) = scene_rows.iter().find(|r| r.curve == Curve::Analytic) {
             chart.draw_series(LineSeries::new(
