@@ -212,6 +212,14 @@ pub enum Error {
         /// What went wrong.
         problem: String,
     },
+    /// A file that could not be written.
+    #[error("cannot write {path}: {problem}")]
+    FileWrite {
+        /// The path.
+        path: String,
+        /// What went wrong.
+        problem: String,
+    },
     /// A load went over one of the bounds of [`crate::load::LoadOptions`].
     #[error("{file}: {count} is more than {limit} = {max} (raise it in LoadOptions to load this)")]
     LimitExceeded {

@@ -162,9 +162,15 @@
 //! built on the GPU from a numerically stable form of the analytic single-scattering model of
 //! Sun, Ramamoorthi, Narasimhan and Nayar ("A Practical Analytic Single Scattering Model for
 //! Real Time Rendering", 2005), so it stays finite and accurate from optical depth 1e-4 to
-//! 100, looking straight into the light or with the light behind the eye. Shadows are marched
-//! only between shadow-volume extents (Wyman and Ramsey, "Interactive Volumetric Shadows in
-//! Participating Media with Single-Scattering", 2008).
+//! 100, looking straight into the light or with the light behind the eye. Shadows are
+//! integrated exactly by default: every shadow-volume face a pixel's ray crosses is recorded,
+//! and between two crossings, where visibility cannot change, the closed form is used (after
+//! Biri, Arquès and Michelin's exact integration between shadow planes); only a textured spot
+//! light's colour is marched. Wyman and Ramsey's hybrid ("Interactive Volumetric Shadows in
+//! Participating Media with Single-Scattering", 2008: march only between the shadow volumes'
+//! extents), brute force and the textbook march remain as settings. A light with a radius
+//! gets soft shadows from a light-space grid of fractional visibility; the light the medium
+//! scatters onto surfaces comes from a per-medium table ([`nodes::IssTableNode`]).
 //!
 //! Objects are split by lifetime: a shared [`gpu::Cache`] of pipelines and layouts, and
 //! per-view nodes ([`nodes`]) that own their textures. Each node has `new`, `prepare`
@@ -195,7 +201,7 @@ pub mod scene_file;
 pub use error::GltfError;
 pub use error::{Error, Result, SceneFileError};
 pub use facade::{Frame, FrameLight, Settings, Surfaces, VolumetricShadows};
-pub use gpu::headless::HeadlessGpu;
+pub use gpu::headless::{tone_map, HeadlessGpu};
 pub use gpu::{Cache, ErrorSign, ShaderPrecision};
 pub use gpu::{Occluder, OccluderMesh};
 pub use load::{Limit, LoadOptions};

@@ -201,21 +201,16 @@ pub fn auto_exposure(rgb: &[DVec3]) -> f64 {
     }
 }
 
-/// Exposure, Reinhard (`v / (1 + v)` per channel) and the sRGB curve, as in the quickstart.
+/// `volshadow::tone_map` (exposure, Reinhard, sRGB) of f64 radiance, as an RGB image.
 pub fn tone_map((width, height): (u32, u32), rgb: &[DVec3], exposure: f64) -> image::RgbImage {
-    let encode = |v: f64| {
-        let v = (exposure * v).max(0.0);
-        let v = if v.is_finite() { v / (1.0 + v) } else { 1.0 };
-        let s = if v <= 0.003_130_8 {
-            12.92 * v
-        } else {
-            1.055 * v.powf(1.0 / 2.4) - 0.055
-        };
-        (s.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
-    };
+    let pixels: Vec<[f32; 4]> = rgb
+        .iter()
+        .map(|c| [c.x as f32, c.y as f32, c.z as f32, 1.0])
+        .collect();
+    let rgba = volshadow::tone_map(&pixels, exposure as f32);
     image::RgbImage::from_fn(width, height, |x, y| {
-        let c = rgb[(y * width + x) as usize];
-        image::Rgb([encode(c.x), encode(c.y), encode(c.z)])
+        let i = 4 * (y * width + x) as usize;
+        image::Rgb([rgba[i], rgba[i + 1], rgba[i + 2]])
     })
 }
 

@@ -151,27 +151,12 @@ fn render_to(output: &std::path::Path) -> Result<(), Box<dyn std::error::Error>>
         std::fs::create_dir_all(dir)
             .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
     }
-    tone_map(&rendered.output, width, height)
+    // Exposure 1.6, Reinhard and sRGB (`volshadow::tone_map`).
+    let rgba = volshadow::tone_map(&rendered.output, 1.6);
+    image::RgbaImage::from_raw(width, height, rgba)
+        .ok_or("tone-mapped image of the wrong size")?
         .save_with_format(output, image::ImageFormat::Png)
         .map_err(|e| format!("cannot write {}: {e}", output.display()))?;
     println!("wrote {}", output.display());
     Ok(())
-}
-
-/// Exposure, Reinhard and sRGB encoding for the PNG.
-fn tone_map(pixels: &[[f32; 4]], width: u32, height: u32) -> image::RgbImage {
-    let encode = |v: f32| {
-        let v = 1.6 * v;
-        let v = v / (1.0 + v);
-        let s = if v <= 0.003_130_8 {
-            12.92 * v
-        } else {
-            1.055 * v.powf(1.0 / 2.4) - 0.055
-        };
-        (s.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
-    };
-    image::RgbImage::from_fn(width, height, |x, y| {
-        let p = pixels[(y * width + x) as usize];
-        image::Rgb([encode(p[0]), encode(p[1]), encode(p[2])])
-    })
 }

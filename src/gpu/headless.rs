@@ -313,4 +313,85 @@ impl HeadlessGpu {
         let bytes = self.read_texture_bytes(texture)?;
         Ok(bytemuck::pod_collect_to_vec(&bytes))
     }
+
+    /// Reads an `Rgba16Float` (the composite's default output) or `Rgba32Float` texture back
+    /// as f32, row-major from the top row.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::Readback`] for another format, and those of
+    /// [`read_texture_bytes`](Self::read_texture_bytes).
+    pub fn read_rgba(&self, texture: &wgpu::Texture) -> Result<Vec<[f32; 4]>> {
+        match texture.format() {
+            wgpu::TextureFormat::Rgba32Float => self.read_rgba32f(texture),
+            wgpu::TextureFormat::Rgba16Float => {
+                let bytes = self.read_texture_bytes(texture)?;
+                let halves: Vec<half::f16> = bytemuck::pod_collect_to_vec(&bytes);
+                Ok(halves
+                    .chunks_exact(4)
+                    .map(|c| [c[0].to_f32(), c[1].to_f32(), c[2].to_f32(), c[3].to_f32()])
+                    .collect())
+            }
+            other => Err(Error::Readback(format!(
+                "expected Rgba16Float or Rgba32Float, got {other:?}"
+            ))),
+        }
+    }
+
+    /// Reads an `Rgba16Float` or `Rgba32Float` texture back, tone-maps it ([`tone_map`]) and
+    /// writes it to `path` as an 8-bit sRGB PNG.
+    ///
+    /// # Errors
+    ///
+    /// Those of [`read_rgba`](Self::read_rgba); [`Error::FileWrite`] when the file cannot be
+    /// written.
+    #[cfg(feature = "image")]
+    pub fn save_png(
+        &self,
+        texture: &wgpu::Texture,
+        path: &std::path::Path,
+        exposure: f32,
+    ) -> Result<()> {
+        let pixels = self.read_rgba(texture)?;
+        let rgba = tone_map(&pixels, exposure);
+        image::save_buffer_with_format(
+            path,
+            &rgba,
+            texture.width(),
+            texture.height(),
+            image::ColorType::Rgba8,
+            image::ImageFormat::Png,
+        )
+        .map_err(|e| Error::FileWrite {
+            path: path.display().to_string(),
+            problem: e.to_string(),
+        })
+    }
+}
+
+/// Linear radiance to 8-bit sRGB for display: each channel times `exposure`, then Reinhard's
+/// `v / (1 + v)` (so no value clips), then the sRGB curve; alpha 255. NaN, negative and
+/// infinite values map to 0, 0 and 255. Returns `4 × pixels.len()` bytes (RGBA8, the
+/// pixels' order).
+pub fn tone_map(pixels: &[[f32; 4]], exposure: f32) -> Vec<u8> {
+    let encode = |v: f32| {
+        let v = exposure * v;
+        let v = if v.is_nan() || v <= 0.0 {
+            0.0
+        } else if v.is_finite() {
+            v / (1.0 + v)
+        } else {
+            1.0
+        };
+        let s = if v <= 0.003_130_8 {
+            12.92 * v
+        } else {
+            1.055 * v.powf(1.0 / 2.4) - 0.055
+        };
+        (s.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+    };
+    pixels
+        .iter()
+        .flat_map(|p| [encode(p[0]), encode(p[1]), encode(p[2]), 255])
+        .collect()
 }
