@@ -50,8 +50,13 @@ pub enum Error {
         /// Which input.
         field: &'static str,
     },
-    /// A spot light's apex angle outside (0, π).
-    #[error("spot light cone angle must lie in (0, π) radians, got {angle}")]
+    /// A spot light's apex angle outside (0, [`SpotLight::MAX_CONE_ANGLE`](crate::SpotLight::MAX_CONE_ANGLE)]
+    /// (179°: the widest field its shadow map covers).
+    #[error(
+        "spot light cone angle must lie in (0, 179°] = (0, {}] radians (SpotLight::MAX_CONE_ANGLE: \
+         the widest field its shadow map covers), got {angle}",
+        crate::SpotLight::MAX_CONE_ANGLE
+    )]
     ConeAngleOutOfRange {
         /// The angle received, radians.
         angle: f32,

@@ -319,10 +319,13 @@ fn light(l: spec::Light, path: &str, ctx: &mut Ctx) -> P<SceneLight> {
                 &at("direction"),
                 || format!("must be a non-zero finite vector, got {direction}"),
             )?;
+            // The widest cone is `SpotLight::MAX_CONE_ANGLE`, 179° (the widest shadow map).
             ensure(
-                cone > 0.0 && cone < 180.0,
+                cone > 0.0 && cone <= 179.0,
                 &at("cone_angle_degrees"),
-                || format!("must be in (0, 180), got {cone}"),
+                || {
+                    format!("must be in (0, 179] (the widest field a spot's shadow map covers), got {cone}")
+                },
             )?;
             let i = intensity(i, &at("intensity"))?;
             let texture = t.map(|t| texture(t, &at("texture"), ctx)).transpose()?;
