@@ -171,7 +171,9 @@ pub enum Error {
         /// Why there is no prepared frame.
         reason: &'static str,
     },
-    /// A frame needs a GPU buffer larger than the device's limits allow.
+    /// A frame needs a GPU buffer larger than the device's limits allow. Every buffer the crate
+    /// sizes from its inputs (shadow volumes, occluder transforms, crossing lists, a soft
+    /// light's grid list, a readback) is checked before it is created, and reported so.
     #[error(
         "`{field}` needs {needed} bytes, beyond the device limit `{limit}` = {max}; request a \
          higher limit when creating the device (up to the adapter's), or use fewer or coarser \

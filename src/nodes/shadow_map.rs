@@ -734,6 +734,7 @@ impl ShadowMapNode {
         }
 
         let needed = (occluders.len().max(1) as u64) * SLOT;
+        crate::gpu::check_buffer_allocation(device, "occluder transforms", needed)?;
         if self
             .instance_buffer
             .as_ref()
