@@ -11,7 +11,8 @@
 //!   the file that names it, after `.`/`..`, percent-escapes (glTF URIs) and symbolic links are
 //!   resolved. A path that leads outside is an [`Error::PathOutsideFolder`] whose message is
 //!   the same whether the target exists or not; the resolution never looks at anything
-//!   outside the folder. [`LoadOptions::allow_outside`] lifts the rule.
+//!   outside the folder. [`LoadOptions::allow_outside`] lifts the rule. A loop of symbolic
+//!   links inside the folder (more than 40) is an [`Error::FileRead`], as opening it would be.
 //! * Only regular files are read: a directory, device (`/dev/zero`), FIFO or socket is an
 //!   [`Error::NotRegularFile`], decided from the file's metadata before it is opened (and, on
 //!   Unix, opened non-blocking and checked again, so a FIFO swapped in meanwhile cannot block).
@@ -24,7 +25,8 @@
 //! bytes read, triangles, lights, light-texture texels, glTF nodes and placed meshes, and
 //! stops with an [`Error::LimitExceeded`] naming the [`Limit`] as soon as one would pass its
 //! bound. The counts are checked *before* the memory is allocated, so no input can make the
-//! process abort on a failed allocation.
+//! process abort on a failed allocation. A scene file's procedural shapes are totalled from
+//! their declared sizes before any of them is built.
 // Paths named inside files are only followed by the loaders behind the `gltf` and `image`
 // features.
 #![cfg_attr(not(any(feature = "gltf", feature = "image")), allow(dead_code))]
@@ -56,7 +58,8 @@ pub struct LoadOptions {
     pub max_total_bytes: u64,
     /// Most triangles over all meshes of one load, each placement counted (default 4 Mi). A
     /// glTF primitive is checked from its accessor counts before it is read, and may have at
-    /// most 3 positions per triangle still allowed.
+    /// most 3 positions per triangle still allowed; a scene file's procedural shapes are
+    /// totalled from their declared sizes before any is built.
     pub max_triangles: u64,
     /// Most lights in a scene file (default 16).
     pub max_lights: u64,
