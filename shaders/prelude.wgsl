@@ -343,7 +343,16 @@ fn cone_cuts(apex: vec3<f32>, axis: vec3<f32>, c2: f32, eye: vec3<f32>, dir: vec
     // linear and cut them wrong, by up to 8%). Below it qa is rounding noise, and the linear
     // root is the one kept.
     if (abs(qa) > 1.0e-6 * max(av * av, c2)) {
-        let disc = qb * qb - 4.0 * qa * qc;
+        // The discriminant qb² − 4·qa·qc in the closed form 4·c2·(|axis × n|² − c2·|n|²),
+        // n = dir × w0 (|n| is the ray's distance from the apex): a ray passing near the apex
+        // has two nearly equal roots, one on each nappe, and qb² − 4·qa·qc cancels to rounding
+        // noise there (relative 1e-7 of qb²), often negative. For a cone of nearly 180° the
+        // two nappes nearly coincide with the plane through the apex, so every ray that
+        // crosses that plane near the light was such a ray: its whole lit piece was lost
+        // (black pixels at 179.95°, the whole light's row at 179.999°).
+        let n = cross(dir, w0);
+        let an = cross(axis, n);
+        let disc = 4.0 * c2 * (dot(an, an) - c2 * dot(n, n));
         if (disc >= 0.0) {
             let q = -0.5 * (qb + select(-1.0, 1.0, qb >= 0.0) * vs_sqrt(disc));
             let r0 = q / qa;

@@ -50,8 +50,13 @@ pub enum Error {
         /// Which input.
         field: &'static str,
     },
-    /// A spot light's apex angle outside (0, π).
-    #[error("spot light cone angle must lie in (0, π) radians, got {angle}")]
+    /// A spot light's apex angle outside (0, [`SpotLight::MAX_CONE_ANGLE`](crate::SpotLight::MAX_CONE_ANGLE)]
+    /// (179°: the widest field its shadow map covers).
+    #[error(
+        "spot light cone angle must lie in (0, 179°] = (0, {}] radians (SpotLight::MAX_CONE_ANGLE: \
+         the widest field its shadow map covers), got {angle}",
+        crate::SpotLight::MAX_CONE_ANGLE
+    )]
     ConeAngleOutOfRange {
         /// The angle received, radians.
         angle: f32,
@@ -166,7 +171,9 @@ pub enum Error {
         /// Why there is no prepared frame.
         reason: &'static str,
     },
-    /// A frame needs a GPU buffer larger than the device's limits allow.
+    /// A frame needs a GPU buffer larger than the device's limits allow. Every buffer the crate
+    /// sizes from its inputs (shadow volumes, occluder transforms, crossing lists, a soft
+    /// light's grid list, a readback) is checked before it is created, and reported so.
     #[error(
         "`{field}` needs {needed} bytes, beyond the device limit `{limit}` = {max}; request a \
          higher limit when creating the device (up to the adapter's), or use fewer or coarser \

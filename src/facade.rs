@@ -297,8 +297,10 @@ impl VolumetricShadows {
     /// * [`Error::InvalidSize`] for a frame larger than the device's texture limits;
     /// * [`Error::NonFinite`], [`Error::SingularMatrix`] or [`Error::InvalidTransform`] for an
     ///   occluder's transform;
-    /// * [`Error::DeviceLimitExceeded`] when the occluders' shadow volumes need a larger buffer
-    ///   than the device allows;
+    /// * [`Error::DeviceLimitExceeded`], naming the buffer and the `wgpu::Limits` field, for
+    ///   every buffer beyond the device's limits: the occluders' shadow volumes or transforms,
+    ///   the exact method's crossing lists (16 bytes a pixel: 4096² at full resolution is
+    ///   beyond the core 128 MiB binding), a soft light's grid list;
     /// * on the first frame that creates a light's nodes, [`Error::InvalidSize`] for a shadow-map
     ///   resolution or table size out of range and [`Error::InvalidSetting`] for march steps or
     ///   bisections out of range (see [`Settings`]).

@@ -11,7 +11,8 @@
 //!   the file that names it, after `.`/`..`, percent-escapes (glTF URIs) and symbolic links are
 //!   resolved. A path that leads outside is an [`Error::PathOutsideFolder`] whose message is
 //!   the same whether the target exists or not; the resolution never looks at anything
-//!   outside the folder. [`LoadOptions::allow_outside`] lifts the rule.
+//!   outside the folder. [`LoadOptions::allow_outside`] lifts the rule. A loop of symbolic
+//!   links inside the folder (more than 40) is an [`Error::FileRead`], as opening it would be.
 //! * Only regular files are read: a directory, device (`/dev/zero`), FIFO or socket is an
 //!   [`Error::NotRegularFile`], decided from the file's metadata before it is opened (and, on
 //!   Unix, opened non-blocking and checked again, so a FIFO swapped in meanwhile cannot block).
@@ -24,7 +25,8 @@
 //! bytes read, triangles, lights, light-texture texels, glTF nodes and placed meshes, and
 //! stops with an [`Error::LimitExceeded`] naming the [`Limit`] as soon as one would pass its
 //! bound. The counts are checked *before* the memory is allocated, so no input can make the
-//! process abort on a failed allocation.
+//! process abort on a failed allocation. A scene file's procedural shapes are totalled from
+//! their declared sizes before any of them is built.
 // Paths named inside files are only followed by the loaders behind the `gltf` and `image`
 // features.
 #![cfg_attr(not(any(feature = "gltf", feature = "image")), allow(dead_code))]
@@ -56,7 +58,8 @@ pub struct LoadOptions {
     pub max_total_bytes: u64,
     /// Most triangles over all meshes of one load, each placement counted (default 4 Mi). A
     /// glTF primitive is checked from its accessor counts before it is read, and may have at
-    /// most 3 positions per triangle still allowed.
+    /// most 3 positions per triangle still allowed; a scene file's procedural shapes are
+    /// totalled from their declared sizes before any is built.
     pub max_triangles: u64,
     /// Most lights in a scene file (default 16).
     pub max_lights: u64,
@@ -276,6 +279,11 @@ pub(crate) fn folder_of(file: &Path) -> Result<PathBuf> {
 
 /// Where `named` (a path written at `field` of the file `file`) leads from `folder` (the
 /// canonical folder of `file`): confined to it unless `allow_outside` (see [`resolve`]).
+///
+/// A path that leads outside is [`Error::PathOutsideFolder`]; one that runs into a loop of
+/// symbolic links inside the folder is a read error, [`Error::FileRead`] ("too many levels
+/// of symbolic links"), as opening it would be: the loop is inside the folder, so saying so
+/// tells nothing about what lies outside.
 pub(crate) fn confine(
     folder: &Path,
     named: &Path,
@@ -283,11 +291,20 @@ pub(crate) fn confine(
     file: &str,
     field: &str,
 ) -> Result<PathBuf> {
-    resolve(folder, named, allow_outside).ok_or_else(|| Error::PathOutsideFolder {
-        file: file.to_owned(),
-        field: field.to_owned(),
-        target: named.display().to_string(),
-    })
+    match resolve(folder, named, allow_outside) {
+        Resolved::Inside(path) => Ok(path),
+        Resolved::Outside => Err(Error::PathOutsideFolder {
+            file: file.to_owned(),
+            field: field.to_owned(),
+            target: named.display().to_string(),
+        }),
+        Resolved::LinkLoop => Err(Error::FileRead {
+            path: folder.join(named).display().to_string(),
+            problem: format!(
+                "too many levels of symbolic links (more than {MAX_LINKS}: a loop of links)"
+            ),
+        }),
+    }
 }
 
 /// Reads the file that `named` names (see [`confine`]) and counts its bytes. Returns the path
@@ -329,21 +346,37 @@ fn parts(path: &Path, folder: &Path) -> Option<Vec<Part>> {
     Some(out)
 }
 
+/// The most symbolic links followed in resolving one path (Linux's own bound): more is a loop.
+const MAX_LINKS: u32 = 40;
+
+/// Where [`resolve`] found that a path leads.
+#[derive(Debug, PartialEq)]
+pub(crate) enum Resolved {
+    /// Inside the folder (or anywhere, where going outside is allowed): this path.
+    Inside(PathBuf),
+    /// Outside the folder.
+    Outside,
+    /// More than [`MAX_LINKS`] symbolic links, every one of them inside the folder: a loop.
+    LinkLoop,
+}
+
 /// Resolves `named` (a path written inside a file) against `folder` (that file's canonical
-/// folder): `None` when it leads outside.
+/// folder).
 ///
 /// With `allow_outside` it is `folder.join(named)`. Otherwise the path is walked one component
-/// at a time from `folder`, following symbolic links and `..`, and is `None` as
+/// at a time from `folder`, following symbolic links and `..`, and is `Outside` as
 /// soon as it leaves the folder (an absolute path, or a link to one, counts as inside only when
 /// it starts with `folder`). Only paths inside the folder are ever looked at on disk, so the
-/// outcome cannot depend on what exists outside it: an outside target is `None` whether it
+/// outcome cannot depend on what exists outside it: an outside target is `Outside` whether it
 /// exists or not. A component that does not exist ends the look-ups, and the rest is applied
-/// as written. More than 40 links (a loop) also give `None`.
-pub(crate) fn resolve(folder: &Path, named: &Path, allow_outside: bool) -> Option<PathBuf> {
+/// as written. More than [`MAX_LINKS`] links, each found inside the folder, are `LinkLoop`.
+pub(crate) fn resolve(folder: &Path, named: &Path, allow_outside: bool) -> Resolved {
     if allow_outside {
-        return Some(folder.join(named));
+        return Resolved::Inside(folder.join(named));
     }
-    let mut pending = parts(named, folder)?;
+    let Some(mut pending) = parts(named, folder) else {
+        return Resolved::Outside;
+    };
     pending.reverse();
     let mut current = folder.to_path_buf();
     let mut missing = false;
@@ -352,7 +385,7 @@ pub(crate) fn resolve(folder: &Path, named: &Path, allow_outside: bool) -> Optio
         match part {
             Part::Parent => {
                 if current == folder {
-                    return None;
+                    return Resolved::Outside;
                 }
                 current.pop();
             }
@@ -364,15 +397,19 @@ pub(crate) fn resolve(folder: &Path, named: &Path, allow_outside: bool) -> Optio
                 match std::fs::symlink_metadata(&current) {
                     Ok(m) if m.file_type().is_symlink() => {
                         hops += 1;
-                        let target = match std::fs::read_link(&current) {
-                            Ok(target) if hops <= 40 => target,
-                            _ => return None,
+                        if hops > MAX_LINKS {
+                            return Resolved::LinkLoop;
+                        }
+                        let Ok(target) = std::fs::read_link(&current) else {
+                            return Resolved::Outside;
                         };
                         current.pop();
                         if target.has_root() {
                             current = folder.to_path_buf();
                         }
-                        let steps = parts(&target, folder)?;
+                        let Some(steps) = parts(&target, folder) else {
+                            return Resolved::Outside;
+                        };
                         pending.extend(steps.into_iter().rev());
                     }
                     Ok(_) => {}
@@ -381,5 +418,9 @@ pub(crate) fn resolve(folder: &Path, named: &Path, allow_outside: bool) -> Optio
             }
         }
     }
-    current.starts_with(folder).then_some(current)
+    if current.starts_with(folder) {
+        Resolved::Inside(current)
+    } else {
+        Resolved::Outside
+    }
 }

@@ -237,6 +237,60 @@ fn symlink_out_of_the_folder_is_outside() {
     }
 }
 
+/// A loop of symbolic links inside the folder is a read error ("too many levels of symbolic
+/// links"), as opening it would be, not a path outside the folder (it was
+/// `PathOutsideFolder`): as a scene's glTF path (a link to itself, and two links to each
+/// other), a glTF buffer URI and a light-texture file.
+#[cfg(unix)]
+#[test]
+fn symlink_loop_inside_the_folder_is_a_read_error() {
+    use std::os::unix::fs::symlink;
+    let t = tempfile::tempdir().unwrap();
+    let dir = t.path();
+    symlink("self.gltf", dir.join("self.gltf")).unwrap();
+    symlink("b.gltf", dir.join("a.gltf")).unwrap();
+    symlink("a.gltf", dir.join("b.gltf")).unwrap();
+    for name in ["self.gltf", "a.gltf"] {
+        let e = scene_err(dir, &gltf_scene(name));
+        assert!(!is_outside(&e), "{name}: {e}");
+        match &e {
+            Error::SceneFile(f) => {
+                assert_eq!(f.field, "objects[0].shape.path", "{e}");
+                assert!(f.problem.contains("cannot read"), "{e}");
+                assert!(f.problem.contains("symbolic links"), "{e}");
+            }
+            other => panic!("{name}: expected a read error, got {other:?}"),
+        }
+    }
+    // The same link loop straight through the public read error of the folder rules.
+    symlink("loop.bin", dir.join("loop.bin")).unwrap();
+    let gltf_path = t.write("m.gltf", gltf_with_buffer("loop.bin"));
+    let e = quick("buffer loop", || gltf::load(&gltf_path)).unwrap_err();
+    assert!(!is_outside(&e), "{e}");
+    match &e {
+        Error::Gltf(volshadow::GltfError::Invalid { kind, problem, .. }) => {
+            assert_eq!(*kind, gltf::ErrorKind::MissingBuffer, "{e}");
+            assert!(problem.contains("cannot read buffer 0"), "{e}");
+            assert!(problem.contains("symbolic links"), "{e}");
+        }
+        other => panic!("expected a read error, got {other:?}"),
+    }
+    #[cfg(feature = "image")]
+    {
+        symlink("loop.png", dir.join("loop.png")).unwrap();
+        let e = scene_err(dir, &texture_scene("loop.png"));
+        assert!(!is_outside(&e), "{e}");
+        match &e {
+            Error::SceneFile(f) => {
+                assert_eq!(f.field, "lights[0].texture.file", "{e}");
+                assert!(f.problem.contains("cannot read"), "{e}");
+                assert!(f.problem.contains("symbolic links"), "{e}");
+            }
+            other => panic!("expected a read error, got {other:?}"),
+        }
+    }
+}
+
 /// A link that stays inside the folder, and `..` that comes back in, are fine.
 #[cfg(unix)]
 #[test]
@@ -364,26 +418,39 @@ fn file_bytes_limit() {
 }
 
 /// The 2.1 KB scene of 20 spheres of 1024 × 1024 segments: 42M triangles (2.4 GB and 32 s
-/// before). The default bound of 4Mi triangles stops it at the third sphere.
+/// before any bound; then refused at the third sphere, after two were built: 12.5 s and
+/// 409 MB). The declared total is checked before any shape is built: refused at once, naming
+/// the whole total.
 #[test]
-fn triangle_limit_stops_a_small_scene_asking_for_42m_triangles() {
+fn triangle_limit_stops_a_small_scene_asking_for_42m_triangles_before_building_any() {
     let sphere = r#"{"shape": {"type": "sphere", "center": [0, 1, 0], "radius": 1, "segments": 1024, "rings": 1024}}"#;
     let text = scene(&format!("[{}]", vec![sphere; 20].join(",")), None);
     assert!(text.len() < 2600, "{} bytes", text.len());
-    let e = SceneDescription::from_json(&text, Path::new(".")).unwrap_err();
-    match e {
+    // Building one of these spheres alone (2M triangles with its edge adjacency) takes longer
+    // than this, so the bound is met before any is built.
+    let e = quick("42M declared triangles", || {
+        SceneDescription::from_json(&text, Path::new("."))
+    })
+    .unwrap_err();
+    match &e {
         Error::LimitExceeded {
             limit: Limit::Triangles,
             count,
             max,
             ..
         } => {
-            assert_eq!(max, LoadOptions::default().max_triangles);
-            // Three spheres of 2 · 1024 · 1023 triangles: the third is refused before it is built.
-            assert_eq!(count, 3 * 2 * 1024 * 1023);
+            assert_eq!(*max, LoadOptions::default().max_triangles);
+            // The whole declared total: 20 spheres of 2 · 1024 · 1023 triangles.
+            assert_eq!(*count, 20 * 2 * 1024 * 1023);
+            assert!(e.to_string().contains("41902080"), "{e}");
         }
         e => panic!("expected the triangle limit, got {e}"),
     }
+    // Out-of-range counts are the shape's own error, not a triangle total.
+    let huge =
+        r#"{"shape": {"type": "sphere", "center": [0, 1, 0], "radius": 1, "segments": 100000}}"#;
+    let e = scene_err(Path::new("."), &scene(&format!("[{huge}]"), None));
+    assert!(e.to_string().contains("objects[0].shape.segments"), "{e}");
 }
 
 #[test]

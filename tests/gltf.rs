@@ -696,6 +696,22 @@ fn error_invalid_transform() {
             "{nodes}"
         );
     }
+    // A scale beyond f32 says so (it was "singular (determinant inf)").
+    for (scale, way) in [("1e30", "overflows f32"), ("1e-30", "underflows f32")] {
+        let nodes = format!(r#"[{{"mesh": 0, "scale": [{scale}, {scale}, {scale}]}}]"#);
+        let doc = Doc::cube(&bin).set("nodes", &nodes);
+        let e = gltf::load_slice(doc.json().as_bytes()).unwrap_err();
+        match &e {
+            Error::Gltf(volshadow::GltfError::Invalid { kind, problem, .. }) => {
+                assert_eq!(*kind, ErrorKind::InvalidTransform, "{e}");
+                assert!(
+                    problem.contains(way) && !problem.contains("singular"),
+                    "{e}"
+                );
+            }
+            other => panic!("{scale}: {other:?}"),
+        }
+    }
     // A zero scale on a node that places nothing is harmless.
     let doc = Doc::cube(&bin)
         .set("nodes", r#"[{"mesh": 0}, {"scale": [0, 0, 0]}]"#)

@@ -672,3 +672,189 @@ fn a_light_with_a_radius_is_accepted() {
         )
         .is_ok());
 }
+
+/// The test adapter's device with storage buffers limited to 1 MiB (bindings) and 4 MiB
+/// (buffers): what a large frame meets at the core limits (128 MiB, 256 MiB), at test sizes.
+fn small_buffers() -> HeadlessGpu {
+    let gpu = common::gpu();
+    let required_limits = wgpu::Limits {
+        max_storage_buffer_binding_size: 1 << 20,
+        max_buffer_size: 4 << 20,
+        ..wgpu::Limits::default()
+    };
+    let (device, queue) = pollster::block_on(gpu.adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("small buffers"),
+        required_features: wgpu::Features::empty(),
+        required_limits,
+        experimental_features: wgpu::ExperimentalFeatures::disabled(),
+        memory_hints: wgpu::MemoryHints::Performance,
+        trace: wgpu::Trace::Off,
+    }))
+    .expect("a device with lower limits");
+    HeadlessGpu {
+        instance: gpu.instance.clone(),
+        adapter: gpu.adapter.clone(),
+        device,
+        queue,
+    }
+}
+
+/// Every buffer beyond a device limit is one error, `DeviceLimitExceeded`, naming the buffer
+/// and the limit: the exact method's crossing lists (16 bytes a pixel of heads, bound whole:
+/// 4096² at full resolution at the core 128 MiB, 272² at this device's 1 MiB) were
+/// `InvalidSetting { field: "extents size" }`, and a soft light's grid list
+/// `InvalidSetting { field: "soft shadow size" }`, where the shadow volumes were already
+/// `DeviceLimitExceeded`. A frame that fits exactly (256²: 1 MiB of heads) renders, with no
+/// validation error either way.
+#[test]
+fn every_buffer_beyond_a_device_limit_is_device_limit_exceeded() {
+    let medium = medium();
+    let big = rig_on(small_buffers(), 272);
+    let device = &big.gpu.device;
+    let lights = [point(Vec3::new(0.4, 4.5, -0.5))];
+    let sphere = OccluderMesh::new(
+        device,
+        &shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.5, 16, 8).unwrap(),
+    );
+    let occluders = [Occluder {
+        mesh: &sphere,
+        transform: Mat4::IDENTITY,
+    }];
+    let mut vs = VolumetricShadows::new(device, &big.gpu.queue, &big.cache, settings()).unwrap();
+    let (result, error) = scoped(device, || {
+        vs.prepare(
+            device,
+            &big.gpu.queue,
+            &frame(&big, &lights, &medium, &occluders),
+        )
+        .err()
+    });
+    match result {
+        Some(Error::DeviceLimitExceeded {
+            field: "crossing lists",
+            limit: "max_storage_buffer_binding_size",
+            needed,
+            max,
+        }) => assert_eq!((needed, max), (16 * 272 * 272, 1 << 20)),
+        other => panic!("272² crossing lists: {other:?}"),
+    }
+    assert!(error.is_none(), "validation error: {error:?}");
+
+    // 256²: the heads are exactly 1 MiB, and it renders.
+    let fits = rig_on(big.gpu, 256);
+    let device = &fits.gpu.device;
+    let out = output(&fits.gpu, fits.size, 1);
+    let mut vs = VolumetricShadows::new(device, &fits.gpu.queue, &fits.cache, settings()).unwrap();
+    let (_, error) = scoped(device, || {
+        render(
+            &fits,
+            &mut vs,
+            &frame(&fits, &lights, &medium, &occluders),
+            (&out).into(),
+        )
+    });
+    assert!(error.is_none(), "validation error: {error:?}");
+    assert!(
+        vs.plan()
+            .steps
+            .iter()
+            .any(|s| s.pass == volshadow::plan::Pass::Extents),
+        "{}",
+        vs.plan()
+    );
+
+    // A soft light's grid: 64² directions × 16 slices × 6 cube layers need a list of
+    // 4 · (64² − 32²) · 96 bytes to build, beyond 1 MiB.
+    let soft = [FrameLight::from(Light::from(
+        PointLight::new(Vec3::new(0.4, 4.5, -0.5), Vec3::splat(30.0))
+            .unwrap()
+            .with_radius(0.3)
+            .unwrap(),
+    ))];
+    let mut vs = VolumetricShadows::new(device, &fits.gpu.queue, &fits.cache, settings()).unwrap();
+    let (result, error) = scoped(device, || {
+        vs.prepare(
+            device,
+            &fits.gpu.queue,
+            &frame(&fits, &soft, &medium, &occluders),
+        )
+        .err()
+    });
+    match result {
+        Some(Error::DeviceLimitExceeded {
+            field: "soft shadow list",
+            limit: "max_storage_buffer_binding_size",
+            needed,
+            max,
+        }) => assert_eq!((needed, max), (4 * (64 * 64 - 32 * 32) * 96, 1 << 20)),
+        other => panic!("soft grid list: {other:?}"),
+    }
+    assert!(error.is_none(), "validation error: {error:?}");
+}
+
+/// A scale beyond f32 is reported as such, not as a singular matrix (a uniform scale of 1e30
+/// was `SingularMatrix` "singular or not invertible", determinant `inf`): through the facade
+/// (`InvalidTransform` on `occluder.transform`), a scene file's `matrix` and a glTF node's
+/// `scale`. A scale of 1e12, whose determinant f32 holds, passes the check.
+#[test]
+fn a_scale_beyond_f32_is_reported_as_such() {
+    let rig = rig(16);
+    let device = &rig.gpu.device;
+    let medium = medium();
+    let lights = [point(Vec3::new(0.4, 4.5, -0.5))];
+    let sphere = OccluderMesh::new(
+        device,
+        &shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.5, 16, 8).unwrap(),
+    );
+    let mut vs = VolumetricShadows::new(device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
+    for (scale, way) in [(1e30f32, "overflows f32"), (1e-30, "underflows f32")] {
+        let occluders = [Occluder {
+            mesh: &sphere,
+            transform: Mat4::from_scale(Vec3::splat(scale)),
+        }];
+        let (result, error) = scoped(device, || {
+            vs.prepare(
+                device,
+                &rig.gpu.queue,
+                &frame(&rig, &lights, &medium, &occluders),
+            )
+            .err()
+        });
+        match result {
+            Some(Error::InvalidTransform {
+                field: "occluder.transform",
+                problem,
+            }) => assert!(problem.contains(way), "{scale:e}: {problem}"),
+            other => panic!("scale {scale:e}: {other:?}"),
+        }
+        assert!(error.is_none(), "validation error: {error:?}");
+
+        // The same matrix in a scene file.
+        let m = Mat4::from_scale(Vec3::splat(scale)).to_cols_array();
+        let text = format!(
+            r#"{{"name": "t",
+                "camera": {{"eye": [0, 2, 8], "target": [0, 1, 0], "fov_y_degrees": 45, "near": 0.1}},
+                "lights": [{{"type": "point", "position": [0, 6, 0], "intensity": 10}}],
+                "medium": {{"sigma_s": 0.05}},
+                "objects": [{{"shape": {{"type": "box", "center": [0, 1, 0], "half_extents": [1, 1, 1]}},
+                              "transform": {{"matrix": {m:?}}}}}]}}"#
+        );
+        let e =
+            volshadow::scene_file::SceneDescription::from_json(&text, std::path::Path::new("."))
+                .unwrap_err()
+                .to_string();
+        assert!(e.contains("objects[0].transform") && e.contains(way), "{e}");
+        assert!(!e.contains("invertible"), "{e}");
+    }
+    // A scale f32 still inverts passes the transform check.
+    let occluders = [Occluder {
+        mesh: &sphere,
+        transform: Mat4::from_scale(Vec3::splat(1e12)),
+    }];
+    let r = vs.prepare(
+        device,
+        &rig.gpu.queue,
+        &frame(&rig, &lights, &medium, &occluders),
+    );
+    assert!(r.is_ok(), "{:?}", r.err());
+}

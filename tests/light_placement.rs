@@ -172,3 +172,89 @@ fn a_175_degree_view_clamps_the_glow_by_each_pixel_footprint() {
         m.errors
     );
 }
+
+crate::at_each_precision!(
+    the_widest_spot_cone_at => the_widest_spot_cone_renders_right_up_to_its_edge,
+    the_widest_spot_cone_renders_right_up_to_its_edge_worst_case,
+    common::WORST_CASES
+);
+
+/// The widest cone `SpotLight::new` accepts (`SpotLight::MAX_CONE_ANGLE`, 179°) renders within
+/// the exact method's bounds with no black pixel, and one f32 step wider is refused.
+///
+/// 1. Looking at the light from 6 away through a 0.2° view, every ray passes within 0.01 of
+///    the apex, crossing the cone's plane there: its crossings with the two nappes of the
+///    double cone (which a cone this wide nearly folds onto the plane) are two nearly equal
+///    roots, whose discriminant `qb² − 4·qa·qc` cancelled to rounding noise, often negative:
+///    the ray missed its lit piece entirely (before the closed form
+///    `4·c²·(|axis × n|² − c²·|n|²)`: 347 of 64² pixels black, p95 100%).
+/// 2. A slab 0.5°–2.3° below the cone's plane (88.5°–89.5° off its axis, the cone's edge
+///    89.5°), under the camera: the map covers the cone to its edge, so the slab keeps its
+///    shadow (leaving it out fails the bar).
+fn the_widest_spot_cone_at(precision: ShaderPrecision) {
+    let gpu = common::gpu();
+    let cache = Cache::with_precision(&gpu.device, precision);
+    let (medium, mut scene) = haze_over_ground();
+    let exact = exact();
+    let widest = SpotLight::MAX_CONE_ANGLE;
+    assert_eq!(widest, 179f32.to_radians());
+    let above = f32::from_bits(widest.to_bits() + 1);
+    assert_eq!(
+        SpotLight::new(Vec3::ZERO, Vec3::NEG_Y, above, Vec3::ONE),
+        Err(volshadow::Error::ConeAngleOutOfRange { angle: above })
+    );
+    let position = Vec3::new(-0.5, 2.0, 0.0);
+    let light: Light = SpotLight::new(position, Vec3::NEG_Y, widest, Vec3::new(30.0, 28.0, 25.0))
+        .unwrap()
+        .into();
+    let black = |m: &common::scene::Measured| {
+        m.frame
+            .inscatter
+            .iter()
+            .zip(&m.reference)
+            .filter(|(g, r)| r.max_element() > 0.0 && f64::from(g[0]) < 0.01 * r.x)
+            .count()
+    };
+
+    let apex_view = common::look_at(Vec3::new(0.0, 1.5, 6.0), position, 0.2, 1.0);
+    let shot = Shot::new(&scene, &apex_view, &light, &medium, 64);
+    let m = shot.measure(&gpu, &cache, exact, &shot.reference());
+    println!("{precision:?}: 179° around its apex: exact {}", m.errors);
+    assert_eq!(m.errors.non_finite, 0, "NaN, Inf or negative");
+    assert_eq!(black(&m), 0, "black pixels around the apex: {}", m.errors);
+    assert!(
+        m.errors.p95 <= EXACT_P95 && m.errors.rmse <= EXACT_RMSE,
+        "{precision:?}: around the apex: exact {}",
+        m.errors
+    );
+
+    // From x = 1 to 4 (1.5 to 4.5 from the light), 0.05 to 0.06 below it.
+    scene.add(shapes::cuboid(Vec3::new(2.5, 1.945, 0.0), Vec3::new(1.5, 0.005, 1.5)).unwrap());
+    let edge_view = common::look_at(
+        Vec3::new(8.0, 1.9, 4.0),
+        Vec3::new(0.0, 1.9, 0.0),
+        60.0,
+        1.0,
+    );
+    let shot = Shot::new(&scene, &edge_view, &light, &medium, 64);
+    let reference = shot.reference();
+    let m = shot.measure(&gpu, &cache, exact, &reference);
+    let empty = MeshScene {
+        occluders: Vec::new(),
+        ..scene.clone()
+    };
+    let lit =
+        Shot::new(&empty, &edge_view, &light, &medium, 64).measure(&gpu, &cache, exact, &reference);
+    println!(
+        "{precision:?}: 179°, a slab at its edge: exact {}\n  slab ignored {}",
+        m.errors, lit.errors
+    );
+    assert_eq!(m.errors.non_finite, 0, "NaN, Inf or negative");
+    assert_eq!(black(&m), 0, "black pixels at the edge: {}", m.errors);
+    assert!(
+        m.errors.p95 <= EXACT_P95 && m.errors.rmse <= EXACT_RMSE,
+        "{precision:?}: a slab at the edge: exact {}",
+        m.errors
+    );
+    assert!(lit.errors.p95 > EXACT_P95, "{}", lit.errors);
+}

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use volshadow::glam::{DVec3, Mat4, Vec3};
 use volshadow::nodes::{Scale, UpsampleFilter};
 use volshadow::scene_file::{Method, SceneDescription};
-use volshadow::{Error, Light, PhaseFunction, SceneFileError};
+use volshadow::{Error, Light, PhaseFunction, SceneFileError, SpotLight};
 
 fn scenes_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes")
@@ -409,10 +409,27 @@ fn error_bad_cone_angle() {
         r#""lights": [{"type": "point", "position": [0,1,0], "intensity": 1},
                       {"type": "spot", "position": [0,5,0], "direction": [0,-1,0], "cone_angle_degrees": 200, "intensity": 1}]"#,
     );
-    let message = expect_error(&text, "lights[1].cone_angle_degrees", &["(0, 180)", "200"]);
+    let message = expect_error(&text, "lights[1].cone_angle_degrees", &["(0, 179]", "200"]);
     assert_eq!(
         message,
-        "<string>: lights[1].cone_angle_degrees: must be in (0, 180), got 200"
+        "<string>: lights[1].cone_angle_degrees: must be in (0, 179] (the widest field a spot's \
+         shadow map covers), got 200"
+    );
+    // The widest cone loads (179°, `SpotLight::MAX_CONE_ANGLE`); just above it does not.
+    let at = |degrees: &str| {
+        with(&format!(
+            r#""lights": [{{"type": "spot", "position": [0,5,0], "direction": [0,-1,0], "cone_angle_degrees": {degrees}, "intensity": 1}}]"#
+        ))
+    };
+    let scene = parse(&at("179")).unwrap();
+    match scene.lights[0].light {
+        Light::Spot(s) => assert_eq!(s.cone_angle(), SpotLight::MAX_CONE_ANGLE),
+        other => panic!("{other:?}"),
+    }
+    expect_error(
+        &at("179.001"),
+        "lights[0].cone_angle_degrees",
+        &["(0, 179]"],
     );
 }
 

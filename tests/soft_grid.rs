@@ -891,7 +891,8 @@ fn the_grid_rejects_what_it_cannot_use() {
     ));
     // The largest grid (2048² directions × 64 slices × 6 layers, 1.6e9 cells): its build's
     // list of cells to estimate is beyond the device's storage buffers, an error at prepare
-    // (before anything is allocated) naming the size.
+    // (before anything is allocated) naming the buffer and the limit, as for every buffer
+    // beyond a device limit (it was `InvalidSetting` naming `soft shadow size`).
     let mut huge = SoftShadowNode::new(
         &gpu.device,
         &cache,
@@ -915,10 +916,12 @@ fn the_grid_rejects_what_it_cannot_use() {
     assert!(
         matches!(
             e,
-            Some(Error::InvalidSetting {
-                field: "soft shadow size",
-                ..
-            })
+            Some(Error::DeviceLimitExceeded {
+                field: "soft shadow list",
+                limit: "max_storage_buffer_binding_size",
+                needed,
+                max,
+            }) if needed == 4 * (2048 * 2048 - 1024 * 1024) * 64 * 6 && needed > max
         ),
         "{e:?}"
     );

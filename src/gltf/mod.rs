@@ -332,6 +332,18 @@ fn check_transform(m: &Mat4) -> std::result::Result<(), String> {
         return Err("its world transform has non-finite entries".to_owned());
     }
     let det = m.determinant();
+    let wide = m.as_dmat4().determinant();
+    if wide != 0.0 && !(f64::from(f32::MIN_POSITIVE)..=f64::from(f32::MAX)).contains(&wide.abs()) {
+        return Err(format!(
+            "its world transform's scale {} f32: the determinant {wide:e} is beyond f32's \
+             range, so it cannot be inverted in f32",
+            if wide.abs() > 1.0 {
+                "overflows"
+            } else {
+                "underflows"
+            }
+        ));
+    }
     if !det.is_finite() || det == 0.0 || !m.inverse().is_finite() {
         return Err(format!(
             "its world transform is singular (determinant {det})"

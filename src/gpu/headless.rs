@@ -190,8 +190,9 @@ impl HeadlessGpu {
     ///
     /// # Errors
     ///
-    /// Those of [`read_texture_bytes`](Self::read_texture_bytes), and [`Error::Readback`] where
-    /// the texture holds more bytes than this device's largest buffer.
+    /// Those of [`read_texture_bytes`](Self::read_texture_bytes), and
+    /// [`Error::DeviceLimitExceeded`] naming `max_buffer_size` where the texture holds more
+    /// bytes than this device's largest buffer.
     pub fn read_all_layers_bytes(&self, texture: &wgpu::Texture) -> Result<Vec<u8>> {
         self.read_layers(texture, texture.depth_or_array_layers())
     }
@@ -213,12 +214,7 @@ impl HeadlessGpu {
         let padded =
             row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
         let size = u64::from(padded) * u64::from(height) * u64::from(layers);
-        if size > self.device.limits().max_buffer_size {
-            return Err(Error::Readback(format!(
-                "{size} bytes exceed this device's largest buffer ({})",
-                self.device.limits().max_buffer_size
-            )));
-        }
+        crate::gpu::check_buffer_allocation(&self.device, "readback", size)?;
         let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("volshadow readback"),
             size,

@@ -139,8 +139,10 @@ pub struct Occluder<'a> {
 
 impl Occluder<'_> {
     /// Checks the transform as scene files do: finite, affine (last row 0, 0, 0, 1),
-    /// invertible, and not mirroring (a negative determinant flips the triangles' winding,
-    /// which turns the shadow volumes inside out).
+    /// invertible, not mirroring (a negative determinant flips the triangles' winding,
+    /// which turns the shadow volumes inside out), and with a determinant within f32's range
+    /// ([`Error::InvalidTransform`] saying the scale overflows or underflows f32, not
+    /// [`Error::SingularMatrix`]).
     pub(crate) fn validate(&self) -> Result<()> {
         use crate::scene::TransformProblem;
         const FIELD: &str = "occluder.transform";
@@ -154,12 +156,14 @@ impl Occluder<'_> {
                 matrix: "occluder transform",
                 determinant: determinant as f32,
             }),
-            Err(p @ (TransformProblem::NotAffine(_) | TransformProblem::Mirrored(_))) => {
-                Err(Error::InvalidTransform {
-                    field: FIELD,
-                    problem: p.to_string(),
-                })
-            }
+            Err(
+                p @ (TransformProblem::NotAffine(_)
+                | TransformProblem::Mirrored(_)
+                | TransformProblem::ScaleOutOfRange(_)),
+            ) => Err(Error::InvalidTransform {
+                field: FIELD,
+                problem: p.to_string(),
+            }),
         }
     }
 

@@ -136,20 +136,45 @@ pub(crate) fn check_size(
 }
 
 /// Checks that a storage buffer of `bytes` can be created and bound whole on `device`: a typed
-/// error naming the exceeded limit, rather than a wgpu validation error behind `Ok`.
+/// error naming the exceeded limit, rather than a wgpu validation error behind `Ok`. Every
+/// buffer the crate sizes from its inputs is checked by this or [`check_buffer_allocation`],
+/// so a buffer beyond a device limit is always [`Error::DeviceLimitExceeded`].
 pub(crate) fn check_buffer_size(
     device: &wgpu::Device,
     field: &'static str,
     bytes: u64,
 ) -> Result<()> {
     let limits = device.limits();
-    for (limit, max) in [
-        (
-            "max_storage_buffer_binding_size",
-            limits.max_storage_buffer_binding_size,
-        ),
-        ("max_buffer_size", limits.max_buffer_size),
-    ] {
+    check_limits(
+        field,
+        bytes,
+        &[
+            (
+                "max_storage_buffer_binding_size",
+                limits.max_storage_buffer_binding_size,
+            ),
+            ("max_buffer_size", limits.max_buffer_size),
+        ],
+    )
+}
+
+/// Checks that a buffer of `bytes` can be created on `device` (one bound a slot at a time, so
+/// only its whole size is limited), as [`check_buffer_size`] does for buffers bound whole.
+pub(crate) fn check_buffer_allocation(
+    device: &wgpu::Device,
+    field: &'static str,
+    bytes: u64,
+) -> Result<()> {
+    check_limits(
+        field,
+        bytes,
+        &[("max_buffer_size", device.limits().max_buffer_size)],
+    )
+}
+
+/// [`Error::DeviceLimitExceeded`] for the first of `limits` that `bytes` exceeds.
+fn check_limits(field: &'static str, bytes: u64, limits: &[(&'static str, u64)]) -> Result<()> {
+    for &(limit, max) in limits {
         if bytes > max {
             return Err(Error::DeviceLimitExceeded {
                 field,

@@ -297,8 +297,12 @@ impl ExtentsNode {
     /// # Errors
     ///
     /// [`Error::InvalidSize`](crate::Error::InvalidSize) for a size beyond the device's
-    /// limits, and [`Error::NonFinite`](crate::Error::NonFinite) or
-    /// [`Error::SingularMatrix`](crate::Error::SingularMatrix) for an occluder's transform.
+    /// limits, [`Error::NonFinite`](crate::Error::NonFinite) or
+    /// [`Error::SingularMatrix`](crate::Error::SingularMatrix) for an occluder's transform,
+    /// and [`Error::DeviceLimitExceeded`](crate::Error::DeviceLimitExceeded) naming the limit
+    /// for buffers the device cannot hold: `shadow volumes`, `occluder transforms`, or
+    /// `crossing lists` (16 bytes a pixel of heads, bound whole: more than 8.4 million
+    /// pixels, such as 4096² at full resolution, at the core limit of 128 MiB).
     pub fn prepare(
         &mut self,
         device: &wgpu::Device,
@@ -390,6 +394,7 @@ impl ExtentsNode {
             }));
         }
         let needed = (occluders.len().max(1) as u64) * SLOT;
+        crate::gpu::check_buffer_allocation(device, "occluder transforms", needed)?;
         if self
             .extrude_buffer
             .as_ref()
@@ -604,20 +609,13 @@ impl ExtentsNode {
         let max_binding = limits
             .max_storage_buffer_binding_size
             .min(limits.max_buffer_size);
+        // The heads (16 bytes a pixel) must fit whole, like every buffer beyond a device limit
+        // (`DeviceLimitExceeded`); then at least 4 entries of 4 bytes a pixel fit too.
+        let heads_size = 16 * pixels;
+        crate::gpu::check_buffer_size(device, "crossing lists", heads_size)?;
         // Fewer entries rather than a buffer the device cannot bind: overflowing pixels are
         // still correct, only marched.
-        let per_pixel = u64::from(request.per_pixel).min(max_binding / (4 * pixels));
-        let heads_size = 16 * pixels;
-        if per_pixel == 0 || heads_size > max_binding {
-            return Err(Error::InvalidSetting {
-                field: "extents size",
-                problem: format!(
-                    "crossing lists for {width}×{height} pixels need more than the device's \
-                     storage buffer binding size ({max_binding} bytes)"
-                ),
-            });
-        }
-        let per_pixel = per_pixel as u32;
+        let per_pixel = u64::from(request.per_pixel).min(max_binding / (4 * pixels)) as u32;
         let reuse = self
             .crossings
             .as_ref()

@@ -487,10 +487,14 @@ impl ShadowMapNode {
     /// occluder distance b (an occluder cut off by the map's edge would light its penumbra),
     /// but at most to twice the cone's half-width on the map's plane (texels at most twice as
     /// coarse: an occluder around the light, b = 0, would otherwise take the field to 179°).
-    /// Radius 0: the cone alone, as for hard shadows.
+    /// Radius 0: the cone alone, as for hard shadows. Never wider than 179°
+    /// ([`SpotLight::MAX_CONE_ANGLE`](crate::SpotLight::MAX_CONE_ANGLE), the widest cone, which
+    /// the map then covers without margin).
     pub fn spot_fov(spot: &crate::scene::SpotLight, occluder_distance: f32) -> f32 {
         let cone = spot.cone_angle() * 1.02;
-        let max = 179f32.to_radians();
+        // The widest field: the widest cone a spot may have (see `MAX_CONE_ANGLE` for why), so
+        // every point of any cone is in its map.
+        let max = crate::scene::SpotLight::MAX_CONE_ANGLE;
         if spot.radius() <= 0.0 {
             return cone.min(max);
         }
@@ -730,6 +734,7 @@ impl ShadowMapNode {
         }
 
         let needed = (occluders.len().max(1) as u64) * SLOT;
+        crate::gpu::check_buffer_allocation(device, "occluder transforms", needed)?;
         if self
             .instance_buffer
             .as_ref()

@@ -649,21 +649,9 @@ impl Scratch {
     /// about 44 million cells at the core limits, a third of a gigabyte itself).
     fn new(device: &wgpu::Device, n: u32, layers: u32, s: u32) -> Result<Self> {
         let a = n.div_ceil(2);
-        let limits = device.limits();
         let rest_cells = u64::from(n * n - a * a) * u64::from(layers * s);
         let bytes = 4 * rest_cells.max(1);
-        let limit = limits
-            .max_storage_buffer_binding_size
-            .min(limits.max_buffer_size);
-        if bytes > limit {
-            return Err(Error::InvalidSetting {
-                field: "soft shadow size",
-                problem: format!(
-                    "{n}² directions × {s} slices × {layers} layers need a list of {bytes} \
-                     bytes to build, beyond this device's storage buffers ({limit} bytes)"
-                ),
-            });
-        }
+        crate::gpu::check_buffer_size(device, "soft shadow list", bytes)?;
         let buffer = |label, size, usage| {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -855,9 +843,9 @@ impl SoftShadowNode {
     /// # Errors
     ///
     /// [`Error::InvalidSetting`] naming `light` for a light without a radius or a directional
-    /// light, or naming `soft shadow size` for a grid whose build needs a list of cells
-    /// larger than the device's storage buffers (at the core limit of 128 MiB, more than
-    /// about 44 million cells); [`Error::InvalidTexture`] naming `shadow_map` for a shadow map
+    /// light; [`Error::DeviceLimitExceeded`] naming `soft shadow list` for a grid whose build
+    /// needs a list of cells larger than the device's storage buffers (at the core limit of
+    /// 128 MiB, more than about 44 million cells); [`Error::InvalidTexture`] naming `shadow_map` for a shadow map
     /// whose layers or face matrices do not match the light.
     pub fn prepare(
         &mut self,

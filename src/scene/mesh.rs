@@ -379,6 +379,11 @@ pub(crate) enum TransformProblem {
     /// The determinant is zero or negligible next to the columns' lengths, or the inverse is
     /// not finite in f32.
     Singular(f64),
+    /// The transform is invertible (in f64, and its determinant is not negligible next to its
+    /// columns' lengths), but its scale is beyond f32: the determinant, the product of the
+    /// three scales, is above `f32::MAX` (a uniform scale above about 7e12) or below
+    /// `f32::MIN_POSITIVE` (one below about 2e-13), so the inverse cannot be computed in f32.
+    ScaleOutOfRange(f64),
 }
 
 impl fmt::Display for TransformProblem {
@@ -394,6 +399,26 @@ impl fmt::Display for TransformProblem {
                 "the transform must be invertible with a positive determinant (no mirroring), \
                  got determinant {det}"
             ),
+            TransformProblem::ScaleOutOfRange(det) => {
+                let (way, bound) = if *det > 1.0 {
+                    (
+                        "overflows",
+                        format!("above f32's largest value {:e}", f32::MAX),
+                    )
+                } else {
+                    (
+                        "underflows",
+                        format!("below f32's smallest normal value {:e}", f32::MIN_POSITIVE),
+                    )
+                };
+                write!(
+                    f,
+                    "the transform's scale {way} f32: its determinant {det:e} (the product of \
+                     its three scales, about {:e} each) is {bound}, so it cannot be inverted in \
+                     f32; scale the scene's units instead",
+                    det.cbrt()
+                )
+            }
         }
     }
 }
@@ -401,7 +426,9 @@ impl fmt::Display for TransformProblem {
 /// Checks an object → world transform, as scene files and [`crate::Occluder`] need it: finite,
 /// affine (last row 0, 0, 0, 1), a positive determinant above 1e-12 of the product of the
 /// columns' lengths (so scale does not matter, only how close to flat it is), and an inverse
-/// that is finite in f32 and f64.
+/// that is finite in f32 and f64. A transform that passes all but the last because its
+/// determinant lies outside f32's normal range is [`TransformProblem::ScaleOutOfRange`], not
+/// singular.
 pub(crate) fn check_object_transform(m: glam::Mat4) -> std::result::Result<(), TransformProblem> {
     if let Some(&v) = m.to_cols_array().iter().find(|v| !v.is_finite()) {
         return Err(TransformProblem::NonFinite(v));
@@ -416,11 +443,14 @@ pub(crate) fn check_object_transform(m: glam::Mat4) -> std::result::Result<(), T
     if det.is_finite() && det < -1e-12 * scale {
         return Err(TransformProblem::Mirrored(det));
     }
-    let invertible = det.is_finite()
-        && det > 1e-12 * scale
-        && d.inverse().is_finite()
-        && m.inverse().is_finite();
+    let invertible = det.is_finite() && det > 1e-12 * scale && d.inverse().is_finite();
     if !invertible {
+        return Err(TransformProblem::Singular(det));
+    }
+    if !(f64::from(f32::MIN_POSITIVE)..=f64::from(f32::MAX)).contains(&det) {
+        return Err(TransformProblem::ScaleOutOfRange(det));
+    }
+    if !m.inverse().is_finite() {
         return Err(TransformProblem::Singular(det));
     }
     Ok(())

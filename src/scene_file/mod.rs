@@ -52,7 +52,7 @@
 //! * `lights` (required, at least one), each with `"type"`:
 //!   * `"point"`: `position`, `intensity` (RGB or one number; >= 0, not all zero).
 //!   * `"spot"`: `position`, `direction` (non-zero), `cone_angle_degrees` (apex angle, in
-//!     (0, 180)), `intensity`, optional `texture`, one of
+//!     (0, 179]: see [`SpotLight::MAX_CONE_ANGLE`](crate::SpotLight::MAX_CONE_ANGLE)), `intensity`, optional `texture`, one of
 //!     `{"checkerboard": {"size", "cells", "a", "b"}}` (size 1..=4096, cells 1..=size, colours
 //!     RGB >= 0), `{"stained_glass": {"size", "cells", "seed"}}` (see [`stained_glass`]; size
 //!     1..=4096, cells 1..=size) or `{"file": "window.png"}` (feature `image`; relative to the

@@ -206,8 +206,19 @@ pub(super) fn scene(s: spec::Scene, ctx: &mut Ctx) -> P<SceneDescription> {
         lights.push(light(l, &format!("lights[{i}]"), ctx)?);
     }
     let medium = medium(s.medium, "medium")?;
+    let specs: Vec<spec::Object> = s.objects.into_iter().flatten().collect();
+    // The triangles every procedural shape declares, counted before any shape is built: a
+    // small file asking for more than the bound is refused at once, naming its total (20
+    // spheres of 2M triangles were refused only after two were built, 12.5 s and 409 MB).
+    // A glTF file's triangles are counted as it is read (from its accessors, before they
+    // are).
+    let declared = specs
+        .iter()
+        .map(|o| declared_triangles(&o.shape.0))
+        .fold(0, u64::saturating_add);
+    ctx.check(Limit::Triangles, declared, "objects")?;
     let mut objects = Vec::new();
-    for (i, o) in s.objects.into_iter().flatten().enumerate() {
+    for (i, o) in specs.into_iter().enumerate() {
         object(o, &format!("objects[{i}]"), i, ctx, &mut objects)?;
     }
     Ok(SceneDescription {
@@ -319,10 +330,13 @@ fn light(l: spec::Light, path: &str, ctx: &mut Ctx) -> P<SceneLight> {
                 &at("direction"),
                 || format!("must be a non-zero finite vector, got {direction}"),
             )?;
+            // The widest cone is `SpotLight::MAX_CONE_ANGLE`, 179° (the widest shadow map).
             ensure(
-                cone > 0.0 && cone < 180.0,
+                cone > 0.0 && cone <= 179.0,
                 &at("cone_angle_degrees"),
-                || format!("must be in (0, 180), got {cone}"),
+                || {
+                    format!("must be in (0, 179] (the widest field a spot's shadow map covers), got {cone}")
+                },
             )?;
             let i = intensity(i, &at("intensity"))?;
             let texture = t.map(|t| texture(t, &at("texture"), ctx)).transpose()?;
@@ -534,6 +548,58 @@ fn check_transform(m: Mat4, path: &str) -> P<()> {
     crate::scene::check_object_transform(m).map_err(|p| problem(path, p.to_string()))
 }
 
+/// An optional count as written, or `default`; a count outside `min..=max` (which the shape
+/// itself reports) as `min`.
+fn declared_count(n: Option<U32>, default: u32, min: u32, max: u32) -> u64 {
+    let n = n.map_or(default, |U32(n)| n);
+    u64::from(if (min..=max).contains(&n) { n } else { min })
+}
+
+/// The triangles the procedural shape `s` makes, from its counts as written (the sizes
+/// [`shapes`] builds): what the scene's pre-count and each shape's own check before it is
+/// built add up. A count out of its range counts as its least (the shape reports it); a glTF
+/// file counts 0 here (its loader counts its triangles before reading them).
+fn declared_triangles(s: &spec::Shape) -> u64 {
+    use spec::Shape as S;
+    match s {
+        S::Sphere {
+            segments, rings, ..
+        } => {
+            let segments = declared_count(*segments, 32, 3, MAX_SEGMENTS);
+            let rings = declared_count(*rings, 16, 2, MAX_SEGMENTS);
+            2 * segments * (rings - 1)
+        }
+        S::Box { .. } => 12,
+        S::Plane { .. } => 2,
+        S::Torus {
+            major_segments,
+            minor_segments,
+            ..
+        } => {
+            let m = declared_count(*major_segments, 48, 3, MAX_SEGMENTS);
+            let n = declared_count(*minor_segments, 16, 3, MAX_SEGMENTS);
+            2 * m * n
+        }
+        S::Spring {
+            turns: Num(turns),
+            segments_per_turn,
+            wire_segments,
+            ..
+        } => {
+            let per_turn = declared_count(*segments_per_turn, 32, 3, 256);
+            let wire_segments = declared_count(*wire_segments, 12, 3, 64);
+            // (steps + 1) wire rings of `wire_segments` quads, and two end caps.
+            let steps = (turns.clamp(0.01, 1000.0) * per_turn as f32).min(16384.0);
+            let steps = (steps.ceil() as u64).max(1);
+            2 * (steps + 1) * wire_segments
+        }
+        S::Cylinder { segments, .. } => 2 * declared_count(*segments, 32, 3, MAX_SEGMENTS),
+        // 12 triangles per box: the posts and two rails.
+        S::Fence { posts: U32(p), .. } => 12 * (declared_count(Some(U32(*p)), 1, 1, 1024) + 2),
+        S::Gltf { .. } => 0,
+    }
+}
+
 /// What a `shape` produces: one mesh, or (glTF) several with their own names and transforms.
 enum Shape {
     One(Mesh),
@@ -543,6 +609,7 @@ enum Shape {
 fn shape(s: spec::Shape, path: &str, ctx: &mut Ctx) -> P<(&'static str, Shape)> {
     use spec::Shape as S;
     let at = |key| join(path, key);
+    let declared = declared_triangles(&s);
     let (kind, mesh) = match s {
         S::Sphere {
             center,
@@ -554,8 +621,7 @@ fn shape(s: spec::Shape, path: &str, ctx: &mut Ctx) -> P<(&'static str, Shape)> 
             let segments = count(segments, &at("segments"), 32, 3, MAX_SEGMENTS)?;
             let rings = count(rings, &at("rings"), 16, 2, MAX_SEGMENTS)?;
             let center = point(center, &at("center"))?;
-            let triangles = 2 * u64::from(segments) * u64::from(rings - 1);
-            ctx.check(Limit::Triangles, triangles, path)?;
+            ctx.check(Limit::Triangles, declared, path)?;
             ("sphere", shapes::uv_sphere(center, radius, segments, rings))
         }
         S::Box {
@@ -592,7 +658,7 @@ fn shape(s: spec::Shape, path: &str, ctx: &mut Ctx) -> P<(&'static str, Shape)> 
             )?;
             let m = count(major_segments, &at("major_segments"), 48, 3, MAX_SEGMENTS)?;
             let n = count(minor_segments, &at("minor_segments"), 16, 3, MAX_SEGMENTS)?;
-            ctx.check(Limit::Triangles, 2 * u64::from(m) * u64::from(n), path)?;
+            ctx.check(Limit::Triangles, declared, path)?;
             ("torus", shapes::torus(center, major, minor, m, n))
         }
         S::Spring {
@@ -629,10 +695,7 @@ fn shape(s: spec::Shape, path: &str, ctx: &mut Ctx) -> P<(&'static str, Shape)> 
                     )
                 },
             )?;
-            // (steps + 1) wire rings of `wire_segments` quads, and two end caps.
-            let steps = ((turns * per_turn as f32).ceil() as u64).max(1);
-            let triangles = 2 * (steps + 1) * u64::from(wire_segments);
-            ctx.check(Limit::Triangles, triangles, path)?;
+            ctx.check(Limit::Triangles, declared, path)?;
             let mesh =
                 shapes::helix_spring(center, coil, wire, turns, height, per_turn, wire_segments);
             ("spring", mesh)
@@ -647,7 +710,7 @@ fn shape(s: spec::Shape, path: &str, ctx: &mut Ctx) -> P<(&'static str, Shape)> 
             let radius = length(radius, &at("radius"))?;
             let half_height = length(half_height, &at("half_height"))?;
             let segments = count(segments, &at("segments"), 32, 3, MAX_SEGMENTS)?;
-            ctx.check(Limit::Triangles, 2 * u64::from(segments), path)?;
+            ctx.check(Limit::Triangles, declared, path)?;
             let mesh = shapes::cylinder_open(center, radius, half_height, segments);
             ("cylinder", mesh)
         }
@@ -668,8 +731,7 @@ fn shape(s: spec::Shape, path: &str, ctx: &mut Ctx) -> P<(&'static str, Shape)> 
             let spacing = length(spacing, &at("spacing"))?;
             let half = lengths(post_half_extents, &at("post_half_extents"))?;
             let rail = rail.is_some_and(|Flag(b)| b);
-            // 12 triangles per box: the posts and two rails.
-            ctx.check(Limit::Triangles, 12 * (u64::from(posts) + 2), path)?;
+            ctx.check(Limit::Triangles, declared, path)?;
             (
                 "fence",
                 shapes::fence(center, posts, spacing, half.into(), rail),
