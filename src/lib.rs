@@ -91,31 +91,103 @@
 //!         },
 //!     )?;
 //!
-//!     // Every frame: draw your scene into `color` and `depth` (here: cleared), ...
-//!     let mut encoder = device.create_command_encoder(&Default::default());
-//!     encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-//!         label: Some("the application's scene"),
-//!         color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-//!             view: &color.create_view(&Default::default()),
-//!             depth_slice: None,
-//!             resolve_target: None,
-//!             ops: wgpu::Operations {
-//!                 load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-//!                 store: wgpu::StoreOp::Store,
-//!             },
-//!         })],
-//!         depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-//!             view: &depth.create_view(&Default::default()),
-//!             depth_ops: Some(wgpu::Operations {
-//!                 load: wgpu::LoadOp::Clear(camera.far_depth()),
-//!                 store: wgpu::StoreOp::Store,
-//!             }),
-//!             stencil_ops: None,
-//!         }),
-//!         timestamp_writes: None,
-//!         occlusion_query_set: None,
-//!         multiview_mask: None,
+//!     // Every frame: draw your scene into `color` and `depth`. Here a ground plane and the
+//!     // cube, lit by a fixed direction, from one vertex buffer (position, normal) and the
+//!     // camera's matrix baked into the shader: your renderer does this its own way.
+//!     let cube_at = Mat4::from_translation(Vec3::new(0.0, 2.0, -2.0));
+//!     let mut vertices: Vec<[f32; 6]> = Vec::new();
+//!     for tri in indices.chunks_exact(3) {
+//!         let p = [tri[0], tri[1], tri[2]].map(|i| cube_at.transform_point3(positions[i as usize]));
+//!         let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
+//!         vertices.extend(p.map(|q| [q.x, q.y, q.z, n.x, n.y, n.z]));
+//!     }
+//!     for [x, z] in [[-1.0, -1.0], [1.0, 1.0], [1.0, -1.0], [-1.0, -1.0], [-1.0, 1.0], [1.0, 1.0]] {
+//!         vertices.push([20.0 * x, 0.0, 20.0 * z, 0.0, 1.0, 0.0]);
+//!     }
+//!     let vertex_buffer = wgpu::util::DeviceExt::create_buffer_init(
+//!         &device,
+//!         &wgpu::util::BufferInitDescriptor {
+//!             label: Some("the application's geometry"),
+//!             contents: bytemuck::cast_slice(&vertices),
+//!             usage: wgpu::BufferUsages::VERTEX,
+//!         },
+//!     );
+//!     let view_proj = camera.projection() * camera.view();
+//!     let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+//!         label: Some("the application's shading"),
+//!         source: wgpu::ShaderSource::Wgsl(format!(
+//!             "const VIEW_PROJ = mat4x4<f32>({:?});
+//!              struct V {{ @builtin(position) clip: vec4<f32>, @location(0) n: vec3<f32> }}
+//!              @vertex fn vs(@location(0) p: vec3<f32>, @location(1) n: vec3<f32>) -> V {{
+//!                  return V(VIEW_PROJ * vec4<f32>(p, 1.0), n);
+//!              }}
+//!              @fragment fn fs(v: V) -> @location(0) vec4<f32> {{
+//!                  let lit = max(dot(normalize(v.n), normalize(vec3<f32>(0.3, 1.0, 0.5))), 0.0);
+//!                  return vec4<f32>(vec3<f32>(0.05 + 0.4 * lit), 1.0);
+//!              }}",
+//!             view_proj.to_cols_array()
+//!         ).replace(['[', ']'], "").into()),
 //!     });
+//!     let raster = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+//!         label: Some("the application's raster"),
+//!         layout: None,
+//!         vertex: wgpu::VertexState {
+//!             module: &shader,
+//!             entry_point: Some("vs"),
+//!             compilation_options: Default::default(),
+//!             buffers: &[Some(wgpu::VertexBufferLayout {
+//!                 array_stride: 24,
+//!                 step_mode: wgpu::VertexStepMode::Vertex,
+//!                 attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3],
+//!             })],
+//!         },
+//!         primitive: Default::default(),
+//!         depth_stencil: Some(wgpu::DepthStencilState {
+//!             format: wgpu::TextureFormat::Depth32Float,
+//!             depth_write_enabled: Some(true),
+//!             depth_compare: Some(wgpu::CompareFunction::Less),
+//!             stencil: Default::default(),
+//!             bias: Default::default(),
+//!         }),
+//!         multisample: Default::default(),
+//!         fragment: Some(wgpu::FragmentState {
+//!             module: &shader,
+//!             entry_point: Some("fs"),
+//!             compilation_options: Default::default(),
+//!             targets: &[Some(wgpu::TextureFormat::Rgba16Float.into())],
+//!         }),
+//!         multiview_mask: None,
+//!         cache: None,
+//!     });
+//!     let mut encoder = device.create_command_encoder(&Default::default());
+//!     {
+//!         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+//!             label: Some("the application's scene"),
+//!             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+//!                 view: &color.create_view(&Default::default()),
+//!                 depth_slice: None,
+//!                 resolve_target: None,
+//!                 ops: wgpu::Operations {
+//!                     load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+//!                     store: wgpu::StoreOp::Store,
+//!                 },
+//!             })],
+//!             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+//!                 view: &depth.create_view(&Default::default()),
+//!                 depth_ops: Some(wgpu::Operations {
+//!                     load: wgpu::LoadOp::Clear(camera.far_depth()),
+//!                     store: wgpu::StoreOp::Store,
+//!                 }),
+//!                 stencil_ops: None,
+//!             }),
+//!             timestamp_writes: None,
+//!             occlusion_query_set: None,
+//!             multiview_mask: None,
+//!         });
+//!         pass.set_pipeline(&raster);
+//!         pass.set_vertex_buffer(0, vertex_buffer.slice(..));
+//!         pass.draw(0..vertices.len() as u32, 0..1);
+//!     }
 //!
 //!     // ... then describe it, prepare (validate, upload, plan) and record volshadow's passes.
 //!     let lights = [Light::from(PointLight::new(
@@ -130,7 +202,7 @@
 //!     )?;
 //!     let occluders = [Occluder {
 //!         mesh: &cube,
-//!         transform: Mat4::from_translation(Vec3::new(0.0, 2.0, -2.0)),
+//!         transform: cube_at,
 //!     }];
 //!     let plan = volumetric.prepare(
 //!         &device,

@@ -705,10 +705,19 @@ fn small_buffers() -> HeadlessGpu {
 /// `InvalidSetting { field: "extents size" }`, and a soft light's grid list
 /// `InvalidSetting { field: "soft shadow size" }`, where the shadow volumes were already
 /// `DeviceLimitExceeded`. A frame that fits exactly (256²: 1 MiB of heads) renders, with no
-/// validation error either way.
+/// validation error either way. The F′ table's cells (16 bytes each, (256 + 11) × 256 at the
+/// default size: 1,093,632 bytes) are beyond 1 MiB too, so the frames here use a table of
+/// 128 × 256 entries (569,344 bytes), and the default table is checked on its own.
 #[test]
 fn every_buffer_beyond_a_device_limit_is_device_limit_exceeded() {
     let medium = medium();
+    let settings = || Settings {
+        table: TableSize {
+            along_ray: 128,
+            across_rays: 256,
+        },
+        ..settings()
+    };
     let big = rig_on(small_buffers(), 272);
     let device = &big.gpu.device;
     let lights = [point(Vec3::new(0.4, 4.5, -0.5))];
@@ -762,6 +771,36 @@ fn every_buffer_beyond_a_device_limit_is_device_limit_exceeded() {
         "{}",
         vs.plan()
     );
+
+    // The default F′ table: its cells are beyond 1 MiB.
+    let mut vs = VolumetricShadows::new(
+        device,
+        &fits.gpu.queue,
+        &fits.cache,
+        Settings {
+            table: TableSize::default(),
+            ..settings()
+        },
+    )
+    .unwrap();
+    let (result, error) = scoped(device, || {
+        vs.prepare(
+            device,
+            &fits.gpu.queue,
+            &frame(&fits, &lights, &medium, &occluders),
+        )
+        .err()
+    });
+    match result {
+        Some(Error::DeviceLimitExceeded {
+            field: "airlight table cells",
+            limit: "max_storage_buffer_binding_size",
+            needed,
+            max,
+        }) => assert_eq!((needed, max), (16 * (256 + 11) * 256, 1 << 20)),
+        other => panic!("default F' table: {other:?}"),
+    }
+    assert!(error.is_none(), "validation error: {error:?}");
 
     // A soft light's grid: 64² directions × 16 slices × 6 cube layers need a list of
     // 4 · (64² − 32²) · 96 bytes to build, beyond 1 MiB.
