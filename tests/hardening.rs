@@ -699,6 +699,27 @@ fn small_buffers() -> HeadlessGpu {
     }
 }
 
+/// `prepare`'s error for a frame, with no validation error behind it.
+fn prepare_error(
+    rig: &Rig,
+    vs: &mut VolumetricShadows,
+    lights: &[FrameLight<'_>],
+    medium: &Medium,
+    occluders: &[Occluder<'_>],
+) -> Option<Error> {
+    let device = &rig.gpu.device;
+    let (result, error) = scoped(device, || {
+        vs.prepare(
+            device,
+            &rig.gpu.queue,
+            &frame(rig, lights, medium, occluders),
+        )
+        .err()
+    });
+    assert!(error.is_none(), "validation error: {error:?}");
+    result
+}
+
 /// Every buffer beyond a device limit is one error, `DeviceLimitExceeded`, naming the buffer
 /// and the limit: the exact method's crossing lists (16 bytes a pixel of heads, bound whole:
 /// 4096² at full resolution at the core 128 MiB, 272² at this device's 1 MiB) were
@@ -730,15 +751,7 @@ fn every_buffer_beyond_a_device_limit_is_device_limit_exceeded() {
         transform: Mat4::IDENTITY,
     }];
     let mut vs = VolumetricShadows::new(device, &big.gpu.queue, &big.cache, settings()).unwrap();
-    let (result, error) = scoped(device, || {
-        vs.prepare(
-            device,
-            &big.gpu.queue,
-            &frame(&big, &lights, &medium, &occluders),
-        )
-        .err()
-    });
-    match result {
+    match prepare_error(&big, &mut vs, &lights, &medium, &occluders) {
         Some(Error::DeviceLimitExceeded {
             field: "crossing lists",
             limit: "max_storage_buffer_binding_size",
@@ -747,7 +760,6 @@ fn every_buffer_beyond_a_device_limit_is_device_limit_exceeded() {
         }) => assert_eq!((needed, max), (16 * 272 * 272, 1 << 20)),
         other => panic!("272² crossing lists: {other:?}"),
     }
-    assert!(error.is_none(), "validation error: {error:?}");
 
     // 256²: the heads are exactly 1 MiB, and it renders.
     let fits = rig_on(big.gpu, 256);
@@ -783,15 +795,7 @@ fn every_buffer_beyond_a_device_limit_is_device_limit_exceeded() {
         },
     )
     .unwrap();
-    let (result, error) = scoped(device, || {
-        vs.prepare(
-            device,
-            &fits.gpu.queue,
-            &frame(&fits, &lights, &medium, &occluders),
-        )
-        .err()
-    });
-    match result {
+    match prepare_error(&fits, &mut vs, &lights, &medium, &occluders) {
         Some(Error::DeviceLimitExceeded {
             field: "airlight table cells",
             limit: "max_storage_buffer_binding_size",
@@ -800,7 +804,6 @@ fn every_buffer_beyond_a_device_limit_is_device_limit_exceeded() {
         }) => assert_eq!((needed, max), (16 * (256 + 11) * 256, 1 << 20)),
         other => panic!("default F' table: {other:?}"),
     }
-    assert!(error.is_none(), "validation error: {error:?}");
 
     // A soft light's grid: 64² directions × 16 slices × 6 cube layers need a list of
     // 4 · (64² − 32²) · 96 bytes to build, beyond 1 MiB.
@@ -811,15 +814,7 @@ fn every_buffer_beyond_a_device_limit_is_device_limit_exceeded() {
             .unwrap(),
     ))];
     let mut vs = VolumetricShadows::new(device, &fits.gpu.queue, &fits.cache, settings()).unwrap();
-    let (result, error) = scoped(device, || {
-        vs.prepare(
-            device,
-            &fits.gpu.queue,
-            &frame(&fits, &soft, &medium, &occluders),
-        )
-        .err()
-    });
-    match result {
+    match prepare_error(&fits, &mut vs, &soft, &medium, &occluders) {
         Some(Error::DeviceLimitExceeded {
             field: "soft shadow list",
             limit: "max_storage_buffer_binding_size",
@@ -828,7 +823,6 @@ fn every_buffer_beyond_a_device_limit_is_device_limit_exceeded() {
         }) => assert_eq!((needed, max), (4 * (64 * 64 - 32 * 32) * 96, 1 << 20)),
         other => panic!("soft grid list: {other:?}"),
     }
-    assert!(error.is_none(), "validation error: {error:?}");
 }
 
 /// A scale beyond f32 is reported as such, not as a singular matrix (a uniform scale of 1e30
