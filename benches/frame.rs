@@ -3,7 +3,8 @@
 //!
 //! ```text
 //! cargo bench --bench frame [-- [--size WxH] [--scenes A.json,B.json] [--method METHOD]
-//!                                [--frames N] [--warmup N] [--passes] [--out FILE.json]]
+//!                                [--frames N] [--warmup N] [--passes] [--raster-composite]
+//!                                [--out FILE.json]]
 //! ```
 //!
 //! Per scene (default: every `scenes/*.json`), after `--warmup` frames (default 5), `--frames`
@@ -21,6 +22,8 @@
 //!   the last one's completion divided by their number (prepare and recording included).
 //! * `--passes`: each pass's median GPU time as well (`HeadlessGpu::run_timed`, one extra
 //!   round of frames).
+//! * `--raster-composite`: the output target without `STORAGE_BINDING`, so that the composite
+//!   goes through the rasteriser instead of a compute pass.
 //!
 //! `--size` defaults to 1920x1080 on a GPU and 256x144 on a CPU adapter; `--method` to each
 //! scene's own (`render`'s syntax: `exact[:SCALE]`, `hybrid:STEPS:SCALE`, `brute:STEPS`,
@@ -48,11 +51,12 @@ struct Options {
     frames: usize,
     warmup: usize,
     passes: bool,
+    raster_composite: bool,
     out: PathBuf,
 }
 
 const USAGE: &str = "usage: cargo bench --bench frame [-- [--size WxH] [--scenes A.json,B.json] \
-[--method METHOD] [--frames N] [--warmup N] [--passes] [--out FILE.json]]";
+[--method METHOD] [--frames N] [--warmup N] [--passes] [--raster-composite] [--out FILE.json]]";
 
 fn parse() -> Result<Options, BoxError> {
     let mut o = Options {
@@ -62,6 +66,7 @@ fn parse() -> Result<Options, BoxError> {
         frames: 30,
         warmup: 5,
         passes: false,
+        raster_composite: false,
         out: PathBuf::from("target/bench-frame.json"),
     };
     let mut parser = lexopt::Parser::from_env();
@@ -80,6 +85,7 @@ fn parse() -> Result<Options, BoxError> {
             Long("frames") => o.frames = parser.value()?.parse()?,
             Long("warmup") => o.warmup = parser.value()?.parse()?,
             Long("passes") => o.passes = true,
+            Long("raster-composite") => o.raster_composite = true,
             Long("out") => o.out = parser.value()?.into(),
             // `cargo bench` passes `--bench` to every bench binary.
             Long("bench") => {}
@@ -149,7 +155,13 @@ fn bench_scene(gpu: &HeadlessGpu, o: &Options, path: &PathBuf) -> Result<Row, Bo
     };
     let cache = Cache::new(&gpu.device);
     let mut vs = VolumetricShadows::new(&gpu.device, &gpu.queue, &cache, settings)?;
-    let output = gpu_scene.output(gpu);
+    // The composite writes a target with STORAGE_BINDING by a compute pass, one without by
+    // the rasteriser.
+    let output = if o.raster_composite {
+        gpu_scene.output_with(gpu, wgpu::TextureUsages::empty())
+    } else {
+        gpu_scene.output(gpu)
+    };
     let lights = gpu_scene.lights();
     let moved: Vec<FrameLight> = moved_lights(&lights)?;
     let occluders = gpu_scene.occluders();
@@ -303,6 +315,14 @@ fn run() -> Result<(), BoxError> {
     let gpu = HeadlessGpu::with_optional_features(wgpu::Features::TIMESTAMP_QUERY)?;
     let adapter = gpu.adapter_summary();
     println!("adapter: {adapter}");
+    println!(
+        "composite: {}",
+        if o.raster_composite {
+            "through the rasteriser (--raster-composite)"
+        } else {
+            "a compute pass (the target has STORAGE_BINDING)"
+        }
+    );
     let mut rows = Vec::new();
     for path in &o.scenes {
         let row = bench_scene(&gpu, &o, path)?;
@@ -318,6 +338,7 @@ fn run() -> Result<(), BoxError> {
     let size = o.size.map(|(w, h)| format!("{w}x{h}"));
     let json = serde_json::json!({
         "adapter": adapter,
+        "composite": if o.raster_composite { "raster" } else { "compute" },
         "size": size,
         "frames": o.frames,
         "warmup": o.warmup,

@@ -64,12 +64,11 @@ fn surface_term(pixel: vec2<u32>, ray: PixelRay) -> vec3<f32> {
     return clamp_radiance(kd * e);
 }
 
-@fragment
-fn fs_composite(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
-    let pixel = vec2<u32>(frag.xy);
+// The composited pixel `pixel` (its centre at `pixel + 0.5`).
+fn composite_pixel(pixel: vec2<u32>) -> vec4<f32> {
     let color = textureLoad(scene_color, pixel, 0);
     let depth = textureLoad(scene_depth, pixel, 0);
-    let ray = pixel_ray(view, frag.xy, depth);
+    let ray = pixel_ray(view, vec2<f32>(pixel) + 0.5, depth);
     // Sky: an infinite homogeneous medium hides it, unless a channel does not attenuate at all.
     var transmittance = select(vec3<f32>(0.0), vec3<f32>(1.0), comp.sigma_t == vec3<f32>(0.0));
     if (ray.distance >= 0.0) {
@@ -85,3 +84,15 @@ fn fs_composite(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     let surface = color.xyz + surface_term(pixel, ray);
     return vec4<f32>(clamp_radiance(surface * transmittance + sctr), color.w);
 }
+
+// Through the rasteriser, into a render attachment.
+@fragment
+fn fs_composite(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
+    return composite_pixel(vec2<u32>(frag.xy));
+}
+
+// As a compute pass, into a storage texture: `cs_composite`, appended by src/nodes/composite.rs
+// with `composite_out` declared in the target's format, calls `composite_pixel` for each pixel.
+// A compute pass runs on every multiprocessor, also on GPUs whose graphics units are a small
+// part of the chip (NVIDIA's H100 and H200 run fragment shaders on 2 of their 66 texture
+// processing clusters).

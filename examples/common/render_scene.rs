@@ -578,13 +578,20 @@ impl<'a> GpuScene<'a> {
         }
     }
 
-    /// An `Rgba32Float` output target of the frame's size (`RENDER_ATTACHMENT | COPY_SRC`).
+    /// An `Rgba32Float` output target of the frame's size (`RENDER_ATTACHMENT |
+    /// STORAGE_BINDING | COPY_SRC`: the composite writes it with a compute pass).
     pub fn output(&self, gpu: &HeadlessGpu) -> wgpu::Texture {
+        self.output_with(gpu, wgpu::TextureUsages::STORAGE_BINDING)
+    }
+
+    /// [`output`](Self::output) with `RENDER_ATTACHMENT | COPY_SRC | extra` (without
+    /// `STORAGE_BINDING`, the composite goes through the rasteriser).
+    pub fn output_with(&self, gpu: &HeadlessGpu, extra: wgpu::TextureUsages) -> wgpu::Texture {
         gpu.device.create_texture(&texture_desc(
             "output",
             self.size,
             wgpu::TextureFormat::Rgba32Float,
-            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC | extra,
         ))
     }
 }

@@ -14,7 +14,15 @@
 //! An [`OutputTarget`]: one mip level and array layer of a single-sampled 2D texture with usage
 //! `RENDER_ATTACHMENT`, of the format given to [`CompositeNode::new`] (or its sRGB twin), whose
 //! size *at that mip level* is the inputs' size, and not one of the inputs. Every pixel is
-//! written (linear radiance; tone mapping is the caller's). The node takes the texture and the
+//! written (linear radiance; tone mapping is the caller's).
+//!
+//! A target with usage `STORAGE_BINDING` in the node's own format, where that is a storage
+//! format (`Rgba8Unorm`, `Rgba8Snorm`, `Rgba16Float`, `Rgba32Float`, and `Bgra8Unorm` on a
+//! device with `BGRA8UNORM_STORAGE`), is written by a compute pass instead of the rasteriser
+//! (it then needs no `RENDER_ATTACHMENT`), the same values to the bit. Give your target that
+//! usage where you can: on GPUs whose graphics units are a small part of the chip (NVIDIA's
+//! H100 and H200 shade fragments on 2 of their 66 texture processing clusters), the compute
+//! pass is far cheaper; `cargo bench --bench frame` measures both. The node takes the texture and the
 //! subresource rather than a `wgpu::TextureView`, because a view does not tell its size, mip
 //! level or layer: checking the texture behind a view would accept a view of the wrong mip
 //! level (and write a crop) and reject a correct one.
@@ -58,7 +66,40 @@ const BINDINGS: [Binding; 8 + MAX_LIGHTS] = [
 pub(crate) struct Pipelines {
     layout: wgpu::BindGroupLayout,
     module: wgpu::ShaderModule,
+    precision: ShaderPrecision,
     formats: Arc<Mutex<HashMap<(wgpu::TextureFormat, bool), wgpu::RenderPipeline>>>,
+    /// The compute pass's pipelines, per storage format and surface term, with the layout of
+    /// their second bind group (the output).
+    storing: Arc<Mutex<HashMap<(wgpu::TextureFormat, bool), Storing>>>,
+}
+
+/// A compute composite writing one storage format.
+#[derive(Clone)]
+struct Storing {
+    pipeline: wgpu::ComputePipeline,
+    output_layout: wgpu::BindGroupLayout,
+}
+
+/// The compute composite's workgroup edge (`@workgroup_size` of `cs_composite`).
+const WORKGROUP: u32 = 8;
+
+/// The WGSL name of `format` when the composite can write it as a storage texture on `device`
+/// (`None`: it writes it through the rasteriser only). sRGB formats are never storage formats.
+fn storage_format_name(device: &wgpu::Device, format: wgpu::TextureFormat) -> Option<&'static str> {
+    use wgpu::TextureFormat as F;
+    let name = match format {
+        F::Rgba8Unorm => "rgba8unorm",
+        F::Rgba8Snorm => "rgba8snorm",
+        F::Rgba16Float => "rgba16float",
+        F::Rgba32Float => "rgba32float",
+        F::Bgra8Unorm => "bgra8unorm",
+        _ => return None,
+    };
+    format
+        .guaranteed_format_features(device.features())
+        .allowed_usages
+        .contains(wgpu::TextureUsages::STORAGE_BINDING)
+        .then_some(name)
 }
 
 impl Pipelines {
@@ -68,11 +109,70 @@ impl Pipelines {
             include_str!("../../shaders/iss.wgsl"),
             include_str!("../../shaders/composite.wgsl")
         );
+        let stages = wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE;
         Self {
-            layout: layout(device, label, wgpu::ShaderStages::FRAGMENT, &BINDINGS),
+            layout: layout(device, label, stages, &BINDINGS),
             module: module(device, "volshadow composite.wgsl", source, precision),
+            precision,
             formats: Arc::default(),
+            storing: Arc::default(),
         }
+    }
+
+    /// The compute pipeline storing `format` (see [`storage_format_name`]), adding the surface
+    /// term if `surfaces`; `None` when `format` is not a storage format on `device`.
+    fn storing(
+        &self,
+        device: &wgpu::Device,
+        format: wgpu::TextureFormat,
+        surfaces: bool,
+    ) -> Option<Storing> {
+        let name = storage_format_name(device, format)?;
+        Some(cached(&self.storing, (format, surfaces), || {
+            let label = "volshadow composite (compute)";
+            let source = format!(
+                "{}{}
+@group(1) @binding(0) var composite_out: texture_storage_2d<{name}, write>;
+
+@compute @workgroup_size({WORKGROUP}, {WORKGROUP})
+fn cs_composite(@builtin(global_invocation_id) id: vec3<u32>) {{
+    if (all(id.xy < textureDimensions(composite_out))) {{
+        textureStore(composite_out, id.xy, composite_pixel(id.xy));
+    }}
+}}
+",
+                include_str!("../../shaders/iss.wgsl"),
+                include_str!("../../shaders/composite.wgsl"),
+            );
+            let module = module(device, label, &source, self.precision);
+            let output_layout = layout(
+                device,
+                label,
+                wgpu::ShaderStages::COMPUTE,
+                &[Binding::Storage(format)],
+            );
+            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(label),
+                bind_group_layouts: &[Some(&self.layout), Some(&output_layout)],
+                immediate_size: 0,
+            });
+            let constants = [("SURFACES", if surfaces { 1.0 } else { 0.0 })];
+            let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(label),
+                layout: Some(&pipeline_layout),
+                module: &module,
+                entry_point: Some("cs_composite"),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: &constants,
+                    ..Default::default()
+                },
+                cache: None,
+            });
+            Storing {
+                pipeline,
+                output_layout,
+            }
+        }))
     }
 
     /// The pipeline writing `format`, adding the surface term if `surfaces` (a pipeline
@@ -148,7 +248,8 @@ pub const MAX_LIGHTS: usize = 4;
 /// `texture`, viewed in the texture's own format. `From<&wgpu::Texture>` gives mip 0, layer 0.
 #[derive(Debug, Clone, Copy)]
 pub struct OutputTarget<'a> {
-    /// A single-sampled 2D texture with usage `RENDER_ATTACHMENT`.
+    /// A single-sampled 2D texture with usage `RENDER_ATTACHMENT`, or `STORAGE_BINDING` in a
+    /// storage format (see the module docs).
     pub texture: &'a wgpu::Texture,
     /// The mip level written.
     pub mip_level: u32,
@@ -212,7 +313,11 @@ pub(crate) fn check_output_format(
 
 /// Writes the attenuated scene plus in-scattered light into the caller's target.
 pub struct CompositeNode {
+    device: wgpu::Device,
     format: wgpu::TextureFormat,
+    /// The compute pass's pipelines without and with the surface term (`None`: the format is
+    /// not a storage format, and the composite always goes through the rasteriser).
+    storing: Option<[Storing; 2]>,
     pipeline: wgpu::RenderPipeline,
     /// The pipeline with the surface term.
     pipeline_surfaces: wgpu::RenderPipeline,
@@ -246,8 +351,15 @@ impl CompositeNode {
         output_format: wgpu::TextureFormat,
     ) -> Result<Self> {
         check_output_format(device, output_format)?;
+        let storing = cache
+            .composite
+            .storing(device, output_format, false)
+            .zip(cache.composite.storing(device, output_format, true))
+            .map(|(plain, surfaces)| [plain, surfaces]);
         Ok(Self {
+            device: device.clone(),
             format: output_format,
+            storing,
             pipeline: cache.composite.writing(device, output_format, false),
             pipeline_surfaces: cache.composite.writing(device, output_format, true),
             layout: cache.composite.layout.clone(),
@@ -425,8 +537,15 @@ impl CompositeNode {
         if !target
             .usage()
             .contains(wgpu::TextureUsages::RENDER_ATTACHMENT)
+            && !self.stores_into(target)
         {
-            return Err(problem("needs TextureUsages::RENDER_ATTACHMENT".into()));
+            return Err(problem(match self.storing {
+                Some(_) => format!(
+                    "needs TextureUsages::RENDER_ATTACHMENT, or STORAGE_BINDING in {:?}",
+                    self.format
+                ),
+                None => "needs TextureUsages::RENDER_ATTACHMENT".into(),
+            }));
         }
         if target.dimension() != wgpu::TextureDimension::D2 {
             return Err(problem("must be a 2D texture".into()));
@@ -464,6 +583,15 @@ impl CompositeNode {
         Ok(())
     }
 
+    /// Whether the composite writes `target` with a compute pass (see the module docs).
+    pub fn stores_into(&self, target: &wgpu::Texture) -> bool {
+        self.storing.is_some()
+            && target.format() == self.format
+            && target
+                .usage()
+                .contains(wgpu::TextureUsages::STORAGE_BINDING)
+    }
+
     /// Records the composite into `output` (see the module docs for what it must be).
     ///
     /// # Errors
@@ -494,6 +622,30 @@ impl CompositeNode {
             array_layer_count: Some(1),
             ..Default::default()
         });
+        let surfaces = usize::from(self.surfaces.is_some());
+        if let Some(storing) = self
+            .storing
+            .as_ref()
+            .filter(|_| self.stores_into(target))
+            .map(|s| &s[surfaces])
+        {
+            let output_group = bind_group(
+                &self.device,
+                "volshadow composite output",
+                &storing.output_layout,
+                [wgpu::BindingResource::TextureView(&view)],
+            );
+            let (width, height) = output.size().unwrap_or((1, 1));
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("volshadow composite"),
+                timestamp_writes: timer.and_then(|t| t.compute_pass(Pass::Composite)),
+            });
+            pass.set_pipeline(&storing.pipeline);
+            pass.set_bind_group(0, &bound.bind_group, &[]);
+            pass.set_bind_group(1, &output_group, &[]);
+            pass.dispatch_workgroups(width.div_ceil(WORKGROUP), height.div_ceil(WORKGROUP), 1);
+            return Ok(());
+        }
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("volshadow composite"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
