@@ -20,9 +20,17 @@ struct DrawArgs {
     first_instance: u32,
 }
 
+// Mirrors `VOLUME_VERTEX_BYTES` in src/nodes/extents.rs.
 struct VolumeVertex {
     position: vec4<f32>,  // homogeneous world position, w = 0 at infinity
     flags: vec4<f32>,     // x = 1 for faces of an open or non-manifold mesh (conservative)
+    // The face's plane: xyz its unit normal, w 1 if known (a finite plane: not the cap at
+    // infinity, not degenerate), then a finite point of it. The exact mode intersects each
+    // pixel's ray with it rather than trusting the rasteriser's interpolated depth, whose
+    // precision is the GPU's (on an NVIDIA H200, crossings read from it were off by enough to
+    // cost 100 times lavapipe's error where a light almost touches an occluder).
+    plane: vec4<f32>,
+    anchor: vec4<f32>,
 }
 
 // Mirrors `ExtrudeUniform` in src/nodes/extents.rs.
@@ -73,7 +81,19 @@ fn towards_light(a: vec3<f32>) -> vec3<f32> {
     return ex.light - a;
 }
 
-fn emit(vertices: array<vec4<f32>, 6>, count: u32) {
+// The plane through `anchor` with normal direction `n` (any length): its unit normal with w = 1,
+// or w = 0 where `n` is zero or not finite. Scaled by its largest component before normalising,
+// so that neither a tiny face's normal (whose squares would be subnormal, which a GPU may flush)
+// nor a huge one's (whose squares would overflow) is lost.
+fn plane_of(n: vec3<f32>) -> vec4<f32> {
+    let m = max(abs(n.x), max(abs(n.y), abs(n.z)));
+    if (!(m > 0.0) || !(m < 3.0e38)) {
+        return vec4<f32>(0.0);
+    }
+    return vec4<f32>(normalize(n / m), 1.0);
+}
+
+fn emit(vertices: array<vec4<f32>, 6>, count: u32, plane: vec4<f32>, anchor: vec3<f32>) {
     let base = atomicAdd(&args.vertex_count, count);
     if (base + count > ex.capacity) {
         return; // cannot happen: capacity is sized for every edge and triangle
@@ -82,6 +102,8 @@ fn emit(vertices: array<vec4<f32>, 6>, count: u32) {
     for (var k = 0u; k < count; k++) {
         volume[base + k].position = vertices[k];
         volume[base + k].flags = vec4<f32>(conservative, 0.0, 0.0, 0.0);
+        volume[base + k].plane = plane;
+        volume[base + k].anchor = vec4<f32>(anchor, 1.0);
     }
 }
 
@@ -120,8 +142,10 @@ fn extrude(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
             let ai = at_infinity(a);
             let bi = at_infinity(b);
+            // The quad's plane holds the edge and the direction away from the light at a.
+            let plane = plane_of(cross(b - a, ai.xyz));
             emit(array<vec4<f32>, 6>(vec4<f32>(b, 1.0), vec4<f32>(a, 1.0), ai,
-                                     vec4<f32>(b, 1.0), ai, bi), 6u);
+                                     vec4<f32>(b, 1.0), ai, bi), 6u, plane, a);
         }
     } else if (i < edge_count + tri_count) {
         let f = i - edge_count;
@@ -136,10 +160,12 @@ fn extrude(@builtin(global_invocation_id) gid: vec3<u32>) {
         let zero = vec4<f32>(0.0);
         let lit = dot(cross(b - a, c - a), towards_light(a)) > 0.0;
         if (lit || ex.closed != 1u) {
-            emit(array<vec4<f32>, 6>(vec4<f32>(a, 1.0), vec4<f32>(b, 1.0), vec4<f32>(c, 1.0), zero, zero, zero), 3u);
+            let plane = plane_of(cross(b - a, c - a));
+            emit(array<vec4<f32>, 6>(vec4<f32>(a, 1.0), vec4<f32>(b, 1.0), vec4<f32>(c, 1.0), zero, zero, zero), 3u, plane, a);
         }
         if ((!lit || ex.closed != 1u) && ex.directional != 1u) {
-            emit(array<vec4<f32>, 6>(at_infinity(a), at_infinity(b), at_infinity(c), zero, zero, zero), 3u);
+            // At infinity: no finite plane; its fragments have depth 0.
+            emit(array<vec4<f32>, 6>(at_infinity(a), at_infinity(b), at_infinity(c), zero, zero, zero), 3u, vec4<f32>(0.0), a);
         }
     }
 }
@@ -154,13 +180,22 @@ struct VolumeView {
 struct VolumeOut {
     @builtin(position) position: vec4<f32>,
     @location(0) conservative: f32,
+    @location(1) @interpolate(flat) plane: vec4<f32>,
+    @location(2) @interpolate(flat) anchor: vec3<f32>,
 }
 
 @vertex
-fn vs_volume(@location(0) position: vec4<f32>, @location(1) flags: vec4<f32>) -> VolumeOut {
+fn vs_volume(
+    @location(0) position: vec4<f32>,
+    @location(1) flags: vec4<f32>,
+    @location(2) plane: vec4<f32>,
+    @location(3) anchor: vec4<f32>,
+) -> VolumeOut {
     var out: VolumeOut;
     out.position = vv.clip_from_world * position;
     out.conservative = flags.x;
+    out.plane = plane;
+    out.anchor = anchor.xyz;
     return out;
 }
 
@@ -217,13 +252,24 @@ fn fs_crossings(in: VolumeOut, @builtin(front_facing) front: bool) {
     }
     // Entering a volume (a front face) adds one; leaving subtracts one.
     let step = select(0xffffffffu, 1u, front);
+    let full = textureDimensions(cross_scene_depth);
+    let under = min(vec2<u32>((vec2<f32>(pix) + 0.5) * vec2<f32>(full) / vec2<f32>(size)), full - 1u);
+    let ray = pixel_ray(cross_view, vec2<f32>(pix) + 0.5, textureLoad(cross_scene_depth, under, 0));
     // Depth 0 is at infinity (the dark cap, the far ends of the sides): behind everything.
     var behind = !(in.position.z > 0.0);
-    let z = cp.near / max(in.position.z, 1.0e-38);
+    var z = cp.near / max(in.position.z, 1.0e-38);
+    // Where the face's plane is known, the crossing is where the pixel's centre ray meets it
+    // (the point the rasteriser sampled), to f32's precision rather than the rasteriser's.
+    if (in.plane.w > 0.5) {
+        let eye = cross_view.world_from_view[3].xyz;
+        let along = dot(in.plane.xyz, ray.dir);
+        let exact_z = dot(in.plane.xyz, in.anchor - eye) / (along * ray.depth_to_distance);
+        if (abs(along) > 1.0e-6 && exact_z > 0.0 && exact_z < 3.0e38) {
+            z = exact_z;
+            behind = false;
+        }
+    }
     if (!behind) {
-        let full = textureDimensions(cross_scene_depth);
-        let under = min(vec2<u32>((vec2<f32>(pix) + 0.5) * vec2<f32>(full) / vec2<f32>(size)), full - 1u);
-        let ray = pixel_ray(cross_view, vec2<f32>(pix) + 0.5, textureLoad(cross_scene_depth, under, 0));
         behind = ray.distance >= 0.0 && z * ray.depth_to_distance >= ray.distance;
     }
     if (behind) {

@@ -531,7 +531,8 @@ fn occluders_beyond_the_volume_buffer_limit_are_a_typed_error_and_the_next_frame
     let medium = medium();
     let lights = [point(Vec3::new(0.4, 4.5, -0.5))];
     // 540 instances of a 528-triangle sphere (792 edges): 540 · 6 · (792 + 528) volume
-    // vertices of 32 bytes = 137 MB, beyond the default 128 MiB storage binding.
+    // vertices of 64 bytes (position, flags, the face's plane and a point of it) = 274 MB,
+    // beyond the default 128 MiB storage binding.
     let small = OccluderMesh::new(
         device,
         &shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.05, 24, 12).unwrap(),
@@ -583,7 +584,7 @@ fn occluders_beyond_the_volume_buffer_limit_are_a_typed_error_and_the_next_frame
             max,
             ..
         }) => assert!(
-            needed > max && needed == 540 * 6 * (792 + 528) * 32,
+            needed > max && needed == 540 * 6 * (792 + 528) * 64,
             "{needed} {max}"
         ),
         other => panic!("{other:?}"),

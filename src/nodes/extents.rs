@@ -16,8 +16,10 @@
 //! Faces of open or non-manifold meshes count as back faces, so their extents are conservative.
 //!
 //! With [`ExtentsInputs::crossings`] set (the exact march), one pass replaces the three: every
-//! fragment of a volume face in front of the scene surface appends its view depth to a
-//! bounded per-pixel list in a storage buffer (an atomic counter per pixel, written from the
+//! fragment of a volume face in front of the scene surface appends its view depth (where the
+//! pixel's centre ray meets the face's plane, computed in the fragment shader: the rasteriser's
+//! interpolated depth has the GPU's precision, not f32's) to a bounded per-pixel list in a
+//! storage buffer (an atomic counter per pixel, written from the
 //! fragment stage, which core WebGPU allows). Between two consecutive crossings nothing can
 //! change visibility, so the march integrates each interval in closed form and samples the
 //! shadow map only to learn on which side it is. The rasteriser finds the crossings (one
@@ -41,6 +43,10 @@ use crate::gpu::{
 };
 use crate::plan::Pass;
 use crate::scene::{Camera, Light};
+
+/// Bytes of one shadow-volume vertex (`VolumeVertex` in `shaders/extents.wgsl`): position,
+/// flags, the face's plane and a point of it.
+const VOLUME_VERTEX_BYTES: u64 = 64;
 
 /// The extrusion's binding table (`@binding(i)` of the compute stage of `shaders/extents.wgsl`).
 const EXTRUDE_BINDINGS: [Binding; 6] = [
@@ -99,9 +105,11 @@ impl Pipelines {
         let compute =
             |label, entry| compute_pipeline(device, label, &extrude_layout, &module, entry, &[]);
         let volume_vertices = [wgpu::VertexBufferLayout {
-            array_stride: 32,
+            array_stride: VOLUME_VERTEX_BYTES,
             step_mode: wgpu::VertexStepMode::Vertex,
-            attributes: &wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32x4],
+            attributes: &wgpu::vertex_attr_array![
+                0 => Float32x4, 1 => Float32x4, 2 => Float32x4, 3 => Float32x4
+            ],
         }];
         let raster = |layout, entry, compare| {
             depth_pipeline(
@@ -379,7 +387,7 @@ impl ExtentsNode {
             .map(|o| 6 * u64::from(o.mesh.edge_count) + 6 * u64::from(o.mesh.triangle_count))
             .sum::<u64>()
             .max(6);
-        let vertex_bytes = 32;
+        let vertex_bytes = VOLUME_VERTEX_BYTES;
         crate::gpu::check_buffer_size(device, "shadow volumes", capacity * vertex_bytes)?;
         if self
             .volume
