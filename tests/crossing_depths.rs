@@ -35,12 +35,15 @@ fn candidate_planes(positions: &[DVec3], indices: &[u32], light: DVec3) -> Vec<(
 
 /// Seeded boxes and spheres, each under a point light, seen by a camera placed at random around
 /// them (some faces at grazing angles): every recorded crossing's view depth against the
-/// nearest f64 intersection of the pixel's ray with a candidate plane. Bound: 16 · 2^-24 / |cos|
-/// relative (cos: between the ray and the plane's normal): sixteen roundings of an f32
-/// ray–plane intersection (the ray's direction, two dot products, a division) divided by how
-/// obliquely the ray meets the plane; crossings meeting their plane at |cos| < 0.02 are not
-/// judged. On lavapipe (2026-11-26) the worst error × |cos| is 4.8e-7 against the bound's
-/// 9.5e-7; with the depths the rasteriser interpolates instead, 7.4e-6, and the test fails.
+/// nearest f64 intersection of the pixel's ray with a candidate plane. Bound: 32 · 2^-24 / |cos|
+/// relative (cos: between the ray and the plane's normal): the f32 rounding of the about twenty
+/// operations from the pixel to the depth (the ray through the inverse projection, its rotation
+/// and normalisation, two dot products, two divisions; WGSL allows 2.5 ULP for a division and
+/// 2 for `inverseSqrt`), divided by how obliquely the ray meets the plane; crossings meeting
+/// their plane at |cos| < 0.02 are not judged. Measured (2026-11-26), worst error × |cos| in
+/// ULPs of 2^-24: lavapipe 11.5 (8.1 with rotation angles drawn up to 6.28 instead of 2π), an
+/// NVIDIA H200 15.2 (on those); with the depths the rasteriser interpolates instead, 138 on
+/// lavapipe, and the test fails.
 #[test]
 fn crossing_depths_are_where_each_pixel_ray_meets_its_face() {
     let gpu = common::gpu();
@@ -135,7 +138,7 @@ fn crossing_depths_are_where_each_pixel_ray_meets_its_face() {
                     continue;
                 }
                 judged += 1;
-                let bound = 16.0 * 2f64.powi(-24) / cos;
+                let bound = 32.0 * 2f64.powi(-24) / cos;
                 worst = worst.max(error * cos);
                 if error > bound {
                     over += 1;
@@ -146,7 +149,7 @@ fn crossing_depths_are_where_each_pixel_ray_meets_its_face() {
             }
         }
     }
-    println!("{judged} crossings judged, {over} beyond the bound; worst error × |cos| {worst:.2e} (bound 16 · 2^-24 = {:.2e})", 16.0 * 2f64.powi(-24));
+    println!("{judged} crossings judged, {over} beyond the bound; worst error × |cos| {worst:.2e} (bound 32 · 2^-24 = {:.2e})", 32.0 * 2f64.powi(-24));
     assert!(judged > 5000, "only {judged} crossings judged");
     assert_eq!(over, 0, "{over} of {judged} crossings beyond the bound");
 }
