@@ -21,8 +21,8 @@
 //! use volshadow::glam::{camera::rh, Mat4, Vec3};
 //! use volshadow::scene::Mesh;
 //! use volshadow::{
-//!     Cache, Camera, Frame, Light, Medium, Occluder, OccluderMesh, PhaseFunction, PointLight,
-//!     Settings, VolumetricShadows,
+//!     AdapterKind, Cache, Camera, Frame, Light, Medium, Occluder, OccluderMesh, PhaseFunction,
+//!     PointLight, Settings, VolumetricShadows,
 //! };
 //!
 //! fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -87,7 +87,8 @@
 //!         &cache,
 //!         Settings {
 //!             output_format: wgpu::TextureFormat::Rgba16Float,
-//!             ..Settings::default()
+//!             // The exact method, at full resolution on a GPU and half on a CPU adapter.
+//!             ..Settings::for_adapter(AdapterKind::of(&device))
 //!         },
 //!     )?;
 //!
@@ -277,7 +278,7 @@ pub use gpu::headless::{tone_map, HeadlessGpu};
 pub use gpu::{Cache, ErrorSign, ShaderPrecision};
 pub use gpu::{Occluder, OccluderMesh};
 pub use load::{Limit, LoadOptions};
-pub use plan::Plan;
+pub use plan::{AdapterKind, Plan};
 pub use scene::{Camera, DirectionalLight, Light, Medium, PhaseFunction, PointLight, SpotLight};
 
 pub use glam;

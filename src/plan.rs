@@ -506,7 +506,7 @@ const fn measured(
 }
 
 /// Steps a textured spot's lit stretches outside the shadow volumes get under an error target
-/// (the budget [`ERROR_TABLE`] was measured with; untextured lights never use it).
+/// (the budget the error tables were measured with; untextured lights never use it).
 pub const ERROR_TARGET_TEXTURE_STEPS: u32 = 256;
 
 /// The error target keeps this fraction of the tolerance as headroom for scenes unlike the
@@ -514,15 +514,57 @@ pub const ERROR_TARGET_TEXTURE_STEPS: u32 = 256;
 /// `ERROR_TARGET_MARGIN × tolerance`.
 pub const ERROR_TARGET_MARGIN: f32 = 0.8;
 
-/// The Pareto front of worst-scene p95 against cost, cheapest first, as written to
-/// `target/volshadow-report/error_table.rs` by the report (run of 2026-11-23, llvmpipe,
-/// 512×512, the six standard scenes with untextured lights without a radius, p95 over pixels
-/// above 1% of each frame's 99th-percentile brightness). Only configurations measured on every
-/// such scene enter it. The window scene's thin sun shafts set the reduced-resolution rows
-/// (exact at ½: 3.4%; every other scene ≤ 0.9%). The exact method's rows list 64 steps and 2 bisections: those only march pixels whose
-/// crossing list overflowed.
+/// The kind of adapter a device runs on, for the choices whose cost differs between them
+/// ([`Settings::for_adapter`](crate::Settings::for_adapter),
+/// [`Settings::for_error_target`](crate::Settings::for_error_target)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum AdapterKind {
+    /// A GPU (discrete, integrated or virtual): the passes run in parallel, and the fixed
+    /// passes (shadow maps, crossing lists) dominate a frame, so full resolution costs little
+    /// more than less.
+    Gpu,
+    /// A CPU rasteriser (lavapipe, llvmpipe, SwiftShader, WARP): cost grows with the pixels
+    /// marched, so reduced resolution pays.
+    Cpu,
+}
+
+impl AdapterKind {
+    /// The kind of `device`'s adapter.
+    pub fn of(device: &wgpu::Device) -> Self {
+        Self::from_device_type(device.adapter_info().device_type)
+    }
+
+    /// The kind of an adapter of `device_type` (`Other`, which a driver reports when it does not
+    /// say, counts as a GPU).
+    pub fn from_device_type(device_type: wgpu::DeviceType) -> Self {
+        match device_type {
+            wgpu::DeviceType::Cpu => AdapterKind::Cpu,
+            _ => AdapterKind::Gpu,
+        }
+    }
+}
+
+/// The Pareto front of worst-scene p95 against cost on a GPU, cheapest first, as written to
+/// `target/volshadow-report/error_table.rs` by the report (`--full`, 2026-11-26, NVIDIA H200,
+/// driver 580.159.04, Vulkan, 512×512, the eight standard scenes with untextured lights without
+/// a radius, p95 over pixels above 1% of each frame's 99th-percentile brightness). Only the
+/// exact method is on it: at every tolerance it was cheaper than the hybrid there. Full
+/// resolution costs 1.5 times half (the crossing lists scale with the pixels) and is exact.
 #[rustfmt::skip]
-pub const ERROR_TABLE: &[MeasuredConfig] = &[
+pub const ERROR_TABLE_GPU: &[MeasuredConfig] = &[
+    // measured(method, p95, cost, steps, scale, upsample, bisections)
+    measured(MarchMethod::Exact, 0.0613, 18.003, 64, Scale::Quarter, UpsampleFilter::DepthAware3x3, 2),
+    measured(MarchMethod::Exact, 0.0341, 20.521, 64, Scale::Half, UpsampleFilter::DepthAware3x3, 2),
+    measured(MarchMethod::Exact, 0.0003, 30.519, 64, Scale::Full, UpsampleFilter::DepthAware3x3, 2),
+];
+
+/// The Pareto front on a CPU adapter, as [`ERROR_TABLE_GPU`] (the report, 2026-11-23, llvmpipe,
+/// 512×512, the six standard scenes of then). The window scene's thin sun shafts set the
+/// reduced-resolution rows (exact at ½: 3.4%; every other scene ≤ 0.9%). The exact method's
+/// rows list 64 steps and 2 bisections: those only march pixels whose crossing list
+/// overflowed.
+#[rustfmt::skip]
+pub const ERROR_TABLE_CPU: &[MeasuredConfig] = &[
     // measured(method, p95, cost, steps, scale, upsample, bisections)
     measured(MarchMethod::Hybrid, 1.0000, 1.685, 8, Scale::Quarter, UpsampleFilter::DepthAware3x3, 0),
     measured(MarchMethod::Hybrid, 0.4460, 1.726, 16, Scale::Quarter, UpsampleFilter::DepthAware3x3, 0),
@@ -533,14 +575,22 @@ pub const ERROR_TABLE: &[MeasuredConfig] = &[
     measured(MarchMethod::Exact, 0.0003, 5.522, 64, Scale::Full, UpsampleFilter::DepthAware3x3, 2),
 ];
 
-/// The cheapest configuration of [`ERROR_TABLE`] whose measured worst p95 is within
+/// The error table measured on adapters of `kind`.
+pub fn error_table(kind: AdapterKind) -> &'static [MeasuredConfig] {
+    match kind {
+        AdapterKind::Gpu => ERROR_TABLE_GPU,
+        AdapterKind::Cpu => ERROR_TABLE_CPU,
+    }
+}
+
+/// The cheapest configuration of [`error_table`]`(kind)` whose measured worst p95 is within
 /// [`ERROR_TARGET_MARGIN`] of `p95` (a relative error: 0.02 = 2%).
 ///
 /// # Errors
 ///
 /// [`Error::InvalidSetting`] naming `error_target` for a tolerance that is not finite and
-/// positive, or tighter than every configuration of [`ERROR_TABLE`] reaches.
-pub fn for_error_target(p95: f32) -> Result<MeasuredConfig> {
+/// positive, or tighter than every configuration of the table reaches.
+pub fn for_error_target(p95: f32, kind: AdapterKind) -> Result<MeasuredConfig> {
     if !(p95.is_finite() && p95 > 0.0) {
         return Err(Error::InvalidSetting {
             field: "error_target",
@@ -548,16 +598,14 @@ pub fn for_error_target(p95: f32) -> Result<MeasuredConfig> {
         });
     }
     let allowed = ERROR_TARGET_MARGIN * p95;
-    ERROR_TABLE
+    let table = error_table(kind);
+    table
         .iter()
         .filter(|c| c.p95 <= allowed)
         .min_by(|a, b| a.cost.total_cmp(&b.cost))
         .copied()
         .ok_or_else(|| {
-            let best = ERROR_TABLE
-                .iter()
-                .map(|c| c.p95)
-                .fold(f32::INFINITY, f32::min);
+            let best = table.iter().map(|c| c.p95).fold(f32::INFINITY, f32::min);
             Error::InvalidSetting {
                 field: "error_target",
                 problem: format!(

@@ -5,6 +5,7 @@
 mod common;
 
 use glam::{DVec3, Mat4, Vec3};
+use volshadow::nodes::MarchMethod;
 use volshadow::plan::{Pass, Reason};
 use volshadow::scene::{shapes, LightTexture};
 use volshadow::{
@@ -582,54 +583,96 @@ fn passes_recorded_one_by_one_give_the_same_image_and_invalidate_rebuilds_everyt
     );
 }
 
+/// The defaults follow the adapter: the exact method at full resolution on a GPU (exact, for
+/// 1.5 times the cost of half there: `plan::ERROR_TABLE_GPU`), at half on a CPU adapter
+/// (where full costs twice as much: `plan::ERROR_TABLE_CPU`); `Default` is the GPU's; the
+/// test's own lavapipe is a CPU adapter.
+#[test]
+fn defaults_follow_the_adapter_kind() {
+    use volshadow::nodes::Scale;
+    use volshadow::AdapterKind;
+    let gpu = Settings::for_adapter(AdapterKind::Gpu);
+    let cpu = Settings::for_adapter(AdapterKind::Cpu);
+    assert_eq!(
+        (gpu.march.method, gpu.march.scale),
+        (MarchMethod::Exact, Scale::Full)
+    );
+    assert_eq!(
+        (cpu.march.method, cpu.march.scale),
+        (MarchMethod::Exact, Scale::Half)
+    );
+    assert_eq!(Settings::default(), gpu);
+    for t in [
+        wgpu::DeviceType::DiscreteGpu,
+        wgpu::DeviceType::IntegratedGpu,
+        wgpu::DeviceType::VirtualGpu,
+        wgpu::DeviceType::Other,
+    ] {
+        assert_eq!(AdapterKind::from_device_type(t), AdapterKind::Gpu, "{t:?}");
+    }
+    assert_eq!(
+        AdapterKind::from_device_type(wgpu::DeviceType::Cpu),
+        AdapterKind::Cpu
+    );
+    let rig = rig();
+    let expected = AdapterKind::from_device_type(rig.gpu.adapter.get_info().device_type);
+    assert_eq!(AdapterKind::of(&rig.gpu.device), expected);
+}
+
 #[test]
 fn error_target_picks_from_the_measured_table_with_headroom() {
-    use volshadow::plan::{ERROR_TABLE, ERROR_TARGET_MARGIN};
-    for bad in [0.0, -0.01, f32::NAN, f32::INFINITY] {
-        assert!(
-            matches!(
-                Settings::for_error_target(bad),
-                Err(volshadow::Error::InvalidSetting {
-                    field: "error_target",
-                    ..
+    use volshadow::plan::{error_table, ERROR_TARGET_MARGIN};
+    use volshadow::AdapterKind;
+    for kind in [AdapterKind::Gpu, AdapterKind::Cpu] {
+        for bad in [0.0, -0.01, f32::NAN, f32::INFINITY] {
+            assert!(
+                matches!(
+                    Settings::for_error_target(bad, kind),
+                    Err(volshadow::Error::InvalidSetting {
+                        field: "error_target",
+                        ..
+                    })
+                ),
+                "{bad}"
+            );
+        }
+        let table = error_table(kind);
+        let tightest = table.iter().map(|c| c.p95).fold(f32::INFINITY, f32::min);
+        assert!(Settings::for_error_target(0.5 * tightest, kind).is_err());
+        let mut last_cost = f32::INFINITY;
+        for tolerance in [0.2, 0.1, 0.05, 0.02, 0.01] {
+            let Ok(settings) = Settings::for_error_target(tolerance, kind) else {
+                continue;
+            };
+            let row = table
+                .iter()
+                .find(|c| {
+                    c.method == settings.march.method
+                        && c.steps == settings.march.steps
+                        && c.scale == settings.march.scale
+                        && c.upsample == settings.upsample
+                        && c.bisections == settings.march.bisections
                 })
-            ),
-            "{bad}"
+                .expect("the pick is a row of the table");
+            assert!(row.p95 <= ERROR_TARGET_MARGIN * tolerance);
+            // The cheapest such row.
+            assert!(table
+                .iter()
+                .filter(|c| c.p95 <= ERROR_TARGET_MARGIN * tolerance)
+                .all(|c| c.cost >= row.cost));
+            assert_eq!(settings.error_target, Some(tolerance));
+            last_cost = last_cost.min(row.cost);
+        }
+        assert!(
+            last_cost.is_finite(),
+            "{kind:?}: no tolerance from 20% to 1% could be met"
         );
     }
-    let tightest = ERROR_TABLE
-        .iter()
-        .map(|c| c.p95)
-        .fold(f32::INFINITY, f32::min);
-    assert!(Settings::for_error_target(0.5 * tightest).is_err());
-    let mut last_cost = f32::INFINITY;
-    for tolerance in [0.2, 0.1, 0.05, 0.02, 0.01] {
-        let Ok(settings) = Settings::for_error_target(tolerance) else {
-            continue;
-        };
-        let row = ERROR_TABLE
-            .iter()
-            .find(|c| {
-                c.method == settings.march.method
-                    && c.steps == settings.march.steps
-                    && c.scale == settings.march.scale
-                    && c.upsample == settings.upsample
-                    && c.bisections == settings.march.bisections
-            })
-            .expect("the pick is a row of the table");
-        assert!(row.p95 <= ERROR_TARGET_MARGIN * tolerance);
-        // The cheapest such row.
-        assert!(ERROR_TABLE
-            .iter()
-            .filter(|c| c.p95 <= ERROR_TARGET_MARGIN * tolerance)
-            .all(|c| c.cost >= row.cost));
-        assert_eq!(settings.error_target, Some(tolerance));
-        last_cost = last_cost.min(row.cost);
-    }
-    assert!(
-        last_cost.is_finite(),
-        "no tolerance from 20% to 1% could be met"
-    );
+    // Where the tables differ, so do the picks: at 50% a CPU adapter takes the hybrid at ¼,
+    // a GPU the exact method at ¼ (on the GPU no hybrid configuration was on the front).
+    let loose = |kind| Settings::for_error_target(0.5, kind).unwrap().march;
+    assert_eq!(loose(AdapterKind::Cpu).method, MarchMethod::Hybrid);
+    assert_eq!(loose(AdapterKind::Gpu).method, MarchMethod::Exact);
     // A bad error target set by hand is refused like any setting.
     let rig = rig();
     let bad = Settings {

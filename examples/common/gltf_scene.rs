@@ -30,8 +30,8 @@ use lexopt::prelude::*;
 use volshadow::glam::{DVec3, Mat4, Vec2, Vec3};
 use volshadow::scene::shapes;
 use volshadow::{
-    Cache, Camera, Frame, FrameLight, HeadlessGpu, Light, Medium, Occluder, OccluderMesh,
-    PhaseFunction, PointLight, Settings, VolumetricShadows,
+    AdapterKind, Cache, Camera, Frame, FrameLight, HeadlessGpu, Light, Medium, Occluder,
+    OccluderMesh, PhaseFunction, PointLight, Settings, VolumetricShadows,
 };
 
 use super::cli::{default_output, input_files, refuse_overwrite, usage_line, Parsed};
@@ -246,7 +246,7 @@ pub fn render(options: &Options) -> Result<Rendered, BoxError> {
     let cache = Cache::new(&gpu.device);
     let settings = Settings {
         output_format: wgpu::TextureFormat::Rgba32Float,
-        ..Settings::default()
+        ..Settings::for_adapter(AdapterKind::of(&gpu.device))
     };
     let mut volumetric = VolumetricShadows::new(&gpu.device, &gpu.queue, &cache, settings)?;
     let output = gpu.device.create_texture(&texture_desc(

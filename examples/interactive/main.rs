@@ -38,8 +38,8 @@ use volshadow::gpu::PassTime;
 use volshadow::nodes::{MarchMethod, Scale};
 use volshadow::reference;
 use volshadow::{
-    Cache, Camera, Frame, FrameLight, Light, Medium, Occluder, OccluderMesh, PointLight, Settings,
-    VolumetricShadows,
+    AdapterKind, Cache, Camera, Frame, FrameLight, Light, Medium, Occluder, OccluderMesh,
+    PointLight, Settings, VolumetricShadows,
 };
 use winit::application::ApplicationHandler;
 use winit::dpi::{PhysicalPosition, PhysicalSize};
@@ -415,7 +415,7 @@ impl State {
         let meshes = quickstart_scene::sphere_meshes(&device);
         let settings = Settings {
             output_format: HDR,
-            ..Settings::default()
+            ..Settings::for_adapter(AdapterKind::of(&device))
         };
         let volumetric = VolumetricShadows::new(&device, &queue, &cache, settings)?;
         let medium = quickstart_scene::medium()?;

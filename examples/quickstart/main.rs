@@ -26,7 +26,7 @@ mod quickstart_scene;
 use fullscreen::texture_desc;
 pub use quickstart_scene::{reference_occluders, scene, surface_distance};
 use volshadow::glam::Mat4;
-use volshadow::{Frame, HeadlessGpu, Light, Occluder, Settings, VolumetricShadows};
+use volshadow::{AdapterKind, Frame, HeadlessGpu, Light, Occluder, Settings, VolumetricShadows};
 
 /// What a run produced: the composited image and the in-scatter alone (linear, row-major).
 pub struct Rendered {
@@ -146,7 +146,13 @@ fn render_to(output: &std::path::Path) -> Result<(), Box<dyn std::error::Error>>
     println!("adapter: {}", gpu.adapter_summary());
     let (width, height) = (640, 400);
     // Two frames: the second shows what the planner skips when nothing changed.
-    let rendered = run(&gpu, width, height, Settings::default(), 2)?;
+    let rendered = run(
+        &gpu,
+        width,
+        height,
+        Settings::for_adapter(AdapterKind::of(&gpu.device)),
+        2,
+    )?;
     if let Some(dir) = output.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)
             .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;

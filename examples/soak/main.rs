@@ -31,8 +31,8 @@ use volshadow::nodes::UpsampleFilter;
 use volshadow::nodes::{MarchMethod, MarchSettings, Scale, ShadowMapSettings, TableSize};
 use volshadow::scene::{shapes, LightTexture};
 use volshadow::{
-    Cache, Camera, Frame, FrameLight, HeadlessGpu, Light, Medium, Occluder, OccluderMesh,
-    PhaseFunction, PointLight, Settings, SpotLight, VolumetricShadows,
+    AdapterKind, Cache, Camera, Frame, FrameLight, HeadlessGpu, Light, Medium, Occluder,
+    OccluderMesh, PhaseFunction, PointLight, Settings, SpotLight, VolumetricShadows,
 };
 
 #[path = "../common/fullscreen.rs"]
@@ -434,17 +434,17 @@ pub fn rss_bytes() -> u64 {
 }
 
 /// The four settings the soak cycles through (all writing `Rgba16Float`).
-pub fn settings_cycle() -> Result<Vec<Settings>, BoxError> {
+pub fn settings_cycle(kind: AdapterKind) -> Result<Vec<Settings>, BoxError> {
     let format = wgpu::TextureFormat::Rgba16Float;
     let default = Settings {
         output_format: format,
-        ..Settings::default()
+        ..Settings::for_adapter(kind)
     };
     Ok(vec![
         default,
         Settings {
             output_format: format,
-            ..Settings::for_error_target(0.05)?
+            ..Settings::for_error_target(0.05, kind)?
         },
         Settings {
             march: MarchSettings {
@@ -714,7 +714,7 @@ pub fn run(gpu: &HeadlessGpu, options: &Options) -> Result<Summary, BoxError> {
         .upload(device, &gpu.queue),
     };
     let cache = Cache::new(device);
-    let cycle = settings_cycle()?;
+    let cycle = settings_cycle(AdapterKind::of(device))?;
     let sizes = sizes(options.size);
     // The animation repeats with the sizes and settings, so blocks of the same configuration
     // render the same frames and their times compare like with like.

@@ -10,8 +10,8 @@ use volshadow::nodes::{MarchMethod, MarchSettings, Scale};
 use volshadow::plan::Pass;
 use volshadow::scene_file::SceneDescription;
 use volshadow::{
-    Cache, DirectionalLight, Frame, FrameLight, HeadlessGpu, Light, PointLight, Settings,
-    SpotLight, Surfaces, VolumetricShadows,
+    AdapterKind, Cache, DirectionalLight, Frame, FrameLight, HeadlessGpu, Light, PointLight,
+    Settings, SpotLight, Surfaces, VolumetricShadows,
 };
 
 use super::cache::cached_reference;
@@ -616,7 +616,7 @@ pub fn run_scene(
     // The error target.
     let mut checks = Vec::new();
     for tolerance in TOLERANCES {
-        let target = match Settings::for_error_target(tolerance) {
+        let target = match Settings::for_error_target(tolerance, AdapterKind::of(&ctx.gpu.device)) {
             Ok(target) => target,
             Err(e) => {
                 ctx.progress(&format!("  error target {:.0}%: {e}", 100.0 * tolerance));

@@ -95,8 +95,8 @@ use super::cli::{input_files, refuse_overwrite, usage_line, Parsed};
 use super::render_scene;
 use super::{read_inscatter, with_aspect, BoxError};
 
-/// The image size (width and height) the planner's error table (`volshadow::plan::ERROR_TABLE`)
-/// was measured at: the error-target checks are judged at this size only.
+/// The image size (width and height) the planner's error tables (`volshadow::plan::error_table`)
+/// were measured at: the error-target checks are judged at this size only.
 pub const ERROR_TABLE_SIZE: u32 = 512;
 
 /// A step sweep stops once its p95 relative error is below this (half the tightest tolerance

@@ -421,7 +421,7 @@ pub fn error_table(rows: &[Row], size: u32) -> String {
             String::new()
         } else {
             format!(
-                "\n// Not comparable with volshadow::plan::ERROR_TABLE, measured at \
+                "\n// Not comparable with volshadow::plan::error_table, measured at \
                  {ERROR_TABLE_SIZE}x{ERROR_TABLE_SIZE} (`--scenes all`)."
             )
         }
