@@ -467,7 +467,10 @@ fn facade_mixes_point_and_directional_lights() {
     };
     for (name, settings) in [
         ("predictable", Settings::PREDICTABLE),
-        ("default", Settings::default()),
+        (
+            "CPU adapter's defaults",
+            Settings::for_adapter(volshadow::AdapterKind::Cpu),
+        ),
     ] {
         let mut vs =
             volshadow::VolumetricShadows::new(&gpu.device, &gpu.queue, &cache, settings).unwrap();
