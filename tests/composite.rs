@@ -123,15 +123,13 @@ fn inputs(gpu: &HeadlessGpu, seed: u64) -> Inputs {
     }
 }
 
-/// The composite of `inputs` into a new target of `format` and `usage`; whether it went
-/// through the compute pass, and what it wrote.
-fn composite(
+/// A composite node writing `format`, prepared with `inputs` (both in-scatter textures).
+fn prepared(
     gpu: &HeadlessGpu,
     cache: &Cache,
     inputs: &Inputs,
     format: wgpu::TextureFormat,
-    usage: wgpu::TextureUsages,
-) -> (bool, Vec<[f32; 4]>) {
+) -> CompositeNode {
     let mut node = CompositeNode::new(&gpu.device, cache, format).unwrap();
     let t = &inputs.textures;
     node.prepare(
@@ -146,6 +144,19 @@ fn composite(
         },
     )
     .unwrap();
+    node
+}
+
+/// The composite of `inputs` into a new target of `format` and `usage`; whether it went
+/// through the compute pass, and what it wrote.
+fn composite(
+    gpu: &HeadlessGpu,
+    cache: &Cache,
+    inputs: &Inputs,
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> (bool, Vec<[f32; 4]>) {
+    let node = prepared(gpu, cache, inputs, format);
     let target = common::texture(
         gpu,
         format,
@@ -240,7 +251,7 @@ fn a_storage_only_target_is_written_and_a_target_with_neither_usage_is_refused()
     assert!(
         image.iter().all(|p| p.iter().all(|v| v.is_finite())) && image.iter().any(|p| p[0] > 0.0)
     );
-    let node = CompositeNode::new(&gpu.device, &cache, wgpu::TextureFormat::Rgba32Float).unwrap();
+    let node = prepared(&gpu, &cache, &inputs, wgpu::TextureFormat::Rgba32Float);
     let target = common::texture(
         &gpu,
         wgpu::TextureFormat::Rgba32Float,
@@ -248,20 +259,6 @@ fn a_storage_only_target_is_written_and_a_target_with_neither_usage_is_refused()
         (W, H, 1),
         1,
     );
-    let mut node = node;
-    let t = &inputs.textures;
-    node.prepare(
-        &gpu.device,
-        &gpu.queue,
-        &CompositeInputs {
-            camera: &inputs.camera,
-            medium: &inputs.medium,
-            scene_color: &t[0],
-            scene_depth: &t[1],
-            inscatter: &[&t[2]],
-        },
-    )
-    .unwrap();
     let err = node.check_output(&OutputTarget::new(&target)).unwrap_err();
     println!("{err}");
     assert!(
