@@ -571,8 +571,9 @@ impl VolumetricShadows {
     /// Records the planned passes into `encoder` and the composite into `output`: a texture
     /// (mip 0, layer 0) or an [`OutputTarget`] naming a mip level and array layer of one.
     /// It must be a single-sampled 2D `RENDER_ATTACHMENT` texture of the settings' output format
-    /// (or its sRGB twin), whose size at that mip level is the frame's, and not one of the
-    /// frame's inputs. The facade takes the texture rather than a `wgpu::TextureView` because
+    /// (or its sRGB twin), or a `STORAGE_BINDING` one in that format where it is a storage
+    /// format (the composite is then a compute pass: see [`CompositeNode`]), whose size at that
+    /// mip level is the frame's, and not one of the frame's inputs. The facade takes the texture rather than a `wgpu::TextureView` because
     /// a view does not tell its size, mip level or layer, so it could not be checked. Never
     /// submits.
     ///

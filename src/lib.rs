@@ -32,8 +32,9 @@
 //!     let (device, queue) = pollster::block_on(adapter.request_device(&Default::default()))?;
 //!
 //!     // The application's own targets. volshadow samples colour and depth
-//!     // (`TEXTURE_BINDING`) and writes the composite into `output` (`RENDER_ATTACHMENT`, of
-//!     // `Settings::output_format`), all the same size.
+//!     // (`TEXTURE_BINDING`) and writes the composite into `output` (of
+//!     // `Settings::output_format`), all the same size. With `STORAGE_BINDING` the composite
+//!     // is a compute pass, far cheaper where the graphics units are a small part of the GPU.
 //!     let (width, height) = (640, 400);
 //!     let target = |label, format, usage| {
 //!         device.create_texture(&wgpu::TextureDescriptor {
@@ -54,7 +55,7 @@
 //!     let output = target(
 //!         "volshadow output",
 //!         wgpu::TextureFormat::Rgba16Float,
-//!         wgpu::TextureUsages::RENDER_ATTACHMENT,
+//!         wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::STORAGE_BINDING,
 //!     );
 //!
 //!     // Right-handed view; wgpu's depth range 0..1 is DirectX's (reversed Z and an infinite
