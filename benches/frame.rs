@@ -4,7 +4,7 @@
 //! ```text
 //! cargo bench --bench frame [-- [--size WxH] [--scenes A.json,B.json] [--method METHOD]
 //!                                [--frames N] [--warmup N] [--passes] [--raster-composite]
-//!                                [--out FILE.json]]
+//!                                [--raster-crossings] [--out FILE.json]]
 //! ```
 //!
 //! Per scene (default: every `scenes/*.json`), after `--warmup` frames (default 5), `--frames`
@@ -24,6 +24,8 @@
 //!   round of frames).
 //! * `--raster-composite`: the output target without `STORAGE_BINDING`, so that the composite
 //!   goes through the rasteriser instead of a compute pass.
+//! * `--raster-crossings`: the exact method's crossing lists built by the rasteriser
+//!   ([`CrossingsBuild::Raster`](volshadow::nodes::CrossingsBuild)) instead of compute passes.
 //!
 //! `--size` defaults to 1920x1080 on a GPU and 256x144 on a CPU adapter; `--method` to each
 //! scene's own (`render`'s syntax: `exact[:SCALE]`, `hybrid:STEPS:SCALE`, `brute:STEPS`,
@@ -52,11 +54,13 @@ struct Options {
     warmup: usize,
     passes: bool,
     raster_composite: bool,
+    raster_crossings: bool,
     out: PathBuf,
 }
 
 const USAGE: &str = "usage: cargo bench --bench frame [-- [--size WxH] [--scenes A.json,B.json] \
-[--method METHOD] [--frames N] [--warmup N] [--passes] [--raster-composite] [--out FILE.json]]";
+[--method METHOD] [--frames N] [--warmup N] [--passes] [--raster-composite] \
+[--raster-crossings] [--out FILE.json]]";
 
 fn parse() -> Result<Options, BoxError> {
     let mut o = Options {
@@ -67,6 +71,7 @@ fn parse() -> Result<Options, BoxError> {
         warmup: 5,
         passes: false,
         raster_composite: false,
+        raster_crossings: false,
         out: PathBuf::from("target/bench-frame.json"),
     };
     let mut parser = lexopt::Parser::from_env();
@@ -86,6 +91,7 @@ fn parse() -> Result<Options, BoxError> {
             Long("warmup") => o.warmup = parser.value()?.parse()?,
             Long("passes") => o.passes = true,
             Long("raster-composite") => o.raster_composite = true,
+            Long("raster-crossings") => o.raster_crossings = true,
             Long("out") => o.out = parser.value()?.into(),
             // `cargo bench` passes `--bench` to every bench binary.
             Long("bench") => {}
@@ -145,10 +151,14 @@ fn bench_scene(gpu: &HeadlessGpu, o: &Options, path: &PathBuf) -> Result<Row, Bo
         RenderMethod::Gpu(m) => m,
         _ => Method::default(),
     };
+    let mut march = gpu_method
+        .march_settings()
+        .ok_or("a GPU method has march settings")?;
+    if o.raster_crossings {
+        march.crossings_build = volshadow::nodes::CrossingsBuild::Raster;
+    }
     let settings = Settings {
-        march: gpu_method
-            .march_settings()
-            .ok_or("a GPU method has march settings")?,
+        march,
         upsample: gpu_method.upsample(),
         output_format: wgpu::TextureFormat::Rgba32Float,
         ..Settings::default()
@@ -323,6 +333,14 @@ fn run() -> Result<(), BoxError> {
             "a compute pass (the target has STORAGE_BINDING)"
         }
     );
+    println!(
+        "crossing lists: {}",
+        if o.raster_crossings {
+            "through the rasteriser (--raster-crossings)"
+        } else {
+            "compute passes"
+        }
+    );
     let mut rows = Vec::new();
     for path in &o.scenes {
         let row = bench_scene(&gpu, &o, path)?;
@@ -339,6 +357,7 @@ fn run() -> Result<(), BoxError> {
     let json = serde_json::json!({
         "adapter": adapter,
         "composite": if o.raster_composite { "raster" } else { "compute" },
+        "crossings": if o.raster_crossings { "raster" } else { "compute" },
         "size": size,
         "frames": o.frames,
         "warmup": o.warmup,

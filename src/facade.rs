@@ -3,11 +3,11 @@
 use crate::error::{Error, Result};
 use crate::gpu::{Cache, GpuTimer, Occluder, PassTime};
 use crate::nodes::{
-    AirlightTableNode, CompositeInputs, CompositeNode, CompositeSurfaces, CrossingsRequest,
-    ExtentsInputs, ExtentsNode, IssTableNode, IssTableSize, LightTextureNode, MarchInputs,
-    MarchMethod, MarchNode, MarchSettings, OutputTarget, Scale, ShadowMapInputs, ShadowMapNode,
-    ShadowMapSettings, Shadows, SoftShadowInputs, SoftShadowNode, SoftShadowSize, TableInputs,
-    TableSize, UpsampleFilter, UpsampleInputs, UpsampleNode, MAX_LIGHTS,
+    AirlightTableNode, CompositeInputs, CompositeNode, CompositeSurfaces, CrossingsBuild,
+    CrossingsRequest, ExtentsInputs, ExtentsNode, IssTableNode, IssTableSize, LightTextureNode,
+    MarchInputs, MarchMethod, MarchNode, MarchSettings, OutputTarget, Scale, ShadowMapInputs,
+    ShadowMapNode, ShadowMapSettings, Shadows, SoftShadowInputs, SoftShadowNode, SoftShadowSize,
+    TableInputs, TableSize, UpsampleFilter, UpsampleInputs, UpsampleNode, MAX_LIGHTS,
 };
 use crate::plan::{self, AdapterKind, Culled, FrameFacts, LightFacts, Pass, Plan};
 use crate::scene::{Camera, Light, Medium};
@@ -51,6 +51,7 @@ impl Settings {
             scale: Scale::Full,
             texture_steps: 32,
             crossings: crate::nodes::DEFAULT_CROSSINGS,
+            crossings_build: CrossingsBuild::Compute,
         },
         upsample: UpsampleFilter::DepthAware3x3,
         table: TableSize {
@@ -459,6 +460,7 @@ impl VolumetricShadows {
                             CrossingsRequest {
                                 per_pixel: self.settings.march.crossings,
                                 scene_depth: frame.scene_depth,
+                                build: self.settings.march.crossings_build,
                             },
                         ),
                     },

@@ -15,17 +15,26 @@
 //!
 //! Faces of open or non-manifold meshes count as back faces, so their extents are conservative.
 //!
-//! With [`ExtentsInputs::crossings`] set (the exact march), one pass replaces the three: every
-//! fragment of a volume face in front of the scene surface appends its view depth (where the
-//! pixel's centre ray meets the face's plane, computed in the fragment shader: the rasteriser's
-//! interpolated depth has the GPU's precision, not f32's) to a bounded per-pixel list in a
-//! storage buffer (an atomic counter per pixel, written from the
-//! fragment stage, which core WebGPU allows). Between two consecutive crossings nothing can
-//! change visibility, so the march integrates each interval in closed form and samples the
-//! shadow map only to learn on which side it is. The rasteriser finds the crossings (one
-//! fragment per face and pixel, whatever the mesh), which a compute pass could only do by
-//! testing every face against every pixel. The same fragments keep the nearest and farthest
-//! crossing with atomics, so a pixel whose list overflowed still knows the range to march.
+//! With [`ExtentsInputs::crossings`] set (the exact march), per-pixel crossing lists replace
+//! the three textures: for every pixel, the view depth at which its centre ray crosses each
+//! volume face in front of the scene surface (a bounded list), the nearest and farthest of them,
+//! and the net number of volumes entered behind the surface. Between two consecutive crossings
+//! nothing can change visibility, so the march integrates each interval in closed form and
+//! samples the shadow map only to learn on which side it is. Depths are where the pixel's ray
+//! meets the face's plane, to f32's precision. Two builds write the same lists
+//! ([`CrossingsBuild`]):
+//!
+//! * **Compute** (the default): the faces are binned into 16 × 16 pixel tiles (a screen box
+//!   clipped at the near plane, then a test of each tile's corner rays), and each pixel tests
+//!   its ray against its tile's faces: the ray is inside a face when it is inside the cone the
+//!   face's vertices span from the eye, three signs of `det(P, Q, d)`, computed for each edge
+//!   from its canonically ordered vertices so that two faces sharing an edge never both miss
+//!   or both take a ray (watertight), whatever the GPU's rounding. Faces through or behind the
+//!   eye and faces at infinity need no clipping. Cost: about the faces times the tiles each
+//!   covers, then per pixel its tile's faces (256 at a time through workgroup memory).
+//! * **Raster**: one render pass whose fragment stage appends each crossing to the pixel's
+//!   list with atomics. Its cost follows the volumes' screen coverage and the GPU's raster
+//!   units (few on compute GPUs such as NVIDIA's H100 and H200).
 //!
 //! # Output
 //! Three `Depth32Float` textures of the pass size
@@ -69,6 +78,25 @@ const CROSSINGS_BINDINGS: [Binding; 6] = [
     Binding::ReadWrite,    // crossings
 ];
 
+/// The compute build's binding table (`shaders/crossings.wgsl`).
+const BIN_BINDINGS: [Binding; 9] = [
+    Binding::Params,    // volume
+    Binding::Params,    // count_args: the volume's vertex count
+    Binding::Params,    // bp
+    Binding::Depth,     // scene_depth
+    Binding::ReadWrite, // faces
+    Binding::ReadWrite, // tiles
+    Binding::ReadWrite, // bins
+    Binding::ReadWrite, // heads
+    Binding::ReadWrite, // crossings
+];
+/// Tiles of the compute build, in pixels across and down (`TILE` in `shaders/crossings.wgsl`).
+const TILE: u32 = 16;
+/// Workgroups of the compute build's binning passes (`GROUPS` in `shaders/crossings.wgsl`).
+const BIN_GROUPS: u32 = 1024;
+/// Bytes of one face record of the compute build (5 `vec4<f32>`).
+const FACE_BYTES: u64 = 80;
+
 /// The node's layouts and pipelines, held by the [`Cache`].
 #[derive(Clone)]
 pub(crate) struct Pipelines {
@@ -80,6 +108,9 @@ pub(crate) struct Pipelines {
     /// Front, back near and back far.
     depths: [wgpu::RenderPipeline; 3],
     crossings: wgpu::RenderPipeline,
+    bin_layout: wgpu::BindGroupLayout,
+    /// The compute build: setup, count, scan, fill, build.
+    bin: [wgpu::ComputePipeline; 5],
 }
 
 impl Pipelines {
@@ -124,9 +155,33 @@ impl Pipelines {
                 None,
             )
         };
+        let bin_layout = layout(
+            device,
+            "volshadow crossings",
+            wgpu::ShaderStages::COMPUTE,
+            &BIN_BINDINGS,
+        );
+        let bin_module = crate::gpu::cache::module(
+            device,
+            "volshadow crossings.wgsl",
+            include_str!("../../shaders/crossings.wgsl"),
+            precision,
+        );
+        let bin = ["setup", "count", "scan", "fill", "build"].map(|entry| {
+            compute_pipeline(
+                device,
+                "volshadow crossings",
+                &bin_layout,
+                &bin_module,
+                entry,
+                &[],
+            )
+        });
         // Reversed Z: nearest = greatest depth.
         use wgpu::CompareFunction::{Greater, Less};
         Self {
+            bin_layout,
+            bin,
             reset: compute("volshadow extrude reset", "reset"),
             extrude: compute("volshadow extrude", "extrude"),
             depths: [
@@ -175,6 +230,20 @@ struct ExtrudeUniform {
     _pad: [u32; 3],
 }
 
+/// WGSL `Params` of `shaders/crossings.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+struct BinUniform {
+    view: ViewUniform,
+    clip_from_world: [f32; 16],
+    size: [u32; 2],
+    entries: u32,
+    near: f32,
+    tiles: [u32; 2],
+    bin_capacity: u32,
+    face_capacity: u32,
+}
+
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 struct CrossingUniform {
@@ -185,6 +254,21 @@ struct CrossingUniform {
 
 /// Most crossings a per-pixel list can hold ([`CrossingsRequest::per_pixel`]).
 pub const MAX_CROSSINGS_PER_PIXEL: u32 = 32;
+
+/// How the crossing lists are built. Both write the same lists (up to the order of entries and
+/// rays that pass exactly through a face's edge).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum CrossingsBuild {
+    /// Compute passes: the volume's faces are binned into 16 × 16 pixel tiles, then each pixel
+    /// tests its ray against its tile's faces (a watertight edge test from the eye, so faces
+    /// through or behind the eye need no clipping). Scales with the GPU's compute units.
+    #[default]
+    Compute,
+    /// One render pass whose fragment stage appends each face's crossing, the rasteriser
+    /// finding which pixels a face covers. Its cost follows the GPU's raster units and the
+    /// volumes' screen coverage.
+    Raster,
+}
 
 /// Asks the extents node for per-pixel crossing lists (the exact march) instead of the three
 /// depth textures.
@@ -198,6 +282,8 @@ pub struct CrossingsRequest<'a> {
     /// The caller's depth buffer (any depth format, `TEXTURE_BINDING`, full resolution):
     /// crossings behind the scene surface are not recorded.
     pub scene_depth: &'a wgpu::Texture,
+    /// How the lists are built.
+    pub build: CrossingsBuild,
 }
 
 /// Per-pixel crossing lists, as written by [`ExtentsNode`] for the exact march.
@@ -231,6 +317,47 @@ pub struct ExtentsInputs<'a> {
     pub crossings: Option<CrossingsRequest<'a>>,
 }
 
+/// Tiles across and down at a pass size.
+fn tiles_of(width: u32, height: u32) -> (u32, u32) {
+    (width.div_ceil(TILE), height.div_ceil(TILE))
+}
+
+impl Bins {
+    fn new(device: &wgpu::Device, (tx, ty): (u32, u32), max_faces: u32) -> Result<Self> {
+        let tiles = u64::from(tx) * u64::from(ty);
+        let faces = u64::from(max_faces.max(1));
+        crate::gpu::check_buffer_size(device, "crossing bins", FACE_BYTES * faces)?;
+        let limits = device.limits();
+        let max_binding = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        // Room for every face in 16 tiles and 64 faces a tile on average; a tile beyond it
+        // tests every face (correct, slower).
+        let entries = (16 * faces + 64 * tiles)
+            .max(1 << 16)
+            .min(max_binding / 4)
+            .min(u64::from(u32::MAX));
+        let buffer = |label, size| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        crate::gpu::check_buffer_size(device, "crossing bins", 12 * tiles + 16)?;
+        Ok(Self {
+            params: UniformBuffer::new(device, "volshadow crossings bins params"),
+            faces: buffer("volshadow crossing faces", FACE_BYTES * faces),
+            tiles: buffer("volshadow crossing tiles", 12 * tiles + 16),
+            bins: buffer("volshadow crossing bins", 4 * entries),
+            tile_count: (tx, ty),
+            face_capacity: max_faces.max(1),
+            bound: None,
+        })
+    }
+}
+
 /// The crossing lists' GPU state.
 struct CrossingLists {
     view: UniformBuffer<ViewUniform>,
@@ -241,6 +368,21 @@ struct CrossingLists {
     size: (u32, u32),
     depth: wgpu::Texture,
     bind_group: wgpu::BindGroup,
+    build: CrossingsBuild,
+    /// The compute build's state (created on first use).
+    bins: Option<Bins>,
+}
+
+/// The compute build's buffers and bind group.
+struct Bins {
+    params: UniformBuffer<BinUniform>,
+    faces: wgpu::Buffer,
+    tiles: wgpu::Buffer,
+    bins: wgpu::Buffer,
+    tile_count: (u32, u32),
+    face_capacity: u32,
+    /// The bind group, and the volume buffer, lists and depth texture it was made for.
+    bound: Option<(wgpu::BindGroup, wgpu::Buffer, wgpu::Buffer, wgpu::Texture)>,
 }
 
 /// Computes per-pixel shadow-volume extents.
@@ -308,9 +450,10 @@ impl ExtentsNode {
     /// limits, [`Error::NonFinite`](crate::Error::NonFinite) or
     /// [`Error::SingularMatrix`](crate::Error::SingularMatrix) for an occluder's transform,
     /// and [`Error::DeviceLimitExceeded`](crate::Error::DeviceLimitExceeded) naming the limit
-    /// for buffers the device cannot hold: `shadow volumes`, `occluder transforms`, or
+    /// for buffers the device cannot hold: `shadow volumes`, `occluder transforms`,
     /// `crossing lists` (16 bytes a pixel of heads, bound whole: more than 8.4 million
-    /// pixels, such as 4096² at full resolution, at the core limit of 128 MiB).
+    /// pixels, such as 4096² at full resolution, at the core limit of 128 MiB), or
+    /// `crossing bins` (the compute build's 80 bytes a volume face).
     pub fn prepare(
         &mut self,
         device: &wgpu::Device,
@@ -377,9 +520,6 @@ impl ExtentsNode {
         let clip_from_world: Mat4 = proj * camera.view();
         queue.write_buffer(&self.view_buffer, 0, bytemuck::bytes_of(&clip_from_world));
         self.crossings_on = crossings.is_some();
-        if let Some(request) = crossings {
-            self.prepare_crossings(device, queue, camera, &request, (width, height))?;
-        }
 
         // Volume vertices: 6 per extruded edge, 3 + 3 per triangle (front and back cap).
         let capacity: u64 = occluders
@@ -414,6 +554,11 @@ impl ExtentsNode {
                 usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }));
+        }
+        if let Some(request) = crossings {
+            let faces = u32::try_from(capacity / 3).unwrap_or(u32::MAX);
+            let lists = (camera, clip_from_world, (width, height), faces);
+            self.prepare_crossings(device, queue, &request, lists)?;
         }
         let extrude_buffer = self.extrude_buffer.as_ref().expect("created above");
         let volume = self.volume.as_ref().expect("created above");
@@ -509,6 +654,38 @@ impl ExtentsNode {
             let Some(lists) = &self.crossings else {
                 return Ok(());
             };
+            if let (CrossingsBuild::Compute, Some(bins)) = (lists.build, &lists.bins) {
+                let Some((group, ..)) = &bins.bound else {
+                    return Ok(());
+                };
+                if self.jobs.is_empty() {
+                    // No volume: nothing crosses.
+                    encoder.clear_buffer(&lists.heads, 0, None);
+                    return Ok(());
+                }
+                encoder.clear_buffer(&bins.tiles, 0, None);
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("volshadow crossings"),
+                    timestamp_writes: timer
+                        .as_deref_mut()
+                        .and_then(|t| t.compute_pass(Pass::Extents)),
+                });
+                let [setup, count, scan, fill, build] = &self.pipelines.bin;
+                let groups = bins.face_capacity.div_ceil(64);
+                let gx = groups.min(65535);
+                pass.set_bind_group(0, group, &[]);
+                pass.set_pipeline(setup);
+                pass.dispatch_workgroups(gx, groups.div_ceil(gx), 1);
+                pass.set_pipeline(count);
+                pass.dispatch_workgroups(BIN_GROUPS, 1, 1);
+                pass.set_pipeline(scan);
+                pass.dispatch_workgroups(1, 1, 1);
+                pass.set_pipeline(fill);
+                pass.dispatch_workgroups(BIN_GROUPS, 1, 1);
+                pass.set_pipeline(build);
+                pass.dispatch_workgroups(bins.tile_count.0, bins.tile_count.1, 1);
+                return Ok(());
+            }
             encoder.clear_buffer(&lists.heads, 0, None);
             // The depth target is only there because a render pass needs an attachment:
             // the pipeline neither tests nor writes it.
@@ -598,9 +775,8 @@ impl ExtentsNode {
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
-        camera: &Camera,
         request: &CrossingsRequest<'_>,
-        (width, height): (u32, u32),
+        (camera, clip_from_world, (width, height), max_faces): (&Camera, Mat4, (u32, u32), u32),
     ) -> Result<()> {
         if !(1..=MAX_CROSSINGS_PER_PIXEL).contains(&request.per_pixel) {
             return Err(Error::InvalidSetting {
@@ -628,10 +804,10 @@ impl ExtentsNode {
             .crossings
             .as_ref()
             .is_some_and(|c| c.size == (width, height) && c.per_pixel == per_pixel);
-        let (mut view, mut params, heads, list, bound) = match self.crossings.take() {
+        let (mut view, mut params, heads, list, bound, bins) = match self.crossings.take() {
             Some(c) if reuse => {
                 let bound = (c.depth == *request.scene_depth).then_some(c.bind_group);
-                (c.view, c.params, c.heads, c.list, bound)
+                (c.view, c.params, c.heads, c.list, bound, c.bins)
             }
             old => {
                 let buffer = |label, size| {
@@ -644,11 +820,12 @@ impl ExtentsNode {
                         mapped_at_creation: false,
                     })
                 };
-                let (view, params) = match old {
-                    Some(c) => (c.view, c.params),
+                let (view, params, bins) = match old {
+                    Some(c) => (c.view, c.params, c.bins),
                     None => (
                         UniformBuffer::new(device, "volshadow crossings view"),
                         UniformBuffer::new(device, "volshadow crossings params"),
+                        None,
                     ),
                 };
                 (
@@ -660,10 +837,15 @@ impl ExtentsNode {
                         4 * pixels * u64::from(per_pixel),
                     ),
                     None,
+                    bins.map(|mut b| {
+                        b.bound = None;
+                        b
+                    }),
                 )
             }
         };
-        view.write(queue, ViewUniform::new(camera, width, height));
+        let view_uniform = ViewUniform::new(camera, width, height);
+        view.write(queue, view_uniform);
         params.write(
             queue,
             CrossingUniform {
@@ -688,6 +870,63 @@ impl ExtentsNode {
                 ],
             )
         });
+        let bins = match request.build {
+            CrossingsBuild::Raster => bins,
+            CrossingsBuild::Compute => {
+                let volume = self.volume.as_ref().expect("created before the lists");
+                let mut b = match bins {
+                    Some(b)
+                        if b.tile_count == tiles_of(width, height)
+                            && b.face_capacity >= max_faces =>
+                    {
+                        b
+                    }
+                    _ => Bins::new(device, tiles_of(width, height), max_faces)?,
+                };
+                b.params.write(
+                    queue,
+                    BinUniform {
+                        view: view_uniform,
+                        clip_from_world: clip_from_world.to_cols_array(),
+                        size: [width, height],
+                        entries: per_pixel,
+                        near: self.near,
+                        tiles: [b.tile_count.0, b.tile_count.1],
+                        bin_capacity: (b.bins.size() / 4) as u32,
+                        face_capacity: b.face_capacity,
+                    },
+                );
+                let stale = b.bound.as_ref().is_none_or(|(_, v, h, d)| {
+                    v != volume || *h != heads || d != request.scene_depth
+                });
+                if stale {
+                    let depth_view = depth_view(request.scene_depth);
+                    let group = crate::gpu::cache::bind_group(
+                        device,
+                        "volshadow crossings",
+                        &self.pipelines.bin_layout,
+                        [
+                            volume.as_entire_binding(),
+                            self.args.as_entire_binding(),
+                            b.params.binding(),
+                            wgpu::BindingResource::TextureView(&depth_view),
+                            b.faces.as_entire_binding(),
+                            b.tiles.as_entire_binding(),
+                            b.bins.as_entire_binding(),
+                            heads.as_entire_binding(),
+                            list.as_entire_binding(),
+                        ],
+                    );
+                    b.bound = Some((
+                        group,
+                        volume.clone(),
+                        heads.clone(),
+                        request.scene_depth.clone(),
+                    ));
+                }
+                Some(b)
+            }
+        };
         self.crossings = Some(CrossingLists {
             view,
             params,
@@ -697,6 +936,8 @@ impl ExtentsNode {
             size: (width, height),
             depth: request.scene_depth.clone(),
             bind_group,
+            build: request.build,
+            bins,
         });
         Ok(())
     }

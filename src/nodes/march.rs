@@ -47,7 +47,7 @@ use crate::gpu::{
     check_depth_layers, check_depth_texture, check_size, check_target_size, depth_array_view,
     depth_view, texture_2d, texture_3d, Cache, GpuTimer, UniformBuffer,
 };
-use crate::nodes::extents::Extents;
+use crate::nodes::extents::{CrossingsBuild, Extents};
 use crate::nodes::shadow_map::{standard_cube_near, ShadowMap};
 use crate::nodes::soft_shadow::{cell_angle, soft_params, SoftShadow, MAX_SOFT_SPHERES};
 use crate::nodes::{AirlightTableNode, Scale};
@@ -210,6 +210,8 @@ pub struct MarchSettings {
     /// (1 ..= [`MAX_CROSSINGS_PER_PIXEL`](crate::nodes::MAX_CROSSINGS_PER_PIXEL)). Default
     /// [`DEFAULT_CROSSINGS`].
     pub crossings: u32,
+    /// Exact method: how the crossing lists are built. Default [`CrossingsBuild::Compute`].
+    pub crossings_build: CrossingsBuild,
 }
 
 /// The default list length of the exact method, chosen by measurement on the standard scenes
@@ -226,6 +228,7 @@ impl Default for MarchSettings {
             scale: Scale::Full,
             texture_steps: 32,
             crossings: DEFAULT_CROSSINGS,
+            crossings_build: CrossingsBuild::Compute,
         }
     }
 }

@@ -28,7 +28,7 @@ pub(crate) mod upsample;
 pub use airlight_table::{AirlightTableNode, TableInputs, TableSize};
 pub use composite::{CompositeInputs, CompositeNode, CompositeSurfaces, OutputTarget, MAX_LIGHTS};
 pub use extents::{
-    Crossings, CrossingsRequest, Extents, ExtentsInputs, ExtentsNode, EXTENTS_NEAR,
+    Crossings, CrossingsBuild, CrossingsRequest, Extents, ExtentsInputs, ExtentsNode, EXTENTS_NEAR,
     MAX_CROSSINGS_PER_PIXEL,
 };
 pub use iss_table::{IssTableNode, IssTableSize, ISS_TAU_RANGE};

@@ -297,6 +297,7 @@ impl Method {
                 scale,
                 texture_steps,
                 crossings,
+                ..MarchSettings::default()
             }),
             Method::Textbook { steps, scale } => Some(MarchSettings {
                 method: MarchMethod::Textbook,

@@ -458,6 +458,7 @@ pub fn shadow_frame(gpu: &HeadlessGpu, cache: &Cache, passes: &ShadowPasses) -> 
                     volshadow::nodes::CrossingsRequest {
                         per_pixel: settings.crossings,
                         scene_depth: depth,
+                        build: settings.crossings_build,
                     },
                 ),
             },
