@@ -70,6 +70,9 @@ struct Count {
 @group(0) @binding(4) var<storage, read_write> faces: array<vec4<f32>>;
 // Per tile: count, offset, cursor (3 arrays of `tiles.x * tiles.y`), then the bins in use.
 @group(0) @binding(5) var<storage, read_write> tiles: array<atomic<u32>>;
+// The same, for the passes that need no atomics (`scan` and `build`: plain loads and stores
+// are several times cheaper than atomics on some GPUs).
+@group(0) @binding(5) var<storage, read_write> tiles_plain: array<u32>;
 @group(0) @binding(6) var<storage, read_write> bins: array<u32>;
 // The lists, as the fragment build writes them (see extents.wgsl).
 @group(0) @binding(7) var<storage, read_write> heads: array<u32>;
@@ -319,7 +322,7 @@ fn scan(@builtin(local_invocation_index) local: u32) {
     let last = min(first + run, tn);
     var sum = 0u;
     for (var i = first; i < last; i++) {
-        sum += atomicLoad(&tiles[i]);
+        sum += tiles_plain[i];
     }
     partial[local] = sum;
     workgroupBarrier();
@@ -334,8 +337,8 @@ fn scan(@builtin(local_invocation_index) local: u32) {
     }
     var at = partial[local] - sum;
     for (var i = first; i < last; i++) {
-        atomicStore(&tiles[tn + i], at);
-        at += atomicLoad(&tiles[i]);
+        tiles_plain[tn + i] = at;
+        at += tiles_plain[i];
     }
 }
 
@@ -356,8 +359,8 @@ fn build(@builtin(workgroup_id) wg: vec3<u32>,
     let tn = tile_count();
     let ti = wg.y * bp.tiles.x + wg.x;
     if (local == 0u) {
-        let n = atomicLoad(&tiles[ti]);
-        let at = atomicLoad(&tiles[tn + ti]);
+        let n = tiles_plain[ti];
+        let at = tiles_plain[tn + ti];
         tile_all = select(0u, 1u, at + n > bp.bin_capacity);
         tile_range = vec2<u32>(at, n);
     }
