@@ -227,7 +227,7 @@ fn compute_and_raster_builds_write_the_same_lists() {
                 .as_vec3();
             meshes.push(OccluderMesh::new(&gpu.device, &mesh));
             transforms.push(Mat4::from_rotation_translation(
-                Quat::from_axis_angle(axis, u(0.0, 6.28) as f32),
+                Quat::from_axis_angle(axis, u(0.0, std::f64::consts::TAU) as f32),
                 centre,
             ));
         }
