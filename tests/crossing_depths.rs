@@ -193,7 +193,7 @@ fn lists_of(
 ///
 /// Pixels may differ only where a ray passes within the rasteriser's sub-pixel snapping of a
 /// face's edge or almost in a face's plane (lavapipe snaps vertices to 1/256 pixel): bound 0.5%
-/// of the pixels of a seed; measured at most 0.039% (2 of 5,120; lavapipe, 2026-11-26). Caught:
+/// of the pixels of a seed; measured at most 0.059% (3 of 5,120; lavapipe, 2026-11-26). Caught:
 /// front and back faces swapped (57.6% of a seed's pixels differ); the compute build's bind group
 /// left on the previous frame's depth texture (10.3%). Not caught here: the tie rule for a ray
 /// exactly on an edge and the near plane (neither case occurs on these scenes).
