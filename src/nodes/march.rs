@@ -210,7 +210,8 @@ pub struct MarchSettings {
     /// (1 ..= [`MAX_CROSSINGS_PER_PIXEL`](crate::nodes::MAX_CROSSINGS_PER_PIXEL)). Default
     /// [`DEFAULT_CROSSINGS`].
     pub crossings: u32,
-    /// Exact method: how the crossing lists are built. Default [`CrossingsBuild::Compute`].
+    /// Exact method: how the crossing lists are built. Default [`CrossingsBuild::Compute`]
+    /// (`Settings::for_adapter` picks [`CrossingsBuild::Raster`] on a CPU adapter).
     pub crossings_build: CrossingsBuild,
 }
 
