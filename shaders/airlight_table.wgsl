@@ -120,7 +120,7 @@ fn rule(a: Airlight, j: u32, n: u32, ds: f32, w: f32, gamma: f32, sin_half_gamma
 
 // Gauss–Legendre node q on [−1, 1] and its weight: 2 points (q = 0, 1), 3 (2 … 4), 8 (5 … 12).
 // A chain of selects, not an indexed array: a per-lane index into a constant array becomes a
-// private copy and a gather on some drivers (lavapipe: twice the pass's time).
+// private copy and a gather on some drivers (lavapipe).
 fn gl_node(q: u32) -> vec2<f32> {
     var r = vec2<f32>(-0.5773502691896258, 1.0);
     r = select(r, vec2<f32>(0.5773502691896258, 1.0), q == 1u);

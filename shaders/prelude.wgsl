@@ -364,9 +364,7 @@ fn cone_cuts(apex: vec3<f32>, axis: vec3<f32>, c2: f32, eye: vec3<f32>, dir: vec
     }
     var cuts: ConeCuts;
     // The roots inside (0, x_end), in order, written at fixed indices: a private array
-    // written or read at a variable index lives in memory on llvmpipe, for every lane (with
-    // `cut_piece`, the soft march at ½ on the report's soft scene 0.96 of its time, a spot
-    // variant 0.95, the same images; alternated in one process, 2026-11-24).
+    // written or read at a variable index lives in memory on llvmpipe, for every lane.
     let in0 = roots[0] > 0.0 && roots[0] < x_end;
     let in1 = roots[1] > 0.0 && roots[1] < x_end;
     let first = select(select(x_end, roots[1], in1), roots[0], in0);

@@ -254,6 +254,14 @@
 //!
 //! [`reference`](mod@reference) is an independent f64 integrator of the same model, the ground
 //! truth the tests compare every GPU image with.
+//!
+//! # Documents
+//!
+//! * [`method`]: the maths, the papers it comes from, and design notes (`docs/METHOD.md`).
+//! * [`accuracy`]: every accuracy check of the test suite, its current value and its bound
+//!   (`docs/ACCURACY.md`, generated from the tests' output).
+//! * [`performance`]: the cost of each method on the standard scenes (`docs/PERFORMANCE.md`,
+//!   generated from the `report` example's and the tests' output).
 #![warn(missing_docs)]
 
 pub mod error;
@@ -266,6 +274,12 @@ pub mod load;
 #[doc = include_str!("../docs/METHOD.md")]
 pub mod method {}
 pub mod nodes;
+/// Measured accuracy: every check, its current value and bound, and the test that printed it.
+#[doc = include_str!("../docs/ACCURACY.md")]
+pub mod accuracy {}
+/// Measured cost: the `report` example's and the benchmark's figures on the standard scenes.
+#[doc = include_str!("../docs/PERFORMANCE.md")]
+pub mod performance {}
 pub mod plan;
 pub mod reference;
 pub mod scene;

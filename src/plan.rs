@@ -545,8 +545,8 @@ impl AdapterKind {
 }
 
 /// The Pareto front of worst-scene p95 against cost on a GPU, cheapest first, as written to
-/// `target/volshadow-report/error_table.rs` by the report (`--full`, 2026-11-26, NVIDIA H200,
-/// driver 580.159.04, Vulkan, 512×512, the eight standard scenes with untextured lights without
+/// `target/volshadow-report/error_table.rs` by the report (`--full` on an NVIDIA H200, driver
+/// 580.159.04, Vulkan, 512×512, the eight standard scenes with untextured lights without
 /// a radius, p95 over pixels above 1% of each frame's 99th-percentile brightness). Only the
 /// exact method is on it: at every tolerance it was cheaper than the hybrid there. Full
 /// resolution costs 1.5 times half (the crossing lists scale with the pixels) and is exact.
@@ -558,8 +558,8 @@ pub const ERROR_TABLE_GPU: &[MeasuredConfig] = &[
     measured(MarchMethod::Exact, 0.0003, 30.519, 64, Scale::Full, UpsampleFilter::DepthAware3x3, 2),
 ];
 
-/// The Pareto front on a CPU adapter, as [`ERROR_TABLE_GPU`] (the report, 2026-11-23, llvmpipe,
-/// 512×512, the six standard scenes of then). The window scene's thin sun shafts set the
+/// The Pareto front on a CPU adapter, as [`ERROR_TABLE_GPU`] (the report on llvmpipe, 512×512,
+/// six of the standard scenes: not the soft and stiff-fog ones). The window scene's thin sun shafts set the
 /// reduced-resolution rows (exact at ½: 3.4%; every other scene ≤ 0.9%). The exact method's
 /// rows list 64 steps and 2 bisections: those only march pixels whose crossing list
 /// overflowed.

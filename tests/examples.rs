@@ -12,6 +12,7 @@ mod common_examples;
 #[path = "common/files.rs"]
 mod files;
 
+use common_examples::report::metric;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -206,6 +207,11 @@ fn render_every_scene_and_match_the_reference() {
             100.0 * MIN_PIXEL_CHANGE,
             100.0 * MIN_VISIBLE_FRACTION
         );
+        metric::accuracy(
+            &format!("{stem}: shadows visible in the tone-mapped PNG (pixels ≥ {:.0}% and {MIN_LEVELS} levels off the unshadowed render)", 100.0 * MIN_PIXEL_CHANGE),
+            format!("{:.1}%", 100.0 * visible),
+            format!("≥ {:.0}%", 100.0 * MIN_VISIBLE_FRACTION),
+        );
         if visible.is_nan() || visible < MIN_VISIBLE_FRACTION {
             failures.push(format!(
                 "{stem}: shadows visible over {:.1}% of the image < {:.0}%",
@@ -240,6 +246,11 @@ fn render_every_scene_and_match_the_reference() {
              reference run {reference_time:.1} s",
             100.0 * rmse,
             100.0 * with_lights
+        );
+        metric::accuracy(
+            &format!("{stem}: `render` ({method}) against `--method reference`"),
+            format!("RMSE {:.2}%", 100.0 * rmse),
+            format!("RMSE {}%", 100.0 * MAX_RMSE),
         );
         if rmse.is_nan() || rmse > MAX_RMSE {
             failures.push(format!("{stem}: RMSE {rmse:.4} > {MAX_RMSE}"));

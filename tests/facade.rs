@@ -196,6 +196,11 @@ fn no_occluders_means_no_shadow_map_no_extents_and_the_analytic_image() {
         .collect();
     let err = max_rel(&r.image, &expected);
     println!("no occluders: max relative error against the reference composite {err:.2e}");
+    common::metric::accuracy(
+        "no occluders: the facade's composite against the reference composite",
+        format!("max {err:.1e}"),
+        "5e-3",
+    );
     assert!(err < 5e-3, "{err}");
 }
 
@@ -246,6 +251,11 @@ fn non_scattering_medium_only_attenuates() {
         }
     }
     println!("sigma_s = 0: max |output - colour x transmittance| = {worst:.2e}");
+    common::metric::accuracy(
+        "σs = 0: output against colour × transmittance",
+        format!("max {worst:.1e}"),
+        "1e-5",
+    );
     assert!(worst < 1e-5, "{worst}");
 }
 
@@ -301,6 +311,11 @@ fn untextured_light_needs_no_light_texture_and_equals_a_white_texture() {
     println!("untextured vs white texture: max relative difference {err:.2e}");
     // The textured path marches before and after the extents where the plain one is analytic;
     // with a white texture its F′ differences telescope to the same values.
+    common::metric::accuracy(
+        "an untextured spot against the same spot with a white texture",
+        format!("max {err:.1e}"),
+        "1e-2",
+    );
     assert!(err < 1e-2, "{err}");
 }
 
@@ -331,6 +346,11 @@ fn full_resolution_needs_no_upsample() {
     assert!(half.plan.runs(Pass::Upsample, Some(0)) && half.passes.iter().any(|p| p == "upsample"));
     let err = max_rel(&full.image, &half.image);
     println!("full vs half resolution: max relative difference {err:.2e}");
+    common::metric::accuracy(
+        "full against half resolution",
+        format!("max {err:.1e}"),
+        format!("{HALF_VS_FULL:.0e}"),
+    );
     assert!(err < HALF_VS_FULL, "{err}");
 }
 
@@ -430,6 +450,11 @@ fn optically_deep_occluder_is_culled_without_changing_the_image() {
     println!("culled vs kept: max relative difference {err:.2e}");
     // The bound promises < 1e-3 of the in-scatter; the composite adds the (unchanged)
     // attenuated colour, so the image moves by less.
+    common::metric::accuracy(
+        "an occluder culled by the optical-depth bound, against it kept",
+        format!("max {err:.1e}"),
+        "1e-3 (the bound's promise)",
+    );
     assert!(err < 1e-3, "{err}");
     // A near occluder is not culled.
     let near = OccluderMesh::new(
@@ -1008,6 +1033,11 @@ fn two_soft_lights_in_one_frame_each_against_the_reference() {
         );
         println!("light {i}: {e}\n  hard: {hard}");
         let (p95_bar, rmse_bar) = BARS[i];
+        common::metric::accuracy(
+            &format!("two soft lights through the facade, 96²: light {i} against the reference for it alone; drawn hard"),
+            format!("{}; hard p95 {:.2}%", e.short(), 100.0 * hard.p95),
+            format!("p95 {}%, RMSE {}% (measured limits); hard beyond the p95 bar", 100.0 * p95_bar, 100.0 * rmse_bar),
+        );
         assert!(
             e.non_finite == 0 && e.p95 <= p95_bar && e.rmse <= rmse_bar,
             "light {i}: {e}"

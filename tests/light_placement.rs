@@ -73,6 +73,11 @@ fn a_wide_spot_cone_keeps_an_occluder_near_its_edge_in_the_shadow_map() {
             "cone {cone_degrees}°: exact {}\n  sphere ignored {}",
             m.errors, lit.errors
         );
+        common::metric::accuracy(
+            &format!("spot cone {cone_degrees}° with a sphere 84° off its axis, exact, 64²; the sphere ignored"),
+            format!("{}; ignored p95 {:.1}%", m.errors.short(), 100.0 * lit.errors.p95),
+            "p95 0.5%, RMSE 0.5%; ignored p95 > 0.5%",
+        );
         assert_eq!(
             m.errors.non_finite, 0,
             "cone {cone_degrees}°: NaN, Inf or negative"
@@ -133,6 +138,15 @@ fn a_light_a_millionth_above_a_sphere_at(precision: ShaderPrecision) {
             "{precision:?}: {name}: exact {}\n  sphere ignored {}",
             m.errors, lit.errors
         );
+        common::metric::accuracy(
+            &format!("{precision:?}: {name}, exact, 64²; the sphere ignored"),
+            format!(
+                "{}; ignored p95 {:.1}%",
+                m.errors.short(),
+                100.0 * lit.errors.p95
+            ),
+            "p95 0.5%, RMSE 0.5%; ignored p95 > 0.5%",
+        );
         assert_eq!(m.errors.non_finite, 0, "{name}: NaN, Inf or negative");
         assert!(
             m.errors.p95 <= EXACT_P95 && m.errors.rmse <= EXACT_RMSE,
@@ -165,6 +179,11 @@ fn a_175_degree_view_clamps_the_glow_by_each_pixel_footprint() {
     let reference = shot.reference();
     let m = shot.measure(&gpu, &cache, exact, &reference);
     println!("175° view: exact {}", m.errors);
+    common::metric::accuracy(
+        "a 175° view with the light 70° off axis, exact, 64²",
+        m.errors.short(),
+        "p95 0.5%, RMSE 0.5%",
+    );
     assert_eq!(m.errors.non_finite, 0, "NaN, Inf or negative");
     assert!(
         m.errors.p95 <= EXACT_P95 && m.errors.rmse <= EXACT_RMSE,
@@ -220,6 +239,11 @@ fn the_widest_spot_cone_at(precision: ShaderPrecision) {
     let shot = Shot::new(&scene, &apex_view, &light, &medium, 64);
     let m = shot.measure(&gpu, &cache, exact, &shot.reference());
     println!("{precision:?}: 179° around its apex: exact {}", m.errors);
+    common::metric::accuracy(
+        &format!("{precision:?}: a 179° spot seen around its apex, exact, 64²"),
+        m.errors.short(),
+        "p95 0.5%, RMSE 0.5%",
+    );
     assert_eq!(m.errors.non_finite, 0, "NaN, Inf or negative");
     assert_eq!(black(&m), 0, "black pixels around the apex: {}", m.errors);
     assert!(
@@ -248,6 +272,11 @@ fn the_widest_spot_cone_at(precision: ShaderPrecision) {
     println!(
         "{precision:?}: 179°, a slab at its edge: exact {}\n  slab ignored {}",
         m.errors, lit.errors
+    );
+    common::metric::accuracy(
+        &format!("{precision:?}: a 179° spot, a slab at its edge, exact, 64²"),
+        m.errors.short(),
+        "p95 0.5%, RMSE 0.5%",
     );
     assert_eq!(m.errors.non_finite, 0, "NaN, Inf or negative");
     assert_eq!(black(&m), 0, "black pixels at the edge: {}", m.errors);

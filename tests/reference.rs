@@ -2,6 +2,8 @@
 //! independent closed form (2), shadowed rays against a brute-force Riemann sum, exact lit
 //! intervals against brute-force sampling, degenerate rays, and the per-frame image helper.
 
+#[path = "common/metric.rs"]
+mod metric;
 #[path = "common/rng.rs"]
 mod rng;
 
@@ -119,6 +121,11 @@ fn quadrature_matches_closed_form_on_unshadowed_rays() {
     // Both integrals are computed to a relative tolerance of 1e-12 (RELATIVE_TOLERANCE) by
     // different substitutions; 1e-9 leaves a factor 1000 for the condition of the exponentials
     // (σt·D up to 100) and the f64 round-off in the geometry.
+    metric::accuracy(
+        &format!("{rays} unshadowed rays, 7 phase functions: quadrature against the closed form"),
+        format!("max {worst:.1e}"),
+        "1e-9",
+    );
     assert!(worst <= 1e-9, "max relative error {worst:e}: {worst_case}");
 }
 
@@ -734,6 +741,11 @@ fn random_rays_across_scales_are_finite_and_consistent() {
     println!(
         "{rays} random rays: max relative error quadrature vs closed form {worst:.3e}, \
          max relative excess of a shadowed ray over the open one {worst_excess:.3e}"
+    );
+    metric::accuracy(
+        &format!("{rays} random rays: quadrature against the closed form; a shadowed ray's excess over the open one"),
+        format!("max {worst:.1e}; {worst_excess:.1e}"),
+        "1e-9; 1e-10",
     );
     // Same tolerance budget as the grid test above.
     assert!(worst <= 1e-9, "{worst:e}");

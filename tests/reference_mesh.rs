@@ -4,6 +4,8 @@
 //!
 //! `cargo test --test reference_mesh -- --nocapture` prints the counts and the timing.
 
+#[path = "common/metric.rs"]
+mod metric;
 #[path = "common/rng.rs"]
 mod rng;
 
@@ -359,6 +361,11 @@ fn compare(name: &str, mesh: TriangleMesh, centre: DVec3, size: f64, rays: usize
         counts.shadowed,
         counts.dark,
         counts.ends
+    );
+    metric::accuracy(
+        &format!("{name}: mesh visibility (silhouette edges + BVH) against the exhaustive code"),
+        format!("{} rays agree, {} interval ends", counts.rays, counts.ends),
+        "every interval end within 1e-9 relative",
     );
     assert!(
         counts.shadowed * 4 >= counts.rays,

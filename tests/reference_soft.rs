@@ -3,6 +3,8 @@
 //! reference, a penumbra profile across a shaft edge, and seeded random rays against a brute
 //! midpoint rule.
 
+#[path = "common/metric.rs"]
+mod metric;
 use std::f64::consts::PI;
 use std::time::Instant;
 
@@ -93,6 +95,11 @@ fn a_sphere_fraction_closed_form_against_dense_sampling_and_limits() {
     // 500² strata: the outline crosses at most ~4·500 of them (one turn in φ, two bands in
     // cos θ per φ column), each at most 1/500², so the dense estimate is within 8e-3 in the
     // worst case and ~1e-4 in practice; the bar is 1e-3.
+    metric::accuracy(
+        "one sphere's visible fraction of a light's disc: closed form against 500² sampling",
+        format!("max {worst:.1e}"),
+        "1e-3",
+    );
     assert!(worst <= 1e-3, "closed form vs dense sampling: {worst:e}");
 
     // Limits, exact: behind the occluder on the axis (umbra), far off the axis, on the light's
@@ -274,6 +281,11 @@ fn c_radius_zero_is_the_hard_reference() {
         }
     }
     println!("radius 0 vs hard: worst relative difference {worst:e}");
+    metric::accuracy(
+        "radius 0 against the hard reference",
+        format!("{worst:e}"),
+        "0",
+    );
 }
 
 #[test]
@@ -349,6 +361,11 @@ fn d_penumbra_profile_across_a_shaft_edge() {
         .map(|(s, h)| (s - h).abs() / s)
         .fold(0.0, f64::max);
     println!("hard vs soft across the edge: max relative difference {gap:.3}");
+    metric::accuracy(
+        "hard against soft across a penumbra (128², radius 0.2 × light–occluder distance)",
+        format!("{:.1}% apart", 100.0 * gap),
+        "> 10%",
+    );
     assert!(gap > 0.10, "hard and soft differ by only {gap}");
 }
 
@@ -439,5 +456,10 @@ fn e_random_rays_against_a_midpoint_rule() {
         worst.0,
         worst.1,
         start.elapsed().as_secs_f64()
+    );
+    metric::accuracy(
+        "random rays: soft integrand against an 8000-step midpoint rule",
+        format!("max {:.1e}", worst.0),
+        "1e-3",
     );
 }

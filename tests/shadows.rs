@@ -276,6 +276,15 @@ fn sphere_above_plane_hybrid_and_brute_force() {
         h.max_rel_outside_band,
         h.frame.time_ms("march")
     );
+    common::metric::accuracy(
+        "sphere shadow, 128², hybrid at 64 steps: RMSE; max outside 2 px of shadow edges",
+        format!(
+            "RMSE {:.3}%, max {:.2}%",
+            100.0 * h.rmse_rel,
+            100.0 * h.max_rel_outside_band
+        ),
+        "RMSE 2%, max 10%",
+    );
     // Issue 3: hybrid at 64 steps within 2% RMSE of the image mean, and no pixel off by more
     // than 10% outside a 2-pixel band around shadow boundaries.
     assert!(h.rmse_rel <= MAX_RMSE, "hybrid RMSE {:.4}", h.rmse_rel);
@@ -290,6 +299,11 @@ fn sphere_above_plane_hybrid_and_brute_force() {
         "brute force 512 steps: RMSE {:.4} of mean, march {:.3} ms",
         b.rmse_rel,
         b.frame.time_ms("march")
+    );
+    common::metric::accuracy(
+        "sphere shadow, 128², brute force at 512 steps",
+        format!("RMSE {:.3}%", 100.0 * b.rmse_rel),
+        "RMSE 1%",
     );
     // Issue 3: brute force at 512 steps within 1% RMSE.
     assert!(b.rmse_rel <= 0.01, "brute-force RMSE {:.4}", b.rmse_rel);
@@ -363,6 +377,15 @@ fn hybrid_is_cheaper_and_at_least_as_accurate_as_brute_force_at_equal_steps() {
             "{steps} steps: hybrid RMSE {:.4}, {hs} steps, march {:.3} ms | brute force RMSE {:.4}, {bs} steps, march {:.3} ms",
             h.rmse_rel, h.frame.time_ms("march"), b.rmse_rel, b.frame.time_ms("march")
         );
+        common::metric::accuracy(
+            &format!("hybrid against brute force at {steps} steps"),
+            format!(
+                "RMSE {:.3}% against {:.3}%; {hs} against {bs} steps",
+                100.0 * h.rmse_rel,
+                100.0 * b.rmse_rel
+            ),
+            "hybrid RMSE ≤ 1.02 × brute force's, fewer steps",
+        );
         // Same step count per marched interval, but the hybrid's interval is only the shadow
         // volume: finer steps there, so at least as accurate (2% slack for noise in the metric)…
         assert!(
@@ -410,6 +433,15 @@ fn bisection_locates_shadow_edges_between_steps() {
         steps(&plain),
         refined.rmse_rel,
         steps(&refined)
+    );
+    common::metric::accuracy(
+        "brute force at 16 steps without / with 4 bisections locating shadow edges",
+        format!(
+            "RMSE {:.3}% / {:.3}%",
+            100.0 * plain.rmse_rel,
+            100.0 * refined.rmse_rel
+        ),
+        "with < 0.67 × without",
     );
     assert!(
         refined.rmse_rel < 0.67 * plain.rmse_rel,
@@ -495,6 +527,15 @@ fn check_no_missing_shadow(name: &str, camera: &Camera, light: &Light, scene: &S
     assert!(
         missing > 0.10,
         "{name}: the shadow is too faint to test ({missing:.3})"
+    );
+    common::metric::accuracy(
+        &format!("{name}: hybrid at 64 steps, RMSE; max outside 2 px of shadow edges"),
+        format!(
+            "RMSE {:.3}%, max {:.2}%",
+            100.0 * m.rmse_rel,
+            100.0 * m.max_rel_outside_band
+        ),
+        "RMSE 2%, max 10%",
     );
     assert!(m.rmse_rel <= MAX_RMSE, "{name}: RMSE {:.4}", m.rmse_rel);
     assert!(
@@ -670,6 +711,15 @@ fn spot_light_with_a_2d_shadow_map() {
         outside.len() > 1000,
         "the view should include rays that miss the cone"
     );
+    common::metric::accuracy(
+        "spot light: rays outside the cone that received light; RMSE",
+        format!(
+            "{lit_outside} of {}; RMSE {:.3}%",
+            outside.len(),
+            100.0 * m.rmse_rel
+        ),
+        "0; RMSE 2%",
+    );
     assert_eq!(lit_outside, 0, "rays outside the cone received light");
     assert!(m.rmse_rel <= MAX_RMSE, "spot RMSE {:.4}", m.rmse_rel);
 }
@@ -715,6 +765,11 @@ fn sphere_at_quarter_resolution_with_bilateral_upsampling() {
         println!(
             "1/4 resolution + {name}: RMSE {:.4} of mean; march {:.3} ms vs full {:.3} ms; {quarter_steps} vs {full_steps} steps",
             q.rmse_rel, q.frame.time_ms("march"), full.frame.time_ms("march")
+        );
+        common::metric::accuracy(
+            &format!("sphere at ¼ resolution + {name} upsample"),
+            format!("RMSE {:.3}%", 100.0 * q.rmse_rel),
+            "RMSE 3%",
         );
         // Issue 4: RMSE ≤ 3% of the mean against the reference at 1/4 resolution.
         assert!(q.rmse_rel <= 0.03, "{name}: RMSE {:.4}", q.rmse_rel);
@@ -824,6 +879,11 @@ fn shadow_map_minimum_resolution_is_where_the_p95_error_stays_within_two_percent
         );
         println!("shadow map {resolution}²: p95 relative error {p95:.4}");
         if resolution == min {
+            common::metric::accuracy(
+                &format!("the smallest shadow map ({resolution}²), sphere scene"),
+                format!("p95 {:.3}%", 100.0 * p95),
+                "p95 2%",
+            );
             assert!(p95 <= MAX_RMSE, "{resolution}: p95 {p95:.4}");
         }
     }
@@ -892,6 +952,15 @@ fn a_terrain_sized_occluder_does_not_cost_a_small_one_its_shadow() {
         with_terrain.rmse_rel,
         alone.max_rel_outside_band,
         with_terrain.max_rel_outside_band
+    );
+    common::metric::accuracy(
+        "small sphere near the light, alone / with a 20 km occluder below the ground: hybrid RMSE",
+        format!(
+            "{:.3}% / {:.3}%",
+            100.0 * alone.rmse_rel,
+            100.0 * with_terrain.rmse_rel
+        ),
+        "RMSE 2%, max outside edges 10%",
     );
     // Issue 3's bounds for the hybrid at 64 steps, with or without the far-away occluder.
     for m in [&alone, &with_terrain] {

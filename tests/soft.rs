@@ -160,6 +160,11 @@ fn sphere_penumbra_against_the_reference() {
         .filter(|(a, b)| a.map(f32::to_bits) != b.map(f32::to_bits))
         .count();
     eprintln!("radius 0 vs no radius: {differing} pixels differ");
+    common::metric::accuracy(
+        "a sphere under a light of radius 0.2 × their distance, drawn hard: worst pixel of a row across the shaft's edge; radius 0 against no radius",
+        format!("{:.1}%; {differing} pixels differ", 100.0 * hard_row),
+        format!("> {}% (the soft bars can tell); 0", 100.0 * HARD_GAP),
+    );
     assert_eq!(differing, 0);
 
     // Each method natively and in WGSL's worst case for the transcendental built-ins (the
@@ -189,6 +194,11 @@ fn sphere_penumbra_against_the_reference() {
             "{precision:?}: soft {m}: {e}; row {row}: worst {:.2}% at column {px}; march {ms:.1} ms (hard exact march {:.1} ms)",
             100.0 * worst_row,
             hard_frame.time_ms("march")
+        );
+        common::metric::accuracy(
+            &format!("{precision:?}: a sphere under a light of radius 0.2 × their distance, 128², {m}; a row across the shaft's edge"),
+            format!("{}; row ≤ {:.2}%", e.short(), 100.0 * worst_row),
+            format!("p95 {}%, RMSE {}%; row {}%", 100.0 * P95_BAR, 100.0 * RMSE_BAR, 100.0 * ROW_BAR),
         );
         assert_eq!(e.non_finite, 0, "{precision:?}: {m}");
         assert!(
@@ -298,6 +308,11 @@ fn a_caller_s_cube_faces_give_the_node_s_image() {
         eprintln!(
             "{name}: the node's faces against a caller's: RMSE {rmse:.2e} of the mean, worst pixel {worst:.2e}"
         );
+        common::metric::accuracy(
+            &format!("{name}: a caller's cube faces against the shadow-map node's own, 48²"),
+            format!("RMSE {rmse:.1e}, worst pixel {worst:.1e}"),
+            format!("RMSE {rmse_bar:.0e}, worst {worst_bar:.0e}"),
+        );
         assert!(
             rmse <= rmse_bar && worst <= worst_bar,
             "{name}: RMSE {rmse}, worst {worst}"
@@ -366,6 +381,11 @@ fn looking_straight_at_a_soft_light() {
         within.len(),
         100.0 * soft_error,
         100.0 * hard_error
+    );
+    common::metric::accuracy(
+        &format!("looking at a light of radius 0.4: the {} pixels whose ray passes within the radius; drawn hard", within.len()),
+        format!("worst {:.2}%; hard {:.2}%", 100.0 * soft_error, 100.0 * hard_error),
+        format!("{}%; hard beyond it", 100.0 * BAR),
     );
     assert!(soft_error <= BAR, "soft: {soft_error}");
     // The hard light misses the penumbra behind the centre: the bar can tell.
@@ -509,6 +529,17 @@ fn torus_spot(stride: u32, grid: u32) {
             100.0 * row_worst,
             100.0 * rmse,
             100.0 * p95
+        );
+        common::metric::accuracy(
+            &format!("a torus under a spot of radius 0.2 × their distance, 64² (sampled pixels), {m}; drawn hard"),
+            format!(
+                "row ≤ {:.2}%, RMSE {:.2}%, p95 {:.2}%; hard row {:.1}%",
+                100.0 * row_worst,
+                100.0 * rmse,
+                100.0 * p95,
+                100.0 * hard_row
+            ),
+            format!("row {}%, RMSE {}%, p95 {}%; hard > {}%", 100.0 * ROW_BAR, 100.0 * RMSE_BAR, 100.0 * P95_BAR, 100.0 * HARD_GAP),
         );
         assert!(
             row_worst <= ROW_BAR && rmse <= RMSE_BAR && p95 <= P95_BAR,

@@ -591,6 +591,7 @@ fn check_scenes_sized(
     let mut hard_worst: f64 = 0.0;
     let mut unshadowed_least = f64::INFINITY;
     let mut worst: f64 = 0.0;
+    let mut worst_rmse: f64 = 0.0;
     let mut failures = Vec::new();
     for s in scenes {
         let wall = |e: DVec3, d: DVec3| wall_distance(s.wall, e, d);
@@ -655,6 +656,7 @@ fn check_scenes_sized(
             unshadowed_least = unshadowed_least.min(unshadowed.p95);
         }
         worst = worst.max(e.p95);
+        worst_rmse = worst_rmse.max(e.rmse);
         eprintln!(
             "{}\n  grid: {e}\n  hard: p95 {:.2}%, shadow ignored: p95 {:.2}%",
             s.describe,
@@ -668,6 +670,42 @@ fn check_scenes_sized(
             failures.push(format!("{}: {e}", s.describe));
         }
     }
+    let what = match scenes {
+        [one] => one.describe.clone(),
+        few if few.len() <= 3 => few
+            .iter()
+            .map(|s| s.describe.as_str())
+            .collect::<Vec<_>>()
+            .join("; "),
+        _ => format!("{} seeded scenes", scenes.len()),
+    };
+    common::metric::accuracy(
+        &format!(
+            "{what}, {size}², {precision:?}: exact method through the soft-shadow grid against \
+             reference::soft; the same drawn hard; the shadow ignored"
+        ),
+        format!(
+            "worst p95 {:.2}%, worst RMSE {:.2}%, {within} of {} within p95 {}% and RMSE {}%; \
+             hard worst p95 {:.1}%; ignored p95 ≥ {}",
+            100.0 * worst,
+            100.0 * worst_rmse,
+            scenes.len(),
+            100.0 * P95_BAR,
+            100.0 * RMSE_BAR,
+            100.0 * hard_worst,
+            if unshadowed_least.is_finite() {
+                format!("{:.1}%", 100.0 * unshadowed_least)
+            } else {
+                "– (no shadow in view)".into()
+            }
+        ),
+        format!(
+            "every scene p95 {:.2}%, RMSE {:.2}%; ignored > {}%",
+            100.0 * bars.1,
+            100.0 * bars.0,
+            200.0 * P95_BAR
+        ),
+    );
     assert!(
         failures.is_empty(),
         "failing seeds:\n{}",
@@ -1002,6 +1040,18 @@ fn a_ground_adds_no_march_above_it() {
         with_ground.1,
         SIZE * SIZE
     );
+    common::metric::performance(
+        "a ground under a soft light and a sphere, 48², exact: pixels whose ray is marched (steps), sphere alone / with the ground",
+        format!(
+            "{} ({}) / {} ({}) of {}",
+            alone.0,
+            alone.1,
+            with_ground.0,
+            with_ground.1,
+            SIZE * SIZE
+        ),
+        "the same pixels with the ground as without",
+    );
     assert!(alone.0 > 0, "the sphere's penumbra is in view");
     assert!(
         with_ground.0 == alone.0,
@@ -1233,6 +1283,18 @@ fn grid_cells_against_the_reference_visible_fraction() {
         penumbra_errors.len(),
         all_bias / penumbra_errors.len() as f64,
         100.0 * off
+    );
+    common::metric::accuracy(
+        "the grid's cells against the reference's visible fraction, 12 seeded scenes: penumbra mean |error|, p95, bias; deep penumbra mean relative error, mean |relative error|; other cells off by > 0.1",
+        format!(
+            "{mean:.4}, {p95:.4}, {:+.4}; {deep_bias:+.3}, {deep_abs:.3}; {:.4}%",
+            all_bias / penumbra_errors.len() as f64,
+            100.0 * off
+        ),
+        format!(
+            "{MEAN_BAR}, {P95_CELL_BAR}; ±{DEEP_BIAS_BAR}, {DEEP_ABS_BAR}; {}% (measured limits)",
+            100.0 * OFF_BAR
+        ),
     );
     assert!(
         mean <= MEAN_BAR && p95 <= P95_CELL_BAR,

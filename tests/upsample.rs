@@ -149,6 +149,11 @@ fn bilateral_filters_do_not_blend_across_a_depth_edge() {
         assert!(up.iter().all(|t| t[0..3].iter().all(|v| v.is_finite())));
         let pull = worst_pull(&truth, &up);
         println!("1/4 resolution + {name}: worst pull across the edge {pull:.4}");
+        common::metric::accuracy(
+            &format!("depth edge at ¼ resolution, {name}: worst pull across the edge"),
+            format!("{:.1}%", 100.0 * pull),
+            format!("{}%", 100.0 * MAX_PULL),
+        );
         assert!(pull <= MAX_PULL, "{name} pulls {pull:.4} across the edge");
     }
     // Plain bilinear blends across the edge: the same test fails for it.
@@ -165,6 +170,11 @@ fn bilateral_filters_do_not_blend_across_a_depth_edge() {
     );
     let pull = worst_pull(&truth, &up);
     println!("1/4 resolution + plain bilinear: worst pull across the edge {pull:.4}");
+    common::metric::accuracy(
+        "depth edge at ¼ resolution, plain bilinear (must fail)",
+        format!("{:.1}%", 100.0 * pull),
+        "> 5%",
+    );
     assert!(
         pull > 0.05,
         "plain bilinear should fail the edge test, pulled only {pull:.4}"

@@ -28,8 +28,7 @@
 //! f64 reference over σt·D ∈ {1e-4 … 100}, γ ∈ [1e-3, π − 1e-3], light in front of and behind
 //! the eye, isotropic, HG ±0.9 and Rayleigh phases: the largest relative error of an entry
 //! (heads above 1e-6 of their row's maximum; tails where the reference's own difference keeps
-//! 1e-9 of the row's total) is below 1e-3 (see the README for the figure measured on
-//! lavapipe).
+//! 1e-9 of the row's total) is below 1e-3 (the current figure is in `docs/ACCURACY.md`).
 //!
 //! # Output
 //!

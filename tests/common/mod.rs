@@ -2,6 +2,7 @@
 //! table → march → readback chain.
 #![allow(dead_code)]
 
+pub mod metric;
 pub mod scene;
 
 use glam::{DMat4, DVec3, DVec4, Vec3};
@@ -11,7 +12,10 @@ use volshadow::{Cache, Camera, HeadlessGpu, Light, Medium, PointLight};
 /// The test device. A missing adapter fails the test with the installation hint.
 pub fn gpu() -> HeadlessGpu {
     match HeadlessGpu::new() {
-        Ok(gpu) => gpu,
+        Ok(gpu) => {
+            metric::adapter(&gpu.adapter_summary());
+            gpu
+        }
         Err(e) => panic!("GPU tests need a wgpu adapter (lavapipe works): {e}"),
     }
 }
@@ -303,7 +307,10 @@ pub fn max_abs_rel(a: f64, b: f64) -> f64 {
 /// A device with timestamp queries when the adapter has them (lavapipe does).
 pub fn gpu_timed() -> HeadlessGpu {
     match HeadlessGpu::with_optional_features(wgpu::Features::TIMESTAMP_QUERY) {
-        Ok(gpu) => gpu,
+        Ok(gpu) => {
+            metric::adapter(&gpu.adapter_summary());
+            gpu
+        }
         Err(e) => panic!("GPU tests need a wgpu adapter (lavapipe works): {e}"),
     }
 }

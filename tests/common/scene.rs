@@ -136,6 +136,17 @@ pub struct Errors {
     pub worst: usize,
 }
 
+impl Errors {
+    /// The p95 and RMSE alone, for a metric line.
+    pub fn short(&self) -> String {
+        format!(
+            "p95 {:.3}%, RMSE {:.3}%",
+            100.0 * self.p95,
+            100.0 * self.rmse
+        )
+    }
+}
+
 impl std::fmt::Display for Errors {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(

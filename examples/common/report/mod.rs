@@ -60,6 +60,9 @@
 
 mod cache;
 mod measure;
+// The metric lines' format, shared with the tests and `examples/measurements`.
+#[path = "../../../tests/common/metric.rs"]
+pub mod metric;
 mod metrics;
 mod options;
 mod output;
@@ -475,6 +478,9 @@ pub fn report(options: &Options) -> Result<Report, BoxError> {
     }
     let files = write_outputs(options, &adapter, &date, clock, &rows, &checks)?;
     println!("\n{}", summary(&rows, &checks));
+    for line in output::metric_lines(options, &adapter, &rows, &checks) {
+        println!("{line}");
+    }
     ctx.progress(&format!("done; wrote {}", options.out.display()));
     Ok(Report {
         rows,

@@ -261,6 +261,130 @@ pub fn summary(rows: &[Row], checks: &[Check]) -> String {
     out
 }
 
+/// The run's figures as metric lines (`tests/common/metric.rs`) for `docs/PERFORMANCE.md`: per
+/// scene the analytic floor, the default configurations and the cheapest of each method at p95
+/// ≤ 2%; and the error-target checks.
+pub fn metric_lines(
+    options: &Options,
+    adapter: &str,
+    rows: &[Row],
+    checks: &[Check],
+) -> Vec<String> {
+    use super::metric::{line, Doc};
+    let source = format!(
+        "cargo run --release --example report -- {}",
+        regenerate(options)
+    );
+    let mut out = vec![line(Doc::Adapter, &source, adapter, "", "")];
+    let mut perf = |check: String, measured: String, bound: &str| {
+        out.push(line(Doc::Performance, &source, &check, measured, bound));
+    };
+    let ms_p95 = |r: &Row| format!("{:.1} ms, p95 {:.2}%", r.total_ms, 100.0 * r.errors.p95);
+    let mut scenes: Vec<&str> = Vec::new();
+    for r in rows {
+        if !scenes.contains(&r.scene.as_str()) {
+            scenes.push(&r.scene);
+        }
+    }
+    let size = options.size;
+    for scene in scenes {
+        let find = |curve: Curve| rows.iter().find(|r| r.scene == scene && r.curve == curve);
+        let floor = find(Curve::Analytic);
+        if let Some(f) = floor {
+            perf(
+                format!("{scene}, {size}²: the analytic floor (no shadows)"),
+                format!("{:.1} ms", f.total_ms),
+                "–",
+            );
+        }
+        for (curve, name) in [
+            (
+                Curve::Exact(1, Filter::None),
+                "exact, full resolution (a GPU's default)",
+            ),
+            (
+                Curve::Exact(2, Filter::Box3),
+                "exact, ½ + 3×3 (a CPU adapter's default)",
+            ),
+        ] {
+            if let Some(r) = find(curve) {
+                let ratio = floor.map_or(String::new(), |f| {
+                    format!(", {:.2}× the floor", r.total_ms / f.total_ms)
+                });
+                perf(
+                    format!("{scene}, {size}²: {name}"),
+                    format!("{}{ratio}", ms_p95(r)),
+                    "–",
+                );
+            }
+        }
+        for (label, is) in [
+            (
+                "textbook march",
+                (|r: &Row| r.curve == Curve::Textbook) as fn(&Row) -> bool,
+            ),
+            ("brute force", |r: &Row| r.curve == Curve::Brute),
+            ("hybrid", |r: &Row| matches!(r.curve, Curve::Hybrid(..))),
+            ("exact", |r: &Row| matches!(r.curve, Curve::Exact(..))),
+        ] {
+            let measured = match cheapest(rows, scene, 0.02, is) {
+                Some(r) if r.steps > 0 && !matches!(r.curve, Curve::Exact(..)) => {
+                    format!("{} ({} steps): {}", r.curve.name(), r.steps, ms_p95(r))
+                }
+                Some(r) => format!("{}: {}", r.curve.name(), ms_p95(r)),
+                None => "not reached".into(),
+            };
+            perf(
+                format!("{scene}, {size}²: the cheapest {label} at p95 ≤ 2%"),
+                measured,
+                "–",
+            );
+        }
+        for r in rows.iter().filter(|r| r.scene == scene) {
+            if let Some(hard) = r.hard {
+                perf(
+                    format!(
+                        "{scene}, {size}²: {}, soft against hard (light moving; light static)",
+                        r.curve.name()
+                    ),
+                    format!(
+                        "{:.1} / {:.1} ms: {:.2}×; {:.2}×",
+                        hard.soft_ms, hard.hard_ms, hard.moving, hard.fixed_light
+                    ),
+                    "–",
+                );
+            }
+        }
+    }
+    for check in checks {
+        let measured = if check.verdict() == Verdict::NotJudged {
+            format!(
+                "p95 {:.3}% (not judged at {}²)",
+                100.0 * check.p95,
+                check.size
+            )
+        } else {
+            format!("p95 {:.3}%", 100.0 * check.p95)
+        };
+        out.push(line(
+            Doc::Performance,
+            &source,
+            &format!(
+                "{}, {}²: Settings::for_error_target({}%) achieves",
+                check.scene,
+                check.size,
+                100.0 * check.tolerance
+            ),
+            measured,
+            format!(
+                "{}% (judged at {ERROR_TABLE_SIZE}²)",
+                100.0 * check.tolerance
+            ),
+        ));
+    }
+    out
+}
+
 /// The options that reproduce this run.
 fn regenerate(options: &Options) -> String {
     let scenes: Vec<String> = options
