@@ -36,6 +36,7 @@ struct Surfaces {
 @group(0) @binding(9) var surface_normal: texture_2d<f32>;
 @group(0) @binding(10) var surface_albedo: texture_2d<f32>;
 @group(0) @binding(11) var iss_table: texture_2d<f32>;
+@group(0) @binding(12) var<storage, read> surf_phase: VolshadowIssPhase;
 
 // Pipeline constant: surfaces (normals and albedo) are given. Without them the term's code is
 // left out of the pipeline, so frames without surfaces cost what they did before it existed.
@@ -55,11 +56,13 @@ fn surface_term(pixel: vec2<u32>, ray: PixelRay) -> vec3<f32> {
     var e = vec3<f32>(0.0);
     for (var i = 0u; i < min(surf.count, 4u); i++) {
         let l = surf.lights[i];
-        let rel = p - l.position;
-        if (l.spot != 0u && dot(l.direction, rel) < l.cos_half * length(rel)) {
-            continue;
+        if (l.spot != 0u) {
+            // Only the medium inside the cone scatters (a fixed quadrature; no table).
+            e += volshadow_iss_spot(surf_phase, p, n, l.position, l.direction, l.cos_half,
+                                    l.intensity, surf.sigma_s, comp.sigma_t);
+        } else {
+            e += volshadow_iss(iss_table, p, n, l.position, l.intensity, surf.sigma_s, comp.sigma_t);
         }
-        e += volshadow_iss(iss_table, p, n, l.position, l.intensity, surf.sigma_s, comp.sigma_t);
     }
     return clamp_radiance(kd * e);
 }

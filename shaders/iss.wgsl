@@ -71,3 +71,270 @@ fn volshadow_iss(table: texture_2d<f32>, p: vec3<f32>, n: vec3<f32>, light_pos: 
     let scale = vs_exp3(vs_log3(intensity) + vs_log3(sigma_s) - sigma_t * d) / max(d, 1.0e-30);
     return min(scale * g, vec3<f32>(VOLSHADOW_ISS_MAX));
 }
+
+// ---- Spot lights: the cone-limited term ----------------------------------------------------
+//
+// Only the medium inside a spot's cone scatters, so E(P) is the hemisphere integral of the
+// airlight of the part of each ray that lies inside the cone. Directions ω leaving P are taken
+// about l, the direction to the light: ω = cos γ·l + sin γ·(cos φ·e1 + sin φ·e2). The ray at
+// (γ, φ) lies in the half-plane through the line PL at angle φ, and the cone meets that
+// half-plane in a wedge of directions from the apex, β ∈ [β1(φ), β2(φ)], β measured from the
+// direction apex → P (a cone of rays from the apex meets a half-plane bounded by a line through
+// the apex in such a wedge, in closed form). A point of the ray seen from the apex at angle β
+// scatters at the angle 2ξ = γ + β, so the in-cone part of the ray is ξ ∈ [(γ + β1)/2,
+// min((γ + β2)/2, π/2)] and, in units of the point light's scale σs·I0·e^{−σt·D}/D,
+//
+//   G_cone = ∫dφ ∫dγ (ω·n)₊ · 2∫_{ξ range} p(cos 2ξ)·exp(−σt·D·sin γ·(tan ξ − tan(γ/2))) dξ
+//
+// (the point light's G has β1 = 0, β2 = π). Every limit is closed-form, so the integrand is
+// smooth on each piece: φ by the periodic trapezoid rule (16 nodes) when every half-plane meets
+// the cone (P inside it or behind the light), else by 8-point Gauss–Legendre over the arc of
+// half-planes that meet it (φ = φa + w·sin t, which smooths the square-root ends; two
+// halves of 8 points); γ by 4-point
+// Gauss–Legendre between the limits of ω·n > 0 and the wedge, split where the range of ξ
+// reaches π/2 and at the width of the glow towards the light (1/(σt·D), or a forward phase
+// peak's); ξ by 4-point Gauss–Legendre, split where the attenuation along the ray is steep.
+
+// The phase function's lobes (per-channel weights, each summing to 1 over the lobes, and the
+// Henyey–Greenstein g), as `volshadow::nodes::IssPhase` writes them.
+struct VolshadowIssPhase {
+    w_iso: vec4<f32>,
+    w_rayleigh: vec4<f32>,
+    w_hg: vec4<f32>,
+    w_hazy: vec4<f32>,
+    w_murky: vec4<f32>,
+    hg_g: f32,
+    pad0: f32,
+    pad1: f32,
+    pad2: f32,
+}
+
+const VOLSHADOW_ISS_PI: f32 = 3.14159265358979;
+const VOLSHADOW_ISS_HALF_PI: f32 = 1.5707963267948966;
+
+// 4-point Gauss–Legendre on [−1, 1] (nodes ±x, weights w) and 8-point (the positive half).
+const VOLSHADOW_ISS_GL4_X = array<f32, 2>(0.3399810435848563, 0.8611363115940526);
+const VOLSHADOW_ISS_GL4_W = array<f32, 2>(0.6521451548625461, 0.3478548451374538);
+const VOLSHADOW_ISS_GL8_X = array<f32, 4>(0.1834346424956498, 0.5255324099163290, 0.7966664774136267, 0.9602898564975363);
+const VOLSHADOW_ISS_GL8_W = array<f32, 4>(0.3626837833783620, 0.3137066458778873, 0.2223810344533745, 0.1012285362903763);
+
+// The phase function at scattering angle θ from 1 − cos θ and 1 + cos θ (no cancellation in
+// a forward peak), per channel.
+fn volshadow_iss_phase(ph: VolshadowIssPhase, one_minus: f32, one_plus: f32) -> vec3<f32> {
+    let inv4pi = 1.0 / (4.0 * VOLSHADOW_ISS_PI);
+    let mu = 0.5 * (one_plus - one_minus);
+    var p = ph.w_iso.xyz * inv4pi + ph.w_rayleigh.xyz * (3.0 / (16.0 * VOLSHADOW_ISS_PI)) * (1.0 + mu * mu);
+    if (any(ph.w_hg.xyz != vec3<f32>(0.0))) {
+        let g = ph.hg_g;
+        // 1 + g² − 2gμ as a sum of non-negative terms for either sign of g.
+        let denom = select((1.0 - g) * (1.0 - g) + 2.0 * g * one_minus,
+                           (1.0 + g) * (1.0 + g) - 2.0 * g * one_plus, g < 0.0);
+        p += ph.w_hg.xyz * (1.0 - g * g) * inv4pi / (denom * vs_sqrt(denom));
+    }
+    let h2 = 0.25 * one_plus * one_plus;
+    let h8 = h2 * h2 * h2 * h2;
+    p += ph.w_hazy.xyz * (1.0 + 9.0 * h8) / (8.0 * VOLSHADOW_ISS_PI);
+    let h32 = h8 * h8 * h8 * h8;
+    p += ph.w_murky.xyz * 33.0 * (1.0 + 50.0 * h32) / (332.0 * VOLSHADOW_ISS_PI);
+    return p;
+}
+
+// The angular width of the phase function's sharpest forward peak (1 where it has none).
+fn volshadow_iss_peak(ph: VolshadowIssPhase) -> f32 {
+    var w = 1.0;
+    if (any(ph.w_hg.xyz != vec3<f32>(0.0)) && ph.hg_g > 0.0) {
+        w = min(w, 1.0 - ph.hg_g);
+    }
+    if (any(ph.w_hazy.xyz != vec3<f32>(0.0))) {
+        w = min(w, 0.4);
+    }
+    if (any(ph.w_murky.xyz != vec3<f32>(0.0))) {
+        w = min(w, 0.2);
+    }
+    return max(w, 1.0e-3);
+}
+
+// cos and sin of x ∈ [−π/2, π/2] (relative precision of the sine near 0).
+fn volshadow_iss_cs(x: f32) -> vec2<f32> {
+    return vec2<f32>(vs_cos_poly(x), vs_sin_poly(x));
+}
+
+// 4-point Gauss–Legendre of the ξ integrand over s = ξ − γ/2 ∈ [a, b] (`rest` = (π − γ)/2).
+fn volshadow_iss_xi_piece(ph: VolshadowIssPhase, tau: vec3<f32>, sin_g: f32, half_c: f32,
+                          rest: f32, a: f32, b: f32) -> vec3<f32> {
+    let h = 0.5 * (b - a);
+    let m = 0.5 * (a + b);
+    var acc = vec3<f32>(0.0);
+    for (var k = 0u; k < 4u; k++) {
+        let x = select(-1.0, 1.0, k >= 2u) * VOLSHADOW_ISS_GL4_X[k % 2u];
+        let s = m + h * x;
+        // The complement π/2 − ξ = (π − γ)/2 − s keeps cos ξ's relative precision as ξ → π/2.
+        let comp = max(rest - s, 0.0);
+        let cos_xi = vs_sin_poly(comp);
+        let sin_xi = vs_cos_poly(comp);
+        // tan ξ − tan(γ/2) = sin(ξ − γ/2)/(cos ξ·cos(γ/2)).
+        let r = min(vs_sin_poly(s) / max(cos_xi * half_c, 1.0e-30), 1.0e30);
+        let p = volshadow_iss_phase(ph, 2.0 * sin_xi * sin_xi, 2.0 * cos_xi * cos_xi);
+        acc += VOLSHADOW_ISS_GL4_W[k % 2u] * p * vs_exp3(-tau * (sin_g * r));
+    }
+    return h * acc;
+}
+
+// 2∫ p(cos 2ξ)·exp(−τ·sin γ·(tan ξ − tan(γ/2))) dξ over ξ ∈ [γ/2 + lo/2, γ/2 + hi/2]
+// (`lo`, `hi` ≤ π − γ the wedge's β limits), per channel; `sin_g` = sin γ, `half_c` =
+// cos(γ/2). The exponent falls at the rate λ = τ·sin γ/cos²ξ at the start; where the range
+// spans more than one 1/λ it is split at 1/λ and 4/λ from the start (the decay resolved).
+fn volshadow_iss_xi(ph: VolshadowIssPhase, tau: vec3<f32>, gamma: f32, sin_g: f32, half_c: f32,
+                    lo: f32, hi: f32) -> vec3<f32> {
+    let a = 0.5 * lo;
+    let b = 0.5 * hi;
+    let rest = 0.5 * (VOLSHADOW_ISS_PI - gamma);
+    let cos0 = vs_sin_poly(max(rest - a, 0.0));
+    let rate = max(max(tau.x, tau.y), tau.z) * sin_g / max(cos0 * cos0, 1.0e-30);
+    let k1 = min(a + 1.0 / max(rate, 1.0e-30), b);
+    let k2 = min(a + 4.0 / max(rate, 1.0e-30), b);
+    var acc = volshadow_iss_xi_piece(ph, tau, sin_g, half_c, rest, a, k1);
+    if (k1 < b) {
+        acc += volshadow_iss_xi_piece(ph, tau, sin_g, half_c, rest, k1, k2);
+    }
+    if (k2 < b) {
+        acc += volshadow_iss_xi_piece(ph, tau, sin_g, half_c, rest, k2, b);
+    }
+    return 2.0 * acc;
+}
+
+// ∫ over γ ∈ [a, b] of (ω·n)₊ times the wedge [b1, b2]'s ξ integral, 4-point Gauss–Legendre;
+// ω·n = ca·cos γ + sc·sin γ.
+fn volshadow_iss_gamma(ph: VolshadowIssPhase, tau: vec3<f32>, a: f32, b: f32, ca: f32, sc: f32,
+                       b1: f32, b2: f32) -> vec3<f32> {
+    if (!(b > a)) {
+        return vec3<f32>(0.0);
+    }
+    let h = 0.5 * (b - a);
+    let m = 0.5 * (a + b);
+    var acc = vec3<f32>(0.0);
+    for (var k = 0u; k < 4u; k++) {
+        let x = select(-1.0, 1.0, k >= 2u) * VOLSHADOW_ISS_GL4_X[k % 2u];
+        let g = m + h * x;
+        let cg = vs_cos_sin_pi(g);
+        let cos_n = ca * cg.x + sc * cg.y;
+        // cos(γ/2), through the complement past π/2 (relative precision as γ → π).
+        let half_c = select(vs_cos_poly(0.5 * g), vs_sin_poly(0.5 * (VOLSHADOW_ISS_PI - g)), g > VOLSHADOW_ISS_HALF_PI);
+        let hi = min(b2, VOLSHADOW_ISS_PI - g);
+        if (cos_n > 0.0 && hi > b1) {
+            acc += VOLSHADOW_ISS_GL4_W[k % 2u] * cos_n
+                 * volshadow_iss_xi(ph, tau, g, cg.y, half_c, b1, hi);
+        }
+    }
+    return h * acc;
+}
+
+// The γ integral of one half-plane φ: `ae` = axis·e_φ, `cf` = cos φ.
+fn volshadow_iss_half_plane(ph: VolshadowIssPhase, tau: vec3<f32>, near0: f32, ca: f32, sa: f32,
+                            ap: f32, ae: f32, cf: f32, c: f32) -> vec3<f32> {
+    // The wedge: axis·u(β) = ap·cos β + ae·sin β = R·cos(β − β0) ≥ c.
+    let r2c2 = ap * ap + ae * ae - c * c;
+    if (!(r2c2 > 0.0)) {
+        return vec3<f32>(0.0);
+    }
+    let beta0 = vs_atan2_poly(ae, ap);
+    let delta = vs_atan2_poly(vs_sqrt(r2c2), c);
+    let b1 = max(beta0 - delta, 0.0);
+    let b2 = min(beta0 + delta, VOLSHADOW_ISS_PI);
+    if (!(b2 > b1)) {
+        return vec3<f32>(0.0);
+    }
+    // ω·n = ca·cos γ + sc·sin γ > 0 on (γn − π/2, γn + π/2), γn = atan2(sc, ca); beyond
+    // γ = π − b1 the ray misses the wedge.
+    let sc = sa * cf;
+    // (γn ∈ [−π, π]; below −π/2 the interval wraps round to (γn + 3π/2, π].)
+    let gn = vs_atan2_poly(sc, ca);
+    var lo = max(gn - VOLSHADOW_ISS_HALF_PI, 0.0);
+    var hi = min(gn + VOLSHADOW_ISS_HALF_PI, VOLSHADOW_ISS_PI);
+    if (gn < -VOLSHADOW_ISS_HALF_PI) {
+        lo = gn + 3.0 * VOLSHADOW_ISS_HALF_PI;
+        hi = VOLSHADOW_ISS_PI;
+    }
+    hi = min(hi, VOLSHADOW_ISS_PI - b1);
+    // Breakpoints: where ξ's range reaches π/2 (γ = π − b2) and the glow's width.
+    let k0 = clamp(min(near0, VOLSHADOW_ISS_PI - b2), lo, hi);
+    let k1 = clamp(max(near0, VOLSHADOW_ISS_PI - b2), lo, hi);
+    return volshadow_iss_gamma(ph, tau, lo, k0, ca, sc, b1, b2)
+         + volshadow_iss_gamma(ph, tau, k0, k1, ca, sc, b1, b2)
+         + volshadow_iss_gamma(ph, tau, k1, hi, ca, sc, b1, b2);
+}
+
+// The cone-limited G per channel (the spot's E(P) over the point light's scale), for the unit
+// direction `to_p` from the apex to P, a unit normal `nn`, the cone's unit axis and cos(half
+// apex angle) `c`, and τ = σt·D per channel.
+fn volshadow_iss_cone_g(ph: VolshadowIssPhase, tau: vec3<f32>, to_p: vec3<f32>, nn: vec3<f32>,
+                        axis: vec3<f32>, c: f32) -> vec3<f32> {
+    let l = -to_p;
+    let ca = clamp(dot(nn, l), -1.0, 1.0);
+    let perp = nn - l * ca;
+    let sa = length(perp);
+    // e1: n's part across l (any normal to l when n is along it).
+    var e1 = perp / max(sa, 1.0e-30);
+    if (!(sa > 1.0e-6)) {
+        let t = select(vec3<f32>(0.0, 1.0, 0.0), vec3<f32>(1.0, 0.0, 0.0), abs(l.x) < 0.9);
+        e1 = normalize(t - l * dot(t, l));
+    }
+    let e2 = cross(l, e1);
+    let ap = dot(axis, to_p);
+    let a1 = dot(axis, e1);
+    let a2 = dot(axis, e2);
+    let near0 = min(1.0 / max(max(tau.x, tau.y), max(tau.z, 1.0e-30)), volshadow_iss_peak(ph));
+    var acc = vec3<f32>(0.0);
+    if (abs(ap) >= c) {
+        // P inside the cone or behind the light: every half-plane meets the cone.
+        for (var j = 0u; j < 16u; j++) {
+            let f = (f32(j) + 0.5) * (VOLSHADOW_ISS_PI / 8.0);
+            let cs = vec2<f32>(cos(f), sin(f));
+            acc += volshadow_iss_half_plane(ph, tau, near0, ca, sa, ap, a1 * cs.x + a2 * cs.y, cs.x, c);
+        }
+        return acc * (VOLSHADOW_ISS_PI / 8.0);
+    }
+    // Outside: the half-planes with axis·e_φ > s, s = √(c² − ap²), an arc about φa.
+    let big_a = length(vec2<f32>(a1, a2));
+    let s = vs_sqrt(max((c - ap) * (c + ap), 0.0));
+    if (!(big_a > s)) {
+        return vec3<f32>(0.0);
+    }
+    let w = vs_atan2_poly(vs_sqrt(max((big_a - s) * (big_a + s), 0.0)), s);
+    let ca1 = a1 / big_a;
+    let sa1 = a2 / big_a;
+    // t ∈ [−π/2, π/2] in two halves of 8-point Gauss–Legendre.
+    for (var k = 0u; k < 16u; k++) {
+        let x = select(-1.0, 1.0, (k & 4u) != 0u) * VOLSHADOW_ISS_GL8_X[k % 4u];
+        let t = (x + select(-1.0, 1.0, k >= 8u)) * (0.5 * VOLSHADOW_ISS_HALF_PI);
+        let st = volshadow_iss_cs(t);
+        let psi = volshadow_iss_cs(w * st.y);  // φ − φa = w·sin t
+        let cf = ca1 * psi.x - sa1 * psi.y;      // cos φ
+        acc += VOLSHADOW_ISS_GL8_W[k % 4u] * w * st.x
+             * volshadow_iss_half_plane(ph, tau, near0, ca, sa, ap, big_a * psi.x, cf, c);
+    }
+    return acc * (0.5 * VOLSHADOW_ISS_HALF_PI);
+}
+
+// E(P) per RGB channel from a spot light: as `volshadow_iss`, but only the medium inside the
+// cone (apex `light_pos`, unit `axis`, `cos_half` the cosine of half the apex angle, in (0, 1])
+// scatters, with the phase function `phase` (`volshadow::nodes::IssPhase`). No table: the term
+// is a fixed quadrature over the hemisphere (see above), finite everywhere (1e30 at the apex).
+fn volshadow_iss_spot(phase: VolshadowIssPhase, p: vec3<f32>, n: vec3<f32>, light_pos: vec3<f32>,
+                      axis: vec3<f32>, cos_half: f32, intensity: vec3<f32>, sigma_s: vec3<f32>,
+                      sigma_t: vec3<f32>) -> vec3<f32> {
+    let from_light = p - light_pos;
+    let d = length(from_light);
+    let nl = length(n);
+    let al = length(axis);
+    if (!(nl > 0.0) || !(al > 0.0)) {
+        return vec3<f32>(0.0);
+    }
+    let scale = vs_exp3(vs_log3(intensity) + vs_log3(sigma_s) - sigma_t * d) / max(d, 1.0e-30);
+    if (!(d > 0.0)) {
+        return min(scale, vec3<f32>(VOLSHADOW_ISS_MAX));
+    }
+    let g = volshadow_iss_cone_g(phase, sigma_t * d, from_light / d, n / nl, axis / al,
+                                 clamp(cos_half, 0.0, 1.0));
+    return min(scale * g, vec3<f32>(VOLSHADOW_ISS_MAX));
+}

@@ -309,6 +309,14 @@ pub use wgpu;
 /// the precision wrappers it calls its built-ins through (at [`ShaderPrecision::Native`]: the
 /// built-ins themselves). See [`nodes::IssTableNode`] for the maths and the table's measured
 /// accuracy.
+///
+/// For a spot light, `volshadow_iss_spot(phase, p, n, light_pos, axis, cos_half, intensity,
+/// sigma_s, sigma_t) -> vec3<f32>` returns the same irradiance from the medium inside the cone
+/// only (apex `light_pos`, `axis` the cone's direction, `cos_half` the cosine of half its apex
+/// angle, [`SpotLight::cos_half_angle`]); `phase` is a `VolshadowIssPhase`, the bytes of
+/// [`nodes::IssPhase`] in a buffer. It reads no table: a fixed quadrature over the hemisphere
+/// (about 16 × 12 × 4 phase evaluations a point), within 2% of the f64 reference at the 95th
+/// percentile for σt·D ≤ 5 (`tests/iss_spot.rs`; the method is in `docs/METHOD.md`).
 pub const ISS_WGSL: &str = concat!(
     include_str!("../shaders/precision.wgsl"),
     include_str!("../shaders/iss.wgsl")

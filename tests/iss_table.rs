@@ -671,7 +671,8 @@ fn bad_surface_textures_are_typed_errors() {
 }
 
 /// The spot-light approximation of the surface term (a point inside the cone gets the point
-/// light's whole term, one outside none; what the composite does) against the term of the
+/// light's whole term, one outside none; what the composite did before `volshadow_iss_spot`)
+/// against the term of the
 /// cone alone, computed by brute force here: the midpoint rule over the sphere of directions
 /// about the direction to the light (γ = π·u² towards its integrable peak, 120 × 240 cells;
 /// `tests/reference_iss.rs` measures this rule within 3.3e-4 of the adaptive reference), with

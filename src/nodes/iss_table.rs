@@ -58,6 +58,35 @@ use crate::gpu::{texture_2d, Cache, GpuTimer, UniformBuffer};
 use crate::plan::Pass;
 use crate::scene::Medium;
 
+/// The phase function as [`ISS_WGSL`](crate::ISS_WGSL)'s `VolshadowIssPhase` reads it (the
+/// spot form `volshadow_iss_spot` takes it; the point form's table holds the phase already):
+/// 96 bytes, to upload as a storage or uniform buffer with [`IssPhase::as_bytes`].
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct IssPhase {
+    /// Per-channel (rgb, a unused) weights of the isotropic, Rayleigh, Henyey–Greenstein,
+    /// Mie hazy and Mie murky lobes, summing to 1 per channel.
+    pub weights: [[f32; 4]; 5],
+    /// The Henyey–Greenstein lobe's `g` (then three pads).
+    pub hg_g: [f32; 4],
+}
+
+impl IssPhase {
+    /// The phase function of `medium`.
+    pub fn new(medium: &Medium) -> Self {
+        let u = AirlightUniform::phase_only(medium, 0, 0);
+        Self {
+            weights: [u.w_iso, u.w_rayleigh, u.w_hg, u.w_hazy, u.w_murky],
+            hg_g: [u.hg_g, 0.0, 0.0, 0.0],
+        }
+    }
+
+    /// The bytes to upload.
+    pub fn as_bytes(&self) -> &[u8] {
+        bytemuck::bytes_of(self)
+    }
+}
+
 /// The range of optical distance `σt·D` the table covers; outside it the lookup clamps.
 pub const ISS_TAU_RANGE: [f32; 2] = [1e-4, 200.0];
 

@@ -31,7 +31,7 @@ pub use extents::{
     Crossings, CrossingsBuild, CrossingsRequest, Extents, ExtentsInputs, ExtentsNode, EXTENTS_NEAR,
     MAX_CROSSINGS_PER_PIXEL,
 };
-pub use iss_table::{IssTableNode, IssTableSize, ISS_TAU_RANGE};
+pub use iss_table::{IssPhase, IssTableNode, IssTableSize, ISS_TAU_RANGE};
 pub use light_texture::LightTextureNode;
 pub use march::{
     MarchInputs, MarchMethod, MarchNode, MarchSettings, MarchStats, Shadows, DEFAULT_CROSSINGS,

@@ -93,6 +93,7 @@ mod bvh;
 mod cone;
 mod directional;
 pub mod iss;
+mod iss_cone;
 mod occluder;
 mod phase;
 pub(crate) mod quadrature;
@@ -114,6 +115,7 @@ pub use iss::{
     iss_table_coords, iss_table_point, surface_inscatter, surface_inscatter_normalised,
     surface_inscatter_scale, ISS_TABLE_TAU,
 };
+pub use iss_cone::surface_inscatter_cone;
 pub use occluder::{Cuboid, Occluder, Sphere, TriangleMesh};
 pub use phase::phase;
 pub use soft::{inscatter_image_soft, inscatter_soft, visible_fraction};
