@@ -19,7 +19,9 @@
 //   1. `setup`, one invocation per face: the face's edge functions, plane, depth range and
 //      screen bounding box (16 × 16 pixel tiles), after clipping at the near plane.
 //   2. `count`, a workgroup per face (strided): its tiles' counters, a tile being skipped when
-//      one edge has all four of the tile's corner rays strictly outside.
+//      one edge has all four of the tile's corner rays strictly outside (for a perspective
+//      projection, an edge function is affine in pixel coordinates: one evaluation, at the
+//      corner its gradient points to).
 //   3. `scan`, one workgroup: each tile's offset into the bin array.
 //   4. `fill`, as `count`: each tile's list of faces.
 //   5. `crossings`, a workgroup per tile: every pixel tests its ray against the tile's faces,
@@ -48,6 +50,7 @@ struct Params {
     tiles: vec2<u32>,                 // tiles across and down
     bin_capacity: u32,                // entries of `bins`
     face_capacity: u32,               // faces `faces` holds
+    affine: u32,                      // 1: a ray's direction is affine in its pixel coordinates
 }
 
 // Mirrors `DrawArgs` in extents.wgsl: the volume's vertex count.
@@ -262,6 +265,32 @@ fn tile_touches(e0: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>, t: vec2<u32>) -> bo
     return true;
 }
 
+// An edge function as an affine function of pixel coordinates (valid when `bp.affine` is 1:
+// the inverse projection's w row has no x or y term, as for every perspective projection):
+// value at pixel (0, 0), change per pixel across and down, and the margin within which the
+// rounding of the two evaluations may disagree.
+fn edge_plane(e: vec3<f32>, d0: vec3<f32>, dx: vec3<f32>, dy: vec3<f32>) -> vec4<f32> {
+    let size = vec2<f32>(bp.size);
+    return vec4<f32>(dot(e, d0), dot(e, dx) / size.x, dot(e, dy) / size.y,
+                     1.0e-5 * length(e) * (length(d0) + length(dx) + length(dy)));
+}
+
+// Whether some point of tile `t` is not strictly outside any of the three edge planes: each is
+// affine, so its largest value over the tile is at the corner its gradient points to.
+fn tile_touches_affine(planes: array<vec4<f32>, 3>, t: vec2<u32>) -> bool {
+    let a = vec2<f32>(t * TILE);
+    let b = min(a + f32(TILE), vec2<f32>(bp.size));
+    for (var k = 0u; k < 3u; k++) {
+        let e = planes[k];
+        let x = select(a.x, b.x, e.y > 0.0);
+        let y = select(a.y, b.y, e.z > 0.0);
+        if (e.x + e.y * x + e.z * y < -e.w) {
+            return false;
+        }
+    }
+    return true;
+}
+
 fn unpack_tile(bits: f32) -> vec2<u32> {
     let u = bitcast<u32>(bits);
     return vec2<u32>(u & 0xffffu, u >> 16u);
@@ -272,6 +301,9 @@ fn unpack_tile(bits: f32) -> vec2<u32> {
 fn bin_faces(group: u32, local: u32, fill: bool) {
     let n = face_count();
     let tn = tile_count();
+    let d0 = ray_dir(vec2<f32>(0.0));
+    let dx = ray_dir(vec2<f32>(f32(bp.size.x), 0.0)) - d0;
+    let dy = ray_dir(vec2<f32>(0.0, f32(bp.size.y))) - d0;
     for (var f = group; f < n; f += GROUPS) {
         let f0 = faces[5u * f];
         if ((bitcast<u32>(f0.w) & VALID) == 0u) {
@@ -283,9 +315,18 @@ fn bin_faces(group: u32, local: u32, fill: bool) {
         let t1 = unpack_tile(f2.w);
         let w = t1.x - t0.x + 1u;
         let total = w * (t1.y - t0.y + 1u);
+        let planes = array<vec4<f32>, 3>(edge_plane(f0.xyz, d0, dx, dy),
+                                         edge_plane(f1.xyz, d0, dx, dy),
+                                         edge_plane(f2.xyz, d0, dx, dy));
         for (var i = local; i < total; i += 64u) {
             let t = t0 + vec2<u32>(i % w, i / w);
-            if (tile_touches(f0.xyz, f1.xyz, f2.xyz, t)) {
+            var touches: bool;
+            if (bp.affine == 1u) {
+                touches = tile_touches_affine(planes, t);
+            } else {
+                touches = tile_touches(f0.xyz, f1.xyz, f2.xyz, t);
+            }
+            if (touches) {
                 let ti = t.y * bp.tiles.x + t.x;
                 if (fill) {
                     let at = atomicLoad(&tiles[tn + ti]) + atomicAdd(&tiles[2u * tn + ti], 1u);

@@ -195,7 +195,8 @@ fn lists_of(
 /// face's edge or almost in a face's plane (lavapipe snaps vertices to 1/256 pixel): bound 0.5%
 /// of the pixels of a seed; measured at most 0.059% (3 of 5,120; lavapipe, 2026-11-26). Caught:
 /// front and back faces swapped (57.6% of a seed's pixels differ); the compute build's bind group
-/// left on the previous frame's depth texture (10.3%). Not caught here: the tie rule for a ray
+/// left on the previous frame's depth texture (10.3%); the tile test taking each edge's value at
+/// the corner opposite its gradient (53.1%). Not caught here: the tie rule for a ray
 /// exactly on an edge and the near plane (neither case occurs on these scenes).
 #[test]
 fn compute_and_raster_builds_write_the_same_lists() {

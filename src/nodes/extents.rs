@@ -242,6 +242,9 @@ struct BinUniform {
     tiles: [u32; 2],
     bin_capacity: u32,
     face_capacity: u32,
+    /// 1: ray directions are affine in pixel coordinates (see `shaders/crossings.wgsl`).
+    affine: u32,
+    _pad: [u32; 3],
 }
 
 #[repr(C)]
@@ -315,6 +318,15 @@ pub struct ExtentsInputs<'a> {
     pub size: (u32, u32),
     /// `Some`: per-pixel crossing lists for the exact march; `None`: the three depth textures.
     pub crossings: Option<CrossingsRequest<'a>>,
+}
+
+/// Whether a pixel's ray direction is an affine function of its coordinates: the inverse
+/// projection's w row has no x or y term (every perspective projection, off-centre and jittered
+/// ones included), so the binning tests a tile with one evaluation per edge.
+fn rays_are_affine(camera: &Camera) -> bool {
+    let w = camera.projection().inverse().row(3);
+    let scale = w.abs().max_element();
+    scale > 0.0 && w.x.abs() <= 1e-7 * scale && w.y.abs() <= 1e-7 * scale
 }
 
 /// Tiles across and down at a pass size.
@@ -894,6 +906,8 @@ impl ExtentsNode {
                         tiles: [b.tile_count.0, b.tile_count.1],
                         bin_capacity: (b.bins.size() / 4) as u32,
                         face_capacity: b.face_capacity,
+                        affine: u32::from(rays_are_affine(camera)),
+                        _pad: [0; 3],
                     },
                 );
                 let stale = b.bound.as_ref().is_none_or(|(_, v, h, d)| {
