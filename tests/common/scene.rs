@@ -52,6 +52,23 @@ impl MeshScene {
         out
     }
 
+    /// The caller's depth buffer for `camera` at `width` × `height`: the first visible mesh or
+    /// the ground, ray-cast (the far depth where a ray meets neither).
+    pub fn depths(&self, camera: &Camera, width: u32, height: u32) -> Vec<f32> {
+        let tris = self.visible_triangles();
+        (0..width * height)
+            .map(|i| {
+                let (o, d) = super::pixel_ray(camera, width, height, i % width, i / width);
+                let ds = first_hit(&tris, self.ground, near_plane(camera), o, d);
+                if ds.is_finite() {
+                    super::ndc_depth(camera, o + ds * d)
+                } else {
+                    camera.far_depth()
+                }
+            })
+            .collect()
+    }
+
     pub fn reference_occluders(&self) -> Vec<reference::Occluder> {
         self.occluders
             .iter()
