@@ -23,7 +23,7 @@ mod rng;
 use rng::Rng;
 use common::scene::{Errors, MeshScene, SceneMesh, Shot};
 use glam::{DVec3, Mat4, Vec3};
-use volshadow::nodes::MarchSettings;
+use volshadow::nodes::{MarchMethod, MarchSettings};
 use volshadow::scene::{shapes, Mesh};
 use volshadow::{Cache, Camera, DirectionalLight, HeadlessGpu, Light, Medium, PhaseFunction};
 
@@ -34,6 +34,9 @@ const EXACT_RMSE: f64 = 0.005;
 /// The share of the small occluders' shadow (the reference's darkening) the GPU image must
 /// keep. An image within the p95 bound keeps nearly all of it; the failure kept 0%.
 const KEPT: f64 = 0.9;
+/// The methods that take shadow edges from the map (hybrid at its defaults, brute force): the
+/// exact method's tests' RMSE bound for the hybrid (tests/exact.rs, 2%).
+const MARCHED_RMSE: f64 = 0.02;
 
 fn look_at(eye: Vec3, target: Vec3, fov_y_deg: f32, near: f32, far: f32) -> Camera {
     Camera::new(
@@ -61,18 +64,19 @@ fn occluder(mesh: Mesh, visible: bool) -> SceneMesh {
     }
 }
 
-/// What one scene measured.
+/// What one method measured on one scene.
 struct Outcome {
-    exact: Errors,
+    errors: Errors,
     /// The small occluders ignored: the reference without them against the reference.
     ignored: Errors,
-    /// The share of the small occluders' shadow the exact image keeps.
+    /// The share of the small occluders' shadow the image keeps.
     kept: f64,
 }
 
-/// Renders `scene` (exact method, defaults) and measures it against the reference, and the
-/// share of the shadow of `scene.occluders[..small]` it keeps (against the same scene without
-/// them).
+/// Renders `scene` with each of `methods` (defaults otherwise) and measures each against the
+/// reference, and the share of the shadow of `scene.occluders[..small]` it keeps (against the
+/// same scene without them).
+#[allow(clippy::too_many_arguments)]
 fn measure(
     gpu: &HeadlessGpu,
     cache: &Cache,
@@ -81,18 +85,39 @@ fn measure(
     camera: &Camera,
     light: &Light,
     medium: &Medium,
-) -> Outcome {
+    methods: &[MarchMethod],
+) -> Vec<Outcome> {
     let shot = Shot::new(scene, camera, light, medium, SIZE);
     let reference = shot.reference();
-    let m = shot.measure(gpu, cache, MarchSettings::default(), &reference);
-    let mut open_scene = scene.clone();
-    // Without the small occluders, seen or not: the camera sees what lies behind them.
-    open_scene.occluders.drain(..small);
-    let open_ref = Shot::new(&open_scene, camera, light, medium, SIZE).reference();
-    // The darkening the small occluders cause, over pixels where the open scene is seen through
-    // the same surfaces (not where they hide it).
-    let (mut gpu_dark, mut ref_dark) = (0.0, 0.0);
-    for ((g, r), o) in m.frame.inscatter.iter().zip(&reference).zip(&open_ref) {
+    // The same surfaces seen, without the small occluders' shadows.
+    let open_ref = shot.reference_casting(&scene.reference_occluders()[small..]);
+    let open_as_image: Vec<[f32; 4]> = open_ref
+        .iter()
+        .map(|v: &DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0])
+        .collect();
+    let ignored = common::scene::errors(&open_as_image, &reference, camera, light, (SIZE, SIZE));
+    methods
+        .iter()
+        .map(|&method| {
+            let settings = MarchSettings {
+                method,
+                ..MarchSettings::default()
+            };
+            let m = shot.measure(gpu, cache, settings, &reference);
+            Outcome {
+                errors: m.errors,
+                ignored,
+                kept: kept(&m.frame.inscatter, &reference, &open_ref),
+            }
+        })
+        .collect()
+}
+
+/// The share of the darkening `reference` shows against `open` (the scene without some
+/// occluders) that `image` shows too, over pixels the reference darkens.
+fn kept(image: &[[f32; 4]], reference: &[DVec3], open: &[DVec3]) -> f64 {
+    let (mut image_dark, mut ref_dark) = (0.0, 0.0);
+    for ((g, r), o) in image.iter().zip(reference).zip(open) {
         let (g, r, o) = (
             f64::from(g[0] + g[1] + g[2]),
             r.x + r.y + r.z,
@@ -100,41 +125,35 @@ fn measure(
         );
         if r < o {
             ref_dark += o - r;
-            gpu_dark += o - g;
+            image_dark += o - g;
         }
     }
-    let open_as_image: Vec<[f32; 4]> = open_ref
-        .iter()
-        .map(|v: &DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0])
-        .collect();
-    let ignored = common::scene::errors(&open_as_image, &reference, camera, light, (SIZE, SIZE));
-    Outcome {
-        exact: m.errors,
-        ignored,
-        kept: if ref_dark > 0.0 {
-            gpu_dark / ref_dark
-        } else {
-            1.0
-        },
+    if ref_dark > 0.0 {
+        image_dark / ref_dark
+    } else {
+        1.0
     }
 }
 
-/// A ball of radius 0.5 centred 2 above the ground y = 0 (which the camera sees and which
-/// casts no shadow), the sun overhead, and `far` (invisible) far below the ground.
+/// A ball of radius 0.5 centred 2 above the ground (a 200 × 0.2 × 200 slab with its top at
+/// y = 0, seen by the camera and casting shadows as any occluder), the sun overhead, and `far`
+/// (invisible) far below the ground.
 fn ball_over(far: Mesh) -> (MeshScene, Camera, Light) {
+    let ground = shapes::cuboid(Vec3::new(0.0, -0.1, 0.0), Vec3::new(100.0, 0.1, 100.0)).unwrap();
     let scene = MeshScene {
-        ground: Some(0.0),
+        ground: None,
         occluders: vec![
             occluder(
                 shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.5, 48, 24).unwrap(),
                 true,
             ),
+            occluder(ground, true),
             occluder(far, false),
         ],
     };
     let camera = look_at(
-        Vec3::new(0.0, 2.5, 7.0),
-        Vec3::new(0.0, 1.2, 0.0),
+        Vec3::new(0.0, 1.2, 5.0),
+        Vec3::new(0.0, 1.0, 0.0),
         60.0,
         0.1,
         1.0e4,
@@ -145,7 +164,8 @@ fn ball_over(far: Mesh) -> (MeshScene, Camera, Light) {
 
 /// The cases: far below the ground, an invisible occluder that cannot shadow anything
 /// in view made the whole map's depth range (and with it its bias) kilometres long, and the
-/// ball's shadow vanished (on main: p95 4%, max 13%, 0% of the shadow kept).
+/// ball's shadow vanished. Haze of optical depth 0.13 per unit, so the ball's 1-unit shaft
+/// darkens the rays through it markedly.
 #[test]
 fn far_occluders_keep_a_small_shadow() {
     let gpu = common::gpu();
@@ -163,21 +183,28 @@ fn far_occluders_keep_a_small_shadow() {
     let mut failures = Vec::new();
     for (name, far) in cases {
         let (scene, camera, light) = ball_over(far);
-        let o = measure(&gpu, &cache, &scene, 1, &camera, &light, &haze(10.0));
-        eprintln!(
-            "{name}: exact {}; shadow kept {:.1}%; ball ignored {}",
-            o.exact,
-            100.0 * o.kept,
-            o.ignored
-        );
-        assert!(
-            o.ignored.p95 > EXACT_P95 || o.ignored.rmse > EXACT_RMSE,
-            "{name}: the ball's shadow is not in view: {}",
-            o.ignored
-        );
-        assert_eq!(o.exact.non_finite, 0, "{name}");
-        if !(o.exact.p95 <= EXACT_P95 && o.exact.rmse <= EXACT_RMSE && o.kept >= KEPT) {
-            failures.push(format!("{name}: {} kept {:.3}", o.exact, o.kept));
+        let methods = [MarchMethod::Exact, MarchMethod::Hybrid, MarchMethod::BruteForce];
+        let outcomes = measure(&gpu, &cache, &scene, 1, &camera, &light, &haze(1.0), &methods);
+        for (method, o) in methods.iter().zip(&outcomes) {
+            let line = format!(
+                "{name}, {method:?}: {}; shadow kept {:.1}%; ball ignored {}",
+                o.errors,
+                100.0 * o.kept,
+                o.ignored
+            );
+            eprintln!("{line}");
+            assert!(
+                o.ignored.p95 > EXACT_P95 || o.ignored.rmse > EXACT_RMSE,
+                "the ball's shadow is not in view: {line}"
+            );
+            assert_eq!(o.errors.non_finite, 0, "{line}");
+            let within = match method {
+                MarchMethod::Exact => o.errors.p95 <= EXACT_P95 && o.errors.rmse <= EXACT_RMSE,
+                _ => o.errors.rmse <= MARCHED_RMSE,
+            };
+            if !(within && o.kept >= KEPT) {
+                failures.push(line);
+            }
         }
     }
     assert!(failures.is_empty(), "{failures:#?}");
@@ -257,19 +284,29 @@ fn small_occluders_over_terrain_at_every_scale() {
             1.0e4 * unit,
         );
         let light = Light::from(sun);
-        let o = measure(&gpu, &cache, &scene, 3, &camera, &light, &haze(unit));
+        let o = measure(
+            &gpu,
+            &cache,
+            &scene,
+            3,
+            &camera,
+            &light,
+            &haze(unit),
+            &[MarchMethod::Exact],
+        )
+        .remove(0);
         let line = format!(
             "seed {seed}: unit {unit:.3e}, sun {elevation:.1}° up, deep slab {deep}: exact {}; shadow kept {:.1}%; small occluders ignored {}",
-            o.exact,
+            o.errors,
             100.0 * o.kept,
             o.ignored
         );
         eprintln!("{line}");
-        assert_eq!(o.exact.non_finite, 0, "{line}");
+        assert_eq!(o.errors.non_finite, 0, "{line}");
         if o.ignored.p95 <= EXACT_P95 && o.ignored.rmse <= EXACT_RMSE {
             failures.push(format!("the small shadows are not in view: {line}"));
         }
-        if !(o.exact.p95 <= EXACT_P95 && o.exact.rmse <= EXACT_RMSE && o.kept >= KEPT) {
+        if !(o.errors.p95 <= EXACT_P95 && o.errors.rmse <= EXACT_RMSE && o.kept >= KEPT) {
             failures.push(line);
         }
     }
@@ -280,8 +317,8 @@ fn small_occluders_over_terrain_at_every_scale() {
     );
 }
 
-/// A field over 2 km (60 houses of 4 to 12 m scattered over 2 × 2 km, eight of them within
-/// 60 m of the camera) under a low sun, through the facade at the CPU adapter's defaults
+/// A field over 2 km (60 houses of 4 to 12 m scattered over 2 × 2 km, twenty of them within
+/// 80 m in front of the camera) under a low sun, through the facade at the CPU adapter's defaults
 /// (`Settings::for_adapter(AdapterKind::Cpu)`: exact at ½ resolution, 3×3 upsampling), against
 /// the reference. Bound: the reduced-resolution tests' RMSE ≤ 3% of the mean
 /// (tests/directional.rs, the facade case); the houses' shadows must be kept as above.
@@ -294,9 +331,9 @@ fn field_over_two_kilometres_at_the_defaults() {
     let mut rng = Rng::new(0x5eed_f1e1d);
     let mut occluders = Vec::new();
     for k in 0..60 {
-        // The first eight in front of the camera (which looks along −z), the rest anywhere.
-        let (x, z) = if k < 8 {
-            (rng.range(-30.0, 30.0), rng.range(-60.0, -10.0))
+        // The first twenty in front of the camera (which looks along −z), the rest anywhere.
+        let (x, z) = if k < 20 {
+            (rng.range(-40.0, 40.0), rng.range(-80.0, -5.0))
         } else {
             (rng.range(-1000.0, 1000.0), rng.range(-1000.0, 1000.0))
         };
@@ -319,15 +356,12 @@ fn field_over_two_kilometres_at_the_defaults() {
         0.1,
         1.0e4,
     );
-    let sun = DirectionalLight::new(Vec3::new(0.5, -0.45, -0.6), Vec3::new(3.0, 2.8, 2.5)).unwrap();
+    // Low, shining towards the camera: the shafts between the houses scatter forwards into view.
+    let sun = DirectionalLight::new(Vec3::new(0.3, -0.35, 1.0), Vec3::new(3.0, 2.8, 2.5)).unwrap();
     let light = Light::from(sun);
-    let medium = haze(200.0);
+    let medium = haze(3.0);
     let reference = Shot::new(&scene, &camera, &light, &medium, SIZE).reference();
-    let open = MeshScene {
-        occluders: Vec::new(),
-        ..scene.clone()
-    };
-    let open_ref = Shot::new(&open, &camera, &light, &medium, SIZE).reference();
+    let open_ref = Shot::new(&scene, &camera, &light, &medium, SIZE).reference_casting(&[]);
 
     let depth = common::depth_texture(&gpu, SIZE, SIZE, &scene.depths(&camera, SIZE, SIZE));
     let tex = |format, usage| common::texture(&gpu, format, usage, (SIZE, SIZE, 1), 1);
@@ -361,42 +395,45 @@ fn field_over_two_kilometres_at_the_defaults() {
         scene_depth: &depth,
         surfaces: None,
     };
-    let settings = Settings::for_adapter(volshadow::AdapterKind::Cpu);
-    let mut vs = VolumetricShadows::new(&gpu.device, &gpu.queue, &cache, settings).unwrap();
-    let plan = vs.prepare(&gpu.device, &gpu.queue, &frame).unwrap().clone();
-    eprintln!("{plan}");
-    let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    vs.encode(&mut encoder, &output).unwrap();
-    gpu.submit_and_wait(encoder).unwrap();
-    let image = gpu.read_rgba32f(vs.inscatter(0).unwrap()).unwrap();
-    let errors = common::scene::errors(&image, &reference, &camera, &light, (SIZE, SIZE));
     let open_image: Vec<[f32; 4]> = open_ref
         .iter()
         .map(|v| [v.x as f32, v.y as f32, v.z as f32, 0.0])
         .collect();
     let ignored = common::scene::errors(&open_image, &reference, &camera, &light, (SIZE, SIZE));
-    let (mut gpu_dark, mut ref_dark) = (0.0, 0.0);
-    for ((g, r), o) in image.iter().zip(&reference).zip(&open_ref) {
-        let (g, r, o) = (
-            f64::from(g[0] + g[1] + g[2]),
-            r.x + r.y + r.z,
-            o.x + o.y + o.z,
-        );
-        if r < o {
-            ref_dark += o - r;
-            gpu_dark += o - g;
-        }
-    }
-    let kept = gpu_dark / ref_dark.max(f64::MIN_POSITIVE);
-    eprintln!(
-        "field over 2 km, CPU defaults: {errors}; shadows kept {:.1}%; shadows ignored {ignored}",
-        100.0 * kept
-    );
-    assert_eq!(errors.non_finite, 0);
+    eprintln!("field over 2 km, shadows ignored: {ignored}");
     assert!(
         ignored.rmse > REDUCED_RMSE,
         "the shadows are not in view: {ignored}"
     );
-    assert!(errors.rmse <= REDUCED_RMSE, "{errors}");
-    assert!(kept >= KEPT, "shadows kept {kept}");
+    for (name, settings) in [
+        (
+            "CPU adapter's defaults",
+            Settings::for_adapter(volshadow::AdapterKind::Cpu),
+        ),
+        ("predictable (exact, full resolution)", Settings::PREDICTABLE),
+    ] {
+        let mut vs = VolumetricShadows::new(&gpu.device, &gpu.queue, &cache, settings).unwrap();
+        let plan = vs.prepare(&gpu.device, &gpu.queue, &frame).unwrap().clone();
+        eprintln!("{plan}");
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        vs.encode(&mut encoder, &output).unwrap();
+        gpu.submit_and_wait(encoder).unwrap();
+        let image = gpu.read_rgba32f(vs.inscatter(0).unwrap()).unwrap();
+        let errors = common::scene::errors(&image, &reference, &camera, &light, (SIZE, SIZE));
+        let kept = kept(&image, &reference, &open_ref);
+        eprintln!(
+            "field over 2 km, {name}: {errors}; shadows kept {:.1}%",
+            100.0 * kept
+        );
+        assert_eq!(errors.non_finite, 0);
+        if settings.march.scale == volshadow::nodes::Scale::Full {
+            assert!(
+                errors.p95 <= EXACT_P95 && errors.rmse <= EXACT_RMSE,
+                "{name}: {errors}"
+            );
+        } else {
+            assert!(errors.rmse <= REDUCED_RMSE, "{name}: {errors}");
+        }
+        assert!(kept >= KEPT, "{name}: shadows kept {kept}");
+    }
 }

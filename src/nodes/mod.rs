@@ -37,7 +37,7 @@ pub use march::{
     MarchInputs, MarchMethod, MarchNode, MarchSettings, MarchStats, Shadows, DEFAULT_CROSSINGS,
 };
 pub use shadow_map::{
-    ShadowMap, ShadowMapInputs, ShadowMapNode, ShadowMapSettings, ShadowParams, CASCADE_SPLIT_LOG,
+    ShadowMap, ShadowMapInputs, ShadowMapNode, ShadowMapSettings, ShadowParams, CASCADE_RANGE,
     DIRECTIONAL_BIAS_TEXELS,
 };
 pub use soft_shadow::{SoftShadow, SoftShadowInputs, SoftShadowNode, SoftShadowSize};

@@ -385,8 +385,9 @@ const SLOT: u64 = 256;
 /// kilometres.
 pub const DIRECTIONAL_BIAS_TEXELS: f32 = 2.0;
 
-/// The logarithmic share of [`ShadowMapNode::cascade_splits`] (Zhang et al. 2006's λ).
-pub const CASCADE_SPLIT_LOG: f32 = 0.9;
+/// The widest ratio of a directional light's shadow distance to the start of its logarithmic
+/// cascade splits ([`ShadowMapNode::cascade_splits`]).
+pub const CASCADE_RANGE: f32 = 1000.0;
 
 /// One cascade's square in the light's frame: centre (`cx`, `cy`, snapped to texels; `ct`
 /// along the direction), half width `radius`.
@@ -583,10 +584,12 @@ impl ShadowMapNode {
     }
 
     /// The view depths bounding a directional light's cascades: `cascades + 1` increasing
-    /// values from 0 (the eye) to `distance`. Split `i` of `n` is the practical split scheme
-    /// of Zhang et al. 2006 (a mix, [`CASCADE_SPLIT_LOG`] logarithmic, of the logarithmic and
-    /// the uniform split between the camera's near plane and `distance`): a cascade's texels
-    /// grow with its distance from the eye, as the pixels they are seen through do.
+    /// values from 0 (the eye) to `distance`. The splits are logarithmic (Zhang et al. 2006:
+    /// the split that spreads perspective aliasing evenly), `n · (distance / n)^(i / cascades)`
+    /// from `n` the camera's near plane or `distance / CASCADE_RANGE`, whichever is farther: a
+    /// cascade's texels grow with its distance from the eye, as the pixels they are seen
+    /// through do, and a near plane far closer than the distance does not leave the first
+    /// cascades covering nothing.
     pub fn cascade_splits(camera: &Camera, distance: f32, cascades: u32) -> Vec<f32> {
         let n = cascades.max(1);
         let distance = if distance.is_finite() && distance > 0.0 {
@@ -594,22 +597,20 @@ impl ShadowMapNode {
         } else {
             1.0
         };
-        // The near plane's view depth, kept within [1e-4, 1] of the distance (an infinite
-        // or reversed projection's near plane unprojects like any other).
+        // The near plane's view depth (an infinite or reversed projection's near plane
+        // unprojects like any other).
         let near_ndc = if camera.far_depth() == 1.0 { 0.0 } else { 1.0 };
         let p = camera.projection().inverse() * Vec4::new(0.0, 0.0, near_ndc, 1.0);
         let near = (-p.z / p.w).abs();
+        let floor = distance / CASCADE_RANGE;
         let near = if near.is_finite() {
-            near.clamp(1e-4 * distance, distance)
+            near.clamp(floor, distance)
         } else {
-            1e-4 * distance
+            floor
         };
         let mut splits = vec![0.0];
         for i in 1..n {
-            let f = i as f32 / n as f32;
-            let log = near * (distance / near).powf(f);
-            let uniform = near + (distance - near) * f;
-            let split = CASCADE_SPLIT_LOG * log + (1.0 - CASCADE_SPLIT_LOG) * uniform;
+            let split = near * (distance / near).powf(i as f32 / n as f32);
             splits.push(split.clamp(*splits.last().unwrap_or(&0.0), distance));
         }
         splits.push(distance);

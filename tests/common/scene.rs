@@ -320,6 +320,25 @@ impl<'a> Shot<'a> {
         }
     }
 
+    /// The reference image with `occluders` casting shadows in place of the scene's, and the
+    /// scene's surfaces still seen (where the camera's rays end).
+    pub fn reference_casting(&self, occluders: &[reference::Occluder]) -> Vec<DVec3> {
+        let tris = self.scene.visible_triangles();
+        let ground = self.scene.ground;
+        let (w, h) = self.size;
+        let near = near_plane(self.camera);
+        let distance = |o: DVec3, d: DVec3| first_hit(&tris, ground, near, o, d);
+        reference::inscatter_image(
+            self.camera,
+            w,
+            h,
+            distance,
+            self.medium,
+            self.light,
+            occluders,
+        )
+    }
+
     /// The GPU image with `settings`, measured against `reference`.
     pub fn measure(
         &self,
