@@ -20,9 +20,9 @@ mod common;
 #[path = "common/rng.rs"]
 mod rng;
 
-use rng::Rng;
 use common::scene::{Errors, MeshScene, SceneMesh, Shot};
 use glam::{DVec3, Mat4, Vec3};
+use rng::Rng;
 use volshadow::nodes::{MarchMethod, MarchSettings};
 use volshadow::scene::{shapes, Mesh};
 use volshadow::{Cache, Camera, DirectionalLight, HeadlessGpu, Light, Medium, PhaseFunction};
@@ -183,8 +183,21 @@ fn far_occluders_keep_a_small_shadow() {
     let mut failures = Vec::new();
     for (name, far) in cases {
         let (scene, camera, light) = ball_over(far);
-        let methods = [MarchMethod::Exact, MarchMethod::Hybrid, MarchMethod::BruteForce];
-        let outcomes = measure(&gpu, &cache, &scene, 1, &camera, &light, &haze(1.0), &methods);
+        let methods = [
+            MarchMethod::Exact,
+            MarchMethod::Hybrid,
+            MarchMethod::BruteForce,
+        ];
+        let outcomes = measure(
+            &gpu,
+            &cache,
+            &scene,
+            1,
+            &camera,
+            &light,
+            &haze(1.0),
+            &methods,
+        );
         for (method, o) in methods.iter().zip(&outcomes) {
             let line = format!(
                 "{name}, {method:?}: {}; shadow kept {:.1}%; ball ignored {}",
@@ -410,7 +423,10 @@ fn field_over_two_kilometres_at_the_defaults() {
             "CPU adapter's defaults",
             Settings::for_adapter(volshadow::AdapterKind::Cpu),
         ),
-        ("predictable (exact, full resolution)", Settings::PREDICTABLE),
+        (
+            "predictable (exact, full resolution)",
+            Settings::PREDICTABLE,
+        ),
     ] {
         let mut vs = VolumetricShadows::new(&gpu.device, &gpu.queue, &cache, settings).unwrap();
         let plan = vs.prepare(&gpu.device, &gpu.queue, &frame).unwrap().clone();

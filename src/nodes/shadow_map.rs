@@ -810,7 +810,10 @@ impl ShadowMapNode {
         };
         let mut key = match (light.position(), &directional) {
             (Some(p), _) => bits(&p.to_array()),
-            (None, Some((faces, _))) => faces.iter().flat_map(|f| bits(&f.to_cols_array())).collect(),
+            (None, Some((faces, _))) => faces
+                .iter()
+                .flat_map(|f| bits(&f.to_cols_array()))
+                .collect(),
             (None, None) => Vec::new(),
         };
         if let Light::Spot(s) = light {
@@ -958,13 +961,14 @@ impl ShadowMapNode {
                 light_frame_bounds(lo, hi, right, up, d)
             })
             .collect();
-        let distance = light.shadow_distance().unwrap_or(
-            if farthest > 0.0 && farthest.is_finite() {
-                farthest
-            } else {
-                1.0
-            },
-        );
+        let distance =
+            light
+                .shadow_distance()
+                .unwrap_or(if farthest > 0.0 && farthest.is_finite() {
+                    farthest
+                } else {
+                    1.0
+                });
         let splits = Self::cascade_splits(camera, distance, light.cascades());
         let resolution = self.settings.resolution;
         let mut faces = Vec::new();
@@ -1144,7 +1148,8 @@ pub(crate) mod tests {
         for case in 0..60 {
             let scale = [1.0e-2_f32, 1.0, 1.0e3, 1.0e5][case % 4];
             let eye = Vec3::new(next(), next(), next()) * scale;
-            let target = eye + Vec3::new(next(), next() * 0.5, next()).normalize_or(Vec3::X) * scale;
+            let target =
+                eye + Vec3::new(next(), next() * 0.5, next()).normalize_or(Vec3::X) * scale;
             let fov = 0.4 + 1.2 * next().abs();
             let camera = Camera::new(
                 glam::camera::rh::view::look_at_mat4(eye, target, Vec3::Y),
@@ -1176,12 +1181,12 @@ pub(crate) mod tests {
                         c.x.abs() <= edge + tol && c.y.abs() <= edge + tol,
                         "case {case}, cascade {k}: {p} at {c}"
                     );
-                    assert!(c.z >= -tol && c.z <= 1.0 + tol, "case {case}, cascade {k}: depth {}", c.z);
-                    let q = Vec3::new(
-                        p.dot(fit.right) - fit.cx,
-                        p.dot(fit.up) - fit.cy,
-                        0.0,
+                    assert!(
+                        c.z >= -tol && c.z <= 1.0 + tol,
+                        "case {case}, cascade {k}: depth {}",
+                        c.z
                     );
+                    let q = Vec3::new(p.dot(fit.right) - fit.cx, p.dot(fit.up) - fit.cy, 0.0);
                     if q.x.abs().max(q.y.abs()) > unwidened * edge {
                         unwidened_missed += 1;
                     }

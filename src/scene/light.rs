@@ -270,10 +270,7 @@ impl DirectionalLight {
         if !(1..=Self::MAX_CASCADES).contains(&cascades) {
             return Err(Error::InvalidSetting {
                 field: "directional_light.cascades",
-                problem: format!(
-                    "must be 1 to {}, got {cascades}",
-                    Self::MAX_CASCADES
-                ),
+                problem: format!("must be 1 to {}, got {cascades}", Self::MAX_CASCADES),
             });
         }
         Ok(Self { cascades, ..self })
