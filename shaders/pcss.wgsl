@@ -39,12 +39,46 @@ struct MapPoint {
 }
 
 fn map_point(p: vec3<f32>) -> MapPoint {
+    if (DIRECTIONAL) {
+        return cascade_point(p);
+    }
     let face = shadow_face(p);
     let near = pcss_cube_near();
     if (!SPOT && !DIRECTIONAL && near > 0.0) {
         return map_point_of_clip(face, cube_clip(face, p - pcss_light(), near));
     }
     return map_point_of_clip(face, mp.faces[face] * vec4<f32>(p, 1.0));
+}
+
+// A directional light's cascades (one orthographic layer each, nearest the eye first): the
+// first layer whose square holds `p` within a texel of its edge (the 2×2 filter reads a
+// neighbour) and whose far plane (ndc z = 0) it is not beyond. In no square: outside (lit). In
+// squares but beyond each one's far plane (beyond the shadow distance): the last such layer,
+// at its far plane (shadowed where it holds an occluder; anything farther along the light
+// than its region was left out of it). The depth carries the bias: DIRECTIONAL_BIAS_TEXELS of
+// the layer's texels in world units (1 / row 0's length is the square's half width; row 2's
+// length is depth per world unit), so it means the same at any range and scale.
+const DIRECTIONAL_BIAS_TEXELS: f32 = 2.0;
+
+fn cascade_point(p: vec3<f32>) -> MapPoint {
+    let layers = textureNumLayers(shadow_map);
+    let size = f32(textureDimensions(shadow_map).x);
+    let edge = 1.0 - 2.0 / size;
+    var found = MapPoint(0u, vec2<f32>(0.0), 0.0, false);
+    for (var k = 0u; k < layers; k++) {
+        let m = mp.faces[k];
+        let c = m * vec4<f32>(p, 1.0);
+        if (all(abs(c.xy) <= vec2<f32>(edge))) {
+            let half = 1.0 / length(vec3<f32>(m[0].x, m[1].x, m[2].x));
+            let per_unit = length(vec3<f32>(m[0].z, m[1].z, m[2].z));
+            let bias = DIRECTIONAL_BIAS_TEXELS * 2.0 * half / size * per_unit;
+            found = MapPoint(k, vec2<f32>(0.5 + 0.5 * c.x, 0.5 - 0.5 * c.y), max(c.z, 0.0) + bias, true);
+            if (c.z >= 0.0) {
+                break;
+            }
+        }
+    }
+    return found;
 }
 
 // The clip coordinates of the offset `rel` from a point light in cube face `face`, where the
@@ -82,12 +116,11 @@ fn visibility_of(m: MapPoint) -> f32 {
     }
     // Reversed Z: depth = near / distance; nearer than the occluder ⇔ larger depth. The bias
     // is relative, so it means the same at every scene scale.
-    var z = m.depth;
+    var reference = m.depth / (1.0 - mp.depth_bias);
     if (DIRECTIONAL) {
-        // Orthographic: beyond the far plane (z < 0) is behind every occluder in the map.
-        z = max(z, 0.0);
+        // `cascade_point` clamped it to the far plane and added the bias in world units.
+        reference = m.depth;
     }
-    let reference = z / (1.0 - mp.depth_bias);
     return textureSampleCompareLevel(shadow_map, shadow_sampler, m.uv, i32(m.face), reference);
 }
 

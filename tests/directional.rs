@@ -314,13 +314,16 @@ fn moving_camera_does_not_make_shafts_shimmer() {
     let light = Light::from(sun);
     let size = 96;
     const RESOLUTION: u32 = 1024;
-    // The map's texel for this view (the sphere's size does not change as the camera moves).
+    // The first (finest) cascade's texel for this view (the sphere's size does not change as
+    // the camera moves), so that every cascade sees sub-texel steps.
+    let splits =
+        ShadowMapNode::cascade_splits(&window_camera(Vec3::ZERO), SHIMMER_DISTANCE, sun.cascades());
     let face = ShadowMapNode::directional_matrix(
         &sun,
         &window_camera(Vec3::ZERO),
-        SHIMMER_DISTANCE,
+        (splits[0], splits[1]),
         RESOLUTION,
-        (0.0, 0.0),
+        f32::INFINITY,
     );
     let texel = 2.0 / face.row(0).truncate().length() / RESOLUTION as f32;
     // 0.37 of a texel per frame, sideways and a little up: every sub-texel phase occurs.

@@ -562,6 +562,13 @@ impl MarchNode {
         if let Some(shadows) = &inputs.shadows {
             let expected = match inputs.light {
                 Light::Point(_) => 6,
+                // One layer per cascade, as many as it has faces.
+                Light::Directional(_) => shadows
+                    .shadow_map
+                    .faces
+                    .len()
+                    .clamp(1, crate::DirectionalLight::MAX_CASCADES as usize)
+                    as u32,
                 _ => 1,
             };
             check_depth_layers("shadow_map", shadows.shadow_map.texture, expected)?;
@@ -731,8 +738,9 @@ impl MarchNode {
             table.size(),
         );
         if let (Light::Directional(_), Some(s)) = (inputs.light, &inputs.shadows) {
-            // Steps uniform in s = x / (x + L) reach at least across the shadow map's region.
-            if let Some(radius) = s.shadow_map.faces.first().and_then(ortho_half_width) {
+            // Steps uniform in s = x / (x + L) reach at least across the shadow map's region
+            // (its last, widest cascade).
+            if let Some(radius) = s.shadow_map.faces.last().and_then(ortho_half_width) {
                 airlight.distance = airlight.distance.min(radius);
             }
         }

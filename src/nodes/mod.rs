@@ -36,6 +36,9 @@ pub use light_texture::LightTextureNode;
 pub use march::{
     MarchInputs, MarchMethod, MarchNode, MarchSettings, MarchStats, Shadows, DEFAULT_CROSSINGS,
 };
-pub use shadow_map::{ShadowMap, ShadowMapInputs, ShadowMapNode, ShadowMapSettings, ShadowParams};
+pub use shadow_map::{
+    ShadowMap, ShadowMapInputs, ShadowMapNode, ShadowMapSettings, ShadowParams, CASCADE_RANGE,
+    DIRECTIONAL_BIAS_TEXELS,
+};
 pub use soft_shadow::{SoftShadow, SoftShadowInputs, SoftShadowNode, SoftShadowSize};
 pub use upsample::{Scale, UpsampleFilter, UpsampleInputs, UpsampleNode};

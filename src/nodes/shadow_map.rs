@@ -5,18 +5,33 @@
 //! ([`ShadowMapNode::face_matrices`]): depth = near / (distance along the face's axis), so the
 //! nearest occluder has the largest depth and nothing is clipped far away.
 //!
-//! A directional light gets one orthographic face ([`ShadowMapNode::directional_matrix`],
-//! rendered by [`ShadowMapNode::prepare_directional`]) fitted to the bounding sphere of what
-//! the camera sees up to the light's shadow distance, so its size does not change as the
-//! camera turns, and with its centre snapped to whole texels in the light's frame, so that
-//! a moving camera does not make the shadows' edges shimmer. Its depth is reversed and linear
-//! along the light's direction (1 at the side towards the light) and spans the sphere and
-//! every occluder. Points outside the square count as lit.
+//! A directional light gets cascaded orthographic maps (rendered by
+//! [`ShadowMapNode::prepare_directional`]; Engel 2006, "Cascaded shadow maps", ShaderX⁵; the
+//! splits of Zhang et al. 2006, "Parallel-split shadow maps for large-scale virtual
+//! environments"): the view depth from the eye to the light's
+//! [shadow distance](crate::DirectionalLight::with_shadow_distance) is split into
+//! [`cascades`](crate::DirectionalLight::with_cascades) ranges ([`ShadowMapNode::cascade_splits`]),
+//! shorter near the eye, and each range gets one layer ([`ShadowMapNode::directional_matrix`])
+//! fitted to the bounding sphere of the view pyramid's slice, so its size does not change as
+//! the camera turns, with its centre snapped to whole texels in the light's frame, so that a
+//! moving camera does not make the shadows' edges shimmer. Depth is reversed and linear along
+//! the light's direction (1 at the side towards the light). A layer holds only the occluders
+//! that can shadow its region (those whose box, seen along the direction, overlaps the
+//! layer's square and begins before the region's far side), and its depth spans the region and
+//! those occluders alone: an occluder beyond the region along the direction (a terrain
+//! kilometres below) can shadow none of it and neither is drawn nor widens the range.
+//!
+//! A point takes the first layer whose square holds it (within a texel of the edge) and whose
+//! far plane it is not beyond; it counts as lit where it lies in no layer's square; in a
+//! square but beyond every such layer's far plane (beyond the shadow distance) it is compared
+//! at the far plane of the last of them: shadowed where that layer holds an occluder. Its
+//! depth bias is [`DIRECTIONAL_BIAS_TEXELS`] texels of its layer in world units, so it means
+//! the same at every scale and range.
 //!
 //! # Output
-//! [`ShadowMap`]: a `Depth32Float` 2D array texture, `resolution²`, 6 layers (point) or 1
-//! (spot), usages `RENDER_ATTACHMENT | TEXTURE_BINDING`, cleared to 0 (nothing); plus the
-//! face matrices and the depth bias. A shadow map the caller renders itself can be passed to the
+//! [`ShadowMap`]: a `Depth32Float` 2D array texture, `resolution²`, 6 layers (point), 1
+//! (spot) or one per cascade (directional), usages `RENDER_ATTACHMENT | TEXTURE_BINDING`,
+//! cleared to 0 (nothing); plus the face matrices and the depth bias. A shadow map the caller renders itself can be passed to the
 //! march instead, in the same layout and convention (any depth format that can be sampled).
 //!
 //! For a light with a radius the node also renders [`ShadowMap::back`]: the same faces again
@@ -130,13 +145,16 @@ impl Default for ShadowMapSettings {
 /// A shadow map as the march reads it.
 #[derive(Clone, Copy)]
 pub struct ShadowMap<'a> {
-    /// Depth 2D array texture: 6 layers (cube faces +X, −X, +Y, −Y, +Z, −Z) or 1 (spot,
-    /// directional).
+    /// Depth 2D array texture: 6 layers (cube faces +X, −X, +Y, −Y, +Z, −Z), 1 (spot), or one
+    /// per cascade (directional, 1 to
+    /// [`DirectionalLight::MAX_CASCADES`](crate::DirectionalLight::MAX_CASCADES), nearest
+    /// first).
     pub texture: &'a wgpu::Texture,
     /// clip_from_world of each layer, reversed-Z infinite perspective, or for a directional
     /// light reversed-Z orthographic (see the module docs).
     pub faces: &'a [Mat4],
-    /// Relative depth bias.
+    /// Relative depth bias of a point or spot light's map (a directional map's is
+    /// [`DIRECTIONAL_BIAS_TEXELS`] texels of each cascade, from its face).
     pub depth_bias: f32,
     /// The occluders' world-space bounding spheres (centre, radius), which bound where a light
     /// with a radius can cast a penumbra. [`ShadowMapNode`] takes each mesh's farthest vertex
@@ -197,9 +215,10 @@ impl ShadowMap<'_> {
     /// The parameters [`SHADOW_WGSL`](crate::SHADOW_WGSL)'s `volshadow_shadow` takes (its
     /// `VolshadowShadow` struct), for the `light` this map was rendered for, with a normal
     /// offset of `normal_offset` × the distance from the light, or for a directional light
-    /// `normal_offset` world units (`None`: two texels' angular size at this map's resolution,
-    /// or two texels of a directional map, which keeps lit surfaces free of self-shadowing
-    /// acne down to grazing angles of about 25°).
+    /// `normal_offset` world units in its first cascade and as many texels in each other
+    /// (`None`: two texels' angular size at this map's resolution, or two texels of a
+    /// directional map's cascade, which keeps lit surfaces free of self-shadowing acne down to
+    /// grazing angles of about 25°).
     pub fn params(&self, light: &Light, normal_offset: Option<f32>) -> ShadowParams {
         let mut faces = [[0.0; 16]; 6];
         for (slot, m) in faces.iter_mut().zip(self.faces) {
@@ -208,7 +227,7 @@ impl ShadowMap<'_> {
         let texels = self.texture.width().max(1) as f32;
         let (light_position, directional, default_offset) = match light {
             Light::Directional(d) => {
-                // The orthographic map's half width, from its first row (1 / half width).
+                // The first cascade's half width, from its first row (1 / half width).
                 let half = self
                     .faces
                     .first()
@@ -242,10 +261,10 @@ pub struct ShadowParams {
     pub light_position: [f32; 3],
     /// Relative depth bias.
     pub depth_bias: f32,
-    /// 6 (point light, cube) or 1 (spot or directional light).
+    /// 6 (point light, cube), 1 (spot light), or the cascades (directional light).
     pub layers: u32,
     /// Offset along the normal, relative to the distance from the light (a directional light:
-    /// in world units).
+    /// in world units in the first cascade, as many texels in the others).
     pub normal_offset: f32,
     /// 1 for a directional light's orthographic map, else 0.
     pub directional: u32,
@@ -275,6 +294,9 @@ pub struct ShadowMapNode {
     pending: bool,
     /// Counts the renders `prepare` has planned (see [`ShadowMap::generation`]).
     generation: u64,
+    /// A directional light's cascades: per layer, the occluders (indices into `draws`) that
+    /// can shadow its region. `None`: every occluder in every layer.
+    layer_draws: Option<Vec<Vec<u32>>>,
     /// See [`ShadowMap::occluder_distance`].
     occluder_distance: f32,
 }
@@ -355,6 +377,140 @@ pub(crate) fn standard_cube_near(faces: &[Mat4], position: Vec3) -> f32 {
 /// Uniform slots are 256 bytes apart (the core minimum dynamic-offset alignment).
 const SLOT: u64 = 256;
 
+/// A directional map's depth bias in texels of the cascade a point falls in (world units:
+/// this times the cascade's texel). A point of the medium counts as lit while it lies less
+/// than this far beyond the stored occluder surface along the light: a surface sloped at up
+/// to atan(2) ≈ 63° to the light within a texel's width stays on its own side. Tied to the
+/// texel, not to the depth range, which an occluder far along the direction may stretch to
+/// kilometres.
+pub const DIRECTIONAL_BIAS_TEXELS: f32 = 2.0;
+
+/// The widest ratio of a directional light's shadow distance to the start of its logarithmic
+/// cascade splits ([`ShadowMapNode::cascade_splits`]).
+pub const CASCADE_RANGE: f32 = 1000.0;
+
+/// One cascade's square in the light's frame: centre (`cx`, `cy`, snapped to texels; `ct`
+/// along the direction), half width `radius`.
+#[derive(Debug, Clone, Copy)]
+struct CascadeFit {
+    right: Vec3,
+    up: Vec3,
+    cx: f32,
+    cy: f32,
+    ct: f32,
+    radius: f32,
+    /// The fitted sphere's radius before the margin and the rounding (for the tests).
+    #[cfg_attr(not(test), allow(dead_code))]
+    sphere: f32,
+}
+
+impl CascadeFit {
+    fn new(light: &DirectionalLight, camera: &Camera, slice: (f32, f32), resolution: u32) -> Self {
+        let d = light.direction();
+        let (right, up) = d.any_orthonormal_pair();
+        // The view pyramid's corners at view depths `slice.0` and `slice.1`: two rings around
+        // the axis.
+        let eye = camera.eye();
+        let view = camera.view();
+        let ring = |depth: f32| {
+            let mut corners = [Vec3::ZERO; 4];
+            for (k, corner) in corners.iter_mut().enumerate() {
+                let x = if k & 1 == 0 { -1.0 } else { 1.0 };
+                let y = if k & 2 == 0 { -1.0 } else { 1.0 };
+                let dir = camera.ray_direction(x, y);
+                let depth_per_unit = (-view.transform_vector3(dir).z).max(1e-6);
+                *corner = eye + dir * (depth / depth_per_unit);
+            }
+            let mid = 0.25 * corners.iter().copied().sum::<Vec3>();
+            let half = corners.iter().map(|c| c.distance(mid)).fold(0.0, f32::max);
+            (mid, half)
+        };
+        let (near_mid, near_half) = ring(slice.0.max(0.0));
+        let (far_mid, far_half) = ring(slice.1.max(slice.0.max(0.0)));
+        let (a, b) = (near_mid.distance(eye), far_mid.distance(eye));
+        // The smallest sphere around both rings with its centre on the axis: where the
+        // distances to the two rings are equal, clamped between them.
+        let axis = (far_mid - eye).normalize_or(Vec3::NEG_Z);
+        let (centre, radius) = if b > a {
+            let t = ((b * b + far_half * far_half - a * a - near_half * near_half)
+                / (2.0 * (b - a)))
+                .clamp(a, b);
+            let r = ((t - a).hypot(near_half)).max((b - t).hypot(far_half));
+            (eye + axis * t, r)
+        } else {
+            (far_mid, far_half.max(near_half))
+        };
+        let texels = resolution.max(1) as f32;
+        let sphere = radius;
+        let radius = radius.max(1e-6) * (1.0 + 6.0 / texels);
+        let radius = ((radius.log2() * 16.0).ceil() / 16.0).exp2();
+        let texel = 2.0 * radius / texels;
+        let snap = |v: f32| (v / texel).round() * texel;
+        Self {
+            right,
+            up,
+            cx: snap(centre.dot(right)),
+            cy: snap(centre.dot(up)),
+            ct: centre.dot(d),
+            radius,
+            sphere,
+        }
+    }
+
+    /// The far side of the region along the direction.
+    fn t_far(&self) -> f32 {
+        self.ct + self.radius
+    }
+
+    /// Whether a box with corners projected to `[lo, hi]` (right, up, along) can shadow a point
+    /// of the cascade's square prism up to its far side.
+    fn reaches(&self, lo: Vec3, hi: Vec3) -> bool {
+        let r = self.radius;
+        // Non-finite bounds reach everything (they cannot be ruled out).
+        !(lo.is_finite() && hi.is_finite())
+            || (lo.x <= self.cx + r
+                && hi.x >= self.cx - r
+                && lo.y <= self.cy + r
+                && hi.y >= self.cy - r
+                && lo.z < self.t_far())
+    }
+
+    fn matrix(&self, d: Vec3, nearest: f32) -> Mat4 {
+        let r = self.radius;
+        let t_far = self.t_far();
+        let t_near = if nearest.is_finite() {
+            (self.ct - r).min(nearest)
+        } else {
+            self.ct - r
+        };
+        let depth = 1.0 / (t_far - t_near).max(1e-20);
+        Mat4::from_cols(
+            (self.right / r).extend(-self.cx / r),
+            (self.up / r).extend(-self.cy / r),
+            (-d * depth).extend(t_far * depth),
+            Vec4::W,
+        )
+        .transpose()
+    }
+}
+
+/// An occluder's world box seen in a light frame: the least and greatest (right, up, along)
+/// coordinates of its corners.
+fn light_frame_bounds(lo: Vec3, hi: Vec3, right: Vec3, up: Vec3, d: Vec3) -> (Vec3, Vec3) {
+    let (mut a, mut b) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+    for i in 0..8 {
+        let corner = Vec3::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        );
+        let p = Vec3::new(corner.dot(right), corner.dot(up), corner.dot(d));
+        a = a.min(p);
+        b = b.max(p);
+    }
+    (a, b)
+}
+
 impl ShadowMapNode {
     /// Creates the node. Errors on a zero or too large resolution or a bias outside [0, 0.5).
     ///
@@ -402,6 +558,7 @@ impl ShadowMapNode {
             key: Vec::new(),
             pending: false,
             generation: 0,
+            layer_draws: None,
             occluder_distance: 0.0,
         })
     }
@@ -426,58 +583,58 @@ impl ShadowMapNode {
         }
     }
 
+    /// The view depths bounding a directional light's cascades: `cascades + 1` increasing
+    /// values from 0 (the eye) to `distance`. The splits are logarithmic (Zhang et al. 2006:
+    /// the split that spreads perspective aliasing evenly), `n · (distance / n)^(i / cascades)`
+    /// from `n` the camera's near plane or `distance / CASCADE_RANGE`, whichever is farther: a
+    /// cascade's texels grow with its distance from the eye, as the pixels they are seen
+    /// through do, and a near plane far closer than the distance does not leave the first
+    /// cascades covering nothing.
+    pub fn cascade_splits(camera: &Camera, distance: f32, cascades: u32) -> Vec<f32> {
+        let n = cascades.max(1);
+        let distance = if distance.is_finite() && distance > 0.0 {
+            distance
+        } else {
+            1.0
+        };
+        // The near plane's view depth (an infinite or reversed projection's near plane
+        // unprojects like any other).
+        let near_ndc = if camera.far_depth() == 1.0 { 0.0 } else { 1.0 };
+        let p = camera.projection().inverse() * Vec4::new(0.0, 0.0, near_ndc, 1.0);
+        let near = (-p.z / p.w).abs();
+        let floor = distance / CASCADE_RANGE;
+        let near = if near.is_finite() {
+            near.clamp(floor, distance)
+        } else {
+            floor
+        };
+        let mut splits = vec![0.0];
+        for i in 1..n {
+            let split = near * (distance / near).powf(i as f32 / n as f32);
+            splits.push(split.clamp(*splits.last().unwrap_or(&0.0), distance));
+        }
+        splits.push(distance);
+        splits
+    }
+
     /// A directional light's `clip_from_world` for a square map of `resolution²` texels:
     /// orthographic, in a basis built from the light's direction alone, covering the bounding
-    /// sphere of the camera's view pyramid from the eye to view depth `distance` (the sphere's
-    /// radius depends only on the projection and `distance`, and is rounded up to 1/16 of an
-    /// octave so that rounding noise cannot change it), with the centre snapped to whole
-    /// texels. Depth is `(t_far − t)/(t_far − t_near)` for `t` the coordinate along the
-    /// direction, with `[t_near, t_far]` the sphere's range widened to `occluder_range`.
+    /// sphere (centred on the view axis) of the camera's view pyramid between view depths
+    /// `slice.0` and `slice.1`, its radius widened by 3 texels (a point within a texel of the
+    /// square's edge takes the next cascade) and rounded up to 1/16 of an octave so that
+    /// rounding noise cannot change it, with the centre snapped to whole texels. Depth is
+    /// `(t_far − t)/(t_far − t_near)` for `t` the coordinate along the direction, `t_far` the
+    /// sphere's far side and `t_near` its near side or `nearest`, whichever is less (the
+    /// nearest occluder that can shadow the sphere: see [`ShadowMapNode`]'s module docs).
     pub fn directional_matrix(
         light: &DirectionalLight,
         camera: &Camera,
-        distance: f32,
+        slice: (f32, f32),
         resolution: u32,
-        occluder_range: (f32, f32),
+        nearest: f32,
     ) -> Mat4 {
-        let d = light.direction();
-        let (right, up) = d.any_orthonormal_pair();
-        // The view pyramid's far corners at view depth `distance`.
-        let eye = camera.eye();
-        let view = camera.view();
-        let mut far = [Vec3::ZERO; 4];
-        for (k, corner) in far.iter_mut().enumerate() {
-            let x = if k & 1 == 0 { -1.0 } else { 1.0 };
-            let y = if k & 2 == 0 { -1.0 } else { 1.0 };
-            let dir = camera.ray_direction(x, y);
-            let depth_per_unit = (-view.transform_vector3(dir).z).max(1e-6);
-            *corner = eye + dir * (distance / depth_per_unit);
-        }
-        let mid = 0.25 * far.iter().copied().sum::<Vec3>();
-        let axis_len = mid.distance(eye);
-        let half = far.iter().map(|c| c.distance(mid)).fold(0.0, f32::max);
-        // The smallest sphere around the pyramid with its centre on the axis.
-        let (centre, radius) = if half < axis_len && axis_len > 0.0 {
-            let t = (axis_len * axis_len + half * half) / (2.0 * axis_len);
-            (eye + (mid - eye) * (t / axis_len), t)
-        } else {
-            (mid, half.max(axis_len))
-        };
-        let radius = (radius.max(1e-6).log2() * 16.0).ceil() / 16.0;
-        let radius = radius.exp2();
-        let texel = 2.0 * radius / resolution as f32;
-        let snap = |v: f32| (v / texel).round() * texel;
-        let (cx, cy, ct) = (snap(centre.dot(right)), snap(centre.dot(up)), centre.dot(d));
-        let t_near = (ct - radius).min(occluder_range.0);
-        let t_far = (ct + radius).max(occluder_range.1);
-        let depth = 1.0 / (t_far - t_near).max(1e-20);
-        Mat4::from_cols(
-            (right / radius).extend(-cx / radius),
-            (up / radius).extend(-cy / radius),
-            (-d * depth).extend(t_far * depth),
-            glam::Vec4::W,
-        )
-        .transpose()
+        let fit = CascadeFit::new(light, camera, slice, resolution);
+        fit.matrix(light.direction(), nearest)
     }
 
     /// A spot map's field of view: the cone inscribed in the square frustum, with a texel of
@@ -611,6 +768,7 @@ impl ShadowMapNode {
         }
         let layers = match light {
             Light::Point(_) => 6,
+            Light::Directional(d) => d.cascades(),
             _ => 1,
         };
         let resolution = self.settings.resolution;
@@ -646,13 +804,16 @@ impl ShadowMapNode {
         let bits = |v: &[f32]| v.iter().map(|f| f.to_bits()).collect::<Vec<u32>>();
         let directional = match (light, camera) {
             (Light::Directional(l), Some(camera)) => {
-                Some(self.directional_face(l, camera, occluders))
+                Some(self.directional_faces(l, camera, occluders))
             }
             _ => None,
         };
         let mut key = match (light.position(), &directional) {
             (Some(p), _) => bits(&p.to_array()),
-            (None, Some(face)) => bits(&face.to_cols_array()),
+            (None, Some((faces, _))) => faces
+                .iter()
+                .flat_map(|f| bits(&f.to_cols_array()))
+                .collect(),
             (None, None) => Vec::new(),
         };
         if let Light::Spot(s) = light {
@@ -697,9 +858,11 @@ impl ShadowMapNode {
         // it past a small occluder next to the light). When the light is inside an occluder's
         // bounds the distance is 0; then a floor of about one f32 step of the light's
         // coordinates (nothing nearer can be placed) keeps the projection finite.
-        if let Some(face) = directional {
-            self.faces = vec![face];
+        if let Some((faces, drawn)) = directional {
+            self.faces = faces;
+            self.layer_draws = Some(drawn);
         } else {
+            self.layer_draws = None;
             let p = light.position().unwrap_or_default();
             let along_axis = (0.9 * Self::corner_cosine(light, self.occluder_distance)).min(0.5);
             let mut near = f32::INFINITY;
@@ -777,41 +940,53 @@ impl ShadowMapNode {
         Ok(true)
     }
 
-    /// The directional map's face for this camera and these occluders.
-    fn directional_face(
+    /// The directional map's cascades for this camera and these occluders: each one's face,
+    /// and which occluders can shadow its region (the only ones drawn into it).
+    fn directional_faces(
         &self,
         light: &DirectionalLight,
         camera: &Camera,
         occluders: &[Occluder<'_>],
-    ) -> Mat4 {
+    ) -> (Vec<Mat4>, Vec<Vec<u32>>) {
         let d = light.direction();
+        let (right, up) = d.any_orthonormal_pair();
         let eye = camera.eye();
-        let (mut t_near, mut t_far) = (f32::INFINITY, f32::NEG_INFINITY);
         let mut farthest = 0.0f32;
-        for o in occluders {
-            let (lo, hi) = o.world_bounds();
-            for i in 0..8 {
-                let corner = Vec3::new(
-                    if i & 1 == 0 { lo.x } else { hi.x },
-                    if i & 2 == 0 { lo.y } else { hi.y },
-                    if i & 4 == 0 { lo.z } else { hi.z },
-                );
-                t_near = t_near.min(corner.dot(d));
-                t_far = t_far.max(corner.dot(d));
-                farthest = farthest.max(corner.distance(eye));
-            }
-        }
+        let boxes: Vec<(Vec3, Vec3)> = occluders
+            .iter()
+            .map(|o| {
+                let (lo, hi) = o.world_bounds();
+                // The farthest corner.
+                farthest = farthest.max((eye - lo).abs().max((eye - hi).abs()).length());
+                light_frame_bounds(lo, hi, right, up, d)
+            })
+            .collect();
         let distance =
             light
                 .shadow_distance()
-                .unwrap_or(if farthest > 0.0 { farthest } else { 1.0 });
-        Self::directional_matrix(
-            light,
-            camera,
-            distance,
-            self.settings.resolution,
-            (t_near, t_far),
-        )
+                .unwrap_or(if farthest > 0.0 && farthest.is_finite() {
+                    farthest
+                } else {
+                    1.0
+                });
+        let splits = Self::cascade_splits(camera, distance, light.cascades());
+        let resolution = self.settings.resolution;
+        let mut faces = Vec::new();
+        let mut drawn = Vec::new();
+        for slice in splits.windows(2) {
+            let fit = CascadeFit::new(light, camera, (slice[0], slice[1]), resolution);
+            let mut nearest = f32::INFINITY;
+            let mut layer = Vec::new();
+            for (i, &(lo, hi)) in boxes.iter().enumerate() {
+                if fit.reaches(lo, hi) {
+                    nearest = nearest.min(lo.z);
+                    layer.push(i as u32);
+                }
+            }
+            faces.push(fit.matrix(d, nearest));
+            drawn.push(layer);
+        }
+        (faces, drawn)
     }
 
     /// Records the render of every face, if [`prepare`](Self::prepare) found a change.
@@ -864,18 +1039,25 @@ impl ShadowMapNode {
                     occlusion_query_set: None,
                     multiview_mask: None,
                 });
-                for (i, draw) in self.draws.iter().enumerate() {
+                let drawn = self
+                    .layer_draws
+                    .as_ref()
+                    .and_then(|l| l.get(layer as usize));
+                let mut all = 0..self.draws.len() as u32;
+                let mut listed = drawn.map(|l| l.iter().copied());
+                let indices: &mut dyn Iterator<Item = u32> = match listed.as_mut() {
+                    Some(l) => l,
+                    None => &mut all,
+                };
+                for i in indices {
+                    let draw = &self.draws[i as usize];
                     // An open mesh has no inside: its back layer is its nearest face.
                     pass.set_pipeline(if back && draw.closed {
                         &self.pipelines.back
                     } else {
                         &self.pipelines.depth
                     });
-                    pass.set_bind_group(
-                        0,
-                        bind_group,
-                        &[layer * SLOT as u32, i as u32 * SLOT as u32],
-                    );
+                    pass.set_bind_group(0, bind_group, &[layer * SLOT as u32, i * SLOT as u32]);
                     pass.set_vertex_buffer(0, draw.positions.slice(..));
                     pass.set_index_buffer(draw.indices.slice(..), wgpu::IndexFormat::Uint32);
                     pass.draw_indexed(0..draw.index_count, 0, 0..1);
@@ -951,6 +1133,67 @@ pub(crate) mod tests {
             separating_plane(a, b, Vec3::new(5.0, 2.0, 0.0), 0.5),
             Vec4::new(1.0, 0.0, 0.0, 1.0)
         );
+    }
+
+    /// Every point of the view pyramid's slice of each cascade lies in that cascade's square,
+    /// at least a texel inside its edge (where the shaders take it), and within its depth
+    /// range: seeded views, sun directions, distances from 1e-2 to 1e5 and 1 to 6 cascades,
+    /// 500 points per slice. A square of the fitted sphere's own radius (without the 3 texels'
+    /// widening and the rounding) leaves some points within its last texel (counted below), so
+    /// the test tells.
+    #[test]
+    fn every_point_of_a_slice_lies_in_its_cascade() {
+        let mut next = uniform(0x0dd_ba11_cafe_f00d);
+        let mut unwidened_missed = 0;
+        for case in 0..60 {
+            let scale = [1.0e-2_f32, 1.0, 1.0e3, 1.0e5][case % 4];
+            let eye = Vec3::new(next(), next(), next()) * scale;
+            let target =
+                eye + Vec3::new(next(), next() * 0.5, next()).normalize_or(Vec3::X) * scale;
+            let fov = 0.4 + 1.2 * next().abs();
+            let camera = Camera::new(
+                glam::camera::rh::view::look_at_mat4(eye, target, Vec3::Y),
+                glam::camera::rh::proj::directx::perspective(fov, 1.3, 0.01 * scale, 1e4 * scale),
+            )
+            .unwrap();
+            let dir = Vec3::new(next(), -next().abs() - 0.05, next());
+            let light = DirectionalLight::new(dir, Vec3::ONE).unwrap();
+            let cascades = 1 + (case % 6) as u32;
+            let distance = scale * (1.0 + 100.0 * next().abs());
+            let resolution = 1024;
+            let splits = ShadowMapNode::cascade_splits(&camera, distance, cascades);
+            assert_eq!(splits.len(), cascades as usize + 1);
+            assert!(splits.windows(2).all(|w| w[0] <= w[1]), "{splits:?}");
+            for (k, slice) in splits.windows(2).enumerate() {
+                let fit = CascadeFit::new(&light, &camera, (slice[0], slice[1]), resolution);
+                let face = fit.matrix(light.direction(), f32::INFINITY);
+                let edge = 1.0 - 2.0 / resolution as f32;
+                let unwidened = fit.sphere;
+                for _ in 0..500 {
+                    let (x, y) = (next(), next());
+                    let depth = slice[0] + (slice[1] - slice[0]) * (0.5 + 0.5 * next());
+                    let ray = camera.ray_direction(x, y);
+                    let per_unit = -camera.view().transform_vector3(ray).z;
+                    let p = eye + ray * (depth / per_unit);
+                    let c = face * p.extend(1.0);
+                    let tol = 1e-4;
+                    assert!(
+                        c.x.abs() <= edge + tol && c.y.abs() <= edge + tol,
+                        "case {case}, cascade {k}: {p} at {c}"
+                    );
+                    assert!(
+                        c.z >= -tol && c.z <= 1.0 + tol,
+                        "case {case}, cascade {k}: depth {}",
+                        c.z
+                    );
+                    let q = Vec3::new(p.dot(fit.right) - fit.cx, p.dot(fit.up) - fit.cy, 0.0);
+                    if q.x.abs().max(q.y.abs()) > unwidened * edge {
+                        unwidened_missed += 1;
+                    }
+                }
+            }
+        }
+        assert!(unwidened_missed > 0, "{unwidened_missed}");
     }
 
     /// Seeded numbers uniform in [−1, 1) (xorshift64).

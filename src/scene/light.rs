@@ -202,14 +202,16 @@ impl SpotLight {
 /// `θ` the same at every point of the ray. A caller that wants a fog layer of extinction `σt`
 /// and thickness `T` between the light and the scene passes `E·exp(−σt·T)`.
 ///
-/// Its shadows come from one orthographic shadow map fitted to what the camera sees within
-/// the [shadow distance](Self::with_shadow_distance); [`crate::reference`] integrates it with
+/// Its shadows come from [cascaded](Self::with_cascades) orthographic shadow maps fitted to
+/// what the camera sees within the [shadow distance](Self::with_shadow_distance) (see
+/// [`ShadowMapNode`](crate::nodes::ShadowMapNode)); [`crate::reference`] integrates it with
 /// exact visibility (`inscatter_directional` and friends).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DirectionalLight {
     direction: Vec3,
     irradiance: Vec3,
     shadow_distance: Option<f32>,
+    cascades: u32,
 }
 
 impl DirectionalLight {
@@ -242,13 +244,48 @@ impl DirectionalLight {
             direction,
             irradiance,
             shadow_distance: None,
+            cascades: Self::DEFAULT_CASCADES,
         })
     }
-    /// The same light whose shadow map covers what the camera sees up to `distance` from the
-    /// eye (world units, finite and positive). Without it, the map covers up to the farthest
-    /// corner of the occluders' bounds. Beyond the shadow distance, points outside the map
-    /// count as lit. A shorter distance spends the map's texels on a smaller region: sharper
-    /// shafts near the camera.
+
+    /// The number of cascades a new light's shadow map has.
+    pub const DEFAULT_CASCADES: u32 = 4;
+    /// The most cascades a light's shadow map may have (the layers a shadow map's parameters
+    /// hold, as a point light's six cube faces).
+    pub const MAX_CASCADES: u32 = 6;
+
+    /// The same light with its shadow map split into `cascades` maps
+    /// (1..=[`MAX_CASCADES`](Self::MAX_CASCADES); default
+    /// [`DEFAULT_CASCADES`](Self::DEFAULT_CASCADES)), each covering a range of view distance
+    /// from the eye to the [shadow distance](Self::with_shadow_distance), nearer ranges
+    /// shorter, each at the map's full resolution: near the camera, shadows as sharp as a map
+    /// over a few metres makes them, however far the scene extends. Each cascade costs one
+    /// render of the occluders that can shadow its range.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidSetting`] naming `directional_light.cascades` for 0 or more than
+    /// [`MAX_CASCADES`](Self::MAX_CASCADES).
+    pub fn with_cascades(self, cascades: u32) -> Result<Self> {
+        if !(1..=Self::MAX_CASCADES).contains(&cascades) {
+            return Err(Error::InvalidSetting {
+                field: "directional_light.cascades",
+                problem: format!("must be 1 to {}, got {cascades}", Self::MAX_CASCADES),
+            });
+        }
+        Ok(Self { cascades, ..self })
+    }
+
+    /// The number of cascades (see [`with_cascades`](Self::with_cascades)).
+    pub fn cascades(&self) -> u32 {
+        self.cascades
+    }
+    /// The same light whose shadow map covers what the camera sees up to view depth `distance`
+    /// from the eye (world units, finite and positive). Without it, the map covers up to the
+    /// farthest corner of the occluders' bounds. Beyond the shadow distance, points outside
+    /// every cascade count as lit (see [`ShadowMapNode`](crate::nodes::ShadowMapNode)). A
+    /// shorter distance spends the map's texels on a smaller region: sharper shafts near the
+    /// camera.
     ///
     /// # Errors
     ///

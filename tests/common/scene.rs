@@ -52,6 +52,23 @@ impl MeshScene {
         out
     }
 
+    /// The caller's depth buffer for `camera` at `width` × `height`: the first visible mesh or
+    /// the ground, ray-cast (the far depth where a ray meets neither).
+    pub fn depths(&self, camera: &Camera, width: u32, height: u32) -> Vec<f32> {
+        let tris = self.visible_triangles();
+        (0..width * height)
+            .map(|i| {
+                let (o, d) = super::pixel_ray(camera, width, height, i % width, i / width);
+                let ds = first_hit(&tris, self.ground, near_plane(camera), o, d);
+                if ds.is_finite() {
+                    super::ndc_depth(camera, o + ds * d)
+                } else {
+                    camera.far_depth()
+                }
+            })
+            .collect()
+    }
+
     pub fn reference_occluders(&self) -> Vec<reference::Occluder> {
         self.occluders
             .iter()
@@ -312,6 +329,25 @@ impl<'a> Shot<'a> {
                 &occ,
             ),
         }
+    }
+
+    /// The reference image with `occluders` casting shadows in place of the scene's, and the
+    /// scene's surfaces still seen (where the camera's rays end).
+    pub fn reference_casting(&self, occluders: &[reference::Occluder]) -> Vec<DVec3> {
+        let tris = self.scene.visible_triangles();
+        let ground = self.scene.ground;
+        let (w, h) = self.size;
+        let near = near_plane(self.camera);
+        let distance = |o: DVec3, d: DVec3| first_hit(&tris, ground, near, o, d);
+        reference::inscatter_image(
+            self.camera,
+            w,
+            h,
+            distance,
+            self.medium,
+            self.light,
+            occluders,
+        )
     }
 
     /// The GPU image with `settings`, measured against `reference`.
