@@ -39,7 +39,7 @@ struct Surfaces {
 @group(0) @binding(12) var<storage, read> surf_phase: VolshadowIssPhase;
 
 // Pipeline constant: surfaces (normals and albedo) are given. Without them the term's code is
-// left out of the pipeline, so frames without surfaces cost what they did before it existed.
+// left out of the pipeline, so frames without surfaces do not pay for it.
 override SURFACES: bool = false;
 
 // (ρ/π)·E(P) at the pixel's surface point, summed over the lights; 0 on sky.

@@ -169,14 +169,11 @@ fn in_front_of_surface(m: MapPoint) -> bool {
 // interpolated marks: at an occluder's surface between two slices, for a point in front of it
 // the grid's slice on its side, behind it the hard visibility; with `sharp`, for a narrow
 // penumbra the hard visibility, whose edges are the occluders'. A textured spot's march reads
-// it at each of its uniform steps without `sharp`: in tests/textured_spot.rs (a sphere under a
-// textured spot of radius 0.3, 64², 2026-11-24) p95 1.56% and RMSE 2.25% without it, 2.31% and
-// 2.94% with it, 1.62% and 4.18% with the grid's value alone (its worst pixel 18% off, in
-// cells marked for the sphere's surface).
+// it at each of its uniform steps without `sharp`, which makes the textured spot's error worse
+// (tests/textured_spot.rs), as does the grid's value alone (in cells marked for a surface).
 fn soft_grid_visibility(p: vec3<f32>, sharp: bool) -> f32 {
     // One projection into the map for all of the point's lookups (the grid's layers and
-    // directions are the map's): on the report's soft scene, alternated in one process with
-    // a projection per lookup, the march at ½ resolution took 0.88–0.90 of its time.
+    // directions are the map's), not one per lookup.
     let dist = length(p - air.light_pos);
     if (dist <= max(max(mp.soft.y, 1.0e-3 * mp.soft.x), mp.soft.x)) {
         return 1.0; // as soft_grid_at: nearer than every occluder
@@ -224,9 +221,8 @@ const SHARP_STEP_BITS: u32 = 64u;
 // 1.8% refined). The refinement runs after the step loop (no shadow-map lookup in the main
 // loop, which every step would pay for on a SIMD device); marked steps beyond
 // MAX_SHARP_STEPS or SHARP_STEP_BITS keep the grid's value. The step loop keeps the marked
-// steps as bits, not in an array indexed by a variable: with the array (a step index and its
-// dT/ds), the march at ½ on the report's soft scene took 1.34× as long (62 against 46 ms,
-// alternated in one process on llvmpipe, 2026-11-24), the same image to 0.001% of p95.
+// steps as bits, not in an array indexed by a variable, which some compilers (llvmpipe's)
+// spill to memory for every lane.
 fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: TT, t1: TT, n: u32) -> Marched {
     var out: Marched;
     out.t = vec3<f32>(0.0);
@@ -246,8 +242,7 @@ fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: TT, t1: TT, n
     // The half angles at the steps' midpoints, δ/2 = s·w/2 at the light and u = β/2 at the
     // point (β = (1 − s)·w), as (cos, sin), each turned by ds·w/2 a step: dT/ds (as
     // `table_integrand`) and x (as `x_of_s`, x = D sin δ / sin β) without a sine or cosine.
-    // cos u starts as sin((γ + δ)/2), exact where β is near π. Measured on the report's soft
-    // scene (2026-11-24, alternated in one process): 0.90 of the march at ½, the same p95.
+    // cos u starts as sin((γ + δ)/2), exact where β is near π.
     let mid0 = s0 + 0.5 * ds;
     let turn = 0.5 * ds * r.w;
     let rot = cos_sin(turn, 0.5 * PI - turn);
@@ -683,9 +678,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
     var around_eye = -1;
     // Soft shadows with the occluders' bounds: outside their penumbra cones no occluder hides
     // any of the light (and the grid holds 1), so the pieces outside `soft_extents` take
-    // visibility 1 without a lookup. Measured on the report's soft scene at ½ resolution
-    // (2026-11-24, llvmpipe, alternated in one process): the two lookups were 5.8 ms of the
-    // march's 46.
+    // visibility 1 without a lookup.
     let lit_outside = SOFT && MODE != 2u && u32(mp.soft.z) > 0u;
     if (SOFT) {
         // Soft shadows: the shadow volumes bound the hard shadow, not the penumbra; march

@@ -125,11 +125,8 @@ fn visibility_of(m: MapPoint) -> f32 {
 }
 
 // Soft shadows. Taps on a disc: golden-angle spiral, equal areas (Vogel 1979).
-// Taps a blocker-search round. Measured against the reference (tests/soft.rs,
-// tests/soft_grid.rs, 2026-11-23): 16 cost 1.4× as much to build the grid and were no more
-// accurate anywhere (sphere p95 0.74% against 0.68% with 8; torus 2.32% / 2.44%; seeded point
-// scenes worst 1.66% / 1.55%; overlapping penumbrae 4.13% / 2.88%); 6 were worse on the seeded
-// point scenes (2.11%).
+// Taps a blocker-search round: 16 cost more and were no more accurate in the soft tests
+// (tests/soft.rs, tests/soft_grid.rs); 6 were worse.
 const SOFT_SEARCH_TAPS: u32 = 8u;
 const SOFT_FILTER_TAPS: u32 = 32u;
 // cos and sin of the golden angle π(3 − √5).
@@ -211,10 +208,8 @@ fn blocker_ratio_of(m: MapPoint) -> f32 {
         // sphere's exact outline in place of the map, a planar blocker at the centre's
         // distance sets the deep penumbra (visible fraction 0.02 to 0.2) too dark, by 4% to
         // 43% for ρ/L from 0.1 to 0.4, and at the tangent distance too bright, by 12% to 22%
-        // (a CPU model against the exact cap overlap, 2026-11-24). m^¾ g^¼, a fit, leaves the
-        // grid's cells of the seeded scenes without bias there (tests/soft_grid.rs, without
-        // the deep penumbra's extra taps: mean relative error −0.011, against −0.106 with m
-        // and +0.269 with g; −0.026 with the taps).
+        // (a CPU model against the exact cap overlap). m^¾ g^¼, a fit, leaves the grid's cells
+        // of the seeded scenes without bias there (tests/soft_grid.rs).
         let mid = 0.5 * (front + back);
         // (max: a point so far that its depth is 0 has mid = 0, and 0/0 would be NaN.)
         return mid * vs_sqrt(vs_sqrt(vs_sqrt(front * back) / max(mid, 1.0e-30)));
@@ -391,11 +386,8 @@ fn soft_search(p: vec3<f32>) -> vec3<f32> {
         // the taps and lies just in front of p's distance (a receiver p is above, such as a
         // ground that casts shadows: its edge is its own surface, which the grid marks
         // between slices). Its width would mark the cell sharp, and the march would blend in
-        // the shadow map's hard edge in place of the near layer's wide penumbra. Measured
-        // (tests/soft_grid.rs; the report's soft scene with its ground casting shadows, 128²,
-        // exact at full resolution, 2026-11-24): p95 4.74% → 3.60%; without the distance
-        // condition 3.01% against 3.51% with it (alternated in one process), but two spheres
-        // with overlapping penumbrae 2.55% → 3.65% (2.66% with it).
+        // the shadow map's hard edge in place of the near layer's wide penumbra (tests/soft_grid.rs:
+        // the ground and overlapping-penumbrae scenes).
         let receiver = far_hits == 0u && sum >= RECEIVER_RATIO;
         let region = select(width, near_width, receiver);
         return vec3<f32>(lit / f32(SOFT_FILTER_TAPS), region, -1.0);
@@ -425,11 +417,8 @@ fn soft_deepen(p: vec3<f32>, width: f32, f: f32) -> f32 {
 // Where the filter's 32 taps find a visible fraction of at most SOFT_DEEP (12 taps lit), it
 // takes SOFT_DEEP_TAPS more: each tap is lit or not, so over a small fraction the estimate's
 // error is large relative to it, and a pixel lit by the deep penumbra (the eye in an umbra, in
-// a thick medium) shows it. Measured (tests/soft_grid.rs, tests/soft.rs, 2026-11-24): the
-// grid's cells in the deep penumbra mean |relative error| 0.249 → 0.175; the eye in an umbra
-// looking away p95 5.71% → 4.60%; the dense torus 1.53% → 1.27%; the thick-fog seed 105
-// 20.8% → 16.5%; the grid's build on the report's soft scene 1.20× as long (two runs,
-// alternated in one process).
+// a thick medium) shows it (tests/soft_grid.rs: the grid cells' deep-penumbra error; the eye
+// in an umbra looking away).
 const SOFT_DEEP: f32 = 0.375;
 const SOFT_DEEP_TAPS: u32 = 96u;
 

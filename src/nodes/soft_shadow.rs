@@ -1,149 +1,73 @@
 //! The soft-shadow node: for a light with a radius, the fraction of the light's disc visible
-//! from each cell of a light-space grid, built once per frame from the shadow map, which the
-//! march then reads with one trilinear lookup per step.
+//! from each cell of a light-space grid, built once per frame from the shadow map (and only
+//! when the shadow map changed), which the march then reads with one trilinear lookup per step.
+//!
+//! # Method
 //!
 //! Each cell holds the percentage-closer soft shadow estimate (Fernando, "Percentage-Closer
-//! Soft Shadows", 2005) that the march would otherwise compute per step from 49 shadow-map
-//! taps, 145 in the deep penumbra (see [`MarchNode`](crate::nodes::MarchNode)'s soft shadows): the cost moves from
-//! pixels × steps to the grid's cells, most of which lie outside every penumbra and cost no
-//! tap at all. The grid is the shadow map's layers (cube faces of a point light, the one layer
-//! of a spot light) at [`SoftShadowSize::directions`]² directions, times
-//! [`SoftShadowSize::slices`] distances uniform in `q = d_near / d ∈ (0, 1]`, `d_near` being
-//! the least distance of an occluder's bounding box from the light. A penumbra's width seen
-//! from the light is `radius · (1/d_blocker − 1/d)`, linear in `q`, so the slices are uniform
-//! steps in penumbra width and the last one reaches infinity.
+//! Soft Shadows", 2005) that the march would otherwise compute per step from the shadow map:
+//! a blocker search (two rounds of 8 taps), then 32 filter taps over the light's disc, 96 more
+//! where at most 12 of the 32 are lit (the deep penumbra, where a tap is a large part of a small
+//! fraction). The blockers' distance lies between the midpoint `m` of the front surface and the
+//! back face ([`ShadowMap::back`]) and their geometric mean `g`, as `m^¾ g^¼`: for a sphere `m`
+//! is the centre's distance and `g` the tangent distance, and a planar blocker at either sets
+//! the deep penumbra too dark or too bright (see `docs/METHOD.md` §3). Where the blockers found
+//! lie at clearly different distances (ratio > 1.5) the estimate takes two layers, each with its
+//! own filter width.
 //!
-//! The build estimates only where interpolation would not do, in two stages. The first
-//! estimates the directions at even indices (a quarter of them), at their even slices and the
-//! last, and at an odd slice only where its two neighbours differ (else their mean). The
-//! second fills each other direction with the mean of its two or four neighbours of the first
-//! stage where they agree, and estimates it where not. Neighbours agree where none is marked
-//! sharp (below) and their fractions are within 5% of the larger (lit, umbra; relative, so
-//! the deep penumbra is kept), or where they lie on a penumbra at least 4 cells wide away
-//! from its foot (the smaller fraction at least 0.7 of the larger: near the umbra a fraction
-//! grows as a power of the distance, which a mean overestimates). Measured on the report's
-//! soft scene, alternating with the single-stage build in one process: 0.73–0.86 of its time
-//! for the point light, 0.77–0.86 for a spot (four runs). A mean of neighbours also averages
-//! their taps' pattern noise: the report's soft scene p95 2.6% → 2.1%, the sphere below 0.68% → 0.73%, the dense
-//! torus 1.58% → 1.41%, overlapping penumbrae 2.9% → 2.5%. With an absolute bound of 0.02
-//! in place of the relative one, the deep penumbra was interpolated away (the eye in an umbra
-//! looking away from the light: p95 22.9%).
+//! The grid is the shadow map's layers (cube faces of a point light, the one layer of a spot)
+//! at [`SoftShadowSize::directions`]² directions, times [`SoftShadowSize::slices`] distances
+//! uniform in `q = d_near / d ∈ (0, 1]` (`d_near` the least distance of an occluder's bounding
+//! box from the light): a penumbra's width seen from the light, `radius · (1/d_blocker − 1/d)`,
+//! is linear in `q`, so the slices are uniform steps in penumbra width and the last reaches
+//! infinity.
 //!
-//! The estimates run from lists, one cell a thread. The passes that decide (the anchors'
-//! even slices, their odd slices, the other directions) each list the cells they cannot
-//! interpolate, and an indirect dispatch estimates the list before the next pass reads it. A
-//! SIMD batch (8 lanes on llvmpipe) pays for its busiest lane: when each thread estimated its
-//! own cells, most batches waited on one lane's list while the others had none (on the
-//! report's soft scene 5 400 of the other directions' 295 000 cells fail the test for
-//! interpolation, besides 11 800 in a layer's last row or column; estimated in place, those
-//! in a penumbra cone took more than half the build). Measured on that scene
-//! (2026-11-24, llvmpipe): the other directions' cells listed, against estimated in place in
-//! one process, 0.73–0.79 of the build; with the anchors' cells listed too, the build took
-//! 26–30 ms against 48–50 ms before (three pairs of runs), the same grid bit for bit. On
-//! that scene the lists hold 3 513, 1 537 and 8 689 cells. A list's workgroup runs the
-//! estimate's stages in turn over its cells, each stage's cells gathered onto its first
-//! threads (the search for all, the filter for those the search left open, the deep
-//! penumbra's 96 taps for those the filter found in it): 0.90–0.91 of the build against the
-//! stages in one go per thread, the same grid. A block of the other directions whose four
-//! anchors lie outside every penumbra cone is lit without reading them: 0.88–0.90.
+//! The build estimates only where interpolation would not do. A first pass estimates the
+//! directions at even indices (a quarter) at their even slices and the last, and an odd slice
+//! only where its two neighbours differ; a second fills each other direction with the mean of
+//! its neighbours where they agree (none marked, fractions within 5% of the larger, or on a
+//! penumbra at least 4 cells wide away from its foot), and estimates it where not. Each pass
+//! lists the cells it cannot interpolate, and an indirect dispatch estimates each list, one
+//! cell a thread, its stages (search, filter, deep-penumbra taps) gathered onto the first
+//! threads of the workgroup, so that a SIMD batch does not wait on one lane's long list. The
+//! build runs only over the blocks of 2 × 2 directions whose cells, or their neighbours', a
+//! penumbra cone may reach; elsewhere the grid is lit, and each build sets lit the last build's
+//! blocks outside its own.
 //!
-//! The build runs only over the blocks of 2 × 2 directions whose cells, or their neighbours',
-//! a penumbra cone may reach: per layer, a rectangle bounding the cones' directions as the
-//! layer projects them (every direction of a cone lies within its half-angle of its axis, seen
-//! from the light). The grid is lit elsewhere, as the whole build would leave it; before each
-//! build the last build's blocks outside this build's are set lit, so a shadow that moved
-//! leaves nothing behind. On
-//! the report's soft scene the rectangles hold 1 664 of 6 144 blocks (three of the six cube
-//! faces, none of the others), the same grid bit for bit.
+//! Cells where the estimate found the penumbra (or the edge between lit and umbra) narrower
+//! than two cells, and cells with an occluder's surface between them and a neighbouring
+//! slice, are marked: interpolation would smear them, so the march refines its steps there
+//! (see [`MarchNode`](crate::nodes::MarchNode)), blending in the shadow map's own visibility
+//! where the penumbra is narrow, and at a surface taking the grid's slice on the near side for
+//! a point in front of it and the shadow map's visibility behind. A far layer that hides none of
+//! a point's filter taps and lies within 0.9 of its distance is a receiver the point lies above
+//! (a ground), not a reason to mark the cell.
 //!
-//! A thread holds its directions' slices, so it also sees where the visibility jumps
-//! between two slices (an occluder's surface between them). Such cells, and those whose
-//! estimate found the penumbra (or the edge between lit and umbra) narrower than two cells,
-//! are marked: the grid's interpolation would smear them, and the march refines its steps
-//! there (see [`MarchNode`](crate::nodes::MarchNode)), blending in the shadow map's own
-//! visibility where the penumbra is narrow, and at a surface taking the grid's slice on the
-//! near side of it for a point in front (a ground far below an occluder receives a wide
-//! penumbra) and the shadow map's visibility behind.
-//! Measured against the f64 reference (`tests/soft.rs`, `tests/soft_grid.rs`, 2026-11-24): a
-//! sphere under a light of radius 0.2 × their distance p95 0.68%, RMSE 0.29% (the per-step
-//! estimate: 0.80%, 0.39%); a torus under a spot 1.2% RMSE (1.7% before the occluders'
-//! bounding spheres became tight, 1.3% before the march was clipped by the occluders' planes,
-//! 0.9% before the spot map widened for the radius). The grid's
-//! cells themselves, against the exact visible fraction at each cell's point over 12 seeded
-//! sphere scenes: mean |error| 0.020 in the penumbra, and in the deep penumbra (a fraction of
-//! 0.02 to 0.2) a mean relative error of −2.6%, 17.5% in absolute value.
-//! Before the back-face layer, without the marks: 3.8% on the torus, and 3.9% p95 under a
-//! small light (radius 0.03 × the distance) whose penumbrae are sharp almost everywhere.
+//! # Accuracy and limits
 //!
-//! The blockers' distance is taken between the midpoint `m` of the front surface and the back
-//! face ([`ShadowMap::back`]) and their geometric mean `g`, as `m^¾ g^¼`. For a sphere `m` is
-//! the centre's distance on a chord through the centre, `g` its tangent distance on every
-//! chord. A planar blocker (PCSS's model) at the centre's distance sets a sphere's deep
-//! penumbra too dark, by 4% to 43% for spheres of radius 0.1 to 0.4 × their distance, even
-//! with the sphere's exact outline in place of a map; at the tangent distance too bright, by
-//! 12% to 22%. The blend is a fit to the grid's cells over the seeded scenes (their deep
-//! penumbra's mean relative error −0.011 with it, −0.106 with `m`, +0.269 with `g`, measured
-//! without the extra taps below); it moved the deep-penumbra views the most: under a spot
-//! whose cone's edge crosses a sphere, p95 up to 11.4% → 7.1% (7.5% with the extra taps
-//! below), and the report's soft scene (a sphere of radius 0.41 × its distance, where `m` had
-//! set the penumbra too narrow) p95 2.07% → 1.80% (with the extra taps below). Where
-//! the filter finds at most 12 of its 32 taps lit, it takes 96 more: over a small fraction a
-//! tap that is lit or not is a large part of it (the deep penumbra's mean |relative error|
-//! 0.249 → 0.175), for a grid that takes 1.20× as long to build on the report's scene.
+//! Current figures, with their bounds, are in `docs/ACCURACY.md`:
 //!
-//! # Limitations
-//! PCSS assumes one planar blocker per point, and the grid's cells are fixed in light space.
-//! The estimate's error is relative to the visible fraction, and it shows where a pixel's
-//! light comes mostly from the deep penumbra, where that fraction is small: with the eye in an
-//! umbra looking away from the light, p95 4.6% against the reference (RMSE 1.3%); in a thick
-//! medium (σt·L from 1 to 10, L the light's distance to the occluder) with the eye a few mean
-//! free paths from a penumbra, up to 16.8%; in the thinner seeded scenes of the crate's tests
-//! it averages out along the ray (p95 ≤ 1.8%). In that worst scene the grid's depth resolution
-//! for a view that close and the taps' noise remain (before the blend and the extra taps:
-//! 28.2%, 10.5% with 128 filter taps, 8.0% with 64 slices; 14.8% estimating per step).
-//! With the front surface alone as the blockers' distance, the first two were 41% and 38%
-//! (measured with 16 taps a search round, as were the one-layer figures below). A small light
-//! seen close up in thick fog: 5.5% through the grid (its cells are coarse for that view),
-//! 1.1% estimating per step. Under a spot whose cone's edge crosses the occluder, a view lit
-//! only by the deep penumbra is off by up to p95 7.5% (4 of 24 seeded scenes beyond p95 3%);
-//! where a sphere fills most of a spot's cone, its penumbra reaching the cone's edge, p95 3.1%
-//! (per step 2.8%).
-//! Where blockers lie at clearly different distances (ratio > 1.5) the estimate takes two
-//! layers, each with its own filter width; the shadow map still holds one surface a
-//! direction, so an occluder hidden behind a nearer one is partly missed: two spheres with
-//! overlapping penumbrae, p95 2.66% (3.6% with one layer, before the grid's build became
-//! adaptive).
-//! The two layers also keep a ground that casts shadows from posing as the farthest blocker of
-//! the medium just above it (the search's taps at the distance of a point there fall below
-//! the ground), which collapsed a sphere's penumbra over it: the report's soft scene with its
-//! ground casting shadows, 128², per step p95 10.6% with one layer, 3.6% with two (as without
-//! the ground's shadow); 3.4% on 2026-11-23; 2.7% at 64 steps on 2026-11-24. Through the
-//! grid it was 4.9% (2.1% without the ground's shadow; 4.7% on 2026-11-24), most of it where
-//! the ground, the far layer of the medium just above it, set the estimate's region: its
-//! narrow filter marked the cell sharp, and the march blended in the shadow map's hard edge in
-//! place of the sphere's wide penumbra. A far layer that hides none of a point's taps and lies
-//! within 0.9 of its distance (a receiver the point lies above) now leaves the region to the
-//! near layer: 3.6% (without the 0.9, 3.0% against 3.5%, but overlapping penumbrae 3.65%). It was 6.9%
-//! (8.0% with one layer) while the march blended in the shadow map's hard visibility at a
-//! surface between two slices, which sharpens the wide penumbra a ground far below an
-//! occluder receives; a point in front of a surface now takes the grid's slice on its side
-//! (on the sparse torus test p95 2.44% → 2.80%, RMSE 1.57% → 1.70%, on the dense one no
-//! change: row 1.67%, RMSE 0.70%, p95 1.58%). Estimating per step in those cells instead gave
-//! 4.8% at about 10 times the march's cost on that scene: not kept.
-//! A light nearly as large as its distance to an occluder is beyond the one-planar-blocker
-//! assumption: radius 1.39 with a sphere's near side 1.4 from the light's centre, p95 4.5%
-//! (RMSE 4.7%); radius 2, the sphere half inside the light's sphere, 8.0%. The blockers'
-//! distance is fitted to round occluders. A box's penumbra is wider than a planar blocker
-//! between its front and back faces predicts: on 8 seeded scenes of a turned box (the crate's
-//! tests, 16² against a reference that samples the light's disc), 7 are within p95 3%, and one,
-//! a light of radius 0.33 × its distance larger than the box, is at 5.4% (per step 5.2%). The
-//! front surface alone gives 1.8% there and does better on all 8, but on spheres it leaves
-//! the deep penumbra twice as bright as it is. The eye 0.1 in
-//! front of an occluder, looking through it along its umbra: p95 3.7%. A light whose
-//! penumbrae are all narrower than a shadow-map texel is better drawn hard
-//! ([`ShadowMapNode::penumbra_below_texel`](crate::nodes::ShadowMapNode::penumbra_below_texel),
-//! which the facade applies): through the grid such a penumbra is marched, not integrated
-//! between exact boundaries.
+//! * a sphere under a light of radius 0.2 × their distance, against `reference::soft`
+//!   (`tests/soft.rs`); 12 seeded sphere scenes, and the grid's cells against the exact visible
+//!   fraction at each cell's point (`tests/soft_grid.rs`).
+//! * PCSS assumes one planar blocker per point. The error is relative to the visible fraction,
+//!   so it shows where a pixel's light comes mostly from the deep penumbra: the eye in an umbra
+//!   looking away from the light (bar p95 5.5%), spot lights whose view is lit only by the
+//!   deep penumbra (2 of 12 seeded scenes beyond p95 3%, all within 10%), and a thick medium
+//!   (σt·L 1 to 10) with the eye a few mean free paths from a penumbra, which fails the soft
+//!   bars (`random_soft_scenes_in_thick_fog`, ignored, run by hand).
+//! * The shadow map holds one surface a direction: an occluder hidden behind a nearer one is
+//!   partly missed (two spheres with overlapping penumbrae, bar p95 3.25%).
+//! * A light nearly as large as its distance to an occluder is beyond the one-planar-blocker
+//!   assumption (radius 1.39 against a gap of 1.4, bar 6%; the occluder half inside the light's
+//!   sphere, bar 10%).
+//! * The blockers' distance is fitted to round occluders: a box's penumbra is wider than the
+//!   model predicts, most where the light is larger than the box (8 seeded box scenes, bar:
+//!   7 within p95 3%, all within 6%).
+//! * A light whose penumbrae are all narrower than a shadow-map texel is better drawn hard
+//!   ([`ShadowMapNode::penumbra_below_texel`](crate::nodes::ShadowMapNode::penumbra_below_texel),
+//!   which the facade applies): through the grid such a penumbra is marched, not integrated
+//!   between exact boundaries.
 //!
 //! # Inputs
 //! * the [`ShadowMap`] of the light, with its occluders' [`ShadowMap::bounds`] (which bound
@@ -156,6 +80,15 @@
 //! COPY_SRC`;
 //! r = visible fraction in [0, 1], g = 1 where the cell's penumbra is marked sharp, b = 1
 //! where an occluder's surface lies between it and a neighbouring slice, else 0.
+//!
+//! # Cost
+//! The work moves from pixels × steps to the grid's cells, most of which lie outside every
+//! penumbra cone and cost no tap: an estimate is 49 shadow-map taps (145 in the deep
+//! penumbra), a cell interpolated from its neighbours none. The build runs once per frame in
+//! which the shadow map changed, and its cost grows with the cells inside the penumbra cones,
+//! not with the output's pixels; the march reads the grid with about half a step per cell the
+//! ray crosses. The report's soft scene (`cargo run --release --example report -- --scenes
+//! scenes/soft.json`) times the build against the hard frame (`docs/PERFORMANCE.md`).
 //!
 //! # Memory
 //! Besides the grid (8 bytes a cell: 3 MiB at the default size for a point light), the build
