@@ -190,32 +190,6 @@ fn default_table_interpolates_within_1e_3() {
     );
 }
 
-/// A float texture holding `texels` (row-major, top row first).
-fn rgba_texture(gpu: &HeadlessGpu, width: u32, height: u32, texels: &[[f32; 4]]) -> wgpu::Texture {
-    let t = common::texture(
-        gpu,
-        wgpu::TextureFormat::Rgba32Float,
-        wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        (width, height, 1),
-        1,
-    );
-    gpu.queue.write_texture(
-        t.as_image_copy(),
-        bytemuck::cast_slice(texels),
-        wgpu::TexelCopyBufferLayout {
-            offset: 0,
-            bytes_per_row: Some(width * 16),
-            rows_per_image: Some(height),
-        },
-        wgpu::Extent3d {
-            width,
-            height,
-            depth_or_array_layers: 1,
-        },
-    );
-    t
-}
-
 /// A surface hit: point, the normal given to the composite, albedo ρ.
 type Hit = (DVec3, DVec3, f64);
 
@@ -257,9 +231,9 @@ fn surface_frame(
         .map(|h| h.map_or([0.0; 4], |(.., a)| [a as f32, a as f32, a as f32, 1.0]))
         .collect();
     let depth = common::depth_texture(gpu, size, size, &depth);
-    let normal = rgba_texture(gpu, size, size, &normal);
-    let albedo = rgba_texture(gpu, size, size, &albedo);
-    let black = rgba_texture(gpu, size, size, &vec![[0.0; 4]; (size * size) as usize]);
+    let normal = common::rgba_texture(gpu, size, size, &normal);
+    let albedo = common::rgba_texture(gpu, size, size, &albedo);
+    let black = common::rgba_texture(gpu, size, size, &vec![[0.0; 4]; (size * size) as usize]);
     let output = common::texture(
         gpu,
         wgpu::TextureFormat::Rgba32Float,
@@ -531,9 +505,9 @@ fn planner_runs_the_table_only_with_surfaces_and_scattering() {
         ];
     let depth_values = vec![common::ndc_depth(&camera, DVec3::new(0.0, 0.0, -2.0)); 256];
     let depth = common::depth_texture(&gpu, size, size, &depth_values);
-    let color = rgba_texture(&gpu, size, size, &vec![[0.0; 4]; 256]);
-    let normal = rgba_texture(&gpu, size, size, &vec![[0.0, 0.0, 1.0, 0.0]; 256]);
-    let albedo = rgba_texture(&gpu, size, size, &vec![[0.5, 0.5, 0.5, 1.0]; 256]);
+    let color = common::rgba_texture(&gpu, size, size, &vec![[0.0; 4]; 256]);
+    let normal = common::rgba_texture(&gpu, size, size, &vec![[0.0, 0.0, 1.0, 0.0]; 256]);
+    let albedo = common::rgba_texture(&gpu, size, size, &vec![[0.5, 0.5, 0.5, 1.0]; 256]);
     let output = common::texture(
         &gpu,
         wgpu::TextureFormat::Rgba32Float,
@@ -616,9 +590,9 @@ fn bad_surface_textures_are_typed_errors() {
     let light = PointLight::new(Vec3::new(0.0, 0.0, -1.5), Vec3::splat(5.0)).unwrap();
     let lights = [Light::from(light).into()];
     let depth = common::depth_texture(&gpu, 16, 16, &[0.5; 256]);
-    let color = rgba_texture(&gpu, 16, 16, &[[0.0; 4]; 256]);
-    let good = rgba_texture(&gpu, 16, 16, &[[0.0, 0.0, 1.0, 0.0]; 256]);
-    let small = rgba_texture(&gpu, 8, 8, &[[0.0, 0.0, 1.0, 0.0]; 64]);
+    let color = common::rgba_texture(&gpu, 16, 16, &[[0.0; 4]; 256]);
+    let good = common::rgba_texture(&gpu, 16, 16, &[[0.0, 0.0, 1.0, 0.0]; 256]);
+    let small = common::rgba_texture(&gpu, 8, 8, &[[0.0, 0.0, 1.0, 0.0]; 64]);
     let no_binding = common::texture(
         &gpu,
         wgpu::TextureFormat::Rgba16Float,

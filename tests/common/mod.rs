@@ -95,6 +95,37 @@ pub fn pixel_ray(camera: &Camera, width: u32, height: u32, px: u32, py: u32) -> 
     (eye, (p.truncate() / p.w - eye).normalize())
 }
 
+/// A float texture holding `texels` (row-major, top row first).
+pub fn rgba_texture(
+    gpu: &HeadlessGpu,
+    width: u32,
+    height: u32,
+    texels: &[[f32; 4]],
+) -> wgpu::Texture {
+    let t = texture(
+        gpu,
+        wgpu::TextureFormat::Rgba32Float,
+        wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        (width, height, 1),
+        1,
+    );
+    gpu.queue.write_texture(
+        t.as_image_copy(),
+        bytemuck::cast_slice(texels),
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(width * 16),
+            rows_per_image: Some(height),
+        },
+        wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+    );
+    t
+}
+
 /// A `Depth32Float` texture holding `values` (row-major, top row first), written by a
 /// fullscreen pass through `frag_depth` (buffer → depth copies are not in the core feature set).
 /// A 2D texture of `size.2` layers and `mips` mip levels, for tests that need a specific
