@@ -397,9 +397,6 @@ struct CascadeFit {
     cy: f32,
     ct: f32,
     radius: f32,
-    /// The fitted sphere's radius before the margin and the rounding (for the tests).
-    #[cfg_attr(not(test), allow(dead_code))]
-    sphere: f32,
 }
 
 impl CascadeFit {
@@ -439,7 +436,6 @@ impl CascadeFit {
             (far_mid, far_half.max(near_half))
         };
         let texels = resolution.max(1) as f32;
-        let sphere = radius;
         let radius = radius.max(1e-6) * (1.0 + 6.0 / texels);
         let radius = ((radius.log2() * 16.0).ceil() / 16.0).exp2();
         let texel = 2.0 * radius / texels;
@@ -451,7 +447,6 @@ impl CascadeFit {
             cy: snap(centre.dot(up)),
             ct: centre.dot(d),
             radius,
-            sphere,
         }
     }
 
