@@ -627,8 +627,7 @@ mod tests {
     /// A light's radius widens where an occluder can shadow: an occluder far to the side of a
     /// point light in thick fog is culled at the default threshold (1e-3), the same occluder
     /// under a light of radius 7 is not, and once the light reaches within `2R` of its bounds
-    /// no bound applies (was the point light's bound whatever the radius, so a penumbra could
-    /// be culled).
+    /// no bound applies (the point light's bound would cull a penumbra).
     #[test]
     fn a_radius_loosens_the_cull_bound() {
         let medium = Medium::new(Vec3::splat(1.0), Vec3::ZERO, PhaseFunction::Isotropic).unwrap();
