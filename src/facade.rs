@@ -1,7 +1,7 @@
 //! `VolumetricShadows`: owns the nodes, asks the planner what to run, records it.
 
 use crate::error::{Error, Result};
-use crate::gpu::{Cache, GpuTimer, Occluder, PassTime};
+use crate::gpu::{Cache, GpuTimer, LightKind, Occluder, PassTime};
 use crate::nodes::{
     AirlightTableNode, CompositeInputs, CompositeNode, CompositeSurfaces, CrossingsBuild,
     CrossingsRequest, ExtentsInputs, ExtentsNode, IssTableNode, IssTableSize, LightTextureNode,
@@ -237,7 +237,17 @@ pub struct VolumetricShadows {
     /// `None` when the last `prepare` succeeded and nothing dropped its frame since; otherwise
     /// why `encode` has nothing to record.
     unprepared: Option<&'static str>,
+    /// The forms of the steps recorded since the settings last changed (see
+    /// [`VolumetricShadows::is_first_frame`]).
+    seen: std::collections::HashSet<StepShape>,
+    /// Whether the last prepared frame has a step of a form not in `seen` before it.
+    first_frame: bool,
 }
+
+/// What decides the pipeline variant a step records: its pass, its light's kind, whether the
+/// light has a shadow map, extents and a soft-shadow grid this frame and scatters at full
+/// resolution, and whether the composite adds the surface term.
+type StepShape = (Pass, Option<(LightKind, [bool; 4])>, bool);
 
 impl VolumetricShadows {
     /// Creates the composite for `settings.output_format` and validates the settings. Per-light
@@ -270,6 +280,8 @@ impl VolumetricShadows {
             plan: Plan::default(),
             timer,
             unprepared: Some("no frame has been prepared yet"),
+            seen: Default::default(),
+            first_frame: false,
         })
     }
 
@@ -300,6 +312,7 @@ impl VolumetricShadows {
             self.slots.clear();
         }
         self.settings = settings;
+        self.seen.clear();
         self.unprepared = Some("set_settings changed the settings after the last prepare");
         Ok(())
     }
@@ -563,6 +576,7 @@ impl VolumetricShadows {
         };
         self.composite
             .set_surfaces(queue, frame.medium, surfaces.as_ref())?;
+        let surface_term = surfaces.is_some();
         self.composite.prepare(
             device,
             queue,
@@ -574,7 +588,47 @@ impl VolumetricShadows {
                 inscatter: &inscatter,
             },
         )?;
+
+        let plan = &self.plan;
+        let present = |pass, light| {
+            plan.runs(pass, light)
+                || plan.skip_reason(pass, light) == Some(&plan::Reason::Unchanged)
+        };
+        let mut first = false;
+        for step in &plan.steps {
+            let light = step.light.map(|i| {
+                let kind = LightKind::of(&FrameLight {
+                    light: drawn[i],
+                    texture: frame.lights[i].texture,
+                });
+                let light = Some(i);
+                let forms = [
+                    present(Pass::ShadowMap, light),
+                    present(Pass::Extents, light),
+                    present(Pass::SoftShadow, light),
+                    plan.scale(i) == crate::nodes::Scale::Full,
+                ];
+                (kind, forms)
+            });
+            first |= self.seen.insert((step.pass, light, surface_term));
+        }
+        self.first_frame = first;
         Ok(())
+    }
+
+    /// Whether the last prepared frame records a step in a form (its pass, its light's
+    /// [`LightKind`], whether the light has shadows, extents and a soft-shadow grid, its
+    /// resolution, the surface term) that this `VolumetricShadows` had not recorded since it
+    /// was created or its settings changed: the first frame, and any that brings a new light
+    /// kind or shadow configuration. Such a frame may run pipelines for the first time.
+    /// Drivers that compile a pipeline when it first runs rather than when it is created
+    /// (Mesa's lavapipe) spend that compilation, up to seconds, in this frame's submission, so
+    /// its wall-clock times (and [`HeadlessGpu::run_timed`](crate::HeadlessGpu::run_timed)'s on
+    /// a CPU adapter) are not the steady state. Elsewhere [`Cache::warm_up`] builds every
+    /// pipeline before the first frame, and timestamp queries ([`read_timings`](Self::read_timings))
+    /// measure GPU work only.
+    pub fn is_first_frame(&self) -> bool {
+        self.first_frame
     }
 
     /// Records the planned passes into `encoder` and the composite into `output`: a texture
@@ -775,7 +829,7 @@ fn without_radius(light: Light) -> Light {
     }
 }
 
-fn validate(settings: &Settings) -> Result<()> {
+pub(crate) fn validate(settings: &Settings) -> Result<()> {
     settings.upsample.validate()?;
     settings.soft_shadow.validate()?;
     if let Some(p95) = settings.error_target {

@@ -290,7 +290,7 @@ pub use error::GltfError;
 pub use error::{Error, Result, SceneFileError};
 pub use facade::{Frame, FrameLight, Settings, Surfaces, VolumetricShadows};
 pub use gpu::headless::{tone_map, HeadlessGpu};
-pub use gpu::{Cache, ErrorSign, ShaderPrecision};
+pub use gpu::{Cache, ErrorSign, LightKind, ShaderPrecision};
 pub use gpu::{Occluder, OccluderMesh};
 pub use load::{Limit, LoadOptions};
 pub use plan::{AdapterKind, Plan};

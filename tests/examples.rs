@@ -11,6 +11,8 @@
 mod common_examples;
 #[path = "common/files.rs"]
 mod files;
+#[path = "common/visibility.rs"]
+mod visibility;
 
 use common_examples::report::metric;
 use std::path::{Path, PathBuf};
@@ -18,6 +20,7 @@ use std::time::Instant;
 
 use common_examples::cli::{self, Parsed, WouldOverwriteInput};
 use common_examples::render_scene::{self, RenderMethod};
+use visibility::{visible_fraction, MIN_LEVELS, MIN_PIXEL_CHANGE, MIN_VISIBLE_FRACTION};
 
 /// Test image size: keeps the f64 reference (O(triangles) per ray) fast.
 const SIZE: u32 = 64;
@@ -110,34 +113,6 @@ fn relative_rmse(test: &[[f32; 3]], reference: &[[f32; 3]], skip: &[usize]) -> f
     }
     let n = 3.0 * reference.len() as f64;
     (sq / n).sqrt() / (sum / n)
-}
-
-/// Shadows must be visible in the picture, not only in the in-scatter: at least this fraction
-/// of a standard scene's tone-mapped PNG must differ from the same scene without occluder
-/// shadows (issue 13: "≥ 10% of the pixel value over ≥ 5% of the image").
-const MIN_VISIBLE_FRACTION: f64 = 0.05;
-/// A pixel differs when its mean 8-bit sRGB value moves by at least this fraction of the
-/// unshadowed value ...
-const MIN_PIXEL_CHANGE: f64 = 0.10;
-/// ... and by at least this many levels, so that rounding in near-black pixels does not count.
-const MIN_LEVELS: f64 = 3.0;
-
-/// The fraction of pixels whose mean sRGB value differs between `shadowed` and `unshadowed`
-/// by at least [`MIN_PIXEL_CHANGE`] of the unshadowed value and [`MIN_LEVELS`] levels.
-fn visible_fraction(shadowed: &Path, unshadowed: &Path) -> f64 {
-    let read = |p: &Path| image::open(p).unwrap().into_rgb8();
-    let (a, b) = (read(shadowed), read(unshadowed));
-    assert_eq!(a.dimensions(), b.dimensions());
-    let mean = |p: &image::Rgb<u8>| p.0.iter().map(|&v| f64::from(v)).sum::<f64>() / 3.0;
-    let differ = a
-        .pixels()
-        .zip(b.pixels())
-        .filter(|(s, u)| {
-            let (s, u) = (mean(s), mean(u));
-            (s - u).abs() >= (MIN_PIXEL_CHANGE * u).max(MIN_LEVELS)
-        })
-        .count();
-    differ as f64 / f64::from(a.width() * a.height())
 }
 
 /// The pixels (at `SIZE`²) that contain a light of the scene.

@@ -234,13 +234,14 @@ fn percent_decode(s: &str) -> PathBuf {
 
 /// `quickstart --help`.
 pub const QUICKSTART_HELP: &str = "\
-usage: quickstart [-o OUT.png | OUT.png]
+usage: quickstart [-o OUT.png | OUT.png] [--size WxH]
 
-Renders the quickstart scene (a point light behind two spheres in hazy air) headless at
-640x400, prints each frame's plan and per-pass GPU times and writes a tone-mapped PNG.
+Renders the quickstart scene (a point light behind and between two spheres in hazy air)
+headless, prints each frame's plan and per-pass GPU times and writes a tone-mapped PNG.
 
 options:
   -o, --output OUT.png  the PNG to write (default: out/quickstart.png; its folder is created)
+  --size WxH            image size (default 640x400; the vertical field of view is kept)
   -h, --help            this help";
 
 /// The quickstart's options.
@@ -248,15 +249,30 @@ options:
 pub struct QuickstartOptions {
     /// The PNG to write.
     pub output: PathBuf,
+    /// Image size, default 640×400.
+    pub size: (u32, u32),
 }
 
 /// Parses `quickstart`'s arguments (after the program name).
 pub fn parse_quickstart(args: &[String]) -> Result<Parsed<QuickstartOptions>, BoxError> {
     let mut output: Option<PathBuf> = None;
+    let mut size = (640, 400);
     let mut parser = lexopt::Parser::from_args(args);
     while let Some(arg) = parser.next()? {
         match arg {
             Short('h') | Long("help") => return Ok(Parsed::Help),
+            Long("size") => {
+                let text = parser.value()?.string()?;
+                let parsed = text
+                    .split_once('x')
+                    .and_then(|(w, h)| Some((w.parse().ok()?, h.parse().ok()?)))
+                    .filter(|&(w, h): &(u32, u32)| {
+                        (1..=8192).contains(&w) && (1..=8192).contains(&h)
+                    });
+                size = parsed.ok_or_else(|| {
+                    format!("--size wants WxH with each in 1..=8192 (e.g. 1920x1080), got {text:?}")
+                })?;
+            }
             Short('o') | Long("output") if output.is_none() => {
                 output = Some(parser.value()?.into())
             }
@@ -280,7 +296,7 @@ pub fn parse_quickstart(args: &[String]) -> Result<Parsed<QuickstartOptions>, Bo
         )
         .into());
     }
-    Ok(Parsed::Run(QuickstartOptions { output }))
+    Ok(Parsed::Run(QuickstartOptions { output, size }))
 }
 
 /// The first line of a help text (the usage line), for error messages.

@@ -80,13 +80,26 @@ pub fn render_frames(
             println!("frame {index} plan:\n{plan}");
         }
         println!(
-            "frame {index}: {}; wall clock {:.1} ms",
+            "frame {index}{}: {}; wall clock {:.1} ms",
+            first_frame_note(volumetric),
             timings_line(&stats.timings),
             stats.wall_ms
         );
         stats.plan = plan.lines().map(str::to_owned).collect();
     }
     Ok(stats)
+}
+
+/// A note for a frame's timing line when it is the first of its kind
+/// ([`VolumetricShadows::is_first_frame`]): on a driver that compiles pipelines when they
+/// first run, its times include that compilation.
+pub fn first_frame_note(volumetric: &VolumetricShadows) -> &'static str {
+    if volumetric.is_first_frame() {
+        " (first of its kind: on a driver that compiles pipelines at first use, as lavapipe \
+         does, its times include that compilation)"
+    } else {
+        ""
+    }
 }
 
 /// The in-scattered radiance of the last frame, summed over its `lights` lights (zero for a

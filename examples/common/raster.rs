@@ -246,7 +246,7 @@ pub fn draw_app_frame(
                 intensity: sun.irradiance().extend(0.0).to_array(),
                 direction: [0.0, -1.0, 0.0, -1.0],
                 frame: Mat4::IDENTITY.to_cols_array(),
-                params: [1.0, 0.0, 0.0, 0.0],
+                params: [1.0, shadowed, 0.0, 0.0],
             },
             other => LightUniform {
                 position: other.position().unwrap_or_default().extend(0.0).to_array(),

@@ -1,7 +1,7 @@
 //! The `render` example: a JSON scene file rendered headless to EXR, PNG and a JSON report.
 //!
 //! ```text
-//! render SCENE.json [-o OUT] [--method METHOD] [--size WxH] [--exposure E] [--surface-scatter]
+//! render SCENE.json [-o OUT] [--method METHOD] [--size WxH] [--exposure E] [--surface-scatter] [--warm-up]
 //! ```
 //!
 //! Writes `OUT.exr` (linear RGB radiance: attenuated surfaces plus in-scatter), `OUT.png`
@@ -52,8 +52,8 @@ use volshadow::nodes::{Scale, UpsampleFilter};
 use volshadow::reference::{self, TexturedSpot};
 use volshadow::scene_file::{Method, SceneDescription};
 use volshadow::{
-    Cache, Camera, Frame, FrameLight, HeadlessGpu, Light, Occluder, OccluderMesh, Settings,
-    Surfaces, VolumetricShadows,
+    Cache, Camera, Frame, FrameLight, HeadlessGpu, Light, LightKind, Occluder, OccluderMesh,
+    Settings, Surfaces, VolumetricShadows,
 };
 
 use super::cli::{default_output, input_files, refuse_overwrite, usage_line, Parsed};
@@ -68,7 +68,7 @@ use super::{
 
 /// The command line, for error messages (`--help` prints [`help`]).
 pub const USAGE: &str = "usage: render SCENE.json [-o OUT] [--method METHOD] [--size WxH] \
-[--exposure E] [--surface-scatter] [-h | --help]";
+[--exposure E] [--surface-scatter] [--warm-up] [-h | --help]";
 
 /// Which method a [`METHODS`] entry is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -182,6 +182,8 @@ options:
   --exposure E       the PNG's exposure (default: automatic)
   --surface-scatter  add the light the fog scatters onto the surfaces (GPU methods) and write
                      OUT.surface.exr, that term alone
+  --warm-up          build every pipeline the settings and the scene's lights can use before
+                     the first frame (volshadow::Cache::warm_up) and print how long it took
   -h, --help         this help",
         volshadow::nodes::DEFAULT_CROSSINGS
     )
@@ -367,6 +369,8 @@ pub struct Options {
     pub exposure: Option<f64>,
     /// Add the light scattered onto surfaces and write `OUT.surface.exr`.
     pub surface_scatter: bool,
+    /// Build the pipelines before the first frame (`Cache::warm_up`).
+    pub warm_up: bool,
 }
 
 impl Options {
@@ -375,7 +379,7 @@ impl Options {
     pub fn parse(args: &[String]) -> Result<Parsed<Self>, BoxError> {
         let mut scene = None;
         let (mut out, mut method, mut size, mut exposure) = (None, None, None, None);
-        let mut surface_scatter = false;
+        let (mut surface_scatter, mut warm_up) = (false, false);
         if args.iter().any(|a| a == "-h" || a == "--help") {
             return Ok(Parsed::Help);
         }
@@ -393,6 +397,7 @@ impl Options {
                     exposure = Some(e);
                 }
                 Long("surface-scatter") => surface_scatter = true,
+                Long("warm-up") => warm_up = true,
                 Short('h') | Long("help") => return Ok(Parsed::Help),
                 Value(path) if scene.is_none() => scene = Some(PathBuf::from(path)),
                 _ => return Err(format!("{}\n{USAGE}", arg.unexpected()).into()),
@@ -413,6 +418,7 @@ impl Options {
             size,
             exposure,
             surface_scatter,
+            warm_up,
         }))
     }
 
@@ -780,8 +786,17 @@ pub fn render(options: &Options) -> Result<Rendered, BoxError> {
                 ..Settings::default()
             };
             let cache = Cache::new(&gpu.device);
-            let mut volumetric = VolumetricShadows::new(&gpu.device, &gpu.queue, &cache, settings)?;
             let (lights, occluders) = (gpu_scene.lights(), gpu_scene.occluders());
+            if options.warm_up {
+                let kinds: Vec<LightKind> = lights.iter().map(LightKind::of).collect();
+                let start = Instant::now();
+                cache.warm_up(&gpu.device, &settings, &kinds)?;
+                println!(
+                    "warm-up: the pipelines for {kinds:?} built in {:.1} ms",
+                    start.elapsed().as_secs_f64() * 1e3
+                );
+            }
+            let mut volumetric = VolumetricShadows::new(&gpu.device, &gpu.queue, &cache, settings)?;
             let output = gpu_scene.output(&gpu);
             let frame = gpu_scene.frame(&lights, &occluders);
             let stats = render_frames(&gpu, &mut volumetric, &frame, &output)?;

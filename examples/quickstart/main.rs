@@ -6,7 +6,7 @@
 //! encoder by `VolumetricShadows` (its plan and per-pass GPU times are printed).
 //!
 //! ```text
-//! cargo run --release --example quickstart [-- -o OUTPUT.png]
+//! cargo run --release --example quickstart [-- -o OUTPUT.png] [--size WxH]
 //! ```
 //!
 //! `--help` prints the options (`examples/common/cli.rs`). The scene is built in code, so no
@@ -21,12 +21,15 @@ mod fullscreen;
 #[path = "../common/headless_env.rs"]
 mod headless_env;
 #[path = "../common/quickstart_scene.rs"]
-mod quickstart_scene;
+pub mod quickstart_scene;
 
 use fullscreen::texture_desc;
 pub use quickstart_scene::{reference_occluders, scene, surface_distance};
 use volshadow::glam::Mat4;
 use volshadow::{AdapterKind, Frame, HeadlessGpu, Light, Occluder, Settings, VolumetricShadows};
+
+/// The PNG's exposure.
+pub const EXPOSURE: f32 = 1.6;
 
 /// What a run produced: the composited image and the in-scatter alone (linear, row-major).
 pub struct Rendered {
@@ -45,7 +48,29 @@ pub fn run(
     settings: Settings,
     frames: usize,
 ) -> Result<Rendered, Box<dyn std::error::Error>> {
-    let (camera, point, medium) = scene(width, height)?;
+    run_with(
+        gpu,
+        (width, height),
+        settings,
+        frames,
+        true,
+        quickstart_scene::LIGHT_POSITION,
+    )
+}
+
+/// [`run`], with the spheres passed to volshadow as occluders or not (`false`: the same app
+/// frame with unshadowed fog, what the picture's shafts are judged against) and the light at
+/// `light`.
+pub fn run_with(
+    gpu: &HeadlessGpu,
+    (width, height): (u32, u32),
+    settings: Settings,
+    frames: usize,
+    shadows: bool,
+    light: volshadow::glam::Vec3,
+) -> Result<Rendered, Box<dyn std::error::Error>> {
+    let (camera, _, medium) = scene(width, height)?;
+    let point = volshadow::PointLight::new(light, quickstart_scene::LIGHT_INTENSITY)?;
 
     // The application's own frame: colour (linear radiance) and depth.
     let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
@@ -70,6 +95,7 @@ pub fn run(
     let meshes = quickstart_scene::sphere_meshes(&gpu.device);
     let occluders: Vec<Occluder> = meshes
         .iter()
+        .filter(|_| shadows)
         .map(|mesh| Occluder {
             mesh,
             transform: Mat4::IDENTITY,
@@ -102,6 +128,13 @@ pub fn run(
         let start = Instant::now();
         let plan = volumetric.prepare(&gpu.device, &gpu.queue, &frame)?;
         println!("frame {frame_index} plan:\n{plan}");
+        // On a driver that compiles a pipeline when it first runs (lavapipe), the first
+        // frame's times include that compilation.
+        let note = if volumetric.is_first_frame() {
+            " (first frame: includes any first-use shader compilation)"
+        } else {
+            ""
+        };
         // An app records into its own encoder and submits (`volumetric.encode`); this one
         // also times each pass: by timestamp queries, or on a CPU adapter (lavapipe) by
         // running each pass alone.
@@ -113,7 +146,7 @@ pub fn run(
             .map(|t| format!("{} {:.2} ms", t.pass, t.ms))
             .collect();
         println!(
-            "frame {frame_index}: GPU {gpu_ms:.2} ms ({}); wall clock {wall:.1} ms at {width}x{height}",
+            "frame {frame_index}{note}: GPU {gpu_ms:.2} ms ({}); wall clock {wall:.1} ms at {width}x{height}",
             per_pass.join(", ")
         );
     }
@@ -132,7 +165,7 @@ fn main() {
             println!("{}", cli::QUICKSTART_HELP);
             Ok(())
         }
-        cli::Parsed::Run(options) => render_to(&options.output),
+        cli::Parsed::Run(options) => render_to(&options.output, options.size),
     });
     if let Err(e) = result {
         eprintln!("error: {e}");
@@ -140,11 +173,13 @@ fn main() {
     }
 }
 
-/// Renders the scene at 640×400 and writes the PNG to `output` (creating its folder).
-fn render_to(output: &std::path::Path) -> Result<(), Box<dyn std::error::Error>> {
+/// Renders the scene at `width × height` and writes the PNG to `output` (creating its folder).
+fn render_to(
+    output: &std::path::Path,
+    (width, height): (u32, u32),
+) -> Result<(), Box<dyn std::error::Error>> {
     let gpu = HeadlessGpu::with_optional_features(wgpu::Features::TIMESTAMP_QUERY)?;
     println!("adapter: {}", gpu.adapter_summary());
-    let (width, height) = (640, 400);
     // Two frames: the second shows what the planner skips when nothing changed.
     let rendered = run(
         &gpu,
@@ -157,8 +192,8 @@ fn render_to(output: &std::path::Path) -> Result<(), Box<dyn std::error::Error>>
         std::fs::create_dir_all(dir)
             .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
     }
-    // Exposure 1.6, Reinhard and sRGB (`volshadow::tone_map`).
-    let rgba = volshadow::tone_map(&rendered.output, 1.6);
+    // Reinhard and sRGB (`volshadow::tone_map`).
+    let rgba = volshadow::tone_map(&rendered.output, EXPOSURE);
     image::RgbaImage::from_raw(width, height, rgba)
         .ok_or("tone-mapped image of the wrong size")?
         .save_with_format(output, image::ImageFormat::Png)

@@ -62,6 +62,102 @@ impl Cache {
     pub fn precision(&self) -> ShaderPrecision {
         self.precision
     }
+
+    /// Builds, before the first frame, every pipeline that a
+    /// [`VolumetricShadows`](crate::VolumetricShadows) with `settings` can use for lights of
+    /// the kinds in `lights`: the march's variants (each method's shadowed and unshadowed
+    /// forms, with and without a soft light's grid), the upsample's for a reduced resolution,
+    /// and the composite's for `settings.output_format`. Without it each variant is built by
+    /// the first frame that needs it, inside [`prepare`](crate::VolumetricShadows::prepare):
+    /// a pause of up to seconds on that frame. The pipelines are shared by every clone of the
+    /// cache; warming twice builds nothing new.
+    ///
+    /// Drivers that compile a pipeline only when it first runs (Mesa's lavapipe) still spend
+    /// that time in the first frame's submission;
+    /// [`VolumetricShadows::is_first_frame`](crate::VolumetricShadows::is_first_frame) marks
+    /// such frames.
+    ///
+    /// # Errors
+    ///
+    /// Those of [`VolumetricShadows::new`](crate::VolumetricShadows::new) and
+    /// [`MarchSettings`](crate::nodes::MarchSettings)' range checks
+    /// ([`Error::InvalidSetting`](crate::Error::InvalidSetting) naming the field), building
+    /// nothing.
+    pub fn warm_up(
+        &self,
+        device: &wgpu::Device,
+        settings: &crate::Settings,
+        lights: &[LightKind],
+    ) -> crate::Result<()> {
+        crate::facade::validate(settings)?;
+        settings.march.validate()?;
+        // The node builds both composite paths (render and compute) for the format.
+        nodes::CompositeNode::new(device, self, settings.output_format)?;
+        for &kind in lights {
+            self.march.warm_up(device, &settings.march, kind);
+            if settings.march.scale != nodes::Scale::Full {
+                self.upsample.warm_up(device, kind);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// What decides which pipelines a light's frames use (see [`Cache::warm_up`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum LightKind {
+    /// A point light; `soft` when it has a radius.
+    Point {
+        /// The light has a radius (soft shadows).
+        soft: bool,
+    },
+    /// A spot light; `soft` when it has a radius, `textured` when frames give it a texture.
+    Spot {
+        /// The light has a radius (soft shadows).
+        soft: bool,
+        /// Frames give the spot a projected texture.
+        textured: bool,
+    },
+    /// A directional light.
+    Directional,
+}
+
+impl LightKind {
+    /// Every kind.
+    pub const ALL: [LightKind; 7] = [
+        LightKind::Point { soft: false },
+        LightKind::Point { soft: true },
+        LightKind::Spot {
+            soft: false,
+            textured: false,
+        },
+        LightKind::Spot {
+            soft: true,
+            textured: false,
+        },
+        LightKind::Spot {
+            soft: false,
+            textured: true,
+        },
+        LightKind::Spot {
+            soft: true,
+            textured: true,
+        },
+        LightKind::Directional,
+    ];
+
+    /// The kind of a frame's light.
+    pub fn of(light: &crate::FrameLight<'_>) -> Self {
+        let soft = light.light.radius() > 0.0;
+        match light.light {
+            crate::Light::Point(_) => LightKind::Point { soft },
+            crate::Light::Spot(_) => LightKind::Spot {
+                soft,
+                textured: light.texture.is_some(),
+            },
+            crate::Light::Directional(_) => LightKind::Directional,
+        }
+    }
 }
 
 /// What one binding of a node's bind group holds. Each node lists its bindings once, in a

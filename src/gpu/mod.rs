@@ -8,7 +8,7 @@ pub(crate) mod precision;
 mod timer;
 pub(crate) mod uniforms;
 
-pub use cache::Cache;
+pub use cache::{Cache, LightKind};
 pub use mesh::{Occluder, OccluderMesh};
 pub use precision::{ErrorSign, ShaderPrecision};
 pub use timer::{GpuTimer, PassTime};

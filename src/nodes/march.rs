@@ -127,6 +127,72 @@ impl Pipelines {
         }
     }
 
+    /// Builds every variant that frames of the facade with `settings` can use for lights of
+    /// `kind` (see [`Cache::warm_up`]): a superset of what [`MarchNode::prepare`] picks, since a
+    /// light may lose its radius (a penumbra below a texel), its occluders (culled or none), its
+    /// extents' crossing lists or its soft-shadow grid from frame to frame.
+    pub(crate) fn warm_up(
+        &self,
+        device: &wgpu::Device,
+        settings: &MarchSettings,
+        kind: crate::gpu::LightKind,
+    ) {
+        use crate::gpu::LightKind;
+        let (spot, textured, directional, can_be_soft) = match kind {
+            LightKind::Point { soft } => (false, false, false, soft),
+            LightKind::Spot { soft, textured } => (true, textured, false, soft),
+            LightKind::Directional => (false, false, true, false),
+        };
+        // (mode, soft-shadow grid bound) of a shadowed frame, as `prepare` chooses them.
+        let shadowed: &[(Mode, bool)] = match settings.method {
+            MarchMethod::Exact => &[
+                (Mode::Exact, false),
+                (Mode::BruteForce, false),
+                (Mode::Hybrid, true),
+            ],
+            MarchMethod::Hybrid => &[
+                (Mode::Hybrid, false),
+                (Mode::BruteForce, false),
+                (Mode::Hybrid, true),
+            ],
+            MarchMethod::BruteForce => &[(Mode::BruteForce, false)],
+            MarchMethod::Textbook => &[(Mode::Textbook, false)],
+        };
+        let unshadowed = match settings.method {
+            MarchMethod::Textbook => Mode::Textbook,
+            _ => Mode::Analytic,
+        };
+        let softness: &[bool] = if can_be_soft {
+            &[false, true]
+        } else {
+            &[false]
+        };
+        for &soft in softness {
+            let modes = std::iter::once((unshadowed, false)).chain(shadowed.iter().copied());
+            for (mode, grid) in modes {
+                if grid && !soft {
+                    continue; // the grid is bound for a light with a radius only
+                }
+                self.variant(
+                    device,
+                    Variant {
+                        mode,
+                        spot,
+                        textured,
+                        bisections: if mode == Mode::Analytic || soft {
+                            0
+                        } else {
+                            settings.bisections
+                        },
+                        directional,
+                        soft: soft && !matches!(mode, Mode::Analytic | Mode::Textbook),
+                        soft_grid: grid,
+                    },
+                );
+            }
+        }
+    }
+
     fn variant(&self, device: &wgpu::Device, v: Variant) -> wgpu::ComputePipeline {
         cached(&self.variants, v, || {
             let flag = |b: bool| if b { 1.0 } else { 0.0 };

@@ -156,6 +156,13 @@ impl Pipelines {
         }
     }
 
+    /// Builds the pipelines a light of `kind` uses (see [`Cache::warm_up`]).
+    pub(crate) fn warm_up(&self, device: &wgpu::Device, kind: crate::gpu::LightKind) {
+        use crate::gpu::LightKind;
+        let spot = matches!(kind, LightKind::Spot { .. });
+        self.for_light(device, spot, kind == LightKind::Directional);
+    }
+
     fn for_light(&self, device: &wgpu::Device, spot: bool, directional: bool) -> EntryPoints {
         cached(&self.lights, (spot, directional), || {
             let flag = |b: bool| if b { 1.0 } else { 0.0 };
