@@ -87,13 +87,15 @@ fn volshadow_iss(table: texture_2d<f32>, p: vec3<f32>, n: vec3<f32>, light_pos: 
 //   G_cone = ∫dφ ∫dγ (ω·n)₊ · 2∫_{ξ range} p(cos 2ξ)·exp(−σt·D·sin γ·(tan ξ − tan(γ/2))) dξ
 //
 // (the point light's G has β1 = 0, β2 = π). Every limit is closed-form, so the integrand is
-// smooth on each piece: φ by the periodic trapezoid rule (16 nodes) when every half-plane meets
-// the cone (P inside it or behind the light), else by 8-point Gauss–Legendre over the arc of
-// half-planes that meet it (φ = φa + w·sin t, which smooths the square-root ends; two
-// halves of 8 points); γ by 4-point
-// Gauss–Legendre between the limits of ω·n > 0 and the wedge, split where the range of ξ
-// reaches π/2 and at the width of the glow towards the light (1/(σt·D), or a forward phase
-// peak's); ξ by 4-point Gauss–Legendre, split where the attenuation along the ray is steep.
+// smooth on each piece: φ by the periodic trapezoid rule (16 nodes, gathered where the wedge's
+// far end rises steeply when P is near the cone's surface) when every half-plane meets the cone
+// (P inside it or behind the light), else by 8-point Gauss–Legendre over the arc of
+// half-planes that meet it (φ = φa + w·sin t, which smooths the square-root ends; two halves of
+// 8 points); γ by 4-point Gauss–Legendre between the limits of ω·n > 0 and the wedge, split
+// where the range of ξ reaches π/2 and at the width of the glow towards the light (1/(σt·D), or
+// a forward phase peak's); ξ by 3-point Gauss–Legendre, split where the attenuation along the
+// ray is steep. About 16 × 12 × 3 phase evaluations a point: a renderer evaluates it on a
+// lattice of pixels and interpolates (volshadow's composite does; see CompositeNode).
 
 // The phase function's lobes (per-channel weights, each summing to 1 over the lobes, and the
 // Henyey–Greenstein g), as `volshadow::nodes::IssPhase` writes them.
@@ -112,11 +114,31 @@ struct VolshadowIssPhase {
 const VOLSHADOW_ISS_PI: f32 = 3.14159265358979;
 const VOLSHADOW_ISS_HALF_PI: f32 = 1.5707963267948966;
 
-// 4-point Gauss–Legendre on [−1, 1] (nodes ±x, weights w) and 8-point (the positive half).
-const VOLSHADOW_ISS_GL4_X = array<f32, 2>(0.3399810435848563, 0.8611363115940526);
-const VOLSHADOW_ISS_GL4_W = array<f32, 2>(0.6521451548625461, 0.3478548451374538);
-const VOLSHADOW_ISS_GL8_X = array<f32, 4>(0.1834346424956498, 0.5255324099163290, 0.7966664774136267, 0.9602898564975363);
-const VOLSHADOW_ISS_GL8_W = array<f32, 4>(0.3626837833783620, 0.3137066458778873, 0.2223810344533745, 0.1012285362903763);
+// Gauss–Legendre rules on [−1, 1] of 2, 3, 4 and 8 points, one after another: the n-point
+// rule's node k is VOLSHADOW_ISS_GL[o + k] (x, w), o = volshadow_iss_gl_offset(n).
+const VOLSHADOW_ISS_GL = array<vec2<f32>, 17>(
+    vec2<f32>(-0.5773502691896258, 1.0), vec2<f32>(0.5773502691896258, 1.0),
+    vec2<f32>(-0.7745966692414834, 0.5555555555555556), vec2<f32>(0.0, 0.8888888888888888),
+    vec2<f32>(0.7745966692414834, 0.5555555555555556),
+    vec2<f32>(-0.8611363115940526, 0.3478548451374538), vec2<f32>(-0.3399810435848563, 0.6521451548625461),
+    vec2<f32>(0.3399810435848563, 0.6521451548625461), vec2<f32>(0.8611363115940526, 0.3478548451374538),
+    vec2<f32>(-0.9602898564975363, 0.1012285362903763), vec2<f32>(-0.7966664774136267, 0.2223810344533745),
+    vec2<f32>(-0.5255324099163290, 0.3137066458778873), vec2<f32>(-0.1834346424956498, 0.3626837833783620),
+    vec2<f32>(0.1834346424956498, 0.3626837833783620), vec2<f32>(0.5255324099163290, 0.3137066458778873),
+    vec2<f32>(0.7966664774136267, 0.2223810344533745), vec2<f32>(0.9602898564975363, 0.1012285362903763),
+);
+
+fn volshadow_iss_gl_offset(n: u32) -> u32 {
+    return select(select(select(9u, 5u, n == 4u), 2u, n == 3u), 0u, n == 2u);
+}
+
+// The spot term's quadrature orders: nodes along the ray (ξ, per piece), across the wedge of
+// rays (γ, per piece), half-planes about the line to the light (φ) when all meet the cone, and
+// per half of the arc of half-planes that meet it otherwise.
+const VOLSHADOW_ISS_XI_N: u32 = 3u;
+const VOLSHADOW_ISS_GAMMA_N: u32 = 4u;
+const VOLSHADOW_ISS_PHI_N: u32 = 16u;
+const VOLSHADOW_ISS_ARC_N: u32 = 8u;
 
 // The phase function at scattering angle θ from 1 − cos θ and 1 + cos θ (no cancellation in
 // a forward peak), per channel.
@@ -165,9 +187,10 @@ fn volshadow_iss_xi_piece(ph: VolshadowIssPhase, tau: vec3<f32>, sin_g: f32, hal
     let h = 0.5 * (b - a);
     let m = 0.5 * (a + b);
     var acc = vec3<f32>(0.0);
-    for (var k = 0u; k < 4u; k++) {
-        let x = select(-1.0, 1.0, k >= 2u) * VOLSHADOW_ISS_GL4_X[k % 2u];
-        let s = m + h * x;
+    let o = volshadow_iss_gl_offset(VOLSHADOW_ISS_XI_N);
+    for (var k = 0u; k < VOLSHADOW_ISS_XI_N; k++) {
+        let node = VOLSHADOW_ISS_GL[o + k];
+        let s = m + h * node.x;
         // The complement π/2 − ξ = (π − γ)/2 − s keeps cos ξ's relative precision as ξ → π/2.
         let comp = max(rest - s, 0.0);
         let cos_xi = vs_sin_poly(comp);
@@ -175,7 +198,7 @@ fn volshadow_iss_xi_piece(ph: VolshadowIssPhase, tau: vec3<f32>, sin_g: f32, hal
         // tan ξ − tan(γ/2) = sin(ξ − γ/2)/(cos ξ·cos(γ/2)).
         let r = min(vs_sin_poly(s) / max(cos_xi * half_c, 1.0e-30), 1.0e30);
         let p = volshadow_iss_phase(ph, 2.0 * sin_xi * sin_xi, 2.0 * cos_xi * cos_xi);
-        acc += VOLSHADOW_ISS_GL4_W[k % 2u] * p * vs_exp3(-tau * (sin_g * r));
+        acc += node.y * p * vs_exp3(-tau * (sin_g * r));
     }
     return h * acc;
 }
@@ -213,16 +236,17 @@ fn volshadow_iss_gamma(ph: VolshadowIssPhase, tau: vec3<f32>, a: f32, b: f32, ca
     let h = 0.5 * (b - a);
     let m = 0.5 * (a + b);
     var acc = vec3<f32>(0.0);
-    for (var k = 0u; k < 4u; k++) {
-        let x = select(-1.0, 1.0, k >= 2u) * VOLSHADOW_ISS_GL4_X[k % 2u];
-        let g = m + h * x;
+    let o = volshadow_iss_gl_offset(VOLSHADOW_ISS_GAMMA_N);
+    for (var k = 0u; k < VOLSHADOW_ISS_GAMMA_N; k++) {
+        let node = VOLSHADOW_ISS_GL[o + k];
+        let g = m + h * node.x;
         let cg = vs_cos_sin_pi(g);
         let cos_n = ca * cg.x + sc * cg.y;
         // cos(γ/2), through the complement past π/2 (relative precision as γ → π).
         let half_c = select(vs_cos_poly(0.5 * g), vs_sin_poly(0.5 * (VOLSHADOW_ISS_PI - g)), g > VOLSHADOW_ISS_HALF_PI);
         let hi = min(b2, VOLSHADOW_ISS_PI - g);
         if (cos_n > 0.0 && hi > b1) {
-            acc += VOLSHADOW_ISS_GL4_W[k % 2u] * cos_n
+            acc += node.y * cos_n
                  * volshadow_iss_xi(ph, tau, g, cg.y, half_c, b1, hi);
         }
     }
@@ -285,17 +309,36 @@ fn volshadow_iss_cone_g(ph: VolshadowIssPhase, tau: vec3<f32>, to_p: vec3<f32>, 
     let a2 = dot(axis, e2);
     let near0 = min(1.0 / max(max(tau.x, tau.y), max(tau.z, 1.0e-30)), volshadow_iss_peak(ph));
     var acc = vec3<f32>(0.0);
+    let big_a = length(vec2<f32>(a1, a2));
     if (abs(ap) >= c) {
-        // P inside the cone or behind the light: every half-plane meets the cone.
-        for (var j = 0u; j < 16u; j++) {
-            let f = (f32(j) + 0.5) * (VOLSHADOW_ISS_PI / 8.0);
-            let cs = vec2<f32>(cos(f), sin(f));
-            acc += volshadow_iss_half_plane(ph, tau, near0, ca, sa, ap, a1 * cs.x + a2 * cs.y, cs.x, c);
+        // P inside the cone or behind the light: every half-plane meets the cone. Near the
+        // cone's surface (P an angle ε inside it, half apex angle θ) the wedge's far end rises
+        // from about ε to about 2θ over a width of about ε/θ in φ, at φa ± π/2 (φa the axis's
+        // direction across l): there the nodes are gathered by the periodic map
+        // φ = ψ − (α/2)·sin 2(ψ − φa − π/2), whose node spacing is (1 − α) times the plain
+        // rule's at those two places, α chosen so that it resolves the width.
+        let step = 2.0 * VOLSHADOW_ISS_PI / f32(VOLSHADOW_ISS_PHI_N);
+        var alpha = 0.0;
+        if (ap > 0.0) {
+            let theta = vs_atan2_poly(vs_sqrt(max((1.0 - c) * (1.0 + c), 0.0)), c);
+            let eps = max(theta - vs_atan2_poly(big_a, ap), 0.0);
+            alpha = clamp(1.0 - eps / max(2.0 * step * theta, 1.0e-30), 0.0, 0.9);
         }
-        return acc * (VOLSHADOW_ISS_PI / 8.0);
+        let centre = vs_atan2_poly(a2, a1) + VOLSHADOW_ISS_HALF_PI;
+        for (var j = 0u; j < VOLSHADOW_ISS_PHI_N; j++) {
+            let psi = (f32(j) + 0.5) * step;
+            // 2(ψ − centre) reduced to [−π, π] for the polynomial sine and cosine.
+            var u2 = 2.0 * (psi - centre);
+            u2 -= 2.0 * VOLSHADOW_ISS_PI * round(u2 / (2.0 * VOLSHADOW_ISS_PI));
+            let cs2 = vs_cos_sin_pi(abs(u2));
+            let f = psi - 0.5 * alpha * sign(u2) * cs2.y;
+            let cs = vec2<f32>(cos(f), sin(f));
+            acc += (1.0 - alpha * cs2.x)
+                 * volshadow_iss_half_plane(ph, tau, near0, ca, sa, ap, a1 * cs.x + a2 * cs.y, cs.x, c);
+        }
+        return acc * step;
     }
     // Outside: the half-planes with axis·e_φ > s, s = √(c² − ap²), an arc about φa.
-    let big_a = length(vec2<f32>(a1, a2));
     let s = vs_sqrt(max((c - ap) * (c + ap), 0.0));
     if (!(big_a > s)) {
         return vec3<f32>(0.0);
@@ -304,13 +347,14 @@ fn volshadow_iss_cone_g(ph: VolshadowIssPhase, tau: vec3<f32>, to_p: vec3<f32>, 
     let ca1 = a1 / big_a;
     let sa1 = a2 / big_a;
     // t ∈ [−π/2, π/2] in two halves of 8-point Gauss–Legendre.
-    for (var k = 0u; k < 16u; k++) {
-        let x = select(-1.0, 1.0, (k & 4u) != 0u) * VOLSHADOW_ISS_GL8_X[k % 4u];
-        let t = (x + select(-1.0, 1.0, k >= 8u)) * (0.5 * VOLSHADOW_ISS_HALF_PI);
+    let o = volshadow_iss_gl_offset(VOLSHADOW_ISS_ARC_N);
+    for (var k = 0u; k < 2u * VOLSHADOW_ISS_ARC_N; k++) {
+        let node = VOLSHADOW_ISS_GL[o + k % VOLSHADOW_ISS_ARC_N];
+        let t = (node.x + select(-1.0, 1.0, k >= VOLSHADOW_ISS_ARC_N)) * (0.5 * VOLSHADOW_ISS_HALF_PI);
         let st = volshadow_iss_cs(t);
         let psi = volshadow_iss_cs(w * st.y);  // φ − φa = w·sin t
         let cf = ca1 * psi.x - sa1 * psi.y;      // cos φ
-        acc += VOLSHADOW_ISS_GL8_W[k % 4u] * w * st.x
+        acc += node.y * w * st.x
              * volshadow_iss_half_plane(ph, tau, near0, ca, sa, ap, big_a * psi.x, cf, c);
     }
     return acc * (0.5 * VOLSHADOW_ISS_HALF_PI);

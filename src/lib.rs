@@ -315,8 +315,10 @@ pub use wgpu;
 /// only (apex `light_pos`, `axis` the cone's direction, `cos_half` the cosine of half its apex
 /// angle, [`SpotLight::cos_half_angle`]); `phase` is a `VolshadowIssPhase`, the bytes of
 /// [`nodes::IssPhase`] in a buffer. It reads no table: a fixed quadrature over the hemisphere
-/// (about 16 × 12 × 4 phase evaluations a point), within 2% of the f64 reference at the 95th
-/// percentile for σt·D ≤ 5 (`tests/iss_spot.rs`; the method is in `docs/METHOD.md`).
+/// (about 16 × 12 × 3 phase evaluations a point), within 2% of the f64 reference at the 95th
+/// percentile for σt·D ≤ 5 (`tests/iss_spot.rs`; the method is in `docs/METHOD.md`). It is
+/// smooth across a surface: evaluate it on a lattice of pixels and interpolate, as the
+/// composite does ([`nodes::CompositeNode::set_spot_lattice`]).
 pub const ISS_WGSL: &str = concat!(
     include_str!("../shaders/precision.wgsl"),
     include_str!("../shaders/iss.wgsl")

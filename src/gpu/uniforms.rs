@@ -184,6 +184,9 @@ pub(crate) struct SurfacesUniform {
     pub sigma_s: [f32; 3],
     pub count: u32,
     pub lights: [SurfaceLightUniform; 4],
+    /// The spot term's lattice spacing in pixels (0: evaluated at every pixel).
+    pub lattice: u32,
+    pub _pad: [u32; 3],
 }
 
 impl SurfacesUniform {

@@ -45,7 +45,7 @@ use crate::plan::Pass;
 use crate::scene::{Camera, Light, Medium};
 
 /// The composite's binding table: `@binding(i)` of `shaders/composite.wgsl` is entry `i`.
-const BINDINGS: [Binding; 9 + MAX_LIGHTS] = [
+const BINDINGS: [Binding; 10 + MAX_LIGHTS] = [
     Binding::Params,  // comp
     Binding::Params,  // view
     Binding::Texture, // scene_color
@@ -59,6 +59,7 @@ const BINDINGS: [Binding; 9 + MAX_LIGHTS] = [
     Binding::Texture, // surface_albedo
     Binding::Texture, // iss_table
     Binding::Params,  // surf_phase
+    Binding::Texture, // spot_lattice
 ];
 
 /// The composite's layout and its pipelines, one per output format and with or without the
@@ -72,6 +73,8 @@ pub(crate) struct Pipelines {
     /// The compute pass's pipelines, per storage format and surface term, with the layout of
     /// their second bind group (the output).
     storing: Arc<Mutex<HashMap<(wgpu::TextureFormat, bool), Storing>>>,
+    /// The spot term's lattice pass (`cs_spot_lattice`), with its output's layout.
+    lattice: Arc<Mutex<HashMap<(), Storing>>>,
 }
 
 /// A compute composite writing one storage format.
@@ -83,6 +86,15 @@ struct Storing {
 
 /// The compute composite's workgroup edge (`@workgroup_size` of `cs_composite`).
 const WORKGROUP: u32 = 8;
+
+/// The spot term's lattice texture format (E(P) in rgb, whether the node is a surface in a).
+const LATTICE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+
+/// The lattice's size for a `width × height` frame at spacing `stride`: node `(i, j)` is pixel
+/// `min((i, j)·stride, size − 1)`, so the last pixel of each row and column is a node.
+fn lattice_size(width: u32, height: u32, stride: u32) -> (u32, u32) {
+    ((width - 1) / stride + 2, (height - 1) / stride + 2)
+}
 
 /// The WGSL name of `format` when the composite can write it as a storage texture on `device`
 /// (`None`: it writes it through the rasteriser only). sRGB formats are never storage formats.
@@ -117,7 +129,64 @@ impl Pipelines {
             precision,
             formats: Arc::default(),
             storing: Arc::default(),
+            lattice: Arc::default(),
         }
+    }
+
+    /// The compute pipeline of the spot term's lattice (see [`CompositeNode::set_spot_lattice`]):
+    /// the composite's bindings, and its output as `@group(1) @binding(0)`.
+    fn lattice(&self, device: &wgpu::Device) -> Storing {
+        cached(&self.lattice, (), || {
+            let label = "volshadow spot lattice";
+            let source = format!(
+                "{}{}
+@group(1) @binding(0) var lattice_out: texture_storage_2d<rgba32float, write>;
+
+@compute @workgroup_size({WORKGROUP}, {WORKGROUP})
+fn cs_spot_lattice(@builtin(global_invocation_id) id: vec3<u32>) {{
+    if (any(id.xy >= textureDimensions(lattice_out))) {{
+        return;
+    }}
+    let s = surface_point(min(id.xy * surf.lattice, textureDimensions(scene_depth) - 1u));
+    var out = vec4<f32>(0.0);
+    if (s.ok) {{
+        out = vec4<f32>(spot_irradiance(s.p, s.n), 1.0);
+    }}
+    textureStore(lattice_out, id.xy, out);
+}}
+",
+                include_str!("../../shaders/iss.wgsl"),
+                include_str!("../../shaders/composite.wgsl"),
+            );
+            let module = module(device, label, &source, self.precision);
+            let output_layout = layout(
+                device,
+                label,
+                wgpu::ShaderStages::COMPUTE,
+                &[Binding::Storage(LATTICE_FORMAT)],
+            );
+            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(label),
+                bind_group_layouts: &[Some(&self.layout), Some(&output_layout)],
+                immediate_size: 0,
+            });
+            let constants = [("SURFACES", 1.0)];
+            let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(label),
+                layout: Some(&pipeline_layout),
+                module: &module,
+                entry_point: Some("cs_spot_lattice"),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: &constants,
+                    ..Default::default()
+                },
+                cache: None,
+            });
+            Storing {
+                pipeline,
+                output_layout,
+            }
+        })
     }
 
     /// The compute pipeline storing `format` (see [`storage_format_name`]), adding the surface
@@ -222,10 +291,9 @@ pub struct CompositeInputs<'a> {
 ///
 /// A spot light's term counts only the medium inside its cone (`volshadow_iss_spot` of
 /// [`ISS_WGSL`](crate::ISS_WGSL), a fixed quadrature over the hemisphere with the cone's
-/// wedges in closed form; see `docs/METHOD.md`): measured on lavapipe against the f64
-/// reference (`tests/iss_spot.rs`), on a 60° spot 1 above a floor (HG 0.3, σt·D ≈ 0.3) p95
-/// 0.083% inside the cone and 0.001% on the band within 0.2 × its radius outside; on seeded
-/// spot scenes (apex 20°–120°, σt·D 0.01–5) the worst seed's p95 0.31%.
+/// wedges in closed form; see `docs/METHOD.md`), evaluated on a lattice of pixels and
+/// interpolated where that is safe ([`CompositeNode::set_spot_lattice`]). Its accuracy against
+/// the f64 reference is measured by `tests/iss_spot.rs` (figures in `docs/ACCURACY.md`).
 #[derive(Clone, Copy)]
 pub struct CompositeSurfaces<'a> {
     /// World-space surface normals in rgb (any length; zero or non-finite: no term), any format
@@ -332,11 +400,22 @@ pub struct CompositeNode {
     surf_phase: UniformBuffer<IssPhase>,
     /// Normal, albedo and table textures of the surface term (`None`: no term).
     surfaces: Option<[wgpu::Texture; 3]>,
+    /// The surface term's lights, as uploaded (with the lattice spacing set by `prepare`).
+    surf_value: SurfacesUniform,
+    /// Whether a spot light adds a surface term.
+    spots: bool,
+    /// The spot term's lattice spacing in pixels (1: every pixel evaluated).
+    spot_lattice: u32,
+    lattice: Storing,
+    lattice_texture: Option<wgpu::Texture>,
 }
 
 struct Bound {
     textures: Vec<wgpu::Texture>,
     bind_group: wgpu::BindGroup,
+    /// The lattice pass's bind groups (the composite's with a placeholder for the lattice, and
+    /// the output) and its size, when the spot term uses a lattice this frame.
+    lattice: Option<(wgpu::BindGroup, wgpu::BindGroup, (u32, u32))>,
 }
 
 impl CompositeNode {
@@ -379,7 +458,45 @@ impl CompositeNode {
             surf: UniformBuffer::new(device, "volshadow composite surfaces"),
             surf_phase: UniformBuffer::new(device, "volshadow composite phase"),
             surfaces: None,
+            surf_value: SurfacesUniform::zeroed(),
+            spots: false,
+            spot_lattice: Self::DEFAULT_SPOT_LATTICE,
+            lattice: cache.composite.lattice(device),
+            lattice_texture: None,
         })
+    }
+
+    /// The default spacing of the spot term's lattice, in pixels.
+    pub const DEFAULT_SPOT_LATTICE: u32 = 4;
+
+    /// The largest spacing [`set_spot_lattice`](Self::set_spot_lattice) takes.
+    pub const MAX_SPOT_LATTICE: u32 = 64;
+
+    /// Sets the spacing of the spot lights' surface-term lattice (default
+    /// [`DEFAULT_SPOT_LATTICE`](Self::DEFAULT_SPOT_LATTICE)); 1 evaluates it at every pixel.
+    ///
+    /// A spot light's term is a quadrature over the hemisphere (tens of times a point light's
+    /// table lookup), and it is smooth across a surface, so a compute pass evaluates it at
+    /// every `stride`-th pixel in each direction, and the composite interpolates between the
+    /// four nodes around a pixel where they lie on the pixel's surface (normals within 1.8°,
+    /// points within 2.9° of its tangent plane) and the interpolation's error, estimated from
+    /// the nodes' second differences, is at most 0.2% per channel; elsewhere (geometric edges,
+    /// the surroundings of the apex, a cone's edge on a small frame) it evaluates the term.
+    /// Takes effect at the next [`prepare`](Self::prepare).
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidSetting`] naming `spot_lattice` outside `1 ..=`
+    /// [`MAX_SPOT_LATTICE`](Self::MAX_SPOT_LATTICE); nothing changes then.
+    pub fn set_spot_lattice(&mut self, stride: u32) -> Result<()> {
+        if !(1..=Self::MAX_SPOT_LATTICE).contains(&stride) {
+            return Err(Error::InvalidSetting {
+                field: "spot_lattice",
+                problem: format!("{stride} pixels, expected 1 ..= {}", Self::MAX_SPOT_LATTICE),
+            });
+        }
+        self.spot_lattice = stride;
+        Ok(())
     }
 
     /// Sets (or, with `None`, removes) the surface term of the frames that follow; call it
@@ -398,7 +515,9 @@ impl CompositeNode {
     ) -> Result<()> {
         let Some(s) = surfaces else {
             self.surfaces = None;
-            self.surf.write(queue, SurfacesUniform::zeroed());
+            self.spots = false;
+            self.surf_value = SurfacesUniform::zeroed();
+            self.surf.write(queue, self.surf_value);
             return Ok(());
         };
         check_float_texture("surface_normal", s.normal)?;
@@ -414,8 +533,9 @@ impl CompositeNode {
             s.albedo.clone(),
             s.table.texture().clone(),
         ]);
-        self.surf
-            .write(queue, SurfacesUniform::new(medium, s.lights));
+        self.surf_value = SurfacesUniform::new(medium, s.lights);
+        self.spots = s.lights.iter().any(|l| matches!(l, Light::Spot(_)));
+        self.surf.write(queue, self.surf_value);
         self.surf_phase.write(queue, IssPhase::new(medium));
         Ok(())
     }
@@ -468,40 +588,85 @@ impl CompositeNode {
             Some(s) => textures.extend(s.iter().cloned()),
             None => textures.extend([0, 1, 2].map(|_| self.placeholder.clone())),
         }
+        // The spot term's lattice, when a spot light adds a surface term.
+        let stride = self.spot_lattice;
+        let lattice = (self.surfaces.is_some() && self.spots && stride > 1)
+            .then(|| lattice_size(width, height, stride));
+        match lattice {
+            Some((w, h)) => {
+                if self
+                    .lattice_texture
+                    .as_ref()
+                    .is_none_or(|t| (t.width(), t.height()) != (w, h))
+                {
+                    self.lattice_texture = Some(texture_2d(
+                        device,
+                        "volshadow spot lattice",
+                        (w, h, 1),
+                        LATTICE_FORMAT,
+                        wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+                    ));
+                }
+                textures.extend(self.lattice_texture.clone());
+            }
+            None => textures.push(self.placeholder.clone()),
+        }
         if self.bound.as_ref().is_none_or(|b| b.textures != textures) {
             let color = textures[0].create_view(&Default::default());
             let depth = depth_view(&textures[1]);
-            // In-scatter 0..4, then surface normal, albedo and ISS table.
+            // In-scatter 0..4, then surface normal, albedo, ISS table and the spot lattice.
             let views: Vec<wgpu::TextureView> = textures[2..]
                 .iter()
                 .map(|t| t.create_view(&Default::default()))
                 .collect();
+            let placeholder = self.placeholder.create_view(&Default::default());
             let view = wgpu::BindingResource::TextureView;
-            let bind_group = bind_group(
-                device,
-                "volshadow composite",
-                &self.layout,
-                [
-                    self.uniform.binding(),
-                    self.view.binding(),
-                    view(&color),
-                    view(&depth),
-                    view(&views[0]),
-                    view(&views[1]),
-                    view(&views[2]),
-                    view(&views[3]),
-                    self.surf.binding(),
-                    view(&views[4]),
-                    view(&views[5]),
-                    view(&views[6]),
-                    self.surf_phase.binding(),
-                ],
-            );
+            let group = |label, lattice: &wgpu::TextureView| {
+                bind_group(
+                    device,
+                    label,
+                    &self.layout,
+                    [
+                        self.uniform.binding(),
+                        self.view.binding(),
+                        view(&color),
+                        view(&depth),
+                        view(&views[0]),
+                        view(&views[1]),
+                        view(&views[2]),
+                        view(&views[3]),
+                        self.surf.binding(),
+                        view(&views[4]),
+                        view(&views[5]),
+                        view(&views[6]),
+                        self.surf_phase.binding(),
+                        wgpu::BindingResource::TextureView(lattice),
+                    ],
+                )
+            };
+            let composite_group = group("volshadow composite", &views[7]);
+            // The lattice pass writes the lattice, so its composite bindings hold the
+            // placeholder there (a texture is not written and read in one dispatch).
+            let lattice = lattice.map(|size| {
+                let output = bind_group(
+                    device,
+                    "volshadow spot lattice output",
+                    &self.lattice.output_layout,
+                    [view(&views[7])],
+                );
+                (group("volshadow spot lattice", &placeholder), output, size)
+            });
             self.bound = Some(Bound {
                 textures,
-                bind_group,
+                bind_group: composite_group,
+                lattice,
             });
         }
+        let surf = SurfacesUniform {
+            lattice: if lattice.is_some() { stride } else { 0 },
+            ..self.surf_value
+        };
+        self.surf.write(queue, surf);
         self.uniform.write(
             queue,
             CompositeUniform {
@@ -646,11 +811,22 @@ impl CompositeNode {
                 label: Some("volshadow composite"),
                 timestamp_writes: timer.and_then(|t| t.compute_pass(Pass::Composite)),
             });
+            self.dispatch_lattice(&mut pass, bound);
             pass.set_pipeline(&storing.pipeline);
             pass.set_bind_group(0, &bound.bind_group, &[]);
             pass.set_bind_group(1, &output_group, &[]);
             pass.dispatch_workgroups(width.div_ceil(WORKGROUP), height.div_ceil(WORKGROUP), 1);
             return Ok(());
+        }
+        let mut timer = timer;
+        if bound.lattice.is_some() {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("volshadow spot lattice"),
+                timestamp_writes: timer
+                    .as_deref_mut()
+                    .and_then(|t| t.compute_pass(Pass::Composite)),
+            });
+            self.dispatch_lattice(&mut pass, bound);
         }
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("volshadow composite"),
@@ -676,5 +852,16 @@ impl CompositeNode {
         pass.set_bind_group(0, &bound.bind_group, &[]);
         pass.draw(0..3, 0..1);
         Ok(())
+    }
+
+    /// Records the spot term's lattice pass into `pass` when this frame uses one (the
+    /// composite's dispatch that follows reads it; wgpu orders the two).
+    fn dispatch_lattice(&self, pass: &mut wgpu::ComputePass<'_>, bound: &Bound) {
+        if let Some((group, output, (w, h))) = &bound.lattice {
+            pass.set_pipeline(&self.lattice.pipeline);
+            pass.set_bind_group(0, group, &[]);
+            pass.set_bind_group(1, output, &[]);
+            pass.dispatch_workgroups(w.div_ceil(WORKGROUP), h.div_ceil(WORKGROUP), 1);
+        }
     }
 }
