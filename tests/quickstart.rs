@@ -91,6 +91,11 @@ fn quickstart_shafts_are_visible() {
         100.0 * visible,
         100.0 * visibility::MIN_VISIBLE_FRACTION
     );
+    common::metric::accuracy(
+        &format!("quickstart at {W}x{H}: shadows visible in the tone-mapped picture"),
+        format!("{:.1}%", 100.0 * visible),
+        format!("≥ {:.0}%", 100.0 * visibility::MIN_VISIBLE_FRACTION),
+    );
     assert!(visible >= visibility::MIN_VISIBLE_FRACTION, "{visible}");
 }
 

@@ -8,7 +8,8 @@
 //! with `c` the centre and `r` the half-diagonal of the meshes' combined world bounds,
 //!
 //! * the camera looks at `c` from the front (+z), slightly above (elevation about 8.5°), far
-//!   enough for a 40° vertical field of view to hold the bounds; reversed-Z infinite projection;
+//!   enough for the bounds' sphere to fit the view with room to spare, horizontally as well as
+//!   vertically (40° vertical field of view; [`framing_camera`]); reversed-Z infinite projection;
 //! * a ground plane (a receiver, not an occluder) lies under the bounds, 12 `r` across each way;
 //! * a point light sits above and behind the model (`c + r·(0.3, 1.0, −2.2)`), in view, so the
 //!   shadows the model casts run down and towards the camera through forward-scattering fog;
@@ -177,17 +178,7 @@ pub fn render(options: &Options) -> Result<Rendered, BoxError> {
 
     // Camera, ground, light and fog, all in units of r.
     let (width, height) = options.size;
-    let fov = 40f32.to_radians();
-    let distance = 1.15 * r / (0.5 * fov).sin();
-    let eye = center + distance * Vec3::new(0.0, 0.15, 1.0).normalize();
-    let camera = Camera::new(
-        volshadow::glam::camera::rh::view::look_at_mat4(eye, center, Vec3::Y),
-        volshadow::glam::camera::rh::proj::directx::perspective_infinite_reverse(
-            fov,
-            width as f32 / height as f32,
-            0.01 * r,
-        ),
-    )?;
+    let camera = framing_camera((lo, hi), options.size)?;
     let ground = shapes::plane(Vec3::new(center.x, lo.y, center.z), Vec2::splat(12.0 * r)).unwrap();
     let light = Light::from(PointLight::new(
         center + r * Vec3::new(0.3, 1.0, -2.2),
@@ -294,6 +285,42 @@ pub fn render(options: &Options) -> Result<Rendered, BoxError> {
     })
 }
 
+/// The camera's vertical field of view.
+pub const FOV_Y_DEGREES: f32 = 40.0;
+/// The distance to the bounds' centre over the least distance at which their bounding sphere
+/// fits the view: room around the model.
+pub const FRAMING_MARGIN: f32 = 1.15;
+/// The direction from the bounds' centre to the eye (front and slightly above: about 8.5°).
+const VIEW_DIRECTION: Vec3 = Vec3::new(0.0, 0.15, 1.0);
+
+/// The camera that frames the world bounds `(lo, hi)` in an image of `(width, height)`: it
+/// looks at their centre along [`VIEW_DIRECTION`] from [`FRAMING_MARGIN`] times the distance at
+/// which their bounding sphere (radius `r`, the half-diagonal) touches the view's inscribed
+/// cone, whose half-angle is the smaller of the vertical half-FOV and the horizontal one
+/// (`atan(aspect · tan(fov_y / 2))`): a portrait image is fitted by its width. Reversed-Z
+/// infinite projection, near plane at `0.01 r`.
+pub fn framing_camera(
+    (lo, hi): (Vec3, Vec3),
+    (width, height): (u32, u32),
+) -> volshadow::Result<Camera> {
+    let center = 0.5 * (lo + hi);
+    let r = 0.5 * (hi - lo).length();
+    let fov_y = FOV_Y_DEGREES.to_radians();
+    let aspect = width as f32 / height as f32;
+    let half_x = (aspect * (0.5 * fov_y).tan()).atan();
+    let half = (0.5 * fov_y).min(half_x);
+    let distance = FRAMING_MARGIN * r / half.sin();
+    let eye = center + distance * VIEW_DIRECTION.normalize();
+    Camera::new(
+        volshadow::glam::camera::rh::view::look_at_mat4(eye, center, Vec3::Y),
+        volshadow::glam::camera::rh::proj::directx::perspective_infinite_reverse(
+            fov_y,
+            aspect,
+            0.01 * r,
+        ),
+    )
+}
+
 /// One mesh's topology and what it means for its shadow volume, e.g.
 /// `mesh 0 "Box": 12 triangles, closed, 0 boundary and 0 non-manifold edges: ...`.
 pub fn mesh_report(index: usize, mesh: &volshadow::gltf::GltfMesh) -> String {
@@ -340,4 +367,105 @@ fn world_bounds(transform: Mat4, (lo, hi): (Vec3, Vec3)) -> (Vec3, Vec3) {
         .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), p| {
             (a.min(p), b.max(p))
         })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The largest |x| or |y| in normalised device coordinates of the 8 corners of `(lo, hi)`
+    /// seen by `camera` (`INFINITY` when one is behind the eye): at most 1 when all are in view.
+    fn worst_corner(camera: &Camera, (lo, hi): (Vec3, Vec3)) -> f32 {
+        let clip_from_world = camera.projection() * camera.view();
+        (0..8)
+            .map(|k| {
+                let pick = |bit: u32, a: f32, b: f32| if k & (1 << bit) == 0 { a } else { b };
+                let corner = Vec3::new(
+                    pick(0, lo.x, hi.x),
+                    pick(1, lo.y, hi.y),
+                    pick(2, lo.z, hi.z),
+                );
+                let clip = clip_from_world * corner.extend(1.0);
+                if clip.w <= 0.0 {
+                    f32::INFINITY
+                } else {
+                    (clip.x / clip.w).abs().max((clip.y / clip.w).abs())
+                }
+            })
+            .fold(0.0, f32::max)
+    }
+
+    /// The framing before issue 36: the distance fitted to the vertical field of view alone.
+    fn vertical_fit_camera((lo, hi): (Vec3, Vec3), (width, height): (u32, u32)) -> Camera {
+        let (center, r) = (0.5 * (lo + hi), 0.5 * (hi - lo).length());
+        let fov_y = FOV_Y_DEGREES.to_radians();
+        let eye = center + 1.15 * r / (0.5 * fov_y).sin() * VIEW_DIRECTION.normalize();
+        Camera::new(
+            volshadow::glam::camera::rh::view::look_at_mat4(eye, center, Vec3::Y),
+            volshadow::glam::camera::rh::proj::directx::perspective_infinite_reverse(
+                fov_y,
+                width as f32 / height as f32,
+                0.01 * r,
+            ),
+        )
+        .unwrap()
+    }
+
+    /// Every corner of the model's bounding box lands inside the image, whatever the model's
+    /// proportions and the image's: landscape, square, portrait and narrow.
+    #[test]
+    fn gltf_framing_holds_the_bounding_box() {
+        let models = [
+            // The Stanford bunny as scanned (metres, off the origin), the remeshed one.
+            (
+                "bunny",
+                Vec3::new(-0.0947, 0.0330, -0.0619),
+                Vec3::new(0.0610, 0.1873, 0.0588),
+            ),
+            (
+                "bunny (remeshed)",
+                Vec3::new(-0.776, -0.769, -0.597),
+                Vec3::new(0.776, 0.767, 0.599),
+            ),
+            ("cube", Vec3::splat(-1.0), Vec3::splat(1.0)),
+            (
+                "tower",
+                Vec3::new(-1.0, 0.0, -1.0),
+                Vec3::new(1.0, 30.0, 1.0),
+            ),
+            (
+                "slab",
+                Vec3::new(-50.0, 0.0, -1.0),
+                Vec3::new(50.0, 2.0, 1.0),
+            ),
+        ];
+        let sizes = [(800, 500), (512, 512), (500, 800), (300, 600), (200, 800)];
+        let mut worst = (0.0f32, "", (0, 0));
+        for (name, lo, hi) in models {
+            for size in sizes {
+                let camera = framing_camera((lo, hi), size).unwrap();
+                let w = worst_corner(&camera, (lo, hi));
+                assert!(w <= 1.0, "{name} at {size:?}: a corner at |NDC| {w:.3}");
+                if w > worst.0 {
+                    worst = (w, name, size);
+                }
+            }
+        }
+        println!(
+            "gltf framing: the bounding boxes' corners reach |NDC| {:.3} at most ({} at {:?})",
+            worst.0, worst.1, worst.2
+        );
+        // The earlier vertical-only fit: the default 800x500 held the bunny (|NDC| 0.63), a
+        // narrow image did not.
+        let bunny = (models[0].1, models[0].2);
+        let old = worst_corner(&vertical_fit_camera(bunny, (800, 500)), bunny);
+        let old_narrow = worst_corner(&vertical_fit_camera(bunny, (300, 600)), bunny);
+        let cube = (models[2].1, models[2].2);
+        let old_cube = worst_corner(&vertical_fit_camera(cube, (300, 600)), cube);
+        println!(
+            "vertical-only fit: bunny at 800x500 |NDC| {old:.3}, at 300x600 {old_narrow:.3}; \
+             cube at 300x600 {old_cube:.3}"
+        );
+        assert!(old <= 1.0 && old_narrow > 1.0 && old_cube > 1.0);
+    }
 }
