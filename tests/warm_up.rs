@@ -259,8 +259,10 @@ fn warm_up_refuses_bad_settings_and_builds_nothing() {
     let before = built(&gpu);
     let mut bad = Settings::default();
     bad.march.bisections = 99;
-    let mut depth_format = Settings::default();
-    depth_format.output_format = wgpu::TextureFormat::Depth32Float;
+    let depth_format = Settings {
+        output_format: wgpu::TextureFormat::Depth32Float,
+        ..Settings::default()
+    };
     for (settings, field) in [(bad, "bisections"), (depth_format, "output")] {
         let error = cache
             .warm_up(&gpu.device, &settings, &LightKind::ALL)
