@@ -219,6 +219,15 @@ fn compute_and_fragment_composites_write_the_same_values() {
             worst = worst.max((f64::from(f[3]) - alpha).abs() / alpha.max(1e-3));
         }
         println!("{format:?}: {differ} pixels differ between the passes; worst relative error against f64 {worst:.2e}");
+        common::metric::accuracy(
+            &format!("{format:?}, {W}×{H}: pixels where the compute and fragment composites differ; the output against the f64 Ls·exp(−σt·d) + ΣL_sctr"),
+            format!("{differ}; max {worst:.1e}"),
+            if half {
+                "0; 9.9e-4 (one f16 ULP, 2^-10, + WGSL's exp bound 1e-5)"
+            } else {
+                "0; 1e-5 (WGSL's exp bound)"
+            },
+        );
         assert_eq!(
             differ, 0,
             "{format:?}: the compute and fragment passes differ"

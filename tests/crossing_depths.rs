@@ -40,10 +40,10 @@ fn candidate_planes(positions: &[DVec3], indices: &[u32], light: DVec3) -> Vec<(
 /// operations from the pixel to the depth (the ray through the inverse projection, its rotation
 /// and normalisation, two dot products, two divisions; WGSL allows 2.5 ULP for a division and
 /// 2 for `inverseSqrt`), divided by how obliquely the ray meets the plane; crossings meeting
-/// their plane at |cos| < 0.02 are not judged. Measured (2026-11-26), worst error × |cos| in
-/// ULPs of 2^-24: lavapipe 11.5 (8.1 with rotation angles drawn up to 6.28 instead of 2π), an
-/// NVIDIA H200 15.2 (on those); with the depths the rasteriser interpolates instead, 138 on
-/// lavapipe, and the test fails.
+/// their plane at |cos| < 0.02 are not judged. Measured worst error × |cos| in ULPs of 2^-24:
+/// lavapipe 11.5; an NVIDIA H200 15.2 with rotation angles drawn up to 6.28 instead of 2π
+/// (lavapipe 8.1 on those); with the depths the rasteriser interpolates in place of the
+/// ray–plane intersection, 138 on lavapipe, and the test fails.
 #[test]
 fn crossing_depths_are_where_each_pixel_ray_meets_its_face() {
     depths_of_build(CrossingsBuild::Compute);
@@ -162,6 +162,14 @@ fn depths_of_build(build: CrossingsBuild) {
         }
     }
     println!("{judged} crossings judged, {over} beyond the bound; worst error × |cos| {worst:.2e} (bound 32 · 2^-24 = {:.2e})", 32.0 * 2f64.powi(-24));
+    common::metric::accuracy(
+        &format!("{build:?} build, 12 seeded boxes and spheres, {SIZE}²: crossing depths against the f64 ray–plane intersections, worst relative error × |cos| in ULPs of 2^-24; crossings beyond the bound"),
+        format!(
+            "{:.1}; {over} of {judged}",
+            worst / 2f64.powi(-24)
+        ),
+        "32 (f32 rounding of ~20 operations); 0 of > 5000",
+    );
     assert!(judged > 5000, "only {judged} crossings judged");
     assert_eq!(over, 0, "{over} of {judged} crossings beyond the bound");
 }
@@ -193,7 +201,7 @@ fn lists_of(
 ///
 /// Pixels may differ only where a ray passes within the rasteriser's sub-pixel snapping of a
 /// face's edge or almost in a face's plane (lavapipe snaps vertices to 1/256 pixel): bound 0.5%
-/// of the pixels of a seed; measured at most 0.059% (3 of 5,120; lavapipe, 2026-11-26). Caught:
+/// of the pixels of a seed; measured at most 0.059% (3 of 5,120, on lavapipe). Caught:
 /// front and back faces swapped (57.6% of a seed's pixels differ); the compute build's bind group
 /// left on the previous frame's depth texture (10.3%); the tile test taking each edge's value at
 /// the corner opposite its gradient (53.1%). Not caught here: the tie rule for a ray
@@ -325,6 +333,11 @@ fn compute_and_raster_builds_write_the_same_lists() {
     println!(
         "worst seed: {:.3}% of pixels differ; {covered} pixels crossed by a volume",
         100.0 * worst
+    );
+    common::metric::accuracy(
+        &format!("compute against raster crossing lists, 16 seeded scenes, {w}×{h}: pixels that differ, worst seed; pixels crossed by a volume"),
+        format!("{:.3}%; {covered}", 100.0 * worst),
+        "0.5% (the rasteriser's sub-pixel snapping); > 5000",
     );
     assert!(
         covered > 5000,

@@ -414,8 +414,8 @@ fn f_textured_spot_eye_in_its_occluders_shadow() {
 /// an optional ground, a point or spot light, an eye that is often inside a shadow or looking
 /// at the light, a camera whose near plane may cut the volumes (standard or reversed infinite
 /// depth), optical depth σt·D from 1e-3 to 50, any phase, and the whole scene scaled by
-/// 1e-2 … 1e5 (1e4 until 2026-11-23: at 1e5 the spot's cone was cut wrong for rays nearly
-/// parallel to its surface; seed 204 of `tests/soft_grid.rs` found it).
+/// 1e-2 … 1e5 (up to 1e5: at that scale a cone test sensitive to rounding cuts a spot's cone
+/// wrong for rays nearly parallel to its surface, as seed 204 of `tests/soft_grid.rs` shows).
 struct RandomScene {
     scene: MeshScene,
     camera: Camera,
@@ -804,16 +804,14 @@ fn brightest(reference: &[glam::DVec3]) -> f64 {
 /// still where it would not: at 1e15, seed 146's brightest in-scatter is 9e-39, subnormal,
 /// which an NVIDIA H200 flushed to 0, p95 100%, as WGSL allows), exact method
 /// against the reference: all finite, at least 198 of 200 within p95 1% (the random scenes'
-/// bar) and every one within p95 2%. Those two are measured limits (2026-11-24: 199 within, the
-/// other p95 1.04%). With the table's rows in γ mixed linearly (see `table_row_mix`), 198
-/// were within and the others at 2.4% and 11.8%, views with 11 and 15 pixels lit above 1% of
-/// their brightest, whose light comes from far beyond the integrand's peak, where T is nearly
-/// exponential in γ.
+/// bar) and every one within p95 2%. Those two are measured limits (199 within, the other p95
+/// 1.04%). With the table's rows in γ mixed linearly (see `table_row_mix`), 198 are within and
+/// the others at 2.4% and 11.8%, views with 11 and 15 pixels lit above 1% of their brightest,
+/// whose light comes from far beyond the integrand's peak, where T is nearly exponential in γ.
 /// The integrand along a ray peaks sharply there, and a spot's cone can leave the peak outside:
-/// an interval beyond it was the difference of two heads T(s) that both held the peak, which
-/// put 13 of these 200 over 1%, the worst at p95 100% (seed 95 of the random scenes, at σt·D 81
-/// brightened, was off by up to 106%), before the table kept the tails too
-/// (`AirlightTableNode`).
+/// the table keeps the tails (`AirlightTableNode`) because an interval beyond the peak taken as
+/// the difference of two heads T(s) that both hold it puts 13 of these 200 over 1%, the worst
+/// at p95 100% (seed 95 of the random scenes, at σt·D 81 brightened, off by up to 106%).
 /// The `_worst_case` test: the same with every transcendental built-in off by the most WGSL
 /// allows.
 fn thick_fog_spot_scenes_at(precision: ShaderPrecision) {

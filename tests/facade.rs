@@ -937,7 +937,7 @@ fn a_light_whose_penumbra_is_below_a_texel_is_drawn_hard() {
 /// order give the same images bit for bit (no grid or uniform of one light read by the
 /// other); each drawn hard is beyond its bar.
 ///
-/// Bars: measured limits (2026-11-24), (p95, RMSE) per light. The point light (radius 0.5,
+/// Bars: measured limits, (p95, RMSE) per light. The point light (radius 0.5,
 /// 1.4 from the sphere's surface): p95 0.46%, RMSE 0.37% (hard 2.59%, 0.58%). The spot (radius
 /// 0.4, apex 70°, the sphere filling most of its cone, its penumbra reaching the cone's
 /// edge): p95 3.47%, RMSE 2.37%, beyond the 3% and 2% of the other soft tests (hard 10.4%,

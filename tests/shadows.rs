@@ -403,8 +403,8 @@ fn hybrid_is_cheaper_and_at_least_as_accurate_as_brute_force_at_equal_steps() {
 #[test]
 fn bisection_locates_shadow_edges_between_steps() {
     // Brute force at 16 steps puts a shadow edge anywhere within a step; 4 bisections place it
-    // to 1/16 of a step. The visibility error should shrink accordingly (measured 2026-11-22,
-    // 128x128, lavapipe: RMSE 0.57% without, 0.14% with): we ask for at least a third less,
+    // to 1/16 of a step. The visibility error should shrink accordingly (measured at 128x128
+    // on lavapipe: RMSE 0.57% without, 0.14% with): we ask for at least a third less,
     // and for the steps the bisections executed to be counted.
     let gpu = common::gpu();
     let cache = Cache::new(&gpu.device);

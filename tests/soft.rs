@@ -221,7 +221,7 @@ fn sphere_penumbra_against_the_reference() {
 /// soft through the grid (exact method: its cells' points, and with them the spiral's turn,
 /// move by rounding, so the taps' pattern noise differs). Bars: RMSE of the difference 1e-5
 /// of the mean and every pixel within 1e-4 for the first two, 5e-3 and 3% through the grid;
-/// measured 2026-11-24: hard 0 and 0; brute force 3.4e-8 and 2.4e-7; the grid 4.3e-4 and
+/// measured: hard 0 and 0; brute force 3.4e-8 and 2.4e-7; the grid 4.3e-4 and
 /// 5.0e-3. With the permutation's x of the ±Z faces negated the hard image is off by RMSE
 /// 9.0e-2 of the mean, so the test can tell.
 #[test]

@@ -28,9 +28,9 @@ const SEEDS: u64 = 12;
 
 /// One random scene: a point light of radius R at a position, a sphere at distance L in a
 /// random direction, a camera looking across the shadow behind it at a wall, all scaled by a
-/// log-uniform unit from 1e-2 to 1e5 (the f32 path must not care; at 1e3 until 2026-11-23, when
-/// widening it found a spot's cone cut wrong at a unit of 8e4: seed 204 of the spot test,
-/// RMSE 5.2%), optical depth σt·L
+/// log-uniform unit from 1e-2 to 1e5 (the f32 path must not care; units this large catch a
+/// spot's cone cut wrong by a cone test sensitive to rounding: seed 204 of the spot test, at a
+/// unit of 8e4, RMSE 5.2%), optical depth σt·L
 /// log-uniform over the caller's range (the eye within about 8 optical depths of the shadow).
 struct RandomScene {
     camera: Camera,
@@ -216,8 +216,8 @@ fn random_box_scene(seed: u64, log_tau: (f32, f32)) -> RandomScene {
 /// minute in a release build).
 const BOX_SEEDS: std::ops::Range<u64> = 300..308;
 const BOX_SIZE: u32 = 16;
-/// Measured limit for every box scene (2026-11-24: seed 300, a light of radius 0.33 L close to
-/// a box, p95 5.13%); the others are held to the bars.
+/// Measured limit for every box scene (seed 300, a light of radius 0.33 L close to a box, p95
+/// 5.13%); the others are held to the bars.
 const BOX_P95_LIMIT: f64 = 0.06;
 
 /// Seeded box scenes (`random_box_scene`), otherwise as
@@ -226,7 +226,7 @@ const BOX_P95_LIMIT: f64 = 0.06;
 /// shadow ignored beyond twice the p95 bar in at least 6 (a box is smaller than the sphere it
 /// replaces, so some views show little of its shadow).
 ///
-/// Measured 2026-11-24: 7 of 8 within, seed 300 p95 5.13% (the others ≤ 1.12%). PCSS's one
+/// Measured: 7 of 8 within, seed 300 p95 5.13% (the others ≤ 1.12%). PCSS's one
 /// planar blocker is the limit there, not the grid: the per-step estimate at 256 steps gives
 /// 5.24%. Its distance, for that seed and against the reference: the blend of the front surface
 /// and the back face the crate uses 5.13%, the chord's midpoint 5.25%, the geometric mean
@@ -310,17 +310,16 @@ fn random_soft_scenes_against_the_reference_worst_case() {
 /// the same seeds: apex 30° to 90°, and 30° to 115° (a map up to about 146° once widened for
 /// the penumbra, coarse at its centre). All finite and beyond twice the p95 bar with the shadow
 /// ignored; of each 12, at least 10 within the bars, and every one within p95 10%,
-/// RMSE 3%. Those two are measured limits (2026-11-26, with the spiral's integer hash: 10 and
-/// 11 within, the others up to p95 7.39%; the spiral's pattern moves seed 202 between p95 1.7%
-/// and 4.3%, see docs/METHOD.md. 2026-11-24, with the former `sin` hash: 10 and 10 within; the others, p95 3.3%,
-/// 7.5% and 3.3%, 7.2%, RMSE up to 2.4%, are views in which every counted pixel is in the hard
+/// RMSE 3%. Those two are measured limits (10 and 11 within, the others up to p95 7.39%; the
+/// spiral's pattern moves seed 202 between p95 1.7% and 4.3%, see docs/METHOD.md; with a `sin`
+/// hash for the spiral in place of the integer one, 10 and 10 within, the others, p95 3.3%,
+/// 7.5% and 3.3%, 7.2%, RMSE up to 2.4%, views in which every counted pixel is in the hard
 /// umbra, lit only by the deep penumbra: a known limitation, see the `SoftShadowNode` docs).
-/// With the blockers' distance at the chord's midpoint and no extra taps in the deep penumbra,
-/// as until 2026-11-24: 9 and 10 within, p95 3.5%, 6.2%, 11.4% and 4.6%, 11.3%, RMSE up to
-/// 2.7%. Before the spot map widened for the penumbra
-/// (`ShadowMapNode::spot_fov`), the parts of the sphere outside the cone were missing from it
-/// and lit the penumbra they cast inside: 4 of the first 12 within the bars, p95 up
-/// to 112%, RMSE up to 6.9%.
+/// With the blockers' distance at the chord's midpoint and no extra taps in the deep penumbra:
+/// 9 and 10 within, p95 3.5%, 6.2%, 11.4% and 4.6%, 11.3%, RMSE up to 2.7%. Without the spot
+/// map widened for the penumbra (`ShadowMapNode::spot_fov`), the parts of the sphere outside
+/// the cone are missing from it and light the penumbra they cast inside: 4 of the first 12
+/// within the bars, p95 up to 112%, RMSE up to 6.9%.
 #[test]
 fn random_soft_spot_scenes_against_the_reference() {
     const LIMIT_BARS: (f64, f64) = (0.03, 0.10);
@@ -364,12 +363,12 @@ fn overlap_scene() -> RandomScene {
 }
 
 /// Overlapping penumbrae at different distances (`overlap_scene`). Bars: RMSE the 2%;
-/// p95 3.25%, a measured limit between the code and a plausibly broken variant (2026-11-24:
-/// 2.66%, RMSE 1.39%, since a far layer just below a point no longer marks its cell sharp
-/// (see `a_ground_that_casts_shadows_under_a_soft_light`), 3.65% when any far layer that hides
-/// none of the taps did not; 2026-11-23:
-/// 2.53%, RMSE 1.20%, 2.88% before the grid's build became adaptive; with one blocker distance for both spheres, as before the estimate took
-/// two layers, 3.58%; with 16 taps a search round instead of 8, 4.13% and 4.63%). The far
+/// p95 3.25%, a measured limit between the code and plausibly broken variants (measured 2.66%,
+/// RMSE 1.39%, where a far layer just below a point does not mark its cell sharp (see
+/// `a_ground_that_casts_shadows_under_a_soft_light`); 3.65% when any far layer that hides none
+/// of the taps marks it sharp; 2.88% with a grid built uniformly, not adaptively; 3.58% with
+/// one blocker distance for both spheres, not the estimate's two layers; 4.13% and 4.63% with
+/// 16 taps a search round instead of 8). The far
 /// sphere is half hidden behind the near one in the shadow map, which holds one surface a
 /// direction: a known limitation (see the `SoftShadowNode` docs).
 #[test]
@@ -421,15 +420,14 @@ crate::at_each_precision!(
 
 /// A ground that casts shadows (`ground_scene`), 32² (the reference samples the light's disc
 /// for the plane's triangles everywhere above it: about 30 s in a release build). Bars: RMSE
-/// the 2%; p95 5%, a measured limit (2026-11-24: 4.61%, RMSE 1.33%; at 64² 3.82%; at
-/// 128² the report's exact full 3.60% and its defaults 4.02%, and per step at 64 steps
-/// 2.67%). Before the estimate took a far layer just in front of a point that hides
-/// none of its taps (a receiver the point lies above) as no reason to mark the cell sharp, the
-/// march blended in the shadow map's hard visibility there, in place of the sphere's wide
-/// penumbra: 6.35% (fails; the report's exact full at 128² 4.74%). Without the condition that the far layer lies
+/// the 2%; p95 5%, a measured limit (4.61%, RMSE 1.33%; at 64² 3.82%; at 128² the
+/// report's exact full 3.60% and its defaults 4.02%, and per step at 64 steps 2.67%). The
+/// estimate takes a far layer just in front of a point that hides none of its taps (a receiver
+/// the point lies above) as no reason to mark the cell sharp: marking it sharp blends in the
+/// shadow map's hard visibility there, in place of the sphere's wide penumbra, 6.35% (fails;
+/// the report's exact full at 128² 4.74%). Without the condition that the far layer lies
 /// within 0.9 of the point's distance: 3.01% at 128² exact full (3.51% with it, alternated in
-/// one process), but two spheres with overlapping
-/// penumbrae 3.65%, beyond their bar.
+/// one process), but two spheres with overlapping penumbrae 3.65%, beyond their bar.
 fn a_ground_that_casts_shadows_at(precision: ShaderPrecision) {
     const GROUND_P95_BAR: f64 = 0.05;
     let (worst, hard, _, _) =
@@ -509,12 +507,12 @@ fn eye_inside_a_soft_shadow() {
 /// The eye in the umbra looking away from the light (`umbra_scene`): most of each ray stays in
 /// the umbra and the deep penumbra around it, where the visible fraction is small and the
 /// estimate's error is relative to it. The bars: RMSE the 2%; p95 5.5%, above the
-/// issue's 3% (measured on 2026-11-24: 4.60%, RMSE 1.31%, a known limitation, see the
-/// `SoftShadowNode` docs; without the deep penumbra's extra taps 5.71%, and with the blockers'
-/// distance at the chord's midpoint as well, as until that day, 6.00%; with the grid's
-/// neighbours interpolated within an absolute 0.02 instead of a relative 5%, 22.9% on
-/// 2026-11-23). With the blocker's distance taken at the front surface alone (no back-face
-/// layer), this scene was at p95 41.1%, RMSE 5.1% (30.7% estimating per step at 256 steps).
+/// issue's 3% (measured 4.60%, RMSE 1.31%, a known limitation, see the `SoftShadowNode` docs;
+/// without the deep penumbra's extra taps 5.71%, and with the blockers' distance at the
+/// chord's midpoint as well, 6.00%; with the grid's neighbours interpolated within an absolute
+/// 0.02 instead of a relative 5%, 22.9%). With the blocker's distance taken at the front
+/// surface alone (no back-face layer), this scene is at p95 41.1%, RMSE 5.1% (30.7% estimating
+/// per step at 256 steps).
 #[test]
 fn eye_in_the_umbra_looking_away_from_the_light() {
     const DEEP_P95_BAR: f64 = 0.055;
@@ -532,18 +530,18 @@ fn eye_in_the_umbra_looking_away_from_the_light() {
 /// Thick fog, σt·L from 1 to 10 with the eye within about 8 optical depths of the shadow: the
 /// light a pixel receives comes from a few mean free paths of the ray, so the error of the
 /// visibility at single points shows instead of averaging out along the ray. A known
-/// limitation, run by hand: it fails the bars. Measured on 2026-11-24 (exact method,
-/// grid 64² × 16, units from 1e-2 to 1e5): of 12 seeds, 8 within the bars; seed 105 (the eye
-/// in a deep penumbra, where the visible fraction is small) p95 16.5%, RMSE 11.9%; seed 107
-/// p95 2.47%, RMSE 2.23%; seed 108 (a small light seen close up) 7.8% through the grid (1.1%
-/// estimating per step on 2026-11-23: the grid's cells are coarse for that close a view);
-/// seed 110 p95 3.2%, RMSE 3.4%. The hard exact method is within 0.02% of the hard reference
-/// in 105 and 108. With the blockers' distance at the chord's midpoint and no extra taps in
-/// the deep penumbra, as until that day: 9 within, 105 at 28.2% (18.6% with the scene 0.94
-/// times the size; 37.8% then with the front surface alone), 107 at 1.65%, 110 at 3.4%; that
-/// 105 taken apart: 10.5% with 128 filter taps, 8.0% with 64 slices, 14.8% estimating per
-/// step; the grid's cells in the deep penumbra of the thinner seeded scenes were then 10.6%
-/// too dark on average (`grid_cells_against_the_reference_visible_fraction`).
+/// limitation, run by hand: it fails the bars. Measured (exact method, grid 64² × 16,
+/// units from 1e-2 to 1e5): of 12 seeds, 8 within the bars; seed 105 (the eye in a deep
+/// penumbra, where the visible fraction is small) p95 16.5%, RMSE 11.9%; seed 107 p95 2.47%,
+/// RMSE 2.23%; seed 108 (a small light seen close up) 7.8% through the grid (1.1% estimating
+/// per step: the grid's cells are coarse for that close a view); seed 110 p95 3.2%, RMSE
+/// 3.4%. The hard exact method is within 0.02% of the hard reference in 105 and 108. With the
+/// blockers' distance at the chord's midpoint and no extra taps in the deep penumbra: 9
+/// within, 105 at 28.2% (18.6% with the scene 0.94 times the size; 37.8% then with the front
+/// surface alone), 107 at 1.65%, 110 at 3.4%; that 105 taken apart: 10.5% with 128 filter
+/// taps, 8.0% with 64 slices, 14.8% estimating per step; that variant leaves the grid's cells
+/// in the deep penumbra of the thinner seeded scenes 10.6% too dark on average
+/// (`grid_cells_against_the_reference_visible_fraction`).
 #[test]
 #[ignore = "known limitation (thick fog, eye close to a deep penumbra): fails the bars; run by hand"]
 fn random_soft_scenes_in_thick_fog() {
@@ -969,9 +967,9 @@ fn the_grid_rejects_what_it_cannot_use() {
 /// between them: the ground's bounding sphere holds the light, so its penumbra cone is all of
 /// space, and every ray would be marched through the grid. Its separating plane
 /// (`ShadowMap::planes`) keeps the march to the sphere's cone above the ground: the same
-/// pixels are marched with the ground as without it. Measured (2026-11-23, exact method,
-/// 48²): 428 of 2304 pixels either way; without the planes, 2304 with the ground (170707
-/// steps against 26991).
+/// pixels are marched with the ground as without it. Measured (exact method, 48²): 428 of
+/// 2304 pixels either way; without the planes, 2304 with the ground (170707 steps against
+/// 26991).
 #[test]
 fn a_ground_adds_no_march_above_it() {
     let gpu = common::gpu();
@@ -1075,7 +1073,7 @@ fn extreme_scene(radius: f32, eye: Vec3, target: Vec3, describe: &str) -> Random
 /// Extreme soft lights, through the grid (exact method): every output finite, each scene
 /// within its bar against the soft reference. A light nearly as large as its distance to the
 /// occluder is beyond PCSS's one-planar-blocker assumption: bars of 6% (radius 1.39 against a
-/// gap of 1.4: measured 2026-11-23 p95 4.7%, RMSE 4.8%) and 10% (radius 2, the occluder half
+/// gap of 1.4: measured p95 4.7%, RMSE 4.8%) and 10% (radius 2, the occluder half
 /// inside the light's sphere: p95 8.1%, RMSE 8.1%), measured limits, a known limitation (see
 /// the `SoftShadowNode` docs). The eye inside the light's sphere: the bars (p95 0.04%;
 /// its view is lit mostly near the light, so the shadow barely shows there). The eye between
@@ -1115,7 +1113,7 @@ fn extreme_soft_lights_stay_finite_and_bounded() {
     eprintln!("half inside: p95 {:.2}%", 100.0 * worst);
     // A tiny light through the grid (the nodes as a caller might use them; the facade draws
     // it hard, see `ShadowMapNode::penumbra_below_texel`): within the bars, and the
-    // hard image nearer the soft reference than the grid's (2026-11-23: 0.21% against 1.81%).
+    // hard image nearer the soft reference than the grid's (measured 0.21% against 1.81%).
     let (worst, hard) = check_scenes(
         &[across(
             1e-5,
@@ -1159,11 +1157,11 @@ fn extreme_soft_lights_stay_finite_and_bounded() {
 /// percentile of |error|, and the mean signed error (the estimate's bias); outside it (lit or
 /// umbra), the share of cells off by more than 0.1.
 ///
-/// Bars: measured limits (2026-11-24: mean |error| 0.0198, p95 0.0512, mean error +0.0113;
+/// Bars: measured limits (mean |error| 0.0198, p95 0.0512, mean error +0.0113;
 /// deep penumbra mean relative error −0.026, mean |relative error| 0.175; 0.0087% of the
 /// others off), each between the code and a plausibly broken variant measured by hand with the
-/// same seeds: the blockers' distance at the chord's midpoint (as until 2026-11-24: deep
-/// −0.124, the deep penumbra too dark), at the geometric mean of the front and back distances
+/// same seeds: the blockers' distance at the chord's midpoint (deep −0.124, the deep penumbra
+/// too dark), at the geometric mean of the front and back distances
 /// (deep +0.264), at the front surface alone (0.0302, p95 0.0886, deep +1.101, 0.0333% off);
 /// no extra taps in the deep penumbra (deep |relative error| 0.249); 16 filter taps instead of
 /// 32 (0.0257, p95 0.0666). With 128 filter taps: 0.0156, p95 0.0444, deep −0.012 and 0.153.
