@@ -92,34 +92,35 @@ fn table(gpu: &HeadlessGpu, cache: &Cache, medium: &Medium) -> IssTableNode {
     table
 }
 
-/// The composite's output over a black scene with no in-scatter input: every pixel is the added
-/// surface term `(ρ/π)·E(P)·exp(−σt·ds)` alone (red channel).
-fn surface_frame(
+/// The composite's output (rgba) over a black scene with no in-scatter input, the surface term
+/// of `lights` alone, with the spot term's lattice every `stride` pixels.
+#[allow(clippy::too_many_arguments)]
+fn surface_term_output(
     gpu: &HeadlessGpu,
     cache: &Cache,
     camera: &Camera,
     medium: &Medium,
-    light: Light,
-    size: u32,
-    trace: &dyn Fn(DVec3, DVec3) -> Option<Hit>,
-) -> (Vec<f32>, Vec<Option<Hit>>) {
-    let inputs = surface_inputs(gpu, camera, (size, size), trace);
-    let table = table(gpu, cache, medium);
+    inputs: &SurfaceInputs,
+    table: &IssTableNode,
+    lights: &[Light],
+    stride: u32,
+) -> Vec<[f32; 4]> {
+    let (width, height) = (inputs.depth.width(), inputs.depth.height());
     let output = common::texture(
         gpu,
         wgpu::TextureFormat::Rgba32Float,
         wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
-        (size, size, 1),
+        (width, height, 1),
         1,
     );
     let mut composite =
         CompositeNode::new(&gpu.device, cache, wgpu::TextureFormat::Rgba32Float).unwrap();
-    let lights = [light];
+    composite.set_spot_lattice(stride).unwrap();
     let surfaces = CompositeSurfaces {
         normal: &inputs.normal,
         albedo: &inputs.albedo,
-        table: &table,
-        lights: &lights,
+        table,
+        lights,
     };
     composite
         .set_surfaces(&gpu.queue, medium, Some(&surfaces))
@@ -141,6 +142,32 @@ fn surface_frame(
     assert!(
         out.iter().flatten().all(|v| v.is_finite()),
         "a non-finite pixel"
+    );
+    out
+}
+
+/// The composite's output over a black scene with no in-scatter input: every pixel is the added
+/// surface term `(ρ/π)·E(P)·exp(−σt·ds)` alone (red channel), at the default lattice.
+fn surface_frame(
+    gpu: &HeadlessGpu,
+    cache: &Cache,
+    camera: &Camera,
+    medium: &Medium,
+    light: Light,
+    size: u32,
+    trace: &dyn Fn(DVec3, DVec3) -> Option<Hit>,
+) -> (Vec<f32>, Vec<Option<Hit>>) {
+    let inputs = surface_inputs(gpu, camera, (size, size), trace);
+    let table = table(gpu, cache, medium);
+    let out = surface_term_output(
+        gpu,
+        cache,
+        camera,
+        medium,
+        &inputs,
+        &table,
+        &[light],
+        CompositeNode::DEFAULT_SPOT_LATTICE,
     );
     (out.iter().map(|p| p[0]).collect(), inputs.hits)
 }
@@ -422,39 +449,9 @@ fn lattice_against_every_pixel() {
     let table = table(&gpu, &cache, &medium);
     let lights = [Light::from(spot)];
     let frame = |stride: u32| {
-        let output = common::texture(
-            &gpu,
-            wgpu::TextureFormat::Rgba32Float,
-            wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
-            (width, height, 1),
-            1,
-        );
-        let mut composite =
-            CompositeNode::new(&gpu.device, &cache, wgpu::TextureFormat::Rgba32Float).unwrap();
-        composite.set_spot_lattice(stride).unwrap();
-        let surfaces = CompositeSurfaces {
-            normal: &inputs.normal,
-            albedo: &inputs.albedo,
-            table: &table,
-            lights: &lights,
-        };
-        composite
-            .set_surfaces(&gpu.queue, &medium, Some(&surfaces))
-            .unwrap();
-        let frame = CompositeInputs {
-            camera: &camera,
-            medium: &medium,
-            scene_color: &inputs.black,
-            scene_depth: &inputs.depth,
-            inscatter: &[],
-        };
-        composite.prepare(&gpu.device, &gpu.queue, &frame).unwrap();
-        let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        composite
-            .encode(&mut encoder, &(&output).into(), None)
-            .unwrap();
-        gpu.submit_and_wait(encoder).unwrap();
-        gpu.read_rgba32f(&output).unwrap()
+        surface_term_output(
+            &gpu, &cache, &camera, &medium, &inputs, &table, &lights, stride,
+        )
     };
     let every = frame(1);
     let max = every.iter().fold(0.0f32, |m, p| m.max(p[0]));

@@ -158,35 +158,56 @@ fn cs_spot_lattice(@builtin(global_invocation_id) id: vec3<u32>) {{
                 include_str!("../../shaders/iss.wgsl"),
                 include_str!("../../shaders/composite.wgsl"),
             );
-            let module = module(device, label, &source, self.precision);
-            let output_layout = layout(
+            self.with_output(
                 device,
                 label,
-                wgpu::ShaderStages::COMPUTE,
-                &[Binding::Storage(LATTICE_FORMAT)],
-            );
-            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some(label),
-                bind_group_layouts: &[Some(&self.layout), Some(&output_layout)],
-                immediate_size: 0,
-            });
-            let constants = [("SURFACES", 1.0)];
-            let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(label),
-                layout: Some(&pipeline_layout),
-                module: &module,
-                entry_point: Some("cs_spot_lattice"),
-                compilation_options: wgpu::PipelineCompilationOptions {
-                    constants: &constants,
-                    ..Default::default()
-                },
-                cache: None,
-            });
-            Storing {
-                pipeline,
-                output_layout,
-            }
+                &source,
+                "cs_spot_lattice",
+                LATTICE_FORMAT,
+                true,
+            )
         })
+    }
+
+    /// A compute pipeline over the composite's bindings (group 0) and one storage texture of
+    /// `format` (group 1), from the composite's WGSL followed by an entry point (`source`).
+    fn with_output(
+        &self,
+        device: &wgpu::Device,
+        label: &str,
+        source: &str,
+        entry: &str,
+        format: wgpu::TextureFormat,
+        surfaces: bool,
+    ) -> Storing {
+        let module = module(device, label, source, self.precision);
+        let output_layout = layout(
+            device,
+            label,
+            wgpu::ShaderStages::COMPUTE,
+            &[Binding::Storage(format)],
+        );
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(label),
+            bind_group_layouts: &[Some(&self.layout), Some(&output_layout)],
+            immediate_size: 0,
+        });
+        let constants = [("SURFACES", if surfaces { 1.0 } else { 0.0 })];
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(label),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some(entry),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants: &constants,
+                ..Default::default()
+            },
+            cache: None,
+        });
+        Storing {
+            pipeline,
+            output_layout,
+        }
     }
 
     /// The compute pipeline storing `format` (see [`storage_format_name`]), adding the surface
@@ -214,34 +235,7 @@ fn cs_composite(@builtin(global_invocation_id) id: vec3<u32>) {{
                 include_str!("../../shaders/iss.wgsl"),
                 include_str!("../../shaders/composite.wgsl"),
             );
-            let module = module(device, label, &source, self.precision);
-            let output_layout = layout(
-                device,
-                label,
-                wgpu::ShaderStages::COMPUTE,
-                &[Binding::Storage(format)],
-            );
-            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some(label),
-                bind_group_layouts: &[Some(&self.layout), Some(&output_layout)],
-                immediate_size: 0,
-            });
-            let constants = [("SURFACES", if surfaces { 1.0 } else { 0.0 })];
-            let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(label),
-                layout: Some(&pipeline_layout),
-                module: &module,
-                entry_point: Some("cs_composite"),
-                compilation_options: wgpu::PipelineCompilationOptions {
-                    constants: &constants,
-                    ..Default::default()
-                },
-                cache: None,
-            });
-            Storing {
-                pipeline,
-                output_layout,
-            }
+            self.with_output(device, label, &source, "cs_composite", format, surfaces)
         }))
     }
 
