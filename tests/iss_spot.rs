@@ -366,6 +366,17 @@ fn issue_spot_scene(precision: ShaderPrecision) {
         100.0 * before[0],
         100.0 * before[1]
     );
+    common::metric::accuracy(
+        &format!("{precision:?}: a 60° spot 1 above a floor (HG 0.3, σt·D ≈ 0.3), 40²: the surface term against the f64 reference, p95 inside the cone; on the band within 0.2 × its radius outside; the point light's term cut at the cone (must fail)"),
+        format!(
+            "{:.3}%; {:.3}%; {:.1}% / {:.1}%",
+            100.0 * p95[0],
+            100.0 * p95[1],
+            100.0 * before[0],
+            100.0 * before[1]
+        ),
+        "2% each (the issue's); > 2%",
+    );
     assert!(before[0] > 0.02 && before[1] > 0.02, "the old model passes");
     assert!(p95[0] <= 0.02 && p95[1] <= 0.02, "p95 {p95:?}");
 }
@@ -488,6 +499,11 @@ fn lattice_against_every_pixel() {
             inputs.hits[worst.1],
             lattice[worst.1][0],
             every[worst.1][0]
+        );
+        common::metric::accuracy(
+            &format!("the spot term's lattice every {stride} pixels against every pixel evaluated, floor, wall, ball and rod, {width}x{height}: worst difference; share of lit pixels interpolated"),
+            format!("{:.3}%; {:.1}%", 100.0 * worst.0, 100.0 * share),
+            "0.5% (a quarter of the issue's 2%)",
         );
         if worst.0 > 0.005 {
             failures.push(format!("lattice {stride}: worst {:.3}%", 100.0 * worst.0));
@@ -644,6 +660,11 @@ fn seeded_spot_scenes(precision: ShaderPrecision) {
         "{precision:?}: worst seed {} at p95 {:.3}%",
         worst.1,
         100.0 * worst.0
+    );
+    common::metric::accuracy(
+        &format!("{precision:?}: 24 seeded spot scenes (apex 20°–120°, inside / across / outside the cone, σt·D 0.01–5), 8²: the surface term against the f64 reference, the worst seed's p95"),
+        format!("{:.3}% (seed {})", 100.0 * worst.0, worst.1),
+        "3% (the issue's)",
     );
     assert!(failures.is_empty(), "{failures:?}");
 }
