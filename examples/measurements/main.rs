@@ -16,6 +16,10 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+// Paths spelled out: `tests/examples.rs` includes this file as a module.
+#[path = "../common/cli.rs"]
+mod cli;
+#[path = "docs.rs"]
 mod docs;
 #[path = "../../tests/common/metric.rs"]
 mod metric;
@@ -34,23 +38,29 @@ LOG...       logs of one run: `cargo test --features gltf,image -- --nocapture` 
 --run NAME   the run's name (default: from the adapter, e.g. llvmpipe)
 --date DATE  the run's date (default: today, UTC)
 --docs-only  rewrite the documents from docs/measurements/*.tsv alone
+
+A run whose output (NAME.tsv or a document) is one of its logs is refused before anything is
+written.
 ";
 
 type BoxError = Box<dyn std::error::Error>;
 
+#[allow(dead_code)] // a module of tests/examples.rs, which calls `run`
 fn main() {
-    if let Err(e) = run() {
+    let args = std::env::args().skip(1).collect();
+    if let Err(e) = run(args, Path::new(env!("CARGO_MANIFEST_DIR"))) {
         eprintln!("error: {e}");
         std::process::exit(1);
     }
 }
 
-fn run() -> Result<(), BoxError> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+/// Runs the tool with `args` (the command line after the program's name), reading and writing
+/// under `root` (the crate's folder).
+pub fn run(args: Vec<String>, root: &Path) -> Result<(), BoxError> {
     let folder = root.join("docs/measurements");
     let mut logs: Vec<PathBuf> = Vec::new();
     let (mut name, mut date, mut docs_only) = (None, None, false);
-    let mut args = std::env::args().skip(1);
+    let mut args = args.into_iter();
     while let Some(arg) = args.next() {
         match arg.as_str() {
             "--help" | "-h" => {
@@ -81,8 +91,14 @@ fn run() -> Result<(), BoxError> {
             return Err("no metric lines in the logs (did the tests run with --nocapture?)".into());
         }
         run.name = name.unwrap_or_else(|| slug(run.adapters.iter().next().map_or("run", |a| a)));
-        std::fs::create_dir_all(&folder)?;
         let path = folder.join(format!("{}.tsv", run.name));
+        let outputs = [
+            path.clone(),
+            root.join("docs/ACCURACY.md"),
+            root.join("docs/PERFORMANCE.md"),
+        ];
+        cli::refuse_overwrite(&logs, &outputs)?;
+        std::fs::create_dir_all(&folder)?;
         std::fs::write(&path, write_run(&run))?;
         println!(
             "{}: {} metric lines, {} failed tests",
