@@ -26,24 +26,7 @@ struct Inputs {
 }
 
 fn rgba32f(gpu: &HeadlessGpu, values: &[[f32; 4]]) -> wgpu::Texture {
-    let t = common::texture(
-        gpu,
-        wgpu::TextureFormat::Rgba32Float,
-        wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        (W, H, 1),
-        1,
-    );
-    gpu.queue.write_texture(
-        t.as_image_copy(),
-        bytemuck::cast_slice(values),
-        wgpu::TexelCopyBufferLayout {
-            offset: 0,
-            bytes_per_row: Some(16 * W),
-            rows_per_image: None,
-        },
-        t.size(),
-    );
-    t
+    common::rgba_texture(gpu, W, H, values)
 }
 
 /// Seeded colour, in-scatter and distances (a tenth of the pixels sky), an odd size so that

@@ -102,26 +102,43 @@ pub fn rgba_texture(
     height: u32,
     texels: &[[f32; 4]],
 ) -> wgpu::Texture {
-    let t = texture(
+    filled_texture(
         gpu,
         wgpu::TextureFormat::Rgba32Float,
+        width,
+        height,
+        bytemuck::cast_slice(texels),
+    )
+}
+
+/// A `format` texture (usage `TEXTURE_BINDING | COPY_DST`) holding `bytes`, row-major, top row
+/// first, rows packed.
+pub fn filled_texture(
+    gpu: &HeadlessGpu,
+    format: wgpu::TextureFormat,
+    width: u32,
+    height: u32,
+    bytes: &[u8],
+) -> wgpu::Texture {
+    let t = texture(
+        gpu,
+        format,
         wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         (width, height, 1),
         1,
     );
+    let texel = format
+        .block_copy_size(None)
+        .expect("an uncompressed colour format");
     gpu.queue.write_texture(
         t.as_image_copy(),
-        bytemuck::cast_slice(texels),
+        bytes,
         wgpu::TexelCopyBufferLayout {
             offset: 0,
-            bytes_per_row: Some(width * 16),
+            bytes_per_row: Some(width * texel),
             rows_per_image: Some(height),
         },
-        wgpu::Extent3d {
-            width,
-            height,
-            depth_or_array_layers: 1,
-        },
+        t.size(),
     );
     t
 }
@@ -172,27 +189,12 @@ pub fn depth_texture_with_format(
 ) -> wgpu::Texture {
     assert_eq!(values.len(), (width * height) as usize);
     let device = &gpu.device;
-    let size = wgpu::Extent3d {
-        width,
-        height,
-        depth_or_array_layers: 1,
-    };
-    let source = texture(
+    let source = filled_texture(
         gpu,
         wgpu::TextureFormat::R32Float,
-        wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        (width, height, 1),
-        1,
-    );
-    gpu.queue.write_texture(
-        source.as_image_copy(),
+        width,
+        height,
         bytemuck::cast_slice(values),
-        wgpu::TexelCopyBufferLayout {
-            offset: 0,
-            bytes_per_row: Some(width * 4),
-            rows_per_image: Some(height),
-        },
-        size,
     );
     let depth = texture(
         gpu,
