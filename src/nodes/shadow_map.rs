@@ -168,7 +168,8 @@ pub struct ShadowMap<'a> {
     /// beyond the plane to the light meets the occluder, so its penumbra lies in `n·x ≤ d`. A
     /// flat occluder such as a ground, whose bounding sphere holds the light, is bounded by it.
     pub planes: &'a [Vec4],
-    /// The least distance from the light to an occluder's world bounding box (tighter than
+    /// A lower bound on the least distance from the light to an occluder: the distance to its
+    /// bounding box, in its own frame or the world's, whichever is larger (tighter than
     /// `bounds`' spheres); 0 when not known.
     pub occluder_distance: f32,
     /// For a light with a radius: the nearest back faces (turned away from the light) of closed
@@ -824,16 +825,13 @@ impl ShadowMapNode {
         }
         self.key = key;
 
-        // The least distance from the light to an occluder's bounds (0 without occluders or
-        // with the light inside their bounds): a spot map widens by it for a light with a
+        // The least distance from the light to an occluder's bounds, each in its own frame as
+        // well as the world's (0 without occluders or with the light inside their bounds): a spot map widens by it for a light with a
         // radius (`spot_fov`).
         self.occluder_distance = match light.position() {
             Some(p) => occluders
                 .iter()
-                .map(|o| {
-                    let (lo, hi) = o.world_bounds();
-                    p.clamp(lo, hi).distance(p)
-                })
+                .map(|o| o.distance_lower_bound(p))
                 .fold(f32::INFINITY, f32::min),
             None => 0.0,
         };
@@ -859,8 +857,7 @@ impl ShadowMapNode {
             let along_axis = (0.9 * Self::corner_cosine(light, self.occluder_distance)).min(0.5);
             let mut near = f32::INFINITY;
             for o in occluders {
-                let (lo, hi) = o.world_bounds();
-                near = near.min(along_axis * p.clamp(lo, hi).distance(p));
+                near = near.min(along_axis * o.distance_lower_bound(p));
             }
             let floor = 1e-7 * p.abs().max_element().max(1e-3);
             let near = if near.is_finite() {
@@ -878,10 +875,9 @@ impl ShadowMapNode {
         self.planes = occluders
             .iter()
             .map(|o| {
-                let (lo, hi) = o.world_bounds();
                 light
                     .position()
-                    .map_or(Vec4::ZERO, |p| separating_plane(lo, hi, p, light.radius()))
+                    .map_or(Vec4::ZERO, |p| o.separating_plane(p, light.radius()))
             })
             .collect();
         for (i, face) in self.faces.iter().enumerate() {
@@ -1074,58 +1070,9 @@ impl ShadowMapNode {
     }
 }
 
-/// The face plane of the box `[lo, hi]` farthest from the sphere (`centre`, `radius`) among
-/// those with the sphere wholly beyond them, as `(n, d)` with the box in `n·x ≤ d` (see
-/// [`ShadowMap::planes`]); zero when the sphere reaches every face's plane.
-fn separating_plane(lo: Vec3, hi: Vec3, centre: Vec3, radius: f32) -> Vec4 {
-    let mut best = Vec4::ZERO;
-    let mut gap = 0.0;
-    for axis in 0..3 {
-        let n = Vec3::AXES[axis];
-        for (sign, face) in [(1.0, hi[axis]), (-1.0, lo[axis])] {
-            let beyond = sign * (centre[axis] - face) - radius;
-            if beyond > gap {
-                gap = beyond;
-                best = (sign * n).extend(sign * face);
-            }
-        }
-    }
-    best
-}
-
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-
-    /// The plane is the face the light's sphere lies farthest beyond; none when the sphere
-    /// reaches every face's plane. A plane that cut the sphere would let a penumbra through.
-    #[test]
-    fn separating_plane_keeps_the_light_beyond_it() {
-        let (lo, hi) = (Vec3::new(-30.0, 0.0, -30.0), Vec3::new(30.0, 0.0, 30.0));
-        // A light 3 above a ground: the top face, n·x ≤ 0 with n = +Y.
-        assert_eq!(
-            separating_plane(lo, hi, Vec3::new(0.0, 3.0, 0.0), 0.3),
-            Vec4::new(0.0, 1.0, 0.0, 0.0)
-        );
-        // Below it: the bottom face, −y ≤ 0.
-        assert_eq!(
-            separating_plane(lo, hi, Vec3::new(1.0, -2.0, 0.0), 0.3),
-            Vec4::new(0.0, -1.0, 0.0, 0.0)
-        );
-        // The light's sphere reaching the plane: none.
-        assert_eq!(
-            separating_plane(lo, hi, Vec3::new(0.0, 0.2, 0.0), 0.3),
-            Vec4::ZERO
-        );
-        // Inside a box: none.
-        let (a, b) = (Vec3::splat(-1.0), Vec3::splat(1.0));
-        assert_eq!(separating_plane(a, b, Vec3::ZERO, 0.1), Vec4::ZERO);
-        // Beside a box, farther along x than along y: the +X face.
-        assert_eq!(
-            separating_plane(a, b, Vec3::new(5.0, 2.0, 0.0), 0.5),
-            Vec4::new(1.0, 0.0, 0.0, 1.0)
-        );
-    }
 
     /// Every point of the view pyramid's slice of each cascade lies in that cascade's square,
     /// at least a texel inside its edge (where the shaders take it), and within its depth

@@ -190,7 +190,7 @@ const LIST_SLOT: u64 = 256;
 pub(crate) const MAX_SOFT_SPHERES: usize = 8;
 
 /// The soft shadow's constants: `[radius, least distance from the light to an occluder (its
-/// bounding box, or sphere), number of spheres, 0]`, the spheres (see [`ShadowMap::bounds`])
+/// bounding box, or sphere; at least the radius), number of spheres, 0]`, the spheres (see [`ShadowMap::bounds`])
 /// and their planes ([`ShadowMap::planes`]; zero, none, for spheres merged into one).
 pub(crate) fn soft_params(
     light: &Light,
@@ -238,7 +238,10 @@ pub(crate) fn soft_params(
         spheres[0] = c.extend(r).to_array();
         1
     };
-    let nearest = if nearest.is_finite() { nearest } else { 0.0 };
+    // At least the light's radius: a point inside the light's sphere sees all of it (the
+    // model's convention), and the grid's slices and the blocker search, which reach from
+    // `nearest` out, would otherwise spread over a light with an occluder's bounds around it.
+    let nearest = if nearest.is_finite() { nearest } else { 0.0 }.max(light.radius());
     (
         [light.radius(), nearest, count as f32, 0.0],
         spheres,
