@@ -238,6 +238,7 @@ impl ShadowMap<'_> {
             }
             _ => (light.position().unwrap_or_default(), 0, 4.0 / texels),
         };
+        let radius = if directional == 1 { 0.0 } else { light.radius() };
         ShadowParams {
             faces,
             light_position: light_position.to_array(),
@@ -245,7 +246,7 @@ impl ShadowMap<'_> {
             layers: self.faces.len() as u32,
             normal_offset: normal_offset.unwrap_or(default_offset),
             directional,
-            _pad: 0.0,
+            radius,
         }
     }
 }
@@ -268,8 +269,11 @@ pub struct ShadowParams {
     pub normal_offset: f32,
     /// 1 for a directional light's orthographic map, else 0.
     pub directional: u32,
-    /// Padding.
-    pub _pad: f32,
+    /// The light's radius ([`Light::radius`]): above 0, `volshadow_shadow` takes soft shadows
+    /// (a blocker search and a filter, see [`SHADOW_WGSL`](crate::SHADOW_WGSL)); 0 (and a
+    /// directional light, always 0 here) the hard lookup. Set it to 0 for hard surface shadows
+    /// from a soft light's map.
+    pub radius: f32,
 }
 
 /// Renders the occluders' depth from the light. Re-renders only when the light, an occluder or
