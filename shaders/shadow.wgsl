@@ -137,6 +137,9 @@ const VOLSHADOW_FILTER_TAPS: u32 = 32u;
 // The widest search, as a tangent seen from the light (45°): the taps stay near the point's
 // own direction whatever the near plane.
 const VOLSHADOW_SEARCH_MAX: f32 = 1.0;
+// The least sine of the light's centre's elevation above the taps' plane (see
+// `volshadow_soft`).
+const VOLSHADOW_LEAST_ELEVATION: f32 = 0.01;
 const VOLSHADOW_PI: f32 = 3.141592653589793;
 // cos and sin of the golden angle π(3 − √5).
 const VOLSHADOW_GOLDEN_COS: f32 = -0.7373688780783197;
@@ -285,31 +288,34 @@ fn volshadow_soft(map: texture_depth_2d_array, cmp: sampler_comparison, sm: Vols
     let sin_a = radius / dist0;
     let to_light = (light - p) / dist0;
     // The receiver's own horizon: the part of the light below its tangent plane is hidden by
-    // the surface itself. The normal is taken as given (a closed surface's outward normal)
-    // while part of the light is above its plane, else flipped (a two-sided surface seen
-    // from its other side).
+    // the surface itself (exactly so for a convex surface). The normal is taken as given: the
+    // side of the surface being lit (not turned towards the light, as the hard lookup does).
     var n1 = vec3<f32>(0.0);
+    // The plane the taps lie on (see `volshadow_tap`; zero: none).
+    var plane = vec3<f32>(0.0);
     var horizon = 1.0;
     var lift = 0.0;
     let nl = length(n);
     if (nl > 0.0) {
         n1 = n / nl;
-        var s = dot(n1, to_light);
-        if (s < -sin_a) {
-            n1 = -n1;
-            s = -s;
-        }
+        plane = n1;
+        let s = dot(n1, to_light);
         horizon = volshadow_horizon(s, sin_a);
         if (horizon <= 0.0) {
-            return 0.0;
+            return 0.0; // all of the light below the surface's plane
         }
-        if (s < 0.0) {
-            // The light's centre below the plane: the line from the point to it enters the
-            // surface. Lifted by d·(1/cos e − 1) for the elevation e = asin(s), the line
-            // clears a sphere of radius up to d curving away there (the horizon term above
-            // counts what the surface hides).
+        if (s < VOLSHADOW_LEAST_ELEVATION) {
+            // The light's centre (nearly) on or below the plane: part of the light is hidden
+            // by the surface itself, which the horizon above counts; the map must not count it
+            // again. The line from the point to the centre enters a closed surface there:
+            // lifted by d·(1/cos e − 1) for the elevation e = asin(s) < 0, it clears a sphere
+            // of radius up to d curving away. And the taps lie on the plane turned about its
+            // horizon to just below the centre, in front of the surface.
             let c = sqrt(max(1.0 - s * s, 0.25));
-            lift = dist0 * (s * s) / (c * (1.0 + c));
+            lift = dist0 * (min(s, 0.0) * s) / (c * (1.0 + c));
+            let perp = n1 - s * to_light;
+            let pl = length(perp);
+            plane = select(vec3<f32>(0.0), perp / max(pl, 1.0e-30) * sqrt(1.0 - VOLSHADOW_LEAST_ELEVATION * VOLSHADOW_LEAST_ELEVATION) + VOLSHADOW_LEAST_ELEVATION * to_light, pl > 1.0e-6);
         }
     }
     let q = p + n1 * (sm.normal_offset * dist0 + lift);
@@ -326,7 +332,7 @@ fn volshadow_soft(map: texture_depth_2d_array, cmp: sampler_comparison, sm: Vols
     let e1 = vec3<f32>(1.0 + sgn * u.x * u.x * fa, sgn * fb, -sgn * u.x);
     let e2 = vec3<f32>(fb, sgn + u.y * u.y * fa, -u.y);
     let turn = volshadow_turn(p);
-    let s = VolshadowSoft(light, q, dist, u, e1, e2, n1, vec2<f32>(cos(turn), sin(turn)));
+    let s = VolshadowSoft(light, q, dist, u, e1, e2, plane, vec2<f32>(cos(turn), sin(turn)));
 
     // The blocker search. Its region: the lines from q to the light's disc over occluders as
     // near as the map's near plane (clip z of a reversed-Z infinite perspective), at most

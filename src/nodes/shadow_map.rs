@@ -238,7 +238,11 @@ impl ShadowMap<'_> {
             }
             _ => (light.position().unwrap_or_default(), 0, 4.0 / texels),
         };
-        let radius = if directional == 1 { 0.0 } else { light.radius() };
+        let radius = if directional == 1 {
+            0.0
+        } else {
+            light.radius()
+        };
         ShadowParams {
             faces,
             light_position: light_position.to_array(),
