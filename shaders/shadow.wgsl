@@ -21,6 +21,25 @@
 // cascade and as many texels in the others (2 texels by default), and counts as lit while it
 // lies less than 2 of its cascade's texels beyond the stored depth (the volumetric shadows'
 // bias).
+//
+// Soft shadows: `volshadow_shadow` is soft by itself for a point or spot light whose `radius`
+// (`VolshadowShadow.radius`, from `params()`) is above 0; radius 0, and a directional light
+// (which has no radius), take the hard lookup above unchanged. Soft: the fraction of the
+// light's disc the point sees, by percentage-closer soft shadows (Fernando 2005) in the front
+// layer, the geometry of the volumetric shadows' own: a blocker search (two rounds of 8 taps,
+// the first centred, over the region where the lines from the point to the disc can meet an
+// occluder no nearer than the map's near plane, then over the filter's own region; the
+// farthest blocker found sets the filter), then the mean of 32 2×2-filtered lookups over the
+// disc of tilt R·(1/b − 1/d), taps on a golden-angle spiral turned by an integer hash of the
+// point: at most 16 `textureLoad`s and 32 comparison samples, no other loop. The taps lie on
+// the surface's tangent plane (a convex surface does not shadow its own filter). Times the
+// part of the light above that plane (the surface's own horizon: a convex occluder hides
+// exactly what lies below its tangent plane from a point on it), `n` taken as the outward
+// normal of the side being lit: a point whose plane has all of the light below it reads 0
+// (the hard lookup turns `n` towards the light instead). A point inside the light's sphere
+// reads 1. The map's second layer of back faces (`ShadowMap::back`, a separate texture)
+// is not read: the front surface alone makes the deep penumbra too bright (see
+// docs/METHOD.md).
 
 struct VolshadowShadow {
     faces: array<mat4x4<f32>, 6>,  // clip_from_world of each layer (unused ones zero)

@@ -218,7 +218,8 @@ impl ShadowMap<'_> {
     /// `normal_offset` world units in its first cascade and as many texels in each other
     /// (`None`: two texels' angular size at this map's resolution, or two texels of a
     /// directional map's cascade, which keeps lit surfaces free of self-shadowing acne down to
-    /// grazing angles of about 25°).
+    /// grazing angles of about 25°). The light's [radius](Light::radius) goes in
+    /// [`ShadowParams::radius`], which makes a point or spot light's surface shadows soft.
     pub fn params(&self, light: &Light, normal_offset: Option<f32>) -> ShadowParams {
         let mut faces = [[0.0; 16]; 6];
         for (slot, m) in faces.iter_mut().zip(self.faces) {
