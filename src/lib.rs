@@ -326,12 +326,23 @@ pub const ISS_WGSL: &str = concat!(
 
 /// A self-contained WGSL module for shadowing a caller's surfaces with the shadow maps volshadow
 /// renders for its volumetric shadows: `volshadow_shadow(map, cmp, params, p, n) -> f32`, the
-/// visibility in `[0, 1]` of a surface point (2×2 percentage-closer filtered), with a normal
+/// visibility in `[0, 1]` of a surface point (2×2 percentage-closer filtered; soft for a light
+/// with a radius, below), with a normal
 /// offset and the maps' relative depth bias. `map` is a shadow map's texture
 /// ([`nodes::ShadowMap`], from [`VolumetricShadows::shadow_map`]) as a
 /// `texture_depth_2d_array`, `cmp` a comparison sampler (`GreaterEqual`, linear filtering),
 /// `params` [`nodes::ShadowMap::params`] uploaded as a buffer. The module's comments document
 /// the layout and the bias.
+///
+/// For a point or spot light with a radius (the params' `radius` above 0) the same function is
+/// soft: the visible fraction of the light's disc by percentage-closer soft shadows in the
+/// map's front layer (16 blocker-search taps, 32 filter taps), times the part of the light
+/// above the surface's own tangent plane, `n` then being the outward normal of the side being
+/// lit. Radius 0 (or [`nodes::ShadowParams::radius`] set to 0) and directional lights take the
+/// hard lookup. Against the exact visible fraction (`tests/surface_shadow.rs`, a sphere above a
+/// ground, light radius 0.4 at 1.52 from the sphere's centre, lavapipe): on the ground, mean
+/// 4.5% and p95 12.5% (point light; spot 5.9%, 16.2%), the hard lookup 18.7% and 46%; on the
+/// sphere itself mean 0.2%, p95 0.5%.
 pub const SHADOW_WGSL: &str = include_str!("../shaders/shadow.wgsl");
 
 /// The README's usage snippet, compiled (not run) by `cargo test --doc`.

@@ -219,7 +219,8 @@ impl ShadowMap<'_> {
     /// `normal_offset` world units in its first cascade and as many texels in each other
     /// (`None`: two texels' angular size at this map's resolution, or two texels of a
     /// directional map's cascade, which keeps lit surfaces free of self-shadowing acne down to
-    /// grazing angles of about 25°).
+    /// grazing angles of about 25°). The light's [radius](Light::radius) goes in
+    /// [`ShadowParams::radius`], which makes a point or spot light's surface shadows soft.
     pub fn params(&self, light: &Light, normal_offset: Option<f32>) -> ShadowParams {
         let mut faces = [[0.0; 16]; 6];
         for (slot, m) in faces.iter_mut().zip(self.faces) {
@@ -239,6 +240,11 @@ impl ShadowMap<'_> {
             }
             _ => (light.position().unwrap_or_default(), 0, 4.0 / texels),
         };
+        let radius = if directional == 1 {
+            0.0
+        } else {
+            light.radius()
+        };
         ShadowParams {
             faces,
             light_position: light_position.to_array(),
@@ -246,7 +252,7 @@ impl ShadowMap<'_> {
             layers: self.faces.len() as u32,
             normal_offset: normal_offset.unwrap_or(default_offset),
             directional,
-            _pad: 0.0,
+            radius,
         }
     }
 }
@@ -269,8 +275,11 @@ pub struct ShadowParams {
     pub normal_offset: f32,
     /// 1 for a directional light's orthographic map, else 0.
     pub directional: u32,
-    /// Padding.
-    pub _pad: f32,
+    /// The light's radius ([`Light::radius`]): above 0, `volshadow_shadow` takes soft shadows
+    /// (a blocker search and a filter, see [`SHADOW_WGSL`](crate::SHADOW_WGSL)); 0 (and a
+    /// directional light, always 0 here) the hard lookup. Set it to 0 for hard surface shadows
+    /// from a soft light's map.
+    pub radius: f32,
 }
 
 /// Renders the occluders' depth from the light. Re-renders only when the light, an occluder or
