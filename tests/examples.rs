@@ -5,7 +5,8 @@
 //! reference on the same scene and size: RMSE over all pixels and channels at most 2% of the
 //! reference's mean (issue 5). Each scene's shadows must also be visible in its tone-mapped
 //! PNG: it differs from the same scene rendered without occluder shadows over at least 5% of
-//! the image.
+//! the image; and a scene with a light of some radius must show its penumbrae: its PNG differs
+//! by the same measure from the scene drawn hard (every radius 0).
 
 #[path = "../examples/common/mod.rs"]
 mod common_examples;
@@ -197,6 +198,57 @@ fn render_every_scene_and_match_the_reference() {
                 100.0 * visible,
                 100.0 * MIN_VISIBLE_FRACTION
             ));
+        }
+
+        // A light with a radius: its penumbrae must show too. The same scene with every
+        // radius 0 (hard shadows), tone-mapped with the soft render's exposure, must differ by
+        // the same measure.
+        let mut hard_scene: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&scene).unwrap()).unwrap();
+        let mut soft = false;
+        for light in hard_scene["lights"].as_array_mut().into_iter().flatten() {
+            if light
+                .get("radius")
+                .and_then(|r| r.as_f64())
+                .is_some_and(|r| r > 0.0)
+            {
+                light["radius"] = serde_json::json!(0.0);
+                soft = true;
+            }
+        }
+        if soft {
+            let hard_file = dir.path().join(format!("{stem}.hard.json"));
+            std::fs::write(&hard_file, hard_scene.to_string()).unwrap();
+            let out = dir.path().join(format!("{stem}.hard"));
+            let hard = render_scene::run(&args(&[
+                hard_file.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+                "--size",
+                &size,
+                "--exposure",
+                &exposure,
+            ]))
+            .unwrap_or_else(|e| panic!("{stem} hard: {e}"));
+            let penumbra = visible_fraction(&gpu.files[1], &hard.files[1]);
+            println!(
+                "{stem:<14} penumbrae visible: {:.1}% of the PNG differs from the scene drawn \
+                 hard (every radius 0) by the same measure; required {:.0}%",
+                100.0 * penumbra,
+                100.0 * MIN_VISIBLE_FRACTION
+            );
+            metric::accuracy(
+                &format!("{stem}: penumbrae visible in the tone-mapped PNG (pixels ≥ {:.0}% and {MIN_LEVELS} levels off the scene drawn hard)", 100.0 * MIN_PIXEL_CHANGE),
+                format!("{:.1}%", 100.0 * penumbra),
+                format!("≥ {:.0}%", 100.0 * MIN_VISIBLE_FRACTION),
+            );
+            if penumbra.is_nan() || penumbra < MIN_VISIBLE_FRACTION {
+                failures.push(format!(
+                    "{stem}: penumbrae visible over {:.1}% of the image < {:.0}%",
+                    100.0 * penumbra,
+                    100.0 * MIN_VISIBLE_FRACTION
+                ));
+            }
         }
 
         let start = Instant::now();
