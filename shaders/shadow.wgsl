@@ -68,6 +68,17 @@ fn volshadow_cascade(sm: VolshadowShadow, size: f32, p: vec3<f32>) -> u32 {
     return found;
 }
 
+// The cube face (+X, −X, +Y, −Y, +Z, −Z: 0 to 5) that holds the direction `rel` from the light.
+fn volshadow_cube_face(rel: vec3<f32>) -> u32 {
+    let m = abs(rel);
+    if (m.x >= m.y && m.x >= m.z) {
+        return select(1u, 0u, rel.x > 0.0);
+    } else if (m.y >= m.z) {
+        return select(3u, 2u, rel.y > 0.0);
+    }
+    return select(5u, 4u, rel.z > 0.0);
+}
+
 // Half the width of an orthographic layer's square.
 fn volshadow_half_width(m: mat4x4<f32>) -> f32 {
     return 1.0 / length(vec3<f32>(m[0].x, m[1].x, m[2].x));
@@ -117,14 +128,7 @@ fn volshadow_hard(map: texture_depth_2d_array, cmp: sampler_comparison, sm: Vols
             return 1.0;
         }
     } else if (sm.layers == 6u) {
-        let m = abs(rel);
-        if (m.x >= m.y && m.x >= m.z) {
-            face = select(1u, 0u, rel.x > 0.0);
-        } else if (m.y >= m.z) {
-            face = select(3u, 2u, rel.y > 0.0);
-        } else {
-            face = select(5u, 4u, rel.z > 0.0);
-        }
+        face = volshadow_cube_face(rel);
     }
     let clip = sm.faces[face] * vec4<f32>(q, 1.0);
     if (clip.w <= 0.0) {
@@ -204,14 +208,7 @@ fn volshadow_tap(sm: VolshadowShadow, s: VolshadowSoft, t: f32, cs: vec2<f32>) -
     let rel = k * dir;
     var face = 0u;
     if (sm.layers == 6u) {
-        let m = abs(rel);
-        if (m.x >= m.y && m.x >= m.z) {
-            face = select(1u, 0u, rel.x > 0.0);
-        } else if (m.y >= m.z) {
-            face = select(3u, 2u, rel.y > 0.0);
-        } else {
-            face = select(5u, 4u, rel.z > 0.0);
-        }
+        face = volshadow_cube_face(rel);
     }
     let clip = sm.faces[face] * vec4<f32>(s.light + rel, 1.0);
     if (!(clip.w > 0.0)) {

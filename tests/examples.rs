@@ -141,6 +141,34 @@ fn light_pixels(scene: &Path) -> Vec<usize> {
         .collect()
 }
 
+/// Prints and records how much of `stem`'s PNG its `what` (shadows, penumbrae) change against
+/// `against`, and adds a failure below [`MIN_VISIBLE_FRACTION`].
+fn judge_visible(stem: &str, what: &str, against: &str, fraction: f64, failures: &mut Vec<String>) {
+    println!(
+        "{stem:<14} {what} visible: {:.1}% of the PNG differs from {against} by >= {:.0}% of the \
+         pixel value (at least {MIN_LEVELS} levels); required {:.0}%",
+        100.0 * fraction,
+        100.0 * MIN_PIXEL_CHANGE,
+        100.0 * MIN_VISIBLE_FRACTION
+    );
+    metric::accuracy(
+        &format!(
+            "{stem}: {what} visible in the tone-mapped PNG (pixels ≥ {:.0}% and {MIN_LEVELS} \
+             levels off {against})",
+            100.0 * MIN_PIXEL_CHANGE
+        ),
+        format!("{:.1}%", 100.0 * fraction),
+        format!("≥ {:.0}%", 100.0 * MIN_VISIBLE_FRACTION),
+    );
+    if fraction.is_nan() || fraction < MIN_VISIBLE_FRACTION {
+        failures.push(format!(
+            "{stem}: {what} visible over {:.1}% of the image < {:.0}%",
+            100.0 * fraction,
+            100.0 * MIN_VISIBLE_FRACTION
+        ));
+    }
+}
+
 #[test]
 fn render_every_scene_and_match_the_reference() {
     let dir = tempfile::tempdir().unwrap();
@@ -180,25 +208,13 @@ fn render_every_scene_and_match_the_reference() {
         ]))
         .unwrap_or_else(|e| panic!("{stem} unshadowed: {e}"));
         let visible = visible_fraction(&gpu.files[1], &unshadowed.files[1]);
-        println!(
-            "{stem:<14} shadows visible: {:.1}% of the PNG differs from the unshadowed render by \
-             >= {:.0}% of the pixel value (at least {MIN_LEVELS} levels); required {:.0}%",
-            100.0 * visible,
-            100.0 * MIN_PIXEL_CHANGE,
-            100.0 * MIN_VISIBLE_FRACTION
+        judge_visible(
+            &stem,
+            "shadows",
+            "the unshadowed render",
+            visible,
+            &mut failures,
         );
-        metric::accuracy(
-            &format!("{stem}: shadows visible in the tone-mapped PNG (pixels ≥ {:.0}% and {MIN_LEVELS} levels off the unshadowed render)", 100.0 * MIN_PIXEL_CHANGE),
-            format!("{:.1}%", 100.0 * visible),
-            format!("≥ {:.0}%", 100.0 * MIN_VISIBLE_FRACTION),
-        );
-        if visible.is_nan() || visible < MIN_VISIBLE_FRACTION {
-            failures.push(format!(
-                "{stem}: shadows visible over {:.1}% of the image < {:.0}%",
-                100.0 * visible,
-                100.0 * MIN_VISIBLE_FRACTION
-            ));
-        }
 
         // A light with a radius: its penumbrae must show too. The same scene with every
         // radius 0 (hard shadows), tone-mapped with the soft render's exposure, must differ by
@@ -231,24 +247,13 @@ fn render_every_scene_and_match_the_reference() {
             ]))
             .unwrap_or_else(|e| panic!("{stem} hard: {e}"));
             let penumbra = visible_fraction(&gpu.files[1], &hard.files[1]);
-            println!(
-                "{stem:<14} penumbrae visible: {:.1}% of the PNG differs from the scene drawn \
-                 hard (every radius 0) by the same measure; required {:.0}%",
-                100.0 * penumbra,
-                100.0 * MIN_VISIBLE_FRACTION
+            judge_visible(
+                &stem,
+                "penumbrae",
+                "the scene drawn hard",
+                penumbra,
+                &mut failures,
             );
-            metric::accuracy(
-                &format!("{stem}: penumbrae visible in the tone-mapped PNG (pixels ≥ {:.0}% and {MIN_LEVELS} levels off the scene drawn hard)", 100.0 * MIN_PIXEL_CHANGE),
-                format!("{:.1}%", 100.0 * penumbra),
-                format!("≥ {:.0}%", 100.0 * MIN_VISIBLE_FRACTION),
-            );
-            if penumbra.is_nan() || penumbra < MIN_VISIBLE_FRACTION {
-                failures.push(format!(
-                    "{stem}: penumbrae visible over {:.1}% of the image < {:.0}%",
-                    100.0 * penumbra,
-                    100.0 * MIN_VISIBLE_FRACTION
-                ));
-            }
         }
 
         let start = Instant::now();
