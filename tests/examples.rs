@@ -233,7 +233,7 @@ fn render_every_scene_and_match_the_reference() {
             }
         }
         if soft {
-            let hard_file = dir.path().join(format!("{stem}.hard.json"));
+            let hard_file = dir.path().join(format!("{stem}.hard-scene.json"));
             std::fs::write(&hard_file, hard_scene.to_string()).unwrap();
             let out = dir.path().join(format!("{stem}.hard"));
             let hard = render_scene::run(&args(&[

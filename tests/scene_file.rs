@@ -87,6 +87,7 @@ fn every_standard_scene_loads() {
         "stained_glass",
         "stiff_fog",
         "window",
+        "soft",
     ] {
         assert!(
             names.iter().any(|n| n == expected),

@@ -217,7 +217,8 @@ fn random_box_scene(seed: u64, log_tau: (f32, f32)) -> RandomScene {
 const BOX_SEEDS: std::ops::Range<u64> = 300..308;
 const BOX_SIZE: u32 = 16;
 /// Measured limit for every box scene (seed 300, a light of radius 0.33 L close to a box, p95
-/// 5.13%); the others are held to the bars.
+/// 5.87%; 5.13% when the grid's nearest distance came from the box's world box, looser than
+/// its own); the others are held to the bars.
 const BOX_P95_LIMIT: f64 = 0.06;
 
 /// Seeded box scenes (`random_box_scene`), otherwise as
@@ -226,7 +227,8 @@ const BOX_P95_LIMIT: f64 = 0.06;
 /// shadow ignored beyond twice the p95 bar in at least 6 (a box is smaller than the sphere it
 /// replaces, so some views show little of its shadow).
 ///
-/// Measured: 7 of 8 within, seed 300 p95 5.13% (the others ≤ 1.12%). PCSS's one
+/// Measured: 7 of 8 within, seed 300 p95 5.87% (the others ≤ 1.32%). Before the grid's
+/// nearest distance came from the box's own frame, 5.13%, and then: PCSS's one
 /// planar blocker is the limit there, not the grid: the per-step estimate at 256 steps gives
 /// 5.24%. Its distance, for that seed and against the reference: the blend of the front surface
 /// and the back face the crate uses 5.13%, the chord's midpoint 5.25%, the geometric mean
