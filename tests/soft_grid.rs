@@ -71,6 +71,16 @@ impl RandomScene {
     }
 }
 
+/// A grey medium of extinction `sigma_t`, single-scattering `albedo` and Henyey–Greenstein `g`.
+fn grey_medium(sigma_t: f32, albedo: f32, g: f32) -> Medium {
+    Medium::new(
+        Vec3::splat(sigma_t * albedo),
+        Vec3::splat(sigma_t * (1.0 - albedo)),
+        PhaseFunction::HenyeyGreenstein { g },
+    )
+    .unwrap()
+}
+
 fn random_scene(seed: u64, log_tau: (f32, f32)) -> RandomScene {
     let mut rng = fastrand::Rng::with_seed(seed);
     let mut uniform = |lo: f32, hi: f32| lo + (hi - lo) * rng.f32();
@@ -123,12 +133,7 @@ fn random_scene(seed: u64, log_tau: (f32, f32)) -> RandomScene {
     );
     RandomScene {
         camera,
-        medium: Medium::new(
-            Vec3::splat(sigma_t * albedo),
-            Vec3::splat(sigma_t * (1.0 - albedo)),
-            PhaseFunction::HenyeyGreenstein { g },
-        )
-        .unwrap(),
+        medium: grey_medium(sigma_t, albedo, g),
         light: light.into(),
         spheres: vec![(center, rho)],
         boxes: Vec::new(),
@@ -1617,12 +1622,7 @@ fn random_gap_scene(seed: u64) -> RandomScene {
         .collect();
     RandomScene {
         camera,
-        medium: Medium::new(
-            Vec3::splat(sigma_t * albedo),
-            Vec3::splat(sigma_t * (1.0 - albedo)),
-            PhaseFunction::HenyeyGreenstein { g },
-        )
-        .unwrap(),
+        medium: grey_medium(sigma_t, albedo, g),
         light,
         spheres: Vec::new(),
         boxes,

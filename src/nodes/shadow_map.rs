@@ -1089,6 +1089,29 @@ pub(crate) mod tests {
     /// 500 points per slice. (A square of the fitted sphere's own radius, without the 3 texels'
     /// widening, was tried as the broken variant: it too holds every point, so this test does
     /// not show that the widening is needed.)
+    /// `SHADOW_WGSL` is pasted by callers on its own, so its spiral's hash (`volshadow_turn`)
+    /// is a copy of the medium's (`soft_turn`, pcss.wgsl), the integer hash chosen for WGSL's
+    /// precision (docs/METHOD.md §6): a change to one must reach the other.
+    #[test]
+    fn the_surface_and_the_medium_hash_alike() {
+        let body = |source: &str, name: &str| -> String {
+            let start = source
+                .find(&format!("fn {name}("))
+                .unwrap_or_else(|| panic!("{name} missing"));
+            let rest = &source[start..];
+            let from = rest.find("let b = bitcast").expect("the hash's first line");
+            let to = rest.find("return").expect("the hash's return");
+            rest[from..to].split_whitespace().collect()
+        };
+        let surface = body(crate::SHADOW_WGSL, "volshadow_turn");
+        let medium = body(include_str!("../../shaders/pcss.wgsl"), "soft_turn");
+        assert!(surface.len() > 100, "the hash's text was not found");
+        assert_eq!(
+            surface, medium,
+            "shadow.wgsl's hash differs from pcss.wgsl's"
+        );
+    }
+
     #[test]
     fn every_point_of_a_slice_lies_in_its_cascade() {
         let mut next = uniform(0x0dd_ba11_cafe_f00d);
