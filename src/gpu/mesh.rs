@@ -205,17 +205,23 @@ impl Occluder<'_> {
 fn transformed_bounds((lo, hi): (Vec3, Vec3), transform: Mat4) -> (Vec3, Vec3) {
     let mut min = Vec3::splat(f32::INFINITY);
     let mut max = Vec3::splat(f32::NEG_INFINITY);
-    for i in 0..8 {
-        let corner = Vec3::new(
-            if i & 1 == 0 { lo.x } else { hi.x },
-            if i & 2 == 0 { lo.y } else { hi.y },
-            if i & 4 == 0 { lo.z } else { hi.z },
-        );
+    for corner in box_corners(lo, hi) {
         let p = transform.transform_point3(corner);
         min = min.min(p);
         max = max.max(p);
     }
     (min, max)
+}
+
+/// The eight corners of the box `[lo, hi]`.
+fn box_corners(lo: Vec3, hi: Vec3) -> [Vec3; 8] {
+    std::array::from_fn(|i| {
+        Vec3::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        )
+    })
 }
 
 /// A lower bound on the distance from `p` to the object-space box `bounds` under the affine
@@ -334,8 +340,8 @@ mod tests {
 
     /// A thin slab 16 × 16 turned about the origin with its plane 2 from it: its world box
     /// holds the origin (distance 0, no separating face), its own box gives the distance 2
-    /// and its own face the plane. With the world box alone a soft light there took its
-    /// nearest occluder at distance 0, and its penumbra search spread over the whole map.
+    /// and its own face the plane. With the world box alone a soft light there would take its
+    /// nearest occluder at distance 0 and search the whole map for blockers.
     #[test]
     fn a_turned_box_is_bounded_in_its_own_frame() {
         let bounds = (Vec3::new(-8.0, -8.0, -0.05), Vec3::new(8.0, 8.0, 0.05));
@@ -427,12 +433,7 @@ mod tests {
                 found += 1;
                 let n = plane.truncate();
                 assert!(n.dot(p) - plane.w >= radius, "the sphere reaches {plane}");
-                for i in 0..8 {
-                    let c = Vec3::new(
-                        if i & 1 == 0 { lo.x } else { hi.x },
-                        if i & 2 == 0 { lo.y } else { hi.y },
-                        if i & 4 == 0 { lo.z } else { hi.z },
-                    );
+                for c in box_corners(lo, hi) {
                     let w = transform.transform_point3(c);
                     assert!(
                         n.dot(w) <= plane.w + 1e-5 * w.abs().max_element(),

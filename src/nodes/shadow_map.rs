@@ -835,8 +835,8 @@ impl ShadowMapNode {
         self.key = key;
 
         // The least distance from the light to an occluder's bounds, each in its own frame as
-        // well as the world's (0 without occluders or with the light inside their bounds): a spot map widens by it for a light with a
-        // radius (`spot_fov`).
+        // well as the world's (0 without occluders or with the light inside their bounds): a
+        // spot map widens by it for a light with a radius (`spot_fov`).
         self.occluder_distance = match light.position() {
             Some(p) => occluders
                 .iter()
