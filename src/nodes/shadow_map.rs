@@ -1083,12 +1083,6 @@ impl ShadowMapNode {
 pub(crate) mod tests {
     use super::*;
 
-    /// Every point of the view pyramid's slice of each cascade lies in that cascade's square,
-    /// at least a texel inside its edge (where the shaders take it), and within its depth
-    /// range: seeded views, sun directions, distances from 1e-2 to 1e5 and 1 to 6 cascades,
-    /// 500 points per slice. (A square of the fitted sphere's own radius, without the 3 texels'
-    /// widening, was tried as the broken variant: it too holds every point, so this test does
-    /// not show that the widening is needed.)
     /// `SHADOW_WGSL` is pasted by callers on its own, so its spiral's hash (`volshadow_turn`)
     /// is a copy of the medium's (`soft_turn`, pcss.wgsl), the integer hash chosen for WGSL's
     /// precision (docs/METHOD.md §6): a change to one must reach the other.
@@ -1112,6 +1106,12 @@ pub(crate) mod tests {
         );
     }
 
+    /// Every point of the view pyramid's slice of each cascade lies in that cascade's square,
+    /// at least a texel inside its edge (where the shaders take it), and within its depth
+    /// range: seeded views, sun directions, distances from 1e-2 to 1e5 and 1 to 6 cascades,
+    /// 500 points per slice. (A square of the fitted sphere's own radius, without the 3 texels'
+    /// widening, was tried as the broken variant: it too holds every point, so this test does
+    /// not show that the widening is needed.)
     #[test]
     fn every_point_of_a_slice_lies_in_its_cascade() {
         let mut next = uniform(0x0dd_ba11_cafe_f00d);

@@ -366,7 +366,8 @@ pub fn fence(center: Vec3, posts: u32, spacing: f32, half: Vec3, rail: bool) -> 
 mod tests {
     use super::*;
 
-    /// Invalid parameters are errors (they were assertions, so each call below panicked).
+    /// Each call below, with an invalid parameter, returns an error naming that parameter
+    /// (not a panic).
     #[test]
     fn invalid_parameters_are_errors() {
         let setting = |r: Result<Mesh>, name: &str| matches!(r, Err(Error::InvalidSetting { field, .. }) if field == name);
