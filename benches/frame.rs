@@ -20,7 +20,7 @@
 //!   (there the submission is the run). Median, p10 and p90 over the frames.
 //! * **Wall time per frame**: the frames submitted back to back without waiting, the time to
 //!   the last one's completion divided by their number (prepare and recording included).
-//! * `--passes`: each pass's median GPU time as well (`HeadlessGpu::run_timed`, one extra
+//! * `--passes`: each pass's median GPU time as well (`VolumetricShadows::run_timed`, one extra
 //!   round of frames).
 //! * `--raster-composite`: the output target without `STORAGE_BINDING`, so that the composite
 //!   goes through the rasteriser instead of a compute pass.
@@ -284,7 +284,7 @@ fn bench_scene(gpu: &HeadlessGpu, o: &Options, path: &PathBuf) -> Result<Row, Bo
     if o.passes {
         for k in 0..o.frames {
             vs.prepare(&gpu.device, &gpu.queue, &frame_of(k))?;
-            for t in gpu.run_timed(&mut vs, &output, &[])? {
+            for t in vs.run_timed(gpu, &output, &[])? {
                 let name = match t.light {
                     Some(l) => format!("{} (light {l})", t.pass),
                     None => t.pass.to_string(),

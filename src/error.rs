@@ -50,16 +50,18 @@ pub enum Error {
         /// Which input.
         field: &'static str,
     },
-    /// A spot light's apex angle outside (0, [`SpotLight::MAX_CONE_ANGLE`](crate::SpotLight::MAX_CONE_ANGLE)]
-    /// (179°: the widest field its shadow map covers).
+    /// A spot light's apex angle outside (0, `max`], `max` being
+    /// [`SpotLight::MAX_CONE_ANGLE`](crate::SpotLight::MAX_CONE_ANGLE) (179°: the widest field
+    /// its shadow map covers).
     #[error(
-        "spot light cone angle must lie in (0, 179°] = (0, {}] radians (SpotLight::MAX_CONE_ANGLE: \
-         the widest field its shadow map covers), got {angle}",
-        crate::SpotLight::MAX_CONE_ANGLE
+        "spot light cone angle must lie in (0, {max}] radians (SpotLight::MAX_CONE_ANGLE: the \
+         widest field its shadow map covers), got {angle}"
     )]
     ConeAngleOutOfRange {
         /// The angle received, radians.
         angle: f32,
+        /// The widest angle accepted, radians.
+        max: f32,
     },
     /// A matrix that must be invertible is singular (or too close to it for f32).
     #[error(
@@ -233,7 +235,7 @@ pub enum Error {
         /// The file being read when the bound was passed.
         file: String,
         /// Which bound.
-        limit: crate::load::Limit,
+        limit: Limit,
         /// The total it would have reached (at least).
         count: u64,
         /// The bound.
@@ -372,5 +374,40 @@ pub(crate) fn non_negative(field: &'static str, value: &[f32]) -> Result<()> {
     match value.iter().find(|v| **v < 0.0) {
         Some(&v) => Err(Error::Negative { field, value: v }),
         None => Ok(()),
+    }
+}
+
+/// Which bound of [`LoadOptions`](crate::LoadOptions) an [`Error::LimitExceeded`] is about; it
+/// displays as the field's name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum Limit {
+    /// [`LoadOptions::max_file_bytes`](crate::LoadOptions::max_file_bytes).
+    FileBytes,
+    /// [`LoadOptions::max_total_bytes`](crate::LoadOptions::max_total_bytes).
+    TotalBytes,
+    /// [`LoadOptions::max_triangles`](crate::LoadOptions::max_triangles).
+    Triangles,
+    /// [`LoadOptions::max_lights`](crate::LoadOptions::max_lights).
+    Lights,
+    /// [`LoadOptions::max_texels`](crate::LoadOptions::max_texels).
+    Texels,
+    /// [`LoadOptions::max_nodes`](crate::LoadOptions::max_nodes).
+    Nodes,
+    /// [`LoadOptions::max_instances`](crate::LoadOptions::max_instances).
+    Instances,
+}
+
+impl std::fmt::Display for Limit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Limit::FileBytes => "max_file_bytes",
+            Limit::TotalBytes => "max_total_bytes",
+            Limit::Triangles => "max_triangles",
+            Limit::Lights => "max_lights",
+            Limit::Texels => "max_texels",
+            Limit::Nodes => "max_nodes",
+            Limit::Instances => "max_instances",
+        })
     }
 }

@@ -1,7 +1,8 @@
 //! `VolumetricShadows`: owns the nodes, asks the planner what to run, records it.
 
 use crate::error::{Error, Result};
-use crate::gpu::{Cache, GpuTimer, LightKind, Occluder, PassTime};
+use crate::gpu::headless::HeadlessGpu;
+use crate::gpu::{GpuTimer, Occluder, PassTime};
 use crate::nodes::{
     AirlightTableNode, CompositeInputs, CompositeNode, CompositeSurfaces, CrossingsBuild,
     CrossingsRequest, ExtentsInputs, ExtentsNode, IssTableNode, IssTableSize, LightTextureNode,
@@ -9,6 +10,7 @@ use crate::nodes::{
     ShadowMapNode, ShadowMapSettings, Shadows, SoftShadowInputs, SoftShadowNode, SoftShadowSize,
     TableInputs, TableSize, UpsampleFilter, UpsampleInputs, UpsampleNode, MAX_LIGHTS,
 };
+use crate::nodes::{Cache, LightKind};
 use crate::plan::{self, AdapterKind, Culled, FrameFacts, LightFacts, Pass, Plan};
 use crate::scene::{Camera, Light, Medium};
 
@@ -40,32 +42,16 @@ pub struct Settings {
 }
 
 impl Settings {
-    /// Reproducible settings for test images (as egui-wgpu's `PREDICTABLE`): full resolution,
-    /// the exact method (64 steps where a crossing list overflows), no bisection, no culling,
-    /// `Rgba16Float` output.
+    /// Reproducible settings for test images (as egui-wgpu's `PREDICTABLE`): each node's
+    /// `DEFAULT` ([`MarchSettings::DEFAULT`]: the exact method at full resolution, 64 steps
+    /// where a crossing list overflows, no bisection), the 3×3 depth-aware upsample, no
+    /// culling, `Rgba16Float` output.
     pub const PREDICTABLE: Settings = Settings {
-        march: MarchSettings {
-            method: MarchMethod::Exact,
-            steps: 64,
-            bisections: 0,
-            scale: Scale::Full,
-            texture_steps: 32,
-            crossings: crate::nodes::DEFAULT_CROSSINGS,
-            crossings_build: CrossingsBuild::Compute,
-        },
+        march: MarchSettings::DEFAULT,
         upsample: UpsampleFilter::DepthAware3x3,
-        table: TableSize {
-            along_ray: 256,
-            across_rays: 256,
-        },
-        shadow_map: ShadowMapSettings {
-            resolution: 1024,
-            depth_bias: 2e-3,
-        },
-        soft_shadow: SoftShadowSize {
-            directions: 64,
-            slices: 16,
-        },
+        table: TableSize::DEFAULT,
+        shadow_map: ShadowMapSettings::DEFAULT,
+        soft_shadow: SoftShadowSize::DEFAULT,
         output_format: wgpu::TextureFormat::Rgba16Float,
         cull_threshold: 0.0,
         error_target: None,
@@ -132,6 +118,28 @@ impl Settings {
     }
 }
 
+impl Settings {
+    /// Builds, before the first frame, every pipeline that a [`VolumetricShadows`] with these
+    /// settings can use for lights of the kinds in `lights` ([`FrameLight::kind`], or
+    /// [`LightKind::ALL`]): [`Cache::warm_up`] with the march settings and the output format.
+    /// Without it each variant is built by the first frame that needs it, inside
+    /// [`prepare`](VolumetricShadows::prepare): a pause of up to seconds on that frame.
+    ///
+    /// # Errors
+    ///
+    /// Those of [`VolumetricShadows::new`] and of [`Cache::warm_up`]
+    /// ([`Error::InvalidSetting`] naming the field), building nothing.
+    pub fn warm_up(
+        &self,
+        device: &wgpu::Device,
+        cache: &Cache,
+        lights: &[LightKind],
+    ) -> Result<()> {
+        validate(self)?;
+        cache.warm_up(device, &self.march, self.output_format, lights)
+    }
+}
+
 impl Default for Settings {
     /// [`Settings::for_adapter`]`(AdapterKind::Gpu)`: the exact method at full resolution. On a
     /// CPU adapter, [`Settings::for_adapter`] with [`AdapterKind::of`] the device halves the
@@ -151,6 +159,21 @@ pub struct FrameLight<'a> {
     pub light: Light,
     /// The spot's projected texture.
     pub texture: Option<&'a wgpu::Texture>,
+}
+
+impl FrameLight<'_> {
+    /// What decides which pipelines this light's frames use (see [`Settings::warm_up`]).
+    pub fn kind(&self) -> LightKind {
+        let soft = self.light.radius() > 0.0;
+        match self.light {
+            Light::Point(_) => LightKind::Point { soft },
+            Light::Spot(_) => LightKind::Spot {
+                soft,
+                textured: self.texture.is_some(),
+            },
+            Light::Directional(_) => LightKind::Directional,
+        }
+    }
 }
 
 impl From<Light> for FrameLight<'_> {
@@ -597,10 +620,11 @@ impl VolumetricShadows {
         let mut first = false;
         for step in &plan.steps {
             let light = step.light.map(|i| {
-                let kind = LightKind::of(&FrameLight {
+                let kind = FrameLight {
                     light: drawn[i],
                     texture: frame.lights[i].texture,
-                });
+                }
+                .kind();
                 let light = Some(i);
                 let forms = [
                     present(Pass::ShadowMap, light),
@@ -623,8 +647,8 @@ impl VolumetricShadows {
     /// kind or shadow configuration. Such a frame may run pipelines for the first time.
     /// Drivers that compile a pipeline when it first runs rather than when it is created
     /// (Mesa's lavapipe) spend that compilation, up to seconds, in this frame's submission, so
-    /// its wall-clock times (and [`HeadlessGpu::run_timed`](crate::HeadlessGpu::run_timed)'s on
-    /// a CPU adapter) are not the steady state. Elsewhere [`Cache::warm_up`] builds every
+    /// its wall-clock times (and [`run_timed`](Self::run_timed)'s on
+    /// a CPU adapter) are not the steady state. Elsewhere [`Settings::warm_up`] builds every
     /// pipeline before the first frame, and timestamp queries ([`read_timings`](Self::read_timings))
     /// measure GPU work only.
     pub fn is_first_frame(&self) -> bool {
@@ -778,6 +802,52 @@ impl VolumetricShadows {
             Some(t) => t.read(device),
             None => Ok(Vec::new()),
         }
+    }
+
+    /// Records and runs on `gpu` the frame last prepared into `output`, leaving out the
+    /// passes in `skip`, and returns each pass's time. On a CPU adapter (lavapipe) each pass is
+    /// submitted alone and timed by the wall clock: there the submission *is* the pass's run,
+    /// and lavapipe's timestamp queries do not bracket compute dispatches. Elsewhere the frame
+    /// is one submission timed by timestamp queries, every planned pass runs (`skip` is
+    /// ignored), and the result is empty without `TIMESTAMP_QUERY`. Labels: the pass names of
+    /// [`Pass`]'s `Display` on a CPU adapter, the nodes' timer labels
+    /// otherwise.
+    ///
+    /// # Errors
+    ///
+    /// Those of [`encode`](Self::encode) and
+    /// [`encode_step`](Self::encode_step), and [`Error::Readback`] when waiting
+    /// for the device or reading the timestamps fails.
+    pub fn run_timed<'o>(
+        &mut self,
+        gpu: &HeadlessGpu,
+        output: impl Into<OutputTarget<'o>>,
+        skip: &[Pass],
+    ) -> Result<Vec<PassTime>> {
+        let output = output.into();
+        if gpu.adapter.get_info().device_type != wgpu::DeviceType::Cpu {
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            self.encode(&mut encoder, output)?;
+            gpu.submit_and_wait(encoder)?;
+            return self.read_timings(&gpu.device);
+        }
+        let steps = self.plan().steps.clone();
+        let mut times = Vec::new();
+        for (index, step) in steps.iter().enumerate() {
+            if skip.contains(&step.pass) {
+                continue;
+            }
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            self.encode_step(&mut encoder, output, index)?;
+            let start = std::time::Instant::now();
+            gpu.submit_and_wait(encoder)?;
+            times.push(PassTime {
+                pass: step.pass,
+                light: step.light,
+                ms: start.elapsed().as_secs_f64() * 1e3,
+            });
+        }
+        Ok(times)
     }
 
     /// The in-scatter each light added last frame (full resolution, `Rgba32Float`), for

@@ -246,7 +246,7 @@
 //! gets soft shadows from a light-space grid of fractional visibility; the light the medium
 //! scatters onto surfaces comes from a per-medium table ([`nodes::IssTableNode`]).
 //!
-//! Objects are split by lifetime: a shared [`gpu::Cache`] of pipelines and layouts, and
+//! Objects are split by lifetime: a shared [`Cache`] of pipelines and layouts, and
 //! per-view nodes ([`nodes`]) that own their textures. Each node has `new`, `prepare`
 //! (validates, resizes, uploads what changed) and `encode` (records into a
 //! `&mut wgpu::CommandEncoder`; nodes never submit); [`VolumetricShadows`] owns one set per
@@ -274,6 +274,7 @@ pub mod load;
 #[doc = include_str!("../docs/METHOD.md")]
 pub mod method {}
 pub mod nodes;
+mod pass;
 /// Measured accuracy: every check, its current value and bound, and the test that printed it.
 #[doc = include_str!("../docs/ACCURACY.md")]
 pub mod accuracy {}
@@ -290,9 +291,10 @@ pub use error::GltfError;
 pub use error::{Error, Result, SceneFileError};
 pub use facade::{Frame, FrameLight, Settings, Surfaces, VolumetricShadows};
 pub use gpu::headless::{tone_map, HeadlessGpu};
-pub use gpu::{Cache, ErrorSign, LightKind, ShaderPrecision};
+pub use gpu::{ErrorSign, ShaderPrecision};
 pub use gpu::{Occluder, OccluderMesh};
 pub use load::{Limit, LoadOptions};
+pub use nodes::{Cache, LightKind};
 pub use plan::{AdapterKind, Plan};
 pub use scene::{Camera, DirectionalLight, Light, Medium, PhaseFunction, PointLight, SpotLight};
 
@@ -316,7 +318,7 @@ pub use wgpu;
 /// angle, [`SpotLight::cos_half_angle`]); `phase` is a `VolshadowIssPhase`, the bytes of
 /// [`nodes::IssPhase`] in a buffer. It reads no table: a fixed quadrature over the hemisphere
 /// (about 16 × 12 × 3 phase evaluations a point), within 2% of the f64 reference at the 95th
-/// percentile for σt·D ≤ 5 (`tests/iss_spot.rs`; the method is in `docs/METHOD.md`). It is
+/// percentile for σt·D ≤ 5 (`tests/gpu/iss_spot.rs`; the method is in `docs/METHOD.md`). It is
 /// smooth across a surface: evaluate it on a lattice of pixels and interpolate, as the
 /// composite does ([`nodes::CompositeNode::set_spot_lattice`]).
 pub const ISS_WGSL: &str = concat!(
@@ -339,7 +341,7 @@ pub const ISS_WGSL: &str = concat!(
 /// map's front layer (16 blocker-search taps, 32 filter taps), times the part of the light
 /// above the surface's own tangent plane, `n` then being the outward normal of the side being
 /// lit. Radius 0 (or [`nodes::ShadowParams::radius`] set to 0) and directional lights take the
-/// hard lookup. Against the exact visible fraction (`tests/surface_shadow.rs`, a sphere above a
+/// hard lookup. Against the exact visible fraction (`tests/gpu/surface_shadow.rs`, a sphere above a
 /// ground, light radius 0.4 at 1.52 from the sphere's centre, lavapipe): on the ground, mean
 /// 4.5% and p95 12.5% (point light; spot 5.9%, 16.2%), the hard lookup 18.7% and 46%; on the
 /// sphere itself mean 0.2%, p95 0.5%.

@@ -31,10 +31,10 @@
 // features.
 #![cfg_attr(not(any(feature = "gltf", feature = "image")), allow(dead_code))]
 
-use std::fmt;
 use std::io::Read;
 use std::path::{Component, Path, PathBuf};
 
+pub use crate::error::Limit;
 use crate::error::{Error, Result};
 
 /// Bounds on a load. The defaults suit interactive scenes; raise them for larger assets.
@@ -85,41 +85,6 @@ impl Default for LoadOptions {
             max_nodes: 1 << 16,
             max_instances: 1 << 14,
         }
-    }
-}
-
-/// Which bound of [`LoadOptions`] an [`Error::LimitExceeded`] is about; it displays as the
-/// field's name.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-#[non_exhaustive]
-pub enum Limit {
-    /// [`LoadOptions::max_file_bytes`].
-    FileBytes,
-    /// [`LoadOptions::max_total_bytes`].
-    TotalBytes,
-    /// [`LoadOptions::max_triangles`].
-    Triangles,
-    /// [`LoadOptions::max_lights`].
-    Lights,
-    /// [`LoadOptions::max_texels`].
-    Texels,
-    /// [`LoadOptions::max_nodes`].
-    Nodes,
-    /// [`LoadOptions::max_instances`].
-    Instances,
-}
-
-impl fmt::Display for Limit {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            Limit::FileBytes => "max_file_bytes",
-            Limit::TotalBytes => "max_total_bytes",
-            Limit::Triangles => "max_triangles",
-            Limit::Lights => "max_lights",
-            Limit::Texels => "max_texels",
-            Limit::Nodes => "max_nodes",
-            Limit::Instances => "max_instances",
-        })
     }
 }
 

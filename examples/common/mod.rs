@@ -1,4 +1,4 @@
-//! What the examples share, and what `tests/examples.rs` calls to run them as tests.
+//! What the examples share, and what `tests/examples/examples.rs` calls to run them as tests.
 //!
 //! * [`cli`]: `--help`, the default output folder (`out/`) and the refusal to overwrite an
 //!   input; the small examples' options.
@@ -74,7 +74,7 @@ pub fn render_frames(
             .prepare(&gpu.device, &gpu.queue, frame)?
             .to_string();
         // Per-pass times: timestamp queries, or on a CPU adapter each pass alone.
-        stats.timings = gpu.run_timed(volumetric, output, &[])?;
+        stats.timings = volumetric.run_timed(gpu, output, &[])?;
         stats.wall_ms = start.elapsed().as_secs_f64() * 1e3;
         if index == 0 || index + 1 == FRAMES {
             println!("frame {index} plan:\n{plan}");

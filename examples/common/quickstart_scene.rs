@@ -22,7 +22,7 @@ pub const EYE: Vec3 = Vec3::new(0.0, 1.6, 7.0);
 /// The light's position (`interactive` moves it in the plane z = `LIGHT_POSITION.z`): about
 /// level with the spheres and behind them, so that both cut dark shafts that open towards the
 /// camera and neither throws a shadow across the ground in front of it (issue 36's survey,
-/// `tests/quickstart.rs::light_positions` at 256x160: 44% of the picture shows the shadows; 30%
+/// `tests/examples/quickstart.rs::light_positions` at 256x160: 44% of the picture shows the shadows; 30%
 /// at the earlier (0.1, 2.9, -4.6), whose spheres threw two black blobs across the ground in
 /// front of the camera and whose shafts were faint).
 pub const LIGHT_POSITION: Vec3 = Vec3::new(-0.1, 2.1, -5.0);

@@ -183,7 +183,7 @@ options:
   --surface-scatter  add the light the fog scatters onto the surfaces (GPU methods) and write
                      OUT.surface.exr, that term alone
   --warm-up          build every pipeline the settings and the scene's lights can use before
-                     the first frame (volshadow::Cache::warm_up) and print how long it took
+                     the first frame (volshadow::Settings::warm_up) and print how long it took
   -h, --help         this help",
         volshadow::nodes::DEFAULT_CROSSINGS
     )
@@ -369,7 +369,7 @@ pub struct Options {
     pub exposure: Option<f64>,
     /// Add the light scattered onto surfaces and write `OUT.surface.exr`.
     pub surface_scatter: bool,
-    /// Build the pipelines before the first frame (`Cache::warm_up`).
+    /// Build the pipelines before the first frame (`Settings::warm_up`).
     pub warm_up: bool,
 }
 
@@ -788,9 +788,9 @@ pub fn render(options: &Options) -> Result<Rendered, BoxError> {
             let cache = Cache::new(&gpu.device);
             let (lights, occluders) = (gpu_scene.lights(), gpu_scene.occluders());
             if options.warm_up {
-                let kinds: Vec<LightKind> = lights.iter().map(LightKind::of).collect();
+                let kinds: Vec<LightKind> = lights.iter().map(FrameLight::kind).collect();
                 let start = Instant::now();
-                cache.warm_up(&gpu.device, &settings, &kinds)?;
+                settings.warm_up(&gpu.device, &cache, &kinds)?;
                 println!(
                     "warm-up: the pipelines for {kinds:?} built in {:.1} ms",
                     start.elapsed().as_secs_f64() * 1e3

@@ -1,5 +1,5 @@
 //! The measurement documents from the runs' files (`docs/measurements/*.tsv`): shared by
-//! `examples/measurements` (which writes them) and `tests/readme.rs` (which checks that the
+//! `examples/measurements` (which writes them) and `tests/cpu/readme.rs` (which checks that the
 //! committed documents are what the committed runs generate). The includer declares `metric`
 //! (`tests/common/metric.rs`) at its root.
 
@@ -51,12 +51,23 @@ pub fn read_run(text: &str, path: &Path) -> Run {
     run
 }
 
-/// `BINARY::TEST` → (`BINARY`, `TEST`); a command → (the command, "").
+/// `FILE::TEST` → (`FILE`, `TEST`); a command → (the command, "").
 fn split_source(source: &str) -> (&str, &str) {
     match source.split_once("::") {
         Some((binary, test)) if !binary.contains(' ') => (binary, test),
         _ => (source, ""),
     }
+}
+
+/// The file of the tests named `group::…`: `tests/TIER/group.rs`, `TIER` the test binary it is a
+/// module of.
+fn test_file(group: &str) -> String {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    ["gpu", "cpu", "examples"]
+        .iter()
+        .map(|tier| format!("tests/{tier}/{group}.rs"))
+        .find(|file| root.join(file).is_file())
+        .unwrap_or_else(|| format!("tests/{group}.rs"))
 }
 
 /// The document `doc` (accuracy or performance) over `runs`, one column of values per run.
@@ -100,7 +111,7 @@ pub fn document(doc: Doc, runs: &[Run]) -> String {
          gltf,image -- --nocapture`) and the report, and `cargo run --example measurements` \
          turns the metric lines they print (`tests/common/metric.rs`) into this page; rerunning \
          it rewrites the page. A check's test reruns alone with `cargo test --features \
-         gltf,image --test FILE TEST -- --nocapture`.\n"
+         gltf,image --test TIER FILE::TEST -- --nocapture`, `TIER` the folder of its file.\n"
     );
     let used: Vec<&Run> = runs
         .iter()
@@ -151,7 +162,7 @@ pub fn document(doc: Doc, runs: &[Run]) -> String {
     for (group, mut rows) in groups {
         let is_test = rows.iter().all(|(s, _, _)| !split_source(s).1.is_empty());
         if is_test {
-            let _ = writeln!(out, "## `{group}` (tests/{group}.rs)\n");
+            let _ = writeln!(out, "## `{group}` ({})\n", test_file(&group));
             rows.sort_by(|a, b| split_source(&a.0).1.cmp(split_source(&b.0).1));
         } else {
             let _ = writeln!(out, "## `{group}`\n");

@@ -16,7 +16,7 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-// Paths spelled out: `tests/examples.rs` includes this file as a module.
+// Paths spelled out: `tests/examples/examples.rs` includes this file as a module.
 #[path = "../common/cli.rs"]
 mod cli;
 #[path = "docs.rs"]
@@ -45,7 +45,7 @@ written.
 
 type BoxError = Box<dyn std::error::Error>;
 
-#[allow(dead_code)] // a module of tests/examples.rs, which calls `run`
+#[allow(dead_code)] // a module of tests/examples/examples.rs, which calls `run`
 fn main() {
     let args = std::env::args().skip(1).collect();
     if let Err(e) = run(args, Path::new(env!("CARGO_MANIFEST_DIR"))) {
@@ -126,7 +126,7 @@ fn read_log(text: &str, run: &mut Run) {
     for line in text.lines() {
         let trimmed = line.trim();
         if let Some(rest) = trimmed.strip_prefix("Running ") {
-            // `Running tests/exact.rs (target/debug/deps/exact-…)`
+            // `Running tests/gpu/main.rs (target/debug/deps/gpu-…)`
             let file = rest.split_whitespace().next().unwrap_or(rest);
             binary = Path::new(file)
                 .file_stem()
@@ -135,7 +135,13 @@ fn read_log(text: &str, run: &mut Run) {
             .strip_prefix("test ")
             .and_then(|t| t.strip_suffix(" ... FAILED"))
         {
-            run.failed.insert(format!("{binary}::{test}"));
+            // In a tier binary (`tests/gpu/main.rs`) the name starts with its file's module,
+            // as the metric lines' sources do (`metric::this_test`).
+            if test.contains("::") {
+                run.failed.insert(test.to_string());
+            } else {
+                run.failed.insert(format!("{binary}::{test}"));
+            }
         }
         let Some(m) = metric::parse(line) else {
             continue;

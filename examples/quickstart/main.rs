@@ -138,7 +138,7 @@ pub fn run_with(
         // An app records into its own encoder and submits (`volumetric.encode`); this one
         // also times each pass: by timestamp queries, or on a CPU adapter (lavapipe) by
         // running each pass alone.
-        let timings = gpu.run_timed(&mut volumetric, &output, &[])?;
+        let timings = volumetric.run_timed(gpu, &output, &[])?;
         let wall = start.elapsed().as_secs_f64() * 1e3;
         let gpu_ms: f64 = timings.iter().map(|t| t.ms).sum();
         let per_pass: Vec<String> = timings

@@ -126,52 +126,6 @@ impl HeadlessGpu {
         Ok(())
     }
 
-    /// Records and runs the frame `volumetric` last prepared into `output`, leaving out the
-    /// passes in `skip`, and returns each pass's time. On a CPU adapter (lavapipe) each pass is
-    /// submitted alone and timed by the wall clock: there the submission *is* the pass's run,
-    /// and lavapipe's timestamp queries do not bracket compute dispatches. Elsewhere the frame
-    /// is one submission timed by timestamp queries, every planned pass runs (`skip` is
-    /// ignored), and the result is empty without `TIMESTAMP_QUERY`. Labels: the pass names of
-    /// [`Pass`](crate::plan::Pass)'s `Display` on a CPU adapter, the nodes' timer labels
-    /// otherwise.
-    ///
-    /// # Errors
-    ///
-    /// Those of [`VolumetricShadows::encode`](crate::VolumetricShadows::encode) and
-    /// [`encode_step`](crate::VolumetricShadows::encode_step), and [`Error::Readback`] when waiting
-    /// for the device or reading the timestamps fails.
-    pub fn run_timed<'o>(
-        &self,
-        volumetric: &mut crate::VolumetricShadows,
-        output: impl Into<crate::nodes::OutputTarget<'o>>,
-        skip: &[crate::plan::Pass],
-    ) -> Result<Vec<crate::gpu::PassTime>> {
-        let output = output.into();
-        if self.adapter.get_info().device_type != wgpu::DeviceType::Cpu {
-            let mut encoder = self.device.create_command_encoder(&Default::default());
-            volumetric.encode(&mut encoder, output)?;
-            self.submit_and_wait(encoder)?;
-            return volumetric.read_timings(&self.device);
-        }
-        let steps = volumetric.plan().steps.clone();
-        let mut times = Vec::new();
-        for (index, step) in steps.iter().enumerate() {
-            if skip.contains(&step.pass) {
-                continue;
-            }
-            let mut encoder = self.device.create_command_encoder(&Default::default());
-            volumetric.encode_step(&mut encoder, output, index)?;
-            let start = std::time::Instant::now();
-            self.submit_and_wait(encoder)?;
-            times.push(crate::gpu::PassTime {
-                pass: step.pass,
-                light: step.light,
-                ms: start.elapsed().as_secs_f64() * 1e3,
-            });
-        }
-        Ok(times)
-    }
-
     /// Reads mip 0, layer 0 of a 2D texture (usage `COPY_SRC`; a colour format with a fixed
     /// block size, or `Depth32Float`) back as tightly packed rows of bytes.
     ///

@@ -1,14 +1,13 @@
-//! GPU plumbing shared by the nodes: the pipeline cache, uniform layouts, texture checks, and
-//! the headless helper used by tests, examples and offline tools.
+//! GPU plumbing shared by the nodes: the helpers that build pipelines and bind groups, shader
+//! precision, occluder meshes, the pass timer, the checks on textures and buffers, and the
+//! headless device and readback used by tests, examples and offline tools.
 
-pub(crate) mod cache;
 pub mod headless;
 mod mesh;
+pub(crate) mod pipeline;
 pub(crate) mod precision;
 mod timer;
-pub(crate) mod uniforms;
 
-pub use cache::{Cache, LightKind};
 pub use mesh::{Occluder, OccluderMesh};
 pub use precision::{ErrorSign, ShaderPrecision};
 pub use timer::{GpuTimer, PassTime};

@@ -11,7 +11,7 @@
 //! `report` example does.
 
 use crate::error::{Error, Result};
-use crate::plan::Pass;
+use crate::pass::Pass;
 
 /// Collects begin/end timestamps of the passes that nodes record with it.
 pub struct GpuTimer {

@@ -24,7 +24,7 @@
 //!
 //! # Accuracy
 //!
-//! The default [`TableSize`] (256 × 256) is checked by `tests/airlight_table.rs` against the
+//! The default [`TableSize`] (256 × 256) is checked by `tests/gpu/airlight_table.rs` against the
 //! f64 reference over σt·D ∈ {1e-4 … 100}, γ ∈ [1e-3, π − 1e-3], light in front of and behind
 //! the eye, isotropic, HG ±0.9 and Rayleigh phases: the largest relative error of an entry
 //! (heads above 1e-6 of their row's maximum; tails where the reference's own difference keeps
@@ -41,11 +41,12 @@
 //! off by up to 106% from heads alone (see `docs/METHOD.md`).
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{bind_group, compute_pipeline, dispatch, layout, module, Binding};
-use crate::gpu::uniforms::AirlightUniform;
+use crate::gpu::pipeline::{bind_group, compute_pipeline, dispatch, layout, module, Binding};
 use crate::gpu::ShaderPrecision;
-use crate::gpu::{check_buffer_size, texture_2d, Cache, GpuTimer, UniformBuffer};
-use crate::plan::Pass;
+use crate::gpu::{check_buffer_size, texture_2d, GpuTimer, UniformBuffer};
+use crate::nodes::uniforms::AirlightUniform;
+use crate::nodes::Cache;
+use crate::pass::Pass;
 use crate::scene::{Light, Medium};
 
 /// Size of the F′ table: entries along each ray (s) and rows across rays (γ).
@@ -60,18 +61,20 @@ pub struct TableSize {
 
 impl Default for TableSize {
     fn default() -> Self {
-        Self {
-            along_ray: 256,
-            across_rays: 256,
-        }
+        Self::DEFAULT
     }
 }
 
 impl TableSize {
+    /// The default: 256 × 256.
+    pub const DEFAULT: TableSize = TableSize {
+        along_ray: 256,
+        across_rays: 256,
+    };
     /// Largest dimension accepted: half the core limit for 2D textures (8192), as a row holds
     /// its entries twice (see the module docs).
     pub const MAX: u32 = 4096;
-    /// Fewest entries along the ray accepted. Set by measurement (`tests/airlight_table.rs`):
+    /// Fewest entries along the ray accepted. Set by measurement (`tests/gpu/airlight_table.rs`):
     /// with 8 entries (and 256 rows) the p95 relative error of a whole unshadowed frame against
     /// the f64 reference stays within 0.2% for isotropic, HG 0.9 and HG −0.5 media, under a
     /// third of the tightest configuration the error target offers; with 4 it reaches 0.4%,
@@ -390,7 +393,7 @@ mod tests {
     /// so each sum's relative error is at most its depth times 2^-24: the two may differ by
     /// the sum of their depths, (⌈(n − 1)/16⌉ + 16) + (⌈(n − 1)/256⌉ + 8) additions, 2^-24
     /// each (2.5e-6 at 256 entries). The default's entries are checked against the f64
-    /// reference by `tests/airlight_table.rs`; this ties the other to it. A scan that shifted
+    /// reference by `tests/gpu/airlight_table.rs`; this ties the other to it. A scan that shifted
     /// a run by one cell, or dropped the last cell, is off by a whole cell (~1/n).
     #[test]
     fn scan_and_serial_row_sums_agree() {

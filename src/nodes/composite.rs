@@ -33,15 +33,16 @@ use std::sync::{Arc, Mutex};
 use bytemuck::Zeroable;
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{bind_group, cached, fullscreen_pipeline, layout, module, Binding};
-use crate::gpu::uniforms::{CompositeUniform, SurfacesUniform, ViewUniform};
+use crate::gpu::pipeline::{bind_group, cached, fullscreen_pipeline, layout, module, Binding};
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{
-    check_depth_texture, check_float_texture, check_size, depth_view, texture_2d, Cache, GpuTimer,
+    check_depth_texture, check_float_texture, check_size, depth_view, texture_2d, GpuTimer,
     UniformBuffer,
 };
+use crate::nodes::uniforms::{CompositeUniform, SurfacesUniform, ViewUniform};
+use crate::nodes::Cache;
 use crate::nodes::{IssPhase, IssTableNode};
-use crate::plan::Pass;
+use crate::pass::Pass;
 use crate::scene::{Camera, Light, Medium};
 
 /// The composite's binding table: `@binding(i)` of `shaders/composite.wgsl` is entry `i`.
@@ -287,7 +288,7 @@ pub struct CompositeInputs<'a> {
 /// [`ISS_WGSL`](crate::ISS_WGSL), a fixed quadrature over the hemisphere with the cone's
 /// wedges in closed form; see `docs/METHOD.md`), evaluated on a lattice of pixels and
 /// interpolated where that is safe ([`CompositeNode::set_spot_lattice`]). Its accuracy against
-/// the f64 reference is measured by `tests/iss_spot.rs` (figures in `docs/ACCURACY.md`).
+/// the f64 reference is measured by `tests/gpu/iss_spot.rs` (figures in `docs/ACCURACY.md`).
 #[derive(Clone, Copy)]
 pub struct CompositeSurfaces<'a> {
     /// World-space surface normals in rgb (any length; zero or non-finite: no term), any format

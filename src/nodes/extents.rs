@@ -44,13 +44,14 @@
 use glam::Mat4;
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{bind_group, compute_pipeline, depth_pipeline, layout, module, Binding};
-use crate::gpu::uniforms::ViewUniform;
+use crate::gpu::pipeline::{bind_group, compute_pipeline, depth_pipeline, layout, module, Binding};
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{
-    check_depth_texture, check_target_size, depth_view, Cache, GpuTimer, Occluder, UniformBuffer,
+    check_depth_texture, check_target_size, depth_view, GpuTimer, Occluder, UniformBuffer,
 };
-use crate::plan::Pass;
+use crate::nodes::uniforms::ViewUniform;
+use crate::nodes::Cache;
+use crate::pass::Pass;
 use crate::scene::{Camera, Light};
 
 /// Bytes of one shadow-volume vertex (`VolumeVertex` in `shaders/extents.wgsl`): position,
@@ -161,7 +162,7 @@ impl Pipelines {
             wgpu::ShaderStages::COMPUTE,
             &BIN_BINDINGS,
         );
-        let bin_module = crate::gpu::cache::module(
+        let bin_module = crate::gpu::pipeline::module(
             device,
             "volshadow crossings.wgsl",
             include_str!("../../shaders/crossings.wgsl"),
@@ -915,7 +916,7 @@ impl ExtentsNode {
                 });
                 if stale {
                     let depth_view = depth_view(request.scene_depth);
-                    let group = crate::gpu::cache::bind_group(
+                    let group = crate::gpu::pipeline::bind_group(
                         device,
                         "volshadow crossings",
                         &self.pipelines.bin_layout,

@@ -29,7 +29,7 @@
 //!
 //! # Accuracy
 //!
-//! Measured on lavapipe by `tests/iss_table.rs` against the f64 reference
+//! Measured on lavapipe by `tests/gpu/iss_table.rs` against the f64 reference
 //! ([`crate::reference::surface_inscatter_normalised`], its own adaptive quadrature) over
 //! `τ ∈ [1e-3, 50]`, `α ∈ [0, π]`, isotropic, Henyey–Greenstein 0.8 and Rayleigh phases, where
 //! `G` is above 1e-6 of its maximum: the entries are within 4.3e-4 relative (3.1e-4 / 1.6e-4 /
@@ -51,11 +51,12 @@
 //! device, and hardware filtering's 8-bit weights would cost the table its accuracy.
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{bind_group, compute_pipeline, dispatch, layout, module, Binding};
-use crate::gpu::uniforms::AirlightUniform;
+use crate::gpu::pipeline::{bind_group, compute_pipeline, dispatch, layout, module, Binding};
 use crate::gpu::ShaderPrecision;
-use crate::gpu::{texture_2d, Cache, GpuTimer, UniformBuffer};
-use crate::plan::Pass;
+use crate::gpu::{texture_2d, GpuTimer, UniformBuffer};
+use crate::nodes::uniforms::AirlightUniform;
+use crate::nodes::Cache;
+use crate::pass::Pass;
 use crate::scene::Medium;
 
 /// The phase function as [`ISS_WGSL`](crate::ISS_WGSL)'s `VolshadowIssPhase` reads it (the

@@ -11,10 +11,11 @@
 //! rebuilt only when the input texture changes.
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{bind_group, fullscreen_pipeline, layout, module, Binding};
+use crate::gpu::pipeline::{bind_group, fullscreen_pipeline, layout, module, Binding};
+use crate::gpu::GpuTimer;
 use crate::gpu::ShaderPrecision;
-use crate::gpu::{Cache, GpuTimer};
-use crate::plan::Pass;
+use crate::nodes::Cache;
+use crate::pass::Pass;
 
 /// The binding table: `@binding(i)` of `shaders/light_texture.wgsl` is entry `i`.
 const BINDINGS: [Binding; 2] = [

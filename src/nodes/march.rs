@@ -40,18 +40,21 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{bind_group, cached, compute_pipeline, dispatch, layout, module, Binding};
-use crate::gpu::uniforms::{AirlightUniform, ViewUniform};
+use crate::gpu::pipeline::{
+    bind_group, cached, compute_pipeline, dispatch, layout, module, Binding,
+};
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{
     check_depth_layers, check_depth_texture, check_size, check_target_size, depth_array_view,
-    depth_view, texture_2d, texture_3d, Cache, GpuTimer, UniformBuffer,
+    depth_view, texture_2d, texture_3d, GpuTimer, UniformBuffer,
 };
 use crate::nodes::extents::{CrossingsBuild, Extents};
 use crate::nodes::shadow_map::{standard_cube_near, ShadowMap};
 use crate::nodes::soft_shadow::{cell_angle, soft_params, SoftShadow, MAX_SOFT_SPHERES};
+use crate::nodes::uniforms::{AirlightUniform, ViewUniform};
+use crate::nodes::Cache;
 use crate::nodes::{AirlightTableNode, Scale};
-use crate::plan::Pass;
+use crate::pass::Pass;
 use crate::scene::{Camera, Light, Medium};
 
 /// The march's binding table: `@binding(i)` of `shaders/march.wgsl` is entry `i`.
@@ -135,9 +138,9 @@ impl Pipelines {
         &self,
         device: &wgpu::Device,
         settings: &MarchSettings,
-        kind: crate::gpu::LightKind,
+        kind: crate::nodes::LightKind,
     ) {
-        use crate::gpu::LightKind;
+        use crate::nodes::LightKind;
         let (spot, textured, directional, can_be_soft) = match kind {
             LightKind::Point { soft } => (false, false, false, soft),
             LightKind::Spot { soft, textured } => (true, textured, false, soft),
@@ -288,19 +291,23 @@ pub const DEFAULT_CROSSINGS: u32 = 24;
 
 impl Default for MarchSettings {
     fn default() -> Self {
-        Self {
-            method: MarchMethod::Exact,
-            steps: 64,
-            bisections: 0,
-            scale: Scale::Full,
-            texture_steps: 32,
-            crossings: DEFAULT_CROSSINGS,
-            crossings_build: CrossingsBuild::Compute,
-        }
+        Self::DEFAULT
     }
 }
 
 impl MarchSettings {
+    /// The default: the exact method at full resolution, 64 steps where a crossing list
+    /// overflows, no bisection, 32 steps through a textured spot's cone, crossing lists of
+    /// [`DEFAULT_CROSSINGS`] built by compute passes.
+    pub const DEFAULT: MarchSettings = MarchSettings {
+        method: MarchMethod::Exact,
+        steps: 64,
+        bisections: 0,
+        scale: Scale::Full,
+        texture_steps: 32,
+        crossings: DEFAULT_CROSSINGS,
+        crossings_build: CrossingsBuild::Compute,
+    };
     pub(crate) fn validate(&self) -> Result<()> {
         if !(1..=4096).contains(&self.steps) {
             return Err(Error::InvalidSetting {
@@ -446,7 +453,7 @@ impl MarchStats {
 /// cost 1.4× as much to build the grid and were no more accurate on any scene of the crate's
 /// tests): for a convex occluder the lines graze its outline, and the
 /// mean front-surface distance made the penumbra up to 12% too wide (on the sphere scene of
-/// `tests/soft.rs`, p95 5.9% against the reference, 2.2% with the farthest blocker). Where
+/// `tests/gpu/soft.rs`, p95 5.9% against the reference, 2.2% with the farthest blocker). Where
 /// [`ShadowMap::back`] is given, each blocker's distance is taken between its front surface
 /// and its back face (see [`SoftShadowNode`](crate::nodes::SoftShadowNode)), where a convex
 /// occluder's outline lies: on the same sphere p95 0.67% (1.79% with the front surface), and

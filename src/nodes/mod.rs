@@ -16,6 +16,7 @@
 //! Each module documents the format, usage and size of every texture it reads or writes.
 
 pub(crate) mod airlight_table;
+pub(crate) mod cache;
 pub(crate) mod composite;
 pub(crate) mod extents;
 pub(crate) mod iss_table;
@@ -23,9 +24,11 @@ pub(crate) mod light_texture;
 pub(crate) mod march;
 pub(crate) mod shadow_map;
 pub(crate) mod soft_shadow;
+pub(crate) mod uniforms;
 pub(crate) mod upsample;
 
 pub use airlight_table::{AirlightTableNode, TableInputs, TableSize};
+pub use cache::{Cache, LightKind};
 pub use composite::{CompositeInputs, CompositeNode, CompositeSurfaces, OutputTarget, MAX_LIGHTS};
 pub use extents::{
     Crossings, CrossingsBuild, CrossingsRequest, Extents, ExtentsInputs, ExtentsNode, EXTENTS_NEAR,

@@ -47,10 +47,11 @@
 use glam::{Mat4, Vec3, Vec4};
 
 use crate::error::{finite, Error, Result};
-use crate::gpu::cache::{bind_group, depth_pipeline, layout, module, Binding};
+use crate::gpu::pipeline::{bind_group, depth_pipeline, layout, module, Binding};
 use crate::gpu::ShaderPrecision;
-use crate::gpu::{Cache, GpuTimer, Occluder};
-use crate::plan::Pass;
+use crate::gpu::{GpuTimer, Occluder};
+use crate::nodes::Cache;
+use crate::pass::Pass;
 use crate::scene::{Camera, DirectionalLight, Light};
 
 /// The binding table: `@binding(i)` of `shaders/shadow_map.wgsl` is entry `i`.
@@ -124,7 +125,7 @@ pub struct ShadowMapSettings {
 }
 
 impl ShadowMapSettings {
-    /// The smallest resolution accepted. Set by measurement (`tests/shadows.rs`: a sphere's
+    /// The smallest resolution accepted. Set by measurement (`tests/gpu/shadows.rs`: a sphere's
     /// shadow in fog under a point light, hybrid march, against the f64 reference): the p95
     /// relative error of the in-scatter is 1.2% at 32², within the 2% the hybrid march is held
     /// to, and 3.8% at 16², 7.8% at 8², 22% at 2² (0.67% at 64², 0.15% at 256², 0.11% at
@@ -135,11 +136,16 @@ impl ShadowMapSettings {
 
 impl Default for ShadowMapSettings {
     fn default() -> Self {
-        Self {
-            resolution: 1024,
-            depth_bias: 2e-3,
-        }
+        Self::DEFAULT
     }
+}
+
+impl ShadowMapSettings {
+    /// The default: 1024² texels a layer, depth bias 2e-3.
+    pub const DEFAULT: ShadowMapSettings = ShadowMapSettings {
+        resolution: 1024,
+        depth_bias: 2e-3,
+    };
 }
 
 /// A shadow map as the march reads it.
@@ -674,7 +680,7 @@ impl ShadowMapNode {
     ///
     /// [`VolumetricShadows`](crate::VolumetricShadows) draws such a light hard: the exact
     /// method's integration between the shadow's boundaries beats marching a penumbra the map
-    /// cannot show (`tests/soft_grid.rs`'s extreme-lights test compares the two;
+    /// cannot show (`tests/gpu/soft_grid.rs`'s extreme-lights test compares the two;
     /// `docs/ACCURACY.md`).
     pub fn penumbra_below_texel(light: &Light, occluder_distance: f32, resolution: u32) -> bool {
         let radius = light.radius();

@@ -48,8 +48,8 @@
 //! Current figures, with their bounds, are in `docs/ACCURACY.md`:
 //!
 //! * a sphere under a light of radius 0.2 × their distance, against `reference::soft`
-//!   (`tests/soft.rs`); 12 seeded sphere scenes, and the grid's cells against the exact visible
-//!   fraction at each cell's point (`tests/soft_grid.rs`).
+//!   (`tests/gpu/soft.rs`); 12 seeded sphere scenes, and the grid's cells against the exact visible
+//!   fraction at each cell's point (`tests/gpu/soft_grid.rs`).
 //! * PCSS assumes one planar blocker per point. The error is relative to the visible fraction,
 //!   so it shows where a pixel's light comes mostly from the deep penumbra: the eye in an umbra
 //!   looking away from the light (bar p95 5.5%), spot lights whose view is lit only by the
@@ -97,13 +97,12 @@
 //! quarters of the cells (4 bytes each): about 7.9 MiB in all at the default size.
 
 use crate::error::{Error, Result};
-use crate::gpu::cache::{bind_group, compute_pipeline, layout, module, Binding};
+use crate::gpu::pipeline::{bind_group, compute_pipeline, layout, module, Binding};
 use crate::gpu::ShaderPrecision;
-use crate::gpu::{
-    check_depth_layers, depth_array_view, texture_3d, Cache, GpuTimer, UniformBuffer,
-};
+use crate::gpu::{check_depth_layers, depth_array_view, texture_3d, GpuTimer, UniformBuffer};
 use crate::nodes::shadow_map::{standard_cube_near, ShadowMap};
-use crate::plan::Pass;
+use crate::nodes::Cache;
+use crate::pass::Pass;
 use crate::scene::Light;
 
 /// The binding tables of the build's entry points in `shaders/soft_shadow.wgsl`
@@ -409,11 +408,16 @@ pub struct SoftShadowSize {
 
 impl Default for SoftShadowSize {
     fn default() -> Self {
-        crate::Settings::PREDICTABLE.soft_shadow
+        Self::DEFAULT
     }
 }
 
 impl SoftShadowSize {
+    /// The default: 64 directions × 16 slices.
+    pub const DEFAULT: SoftShadowSize = SoftShadowSize {
+        directions: 64,
+        slices: 16,
+    };
     /// Fewest cells along any axis.
     pub const MIN: u32 = 2;
     /// Most cells across a layer (the core limit for 3D textures' width).

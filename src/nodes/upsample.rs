@@ -111,11 +111,12 @@ impl UpsampleFilter {
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
-use crate::gpu::cache::{bind_group, cached, compute_pipeline, layout, module, Binding};
-use crate::gpu::uniforms::ViewUniform;
+use crate::gpu::pipeline::{bind_group, cached, compute_pipeline, layout, module, Binding};
 use crate::gpu::ShaderPrecision;
-use crate::gpu::{check_depth_texture, check_float_texture, Cache, GpuTimer, UniformBuffer};
-use crate::plan::Pass;
+use crate::gpu::{check_depth_texture, check_float_texture, GpuTimer, UniformBuffer};
+use crate::nodes::uniforms::ViewUniform;
+use crate::nodes::Cache;
+use crate::pass::Pass;
 use crate::scene::Camera;
 
 /// The upsample's binding table: `@binding(i)` of `shaders/upsample.wgsl` is entry `i`.
@@ -157,8 +158,8 @@ impl Pipelines {
     }
 
     /// Builds the pipelines a light of `kind` uses (see [`Cache::warm_up`]).
-    pub(crate) fn warm_up(&self, device: &wgpu::Device, kind: crate::gpu::LightKind) {
-        use crate::gpu::LightKind;
+    pub(crate) fn warm_up(&self, device: &wgpu::Device, kind: crate::nodes::LightKind) {
+        use crate::nodes::LightKind;
         let spot = matches!(kind, LightKind::Spot { .. });
         self.for_light(device, spot, kind == LightKind::Directional);
     }
@@ -218,7 +219,7 @@ pub struct UpsampleNode {
     entry_points: Option<EntryPoints>,
     uniform: UniformBuffer<UpsampleUniform>,
     view: UniformBuffer<ViewUniform>,
-    airlight: UniformBuffer<crate::gpu::uniforms::AirlightUniform>,
+    airlight: UniformBuffer<crate::nodes::uniforms::AirlightUniform>,
     spot: UniformBuffer<[f32; 4]>,
     dummy: wgpu::Texture,
     output: Option<wgpu::Texture>,
@@ -389,7 +390,7 @@ impl UpsampleNode {
         let camera = inputs.camera;
         self.airlight.write(
             queue,
-            crate::gpu::uniforms::AirlightUniform::new(
+            crate::nodes::uniforms::AirlightUniform::new(
                 camera.eye(),
                 inputs.light,
                 inputs.medium,

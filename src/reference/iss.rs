@@ -51,7 +51,7 @@
 //! `G` is smooth in `log τ` and in `α` except along `α = π/2`, where the horizon passes
 //! through the peak towards the light: there `∂²G/∂α²` has a logarithmic singularity and, for
 //! large `τ`, `G` drops over a width of about `1/τ` in `α`. [`iss_table_coords`] maps
-//! `(τ, α)` to table coordinates that resolve it. Measured (`tests/reference_iss.rs`,
+//! `(τ, α)` to table coordinates that resolve it. Measured (`tests/cpu/reference_iss.rs`,
 //! `table_size_study`: f32 tables, f32 bilinear, checked at every cell centre and edge
 //! midpoint over `τ ∈ [1e-3, 50]`, `α ∈ [0, π]`), max relative error for isotropic / HG 0.8 /
 //! Rayleigh: storing `G`, 33 × 65 nodes (`τ × α`): 1.5e-2 / 1.3e-2 / 1.4e-2; storing `ln G`,
@@ -90,7 +90,7 @@ const INNER_TOLERANCE: f64 = 1e-10;
 /// `&SpotLight`, `&Light` or `&TexturedSpot`), unshadowed, by nested adaptive quadrature over
 /// the hemisphere of `n` with the direction to the light on the pole.
 ///
-/// Accuracy: within 1e-10 relative of `scale · G` (`tests/reference_iss.rs`: 2.5e-13 worst over
+/// Accuracy: within 1e-10 relative of `scale · G` (`tests/cpu/reference_iss.rs`: 2.5e-13 worst over
 /// random scenes) and 2e-13 from the same integral at ten times tighter tolerances.
 ///
 /// `n` need not be unit length. Returns zero for a zero or non-finite `n` or non-finite

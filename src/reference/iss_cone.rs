@@ -18,7 +18,7 @@
 //! (the point light's `G` has `β₁ = 0`, `β₂ = π`). [`surface_inscatter_cone`] integrates it by
 //! nested adaptive Gauss–Kronrod quadrature, each level split where its integrand has a kink
 //! (the ends of the wedge's `φ` range, the limits of `ω·n > 0`, `γ = π − β₂`, and the decay
-//! scales of the glow and of the attenuation). `tests/iss_spot.rs` checks it against a brute-
+//! scales of the glow and of the attenuation). `tests/gpu/iss_spot.rs` checks it against a brute-
 //! force midpoint rule over the sphere with [`super::inscatter`] along each direction.
 
 use std::f64::consts::{FRAC_PI_2, PI};

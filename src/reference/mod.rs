@@ -50,7 +50,7 @@
 //! Cost: one Gauss–Kronrod panel (15 integrand evaluations, each with one bilinear lookup) per
 //! crossed line, on top of the untextured ray's; a ray across the whole cone crosses about
 //! `W + H` lines (at most `W + H`), a ray along the axis or near the light far fewer.
-//! Measured (`tests/reference_texture.rs`, one ray across a 50° cone, noise textures, the
+//! Measured (`tests/cpu/reference_texture.rs`, one ray across a 50° cone, noise textures, the
 //! crate's optimised dev profile): untextured 30 µs; 8² 35 µs; 64² 0.13 ms; 256² 0.45 ms;
 //! 1024² 18 ms; 4096² 30–40 ms. Without these breakpoints the same rays took 0.5 ms (8²) and
 //! 12 ms (64², where the bisection cap was reached and the error was 1e-8).
@@ -94,6 +94,7 @@ mod cone;
 mod directional;
 pub mod iss;
 mod iss_cone;
+mod metric;
 mod occluder;
 mod phase;
 pub(crate) mod quadrature;
@@ -116,6 +117,7 @@ pub use iss::{
     surface_inscatter_scale, ISS_TABLE_TAU,
 };
 pub use iss_cone::surface_inscatter_cone;
+pub use metric::ImageError;
 pub use occluder::{Cuboid, Occluder, Sphere, TriangleMesh};
 pub use phase::phase;
 pub use soft::{inscatter_image_soft, inscatter_soft, visible_fraction};

@@ -38,7 +38,7 @@
 //! crosses at most `4·(0.88·ℓ·N + 1)` strata and the error is at most
 //! `(3.6·ℓ + 4/N)/N` (`≤ 23/N` for one convex occluder). That worst case is far from the
 //! typical one (a jittered stratum errs as often one way as the other): measured on a 64 × 32
-//! mesh sphere across its penumbra (123 points, `tests/reference_soft.rs`), the sampled
+//! mesh sphere across its penumbra (123 points, `tests/cpu/reference_soft.rs`), the sampled
 //! fraction stays within 0.24/N (0.015 at [`SAMPLES_PER_SIDE`] = 16) of the band between the
 //! closed forms of its inscribed and circumscribed spheres; the stated bound is 0.3/N.
 //!

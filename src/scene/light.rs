@@ -139,7 +139,10 @@ impl SpotLight {
             });
         }
         if !(cone_angle > 0.0 && cone_angle <= Self::MAX_CONE_ANGLE) {
-            return Err(Error::ConeAngleOutOfRange { angle: cone_angle });
+            return Err(Error::ConeAngleOutOfRange {
+                angle: cone_angle,
+                max: Self::MAX_CONE_ANGLE,
+            });
         }
         if intensity.max_element() <= 0.0 {
             return Err(Error::ZeroIntensity {

@@ -3,7 +3,7 @@
 //! `docs/PERFORMANCE.md` (`.ci/measure` runs the suite and the report, then that example).
 //!
 //! A line is `volshadow-metric`, then tab-separated fields: the document (`accuracy` or
-//! `performance`), the source (the test binary and test, or a command), the check, the measured
+//! `performance`), the source (the test's file and name, or a command), the check, the measured
 //! value and its bound. `adapter` lines name the adapter that measured them. The format is
 //! defined here once: the writers and the reader (`examples/measurements`) include this file.
 // Each test binary uses a part of it; the reader uses the rest.
@@ -40,7 +40,7 @@ impl Doc {
 pub struct Metric {
     /// The document it goes into.
     pub doc: Doc,
-    /// `BINARY::TEST` for a test, or the command that printed it.
+    /// `FILE::TEST` for a test, or the command that printed it.
     pub source: String,
     /// What was measured, in words.
     pub check: String,
@@ -93,11 +93,17 @@ pub fn parse(line: &str) -> Option<Metric> {
     })
 }
 
-/// `BINARY::TEST` of the running test: the test binary's crate and libtest's thread name.
+/// `FILE::TEST` of the running test: libtest's thread name, which is the test's path in its
+/// binary; in the tier binaries (`tests/gpu/main.rs`) it starts with the topic file's module. A
+/// test at a binary's root (the examples' binaries) is prefixed with the binary's crate.
 pub fn this_test() -> String {
     let thread = std::thread::current();
     let test = thread.name().unwrap_or("unnamed thread");
-    format!("{}::{test}", env!("CARGO_CRATE_NAME"))
+    if test.contains("::") {
+        test.to_string()
+    } else {
+        format!("{}::{test}", env!("CARGO_CRATE_NAME"))
+    }
 }
 
 /// Prints an accuracy check of the running test: its `measured` value and the `bound` it is

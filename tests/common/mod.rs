@@ -2,8 +2,11 @@
 //! table → march → readback chain.
 #![allow(dead_code)]
 
+pub mod files;
 pub mod metric;
+pub mod rng;
 pub mod scene;
+pub mod visibility;
 
 use glam::{DMat4, DVec3, DVec4, Vec3};
 use volshadow::nodes::{AirlightTableNode, MarchInputs, MarchNode, MarchSettings, TableSize};

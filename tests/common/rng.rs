@@ -1,5 +1,5 @@
-//! The tests' seeded random numbers: `fastrand` with the draws the tests make. Included with
-//! `#[path = "common/rng.rs"] mod rng;` by tests that need no GPU helper.
+//! The tests' seeded random numbers (`fastrand` with the draws the tests make), the seeds a
+//! randomized test runs, and the relative error the reference tests compare colours by.
 #![allow(dead_code)]
 
 use glam::DVec3;
@@ -37,4 +37,21 @@ impl Rng {
             }
         }
     }
+}
+
+/// The seeds a randomized test runs: `all`, or only the one in `VOLSHADOW_SEED` (to reproduce a
+/// printed failing seed alone).
+pub fn seeds(all: std::ops::Range<u64>) -> Vec<u64> {
+    match std::env::var("VOLSHADOW_SEED") {
+        Ok(s) => vec![s.parse().expect("VOLSHADOW_SEED must be a number")],
+        Err(_) => all.collect(),
+    }
+}
+
+/// The largest relative error over the channels, skipping channels where both values are 0.
+pub fn rel_err(a: DVec3, b: DVec3) -> f64 {
+    (0..3)
+        .filter(|&c| !(a[c] == 0.0 && b[c] == 0.0))
+        .map(|c| (a[c] - b[c]).abs() / a[c].abs().max(b[c].abs()))
+        .fold(0.0, f64::max)
 }

@@ -200,7 +200,9 @@ pub fn near_light(camera: &Camera, light: &Light, width: u32, height: u32, i: us
         .is_some_and(|p| d.angle_between(p.as_dvec3() - o) < 1.5 * pixel_angle)
 }
 
-/// Compares `gpu` with `reference` (same layout), leaving out the light's own pixels.
+/// Compares `gpu` with `reference` (same layout), leaving out the light's own pixels
+/// ([`near_light`]), with the crate's metric (`volshadow::reference::ImageError`), as the
+/// report does.
 pub fn errors(
     gpu: &[[f32; 4]],
     reference: &[DVec3],
@@ -208,52 +210,20 @@ pub fn errors(
     light: &Light,
     (width, height): (u32, u32),
 ) -> Errors {
-    let keep: Vec<usize> = (0..reference.len())
-        .filter(|&i| !near_light(camera, light, width, height, i))
+    let keep: Vec<bool> = (0..reference.len())
+        .map(|i| !near_light(camera, light, width, height, i))
         .collect();
-    // The brightness scale: the 99th percentile, not the maximum, which a light in view puts
-    // in its own 1/h glow (1% of it would leave only the glow counted). Stricter than the
-    // maximum: more pixels count.
-    let mut brightness: Vec<f64> = keep.iter().map(|&i| reference[i].max_element()).collect();
-    brightness.sort_by(f64::total_cmp);
-    let max_ref = brightness
-        .get((brightness.len().saturating_sub(1) as f64 * 0.99) as usize)
-        .copied()
-        .unwrap_or(0.0);
-    let (mut sq, mut sum, mut n) = (0.0, 0.0, 0.0);
-    let mut rel = Vec::new();
-    for &i in &keep {
-        let (g, r) = (gpu[i], reference[i]);
-        let mut worst: f64 = 0.0;
-        for c in 0..3 {
-            let gc = f64::from(g[c]);
-            sq += (gc - r[c]).powi(2);
-            sum += r[c];
-            n += 1.0;
-            worst = worst.max((gc - r[c]).abs());
-        }
-        if r.max_element() > 0.01 * max_ref {
-            rel.push((worst / r.max_element(), i));
-        }
-    }
-    rel.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let (worst_error, worst) = rel.last().copied().unwrap_or((0.0, 0));
-    let rel: Vec<f64> = rel.into_iter().map(|(e, _)| e).collect();
-    let p95 = if rel.is_empty() {
-        0.0
-    } else {
-        rel[((rel.len() as f64 * 0.95).ceil() as usize).clamp(1, rel.len()) - 1]
-    };
+    let image: Vec<DVec3> = gpu
+        .iter()
+        .map(|t| DVec3::new(t[0].into(), t[1].into(), t[2].into()))
+        .collect();
+    let e = volshadow::reference::ImageError::measure(&image, reference, &keep);
     Errors {
-        p95,
-        max: worst_error,
-        worst,
-        rmse: if sum > 0.0 {
-            (sq / n).sqrt() / (sum / n)
-        } else {
-            0.0
-        },
-        counted: rel.len(),
+        p95: e.p95,
+        max: e.max,
+        worst: e.worst,
+        rmse: e.rmse,
+        counted: e.counted,
         non_finite: gpu
             .iter()
             .filter(|t| t[0..3].iter().any(|v| !v.is_finite() || *v < 0.0))

@@ -960,7 +960,7 @@ pub fn run_frame(
 ) -> Result<Vec<(&'static str, f64)>, BoxError> {
     volumetric.prepare(&ctx.gpu.device, &ctx.gpu.queue, frame)?;
     let mut times: Vec<(&'static str, f64)> = Vec::new();
-    for t in ctx.gpu.run_timed(volumetric, view, skip)? {
+    for t in volumetric.run_timed(ctx.gpu, view, skip)? {
         let column = t.pass.name();
         match times.iter_mut().find(|(c, _)| *c == column) {
             Some((_, ms)) => *ms += t.ms,

@@ -1,8 +1,8 @@
-//! The error of an image against the reference: relative RMSE and percentiles of the per-pixel
-//! relative error, away from the lights' own pixels.
+//! The error of an image against the reference (the crate's `reference::ImageError`), away from
+//! the lights' own pixels.
 
 use volshadow::glam::DVec3;
-use volshadow::reference::{camera_ray, pixel_ndc};
+use volshadow::reference::{camera_ray, pixel_ndc, ImageError};
 use volshadow::scene_file::SceneDescription;
 
 use super::Errors;
@@ -29,59 +29,13 @@ pub fn keep_mask(
         .collect()
 }
 
-/// RMSE relative to the mean, and percentiles of the per-pixel relative error.
+/// RMSE relative to the mean, and percentiles of the per-pixel relative error: the crate's
+/// metric ([`ImageError`]), as the tests measure.
 pub fn errors(image: &[DVec3], reference: &[DVec3], keep: &[bool]) -> Errors {
-    let mut sum_sq = 0.0;
-    let mut sum_ref = 0.0;
-    let mut count = 0usize;
-    let mut brightness = Vec::new();
-    for ((g, r), &k) in image.iter().zip(reference).zip(keep) {
-        if k {
-            sum_sq += (*g - *r).length_squared();
-            sum_ref += r.x + r.y + r.z;
-            count += 3;
-            brightness.push(r.max_element());
-        }
-    }
-    // The frame's brightness scale: its 99th percentile, not its maximum. With a light in view
-    // the maximum sits in the light's 1/h glow, and 1% of it would leave only the pixels
-    // around the light counted (where no shadow falls).
-    brightness.sort_by(f64::total_cmp);
-    let peak = brightness
-        .get((brightness.len().saturating_sub(1) as f64 * 0.99) as usize)
-        .copied()
-        .unwrap_or(0.0);
-    let mut relative: Vec<f64> = image
-        .iter()
-        .zip(reference)
-        .zip(keep)
-        .filter(|((_, r), &k)| k && r.max_element() > 0.01 * peak)
-        .map(|((g, r), _)| {
-            let e = (*g - *r).abs().max_element() / r.max_element();
-            if e.is_finite() {
-                e
-            } else {
-                f64::INFINITY
-            }
-        })
-        .collect();
-    relative.sort_by(f64::total_cmp);
-    let percentile = |p: f64| {
-        if relative.is_empty() {
-            0.0
-        } else {
-            let index = ((p * relative.len() as f64).ceil() as usize).clamp(1, relative.len()) - 1;
-            relative[index]
-        }
-    };
-    let mean = sum_ref / count.max(1) as f64;
+    let e = ImageError::measure(image, reference, keep);
     Errors {
-        rmse: if mean > 0.0 {
-            (sum_sq / count.max(1) as f64).sqrt() / mean
-        } else {
-            0.0
-        },
-        p95: percentile(0.95),
-        p99: percentile(0.99),
+        rmse: e.rmse,
+        p95: e.p95,
+        p99: e.p99,
     }
 }

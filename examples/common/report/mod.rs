@@ -80,14 +80,14 @@ use measure::{median, planned_configurations, run_scene, Clock, Context};
 #[allow(unused_imports)]
 pub use options::{help, Options, USAGE};
 pub use output::summary;
-// For `tests/examples.rs`.
+// For `tests/examples/examples.rs`.
 use output::{today, write_outputs};
 #[allow(unused_imports)]
 pub use {
     options::{DEFAULT_SCENES, DEFAULT_SIZE},
     output::{legend_box, legend_layout, series_style, FLOOR_GREY},
 };
-// For `tests/examples.rs`.
+// For `tests/examples/examples.rs`.
 #[allow(unused_imports)]
 pub use {cache::reference_sources, metrics::errors};
 // For `benches/frame.rs`.

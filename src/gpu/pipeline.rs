@@ -1,0 +1,443 @@
+//! The helpers the nodes build their GPU objects with: binding tables, bind groups and
+//! layouts, shader modules (the prelude and the precision wrappers joined to a node's WGSL),
+//! compute, depth and fullscreen pipelines, and timed compute dispatches.
+
+use std::collections::HashMap;
+use std::sync::Mutex;
+
+use crate::gpu::precision::{self, ShaderPrecision};
+use crate::gpu::GpuTimer;
+use crate::pass::Pass;
+
+const PRELUDE: &str = include_str!("../../shaders/prelude.wgsl");
+
+/// What one binding of a node's bind group holds. Each node lists its bindings once, in a
+/// `const` table whose entry `i` is `@binding(i)` of its WGSL; the layout ([`layout`]) and
+/// every bind group ([`bind_group`], which takes one resource per entry) are built from it.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Binding {
+    /// Per-frame parameters: a read-only *storage* buffer, not a uniform buffer. Mesa's
+    /// lavapipe (22.x) specialises a shader on the contents of its uniform buffers ("inlinable
+    /// uniforms") at every submission, compiling a new variant with LLVM for every new value and
+    /// never freeing it (≈ 0.5–1 MB and up to hundreds of ms per frame and shader). Storage
+    /// buffers are never inlined.
+    Params,
+    /// [`Binding::Params`] read by the vertex stage only, whatever the layout's stages.
+    VertexParams,
+    /// [`Binding::Params`] with a dynamic offset, in slots of this many bytes.
+    DynamicParams(u64),
+    /// A read-write storage buffer (never visible to the vertex stage).
+    ReadWrite,
+    /// A 2D float texture read with `textureLoad`.
+    Texture,
+    /// A 2D float texture read through a filtering sampler.
+    Filterable,
+    /// A 2D depth texture.
+    Depth,
+    /// A 2D array depth texture (a shadow map).
+    DepthArray,
+    /// A write-only 2D storage texture.
+    Storage(wgpu::TextureFormat),
+    /// A 3D float texture read through a filtering sampler.
+    Volume,
+    /// A 3D float texture read with `textureLoad` (any float format, 32-bit ones included).
+    VolumeLoad,
+    /// A write-only 3D storage texture.
+    StorageVolume(wgpu::TextureFormat),
+    /// A filtering sampler.
+    Sampler,
+    /// A comparison sampler.
+    Comparison,
+}
+
+impl Binding {
+    fn entry(self, binding: u32, stages: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+        let texture = |sample_type, view_dimension| wgpu::BindingType::Texture {
+            sample_type,
+            view_dimension,
+            multisampled: false,
+        };
+        let buffer = |read_only, has_dynamic_offset, size| wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset,
+            min_binding_size: wgpu::BufferSize::new(size),
+        };
+        let d2 = wgpu::TextureViewDimension::D2;
+        let (ty, visibility) = match self {
+            Binding::Params => (buffer(true, false, 0), stages),
+            Binding::VertexParams => (buffer(true, false, 0), wgpu::ShaderStages::VERTEX),
+            Binding::DynamicParams(size) => (buffer(true, true, size), stages),
+            Binding::ReadWrite => (buffer(false, false, 0), stages - wgpu::ShaderStages::VERTEX),
+            Binding::Texture => (
+                texture(wgpu::TextureSampleType::Float { filterable: false }, d2),
+                stages,
+            ),
+            Binding::Filterable => (
+                texture(wgpu::TextureSampleType::Float { filterable: true }, d2),
+                stages,
+            ),
+            Binding::Depth => (texture(wgpu::TextureSampleType::Depth, d2), stages),
+            Binding::DepthArray => (
+                texture(
+                    wgpu::TextureSampleType::Depth,
+                    wgpu::TextureViewDimension::D2Array,
+                ),
+                stages,
+            ),
+            Binding::Storage(format) => (
+                wgpu::BindingType::StorageTexture {
+                    access: wgpu::StorageTextureAccess::WriteOnly,
+                    format,
+                    view_dimension: d2,
+                },
+                stages,
+            ),
+            Binding::Volume => (
+                texture(
+                    wgpu::TextureSampleType::Float { filterable: true },
+                    wgpu::TextureViewDimension::D3,
+                ),
+                stages,
+            ),
+            Binding::VolumeLoad => (
+                texture(
+                    wgpu::TextureSampleType::Float { filterable: false },
+                    wgpu::TextureViewDimension::D3,
+                ),
+                stages,
+            ),
+            Binding::StorageVolume(format) => (
+                wgpu::BindingType::StorageTexture {
+                    access: wgpu::StorageTextureAccess::WriteOnly,
+                    format,
+                    view_dimension: wgpu::TextureViewDimension::D3,
+                },
+                stages,
+            ),
+            Binding::Sampler => (
+                wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                stages,
+            ),
+            Binding::Comparison => (
+                wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Comparison),
+                stages,
+            ),
+        };
+        wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility,
+            ty,
+            count: None,
+        }
+    }
+}
+
+/// The bind group layout of a binding table (entry `i` is binding `i`).
+pub(crate) fn layout(
+    device: &wgpu::Device,
+    label: &str,
+    stages: wgpu::ShaderStages,
+    bindings: &[Binding],
+) -> wgpu::BindGroupLayout {
+    let entries: Vec<_> = (0u32..)
+        .zip(bindings)
+        .map(|(i, b)| b.entry(i, stages))
+        .collect();
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(label),
+        entries: &entries,
+    })
+}
+
+/// A bind group with one resource per entry of the layout's binding table, in its order.
+pub(crate) fn bind_group<const N: usize>(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    resources: [wgpu::BindingResource<'_>; N],
+) -> wgpu::BindGroup {
+    let entries: Vec<_> = (0u32..)
+        .zip(resources)
+        .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource })
+        .collect();
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout,
+        entries: &entries,
+    })
+}
+
+/// The value for `key` in a cache shared between clones, made on first use.
+pub(crate) fn cached<K: std::hash::Hash + Eq, V: Clone>(
+    map: &Mutex<HashMap<K, V>>,
+    key: K,
+    make: impl FnOnce() -> V,
+) -> V {
+    map.lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+        .entry(key)
+        .or_insert_with(make)
+        .clone()
+}
+
+/// The precision wrappers (at `precision`) and the prelude followed by one node's WGSL, as
+/// compiled.
+pub(crate) fn compose(node_source: &str, precision: ShaderPrecision) -> String {
+    let wrappers = precision::wgsl(precision);
+    format!("{wrappers}\n{PRELUDE}\n{node_source}")
+}
+
+/// Creates a shader module from the prelude followed by one node's WGSL.
+pub(crate) fn module(
+    device: &wgpu::Device,
+    label: &str,
+    node_source: &str,
+    precision: ShaderPrecision,
+) -> wgpu::ShaderModule {
+    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(compose(node_source, precision).into()),
+    })
+}
+
+fn pipeline_layout(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+) -> wgpu::PipelineLayout {
+    device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(layout)],
+        immediate_size: 0,
+    })
+}
+
+/// A compute pipeline with pipeline-overridable `constants`.
+pub(crate) fn compute_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    module: &wgpu::ShaderModule,
+    entry_point: &str,
+    constants: &[(&str, f64)],
+) -> wgpu::ComputePipeline {
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(label),
+        layout: Some(&pipeline_layout(device, label, layout)),
+        module,
+        entry_point: Some(entry_point),
+        compilation_options: wgpu::PipelineCompilationOptions {
+            constants,
+            ..Default::default()
+        },
+        cache: None,
+    })
+}
+
+/// Records one compute pass, timed as `pass` when a timer is given, of one dispatch per entry
+/// of `dispatches` (pipeline, bind group, workgroups) in order: what a node's `encode` does.
+pub(crate) fn dispatch(
+    encoder: &mut wgpu::CommandEncoder,
+    timer: Option<&mut GpuTimer>,
+    pass: Pass,
+    label: &str,
+    dispatches: &[(&wgpu::ComputePipeline, &wgpu::BindGroup, (u32, u32, u32))],
+) {
+    let timestamp_writes = timer.and_then(|t| t.compute_pass(pass));
+    let mut compute = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some(label),
+        timestamp_writes,
+    });
+    for &(pipeline, bind_group, groups) in dispatches {
+        compute.set_pipeline(pipeline);
+        compute.set_bind_group(0, bind_group, &[]);
+        compute.dispatch_workgroups(groups.0, groups.1, groups.2);
+    }
+}
+
+/// A depth-only render pipeline (no colour target). `compare: None` tests and writes nothing
+/// (a pass whose fragments only write storage buffers).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn depth_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    module: &wgpu::ShaderModule,
+    vertex_entry: &str,
+    fragment_entry: Option<&str>,
+    buffers: &[wgpu::VertexBufferLayout<'_>],
+    compare: Option<wgpu::CompareFunction>,
+    cull_mode: Option<wgpu::Face>,
+) -> wgpu::RenderPipeline {
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(label),
+        layout: Some(&pipeline_layout(device, label, layout)),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some(vertex_entry),
+            compilation_options: Default::default(),
+            buffers: &buffers.iter().cloned().map(Some).collect::<Vec<_>>(),
+        },
+        // Both sides unless told (occluders may be open meshes; volume faces are classified in
+        // the shader).
+        primitive: wgpu::PrimitiveState {
+            cull_mode,
+            ..Default::default()
+        },
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: wgpu::TextureFormat::Depth32Float,
+            depth_write_enabled: Some(compare.is_some()),
+            depth_compare: Some(compare.unwrap_or(wgpu::CompareFunction::Always)),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: Default::default(),
+        fragment: fragment_entry.map(|entry| wgpu::FragmentState {
+            module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            targets: &[],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+/// A fullscreen-triangle render pipeline (the prelude's `vs_fullscreen`) writing `format`.
+pub(crate) fn fullscreen_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    module: &wgpu::ShaderModule,
+    fragment_entry: &str,
+    format: wgpu::TextureFormat,
+    constants: &[(&str, f64)],
+) -> wgpu::RenderPipeline {
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(label),
+        layout: Some(&pipeline_layout(device, label, layout)),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs_fullscreen"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: Default::default(),
+        depth_stencil: None,
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some(fragment_entry),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants,
+                ..Default::default()
+            },
+            targets: &[Some(format.into())],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::compose;
+    use crate::gpu::ShaderPrecision;
+
+    /// Where line `line` (1-based) of `compose`'s output for `file` comes from: `(file, line)` in
+    /// that file or in `prelude.wgsl` (naga numbers the composed source's lines).
+    fn source_line(file: &str, line: usize) -> (&str, usize) {
+        // `compose` adds a line break after each.
+        let precision = super::precision::WGSL.lines().count() + 1;
+        let prelude = precision + super::PRELUDE.lines().count() + 1;
+        match (line.checked_sub(prelude), line.checked_sub(precision)) {
+            (Some(l), _) if l > 0 => (file, l),
+            (_, Some(l)) if l > 0 => ("prelude.wgsl", l),
+            _ => ("precision.wgsl", line),
+        }
+    }
+
+    /// Parses and validates `source` composed with the prelude; an error names the file and
+    /// line it comes from.
+    fn check(file: &str, source: &str, precision: ShaderPrecision) -> Result<(), String> {
+        let composed = compose(source, precision);
+        let at = |location: Option<naga::SourceLocation>, message: String| {
+            let line = location.map_or(0, |l| l.line_number as usize);
+            let (file, line) = source_line(file, line);
+            format!("{file}:{line}: {message}")
+        };
+        let module = naga::front::wgsl::parse_str(&composed)
+            .map_err(|e| at(e.location(&composed), e.message().to_string()))?;
+        naga::valid::Validator::new(Default::default(), naga::valid::Capabilities::all())
+            .validate(&module)
+            .map_err(|e| at(e.location(&composed), format!("{:?}", e.into_inner())))?;
+        Ok(())
+    }
+
+    #[test]
+    fn every_shader_compiles() {
+        for (file, source) in [
+            (
+                "airlight_table.wgsl",
+                include_str!("../../shaders/airlight_table.wgsl"),
+            ),
+            (
+                "airlight_table_sum.wgsl",
+                include_str!("../../shaders/airlight_table_sum.wgsl"),
+            ),
+            (
+                "composite.wgsl",
+                concat!(
+                    include_str!("../../shaders/iss.wgsl"),
+                    include_str!("../../shaders/composite.wgsl")
+                ),
+            ),
+            ("extents.wgsl", include_str!("../../shaders/extents.wgsl")),
+            (
+                "light_texture.wgsl",
+                include_str!("../../shaders/light_texture.wgsl"),
+            ),
+            (
+                "march.wgsl",
+                concat!(
+                    include_str!("../../shaders/pcss.wgsl"),
+                    include_str!("../../shaders/march.wgsl")
+                ),
+            ),
+            (
+                "soft_shadow.wgsl",
+                concat!(
+                    include_str!("../../shaders/pcss.wgsl"),
+                    include_str!("../../shaders/soft_shadow.wgsl")
+                ),
+            ),
+            (
+                "shadow_map.wgsl",
+                include_str!("../../shaders/shadow_map.wgsl"),
+            ),
+            ("upsample.wgsl", include_str!("../../shaders/upsample.wgsl")),
+            ("shadow.wgsl", include_str!("../../shaders/shadow.wgsl")),
+            (
+                "iss_table.wgsl",
+                concat!(
+                    include_str!("../../shaders/iss.wgsl"),
+                    include_str!("../../shaders/iss_table.wgsl")
+                ),
+            ),
+        ] {
+            for precision in ShaderPrecision::ALL {
+                if let Err(e) = check(file, source, precision) {
+                    panic!("{precision:?}: {e}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn errors_point_at_the_node_file_and_line() {
+        // A syntax error on line 3 of a node's source, not on line 3 + the prelude's length.
+        let source = "// a node\nfn f() -> f32 {\n    let x = ;\n    return 1.0;\n}\n";
+        let e = check("node.wgsl", source, ShaderPrecision::Native).unwrap_err();
+        assert!(e.starts_with("node.wgsl:3:"), "{e}");
+    }
+}

@@ -1,0 +1,218 @@
+//! GPU-side uniform structs (mirrors of the WGSL structs in `shaders/prelude.wgsl`) and their
+//! construction from the scene types.
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+
+use crate::scene::{Camera, Light, Medium, PhaseFunction};
+
+/// WGSL `Airlight`, field by field (see there what each holds).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub(crate) struct AirlightUniform {
+    pub light_pos: [f32; 3],
+    pub distance: f32,
+    pub eye: [f32; 3],
+    pub pixel_radius: f32,
+    pub intensity: [f32; 3],
+    pub hg_g: f32,
+    pub sigma_s: [f32; 3],
+    pub table_along: u32,
+    pub sigma_t: [f32; 3],
+    pub table_across: u32,
+    pub w_iso: [f32; 4],
+    pub w_rayleigh: [f32; 4],
+    pub w_hg: [f32; 4],
+    pub w_hazy: [f32; 4],
+    pub w_murky: [f32; 4],
+}
+
+/// Per-channel weights of the five phase lobes (iso, Rayleigh, HG, hazy, murky) and HG's g.
+fn phase_lobes(phase: PhaseFunction) -> ([Vec3; 5], f32) {
+    let z = Vec3::ZERO;
+    let one = Vec3::ONE;
+    match phase {
+        PhaseFunction::Isotropic => ([one, z, z, z, z], 0.0),
+        PhaseFunction::Rayleigh => ([z, one, z, z, z], 0.0),
+        PhaseFunction::HenyeyGreenstein { g } => ([z, z, one, z, z], g),
+        PhaseFunction::MieHazy => ([z, z, z, one, z], 0.0),
+        PhaseFunction::MieMurky => ([z, z, z, z, one], 0.0),
+        PhaseFunction::HoffmanPreetham { rayleigh, mie, g } => {
+            let sum = rayleigh + mie; // validated > 0 per channel
+            ([z, rayleigh / sum, mie / sum, z, z], g)
+        }
+    }
+}
+
+/// The eye–light distance below which the light is nudged away from the eye: at D = 0 the
+/// airlight is infinite and the ray's angle to the light undefined.
+const MIN_EYE_LIGHT_DISTANCE: f32 = 1e-6;
+
+/// The length `L` of a directional light's ray parameter `s = x / (x + L)`: one extinction
+/// length of the densest channel (steps uniform in `s` then follow the attenuation), 1 in a
+/// clear medium.
+pub(crate) fn directional_length(medium: &Medium) -> f32 {
+    let sigma = medium.sigma_t().max_element();
+    if sigma > 0.0 && (1.0 / sigma).is_finite() {
+        1.0 / sigma
+    } else {
+        1.0
+    }
+}
+
+impl AirlightUniform {
+    pub fn new(
+        eye: Vec3,
+        light: &Light,
+        medium: &Medium,
+        pixel_angular_radius: f32,
+        table: super::TableSize,
+    ) -> Self {
+        let (light_pos, d) = match light {
+            // A directional light: its direction of travel, and the length of the ray
+            // parameter s = x / (x + L) (see `shaders/prelude.wgsl`).
+            Light::Directional(l) => (l.direction(), directional_length(medium)),
+            _ => {
+                let mut light_pos = light.position().unwrap_or(eye);
+                let min_d = MIN_EYE_LIGHT_DISTANCE * eye.abs().max_element().max(1.0);
+                if light_pos.distance(eye) < min_d {
+                    light_pos = eye + Vec3::Y * min_d;
+                }
+                (light_pos, light_pos.distance(eye))
+            }
+        };
+        let (lobes, g) = phase_lobes(medium.phase());
+        let rgb = |v: Vec3| v.extend(0.0).to_array();
+        Self {
+            light_pos: light_pos.to_array(),
+            distance: d,
+            eye: eye.to_array(),
+            pixel_radius: pixel_angular_radius,
+            intensity: light.intensity().to_array(),
+            hg_g: g,
+            sigma_s: medium.sigma_s().to_array(),
+            table_along: table.along_ray,
+            sigma_t: medium.sigma_t().to_array(),
+            table_across: table.across_rays,
+            w_iso: rgb(lobes[0]),
+            w_rayleigh: rgb(lobes[1]),
+            w_hg: rgb(lobes[2]),
+            w_hazy: rgb(lobes[3]),
+            w_murky: rgb(lobes[4]),
+        }
+    }
+
+    /// Only the phase function's lobes and a table size (`along` × `across`): what the
+    /// indirect single scattering table depends on (every other field zero).
+    pub fn phase_only(medium: &Medium, along: u32, across: u32) -> Self {
+        let (lobes, g) = phase_lobes(medium.phase());
+        let rgb = |v: Vec3| v.extend(0.0).to_array();
+        Self {
+            hg_g: g,
+            table_along: along,
+            table_across: across,
+            w_iso: rgb(lobes[0]),
+            w_rayleigh: rgb(lobes[1]),
+            w_hg: rgb(lobes[2]),
+            w_hazy: rgb(lobes[3]),
+            w_murky: rgb(lobes[4]),
+            ..Self::zeroed()
+        }
+    }
+
+    /// The part of the uniform the F′ table depends on: D, σt, the phase and the table size.
+    /// Eye and light may move freely as long as their distance stays the same.
+    pub fn table_key(&self) -> Self {
+        Self {
+            light_pos: [0.0; 3],
+            eye: [0.0; 3],
+            pixel_radius: 0.0,
+            intensity: [0.0; 3],
+            sigma_s: [0.0; 3],
+            ..*self
+        }
+    }
+}
+
+/// WGSL `View`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub(crate) struct ViewUniform {
+    pub view_from_clip: [f32; 16],
+    pub world_from_view: [f32; 16],
+    pub size: [f32; 2],
+    pub far_depth: f32,
+    pub _pad: f32,
+}
+
+impl ViewUniform {
+    pub fn new(camera: &Camera, width: u32, height: u32) -> Self {
+        Self {
+            view_from_clip: camera.projection().inverse().to_cols_array(),
+            world_from_view: camera.view().inverse().to_cols_array(),
+            size: [width as f32, height as f32],
+            far_depth: camera.far_depth(),
+            _pad: 0.0,
+        }
+    }
+}
+
+/// WGSL `Composite`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub(crate) struct CompositeUniform {
+    pub sigma_t: [f32; 3],
+    pub count: u32,
+}
+
+/// One light of WGSL `Surfaces`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub(crate) struct SurfaceLightUniform {
+    pub position: [f32; 3],
+    pub cos_half: f32,
+    pub intensity: [f32; 3],
+    pub spot: u32,
+    pub direction: [f32; 3],
+    pub _pad: f32,
+}
+
+/// WGSL `Surfaces` (the composite's indirect single scattering term).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub(crate) struct SurfacesUniform {
+    pub sigma_s: [f32; 3],
+    pub count: u32,
+    pub lights: [SurfaceLightUniform; 4],
+    /// The spot term's lattice spacing in pixels (0: evaluated at every pixel).
+    pub lattice: u32,
+    pub _pad: [u32; 3],
+}
+
+impl SurfacesUniform {
+    pub fn new(medium: &Medium, lights: &[Light]) -> Self {
+        // The term is defined for lights at a position; a directional light adds none.
+        let positioned: Vec<(&Light, glam::Vec3)> = lights
+            .iter()
+            .filter_map(|l| l.position().map(|p| (l, p)))
+            .collect();
+        let mut out = Self {
+            sigma_s: medium.sigma_s().to_array(),
+            count: positioned.len().min(4) as u32,
+            ..Self::zeroed()
+        };
+        for (slot, (light, position)) in out.lights.iter_mut().zip(positioned) {
+            *slot = SurfaceLightUniform {
+                position: position.to_array(),
+                intensity: light.intensity().to_array(),
+                ..SurfaceLightUniform::zeroed()
+            };
+            if let Light::Spot(spot) = light {
+                slot.spot = 1;
+                slot.cos_half = spot.cos_half_angle();
+                slot.direction = spot.direction().to_array();
+            }
+        }
+        out
+    }
+}

@@ -1,0 +1,1257 @@
+//! The examples as tests: `render` on every scene file and `gltf` on a box written here, run
+//! through the same code the example binaries call (`examples/common/`), at 64×64.
+//!
+//! The GPU's in-scatter with each scene's own (hybrid) method is compared with the f64
+//! reference on the same scene and size: RMSE over all pixels and channels at most 2% of the
+//! reference's mean (issue 5). Each scene's shadows must also be visible in its tone-mapped
+//! PNG: it differs from the same scene rendered without occluder shadows over at least 5% of
+//! the image; and a scene with a light of some radius must show its penumbrae: its PNG differs
+//! by the same measure from the scene drawn hard (every radius 0).
+
+#[path = "../../examples/common/mod.rs"]
+mod common_examples;
+use crate::common::files;
+// The measurements tool's own copies of `cli.rs` and `metric.rs` (it is a binary of its own).
+#[allow(clippy::duplicate_mod)]
+#[path = "../../examples/measurements/main.rs"]
+mod measurements;
+use crate::common::visibility;
+
+use common_examples::report::metric;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use common_examples::cli::{self, Parsed, WouldOverwriteInput};
+use common_examples::render_scene::{self, RenderMethod};
+use visibility::{visible_fraction, MIN_LEVELS, MIN_PIXEL_CHANGE, MIN_VISIBLE_FRACTION};
+
+/// Test image size: keeps the f64 reference (O(triangles) per ray) fast.
+const SIZE: u32 = 64;
+/// Issue 5: in-scatter RMSE against the reference, relative to the reference's mean.
+const MAX_RMSE: f64 = 0.02;
+
+fn args(list: &[&str]) -> Vec<String> {
+    list.iter().map(|s| s.to_string()).collect()
+}
+
+/// Every `scenes/*.json`, sorted.
+fn scene_files() -> Vec<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("cannot list {}: {e}", dir.display()))
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "json"))
+        .collect();
+    files.sort();
+    assert!(!files.is_empty(), "no scene files in {}", dir.display());
+    files
+}
+
+/// Reads an EXR's RGB, checking its size and that every value is finite.
+fn read_exr(path: &Path) -> Vec<[f32; 3]> {
+    let image = image::open(path)
+        .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()))
+        .into_rgb32f();
+    assert_eq!(image.dimensions(), (SIZE, SIZE), "{}", path.display());
+    let pixels: Vec<[f32; 3]> = image.pixels().map(|p| p.0).collect();
+    assert!(
+        pixels.iter().flatten().all(|v| v.is_finite()),
+        "{} has non-finite values",
+        path.display()
+    );
+    pixels
+}
+
+/// Checks the five files of one render and returns its in-scatter.
+fn check_outputs(rendered: &render_scene::Rendered) -> Vec<[f32; 3]> {
+    let [radiance, png, inscatter, depth, json] = &rendered.files;
+    for file in &rendered.files {
+        assert!(file.is_file(), "{} was not written", file.display());
+    }
+    let radiance = read_exr(radiance);
+    assert!(
+        radiance.iter().flatten().all(|v| *v >= 0.0),
+        "negative radiance"
+    );
+    let png = image::open(png).unwrap();
+    assert_eq!((png.width(), png.height()), (SIZE, SIZE));
+    let depth = read_exr(depth);
+    assert!(depth
+        .iter()
+        .all(|d| d[0] > 0.0 && d[0] <= common_examples::SKY_DISTANCE));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+    // What the example returned is what it wrote (floats may differ in the last digit).
+    for key in ["scene", "method", "adapter", "plan", "size", "files"] {
+        assert_eq!(report[key], rendered.report[key], "{key}");
+    }
+    assert_eq!(report["size"], serde_json::json!([SIZE, SIZE]));
+    assert!(report["plan"].as_array().is_some_and(|p| !p.is_empty()));
+    assert!(report["wall_ms"]
+        .as_f64()
+        .is_some_and(|t| t.is_finite() && t >= 0.0));
+    for key in ["scene", "method", "adapter"] {
+        assert!(report[key].is_string(), "report lacks {key}");
+    }
+    let inscatter = read_exr(inscatter);
+    assert!(
+        inscatter.iter().flatten().all(|v| *v >= 0.0),
+        "negative in-scatter"
+    );
+    inscatter
+}
+
+/// RMSE of `test` against `reference` over all pixels and channels but those in `skip`,
+/// relative to the reference's mean over all pixels.
+fn relative_rmse(test: &[[f32; 3]], reference: &[[f32; 3]], skip: &[usize]) -> f64 {
+    let (mut sq, mut sum) = (0.0, 0.0);
+    for (i, (t, r)) in test.iter().zip(reference).enumerate() {
+        for c in 0..3 {
+            sum += f64::from(r[c]);
+            if skip.contains(&i) {
+                continue;
+            }
+            sq += (f64::from(t[c]) - f64::from(r[c])).powi(2);
+        }
+    }
+    let n = 3.0 * reference.len() as f64;
+    (sq / n).sqrt() / (sum / n)
+}
+
+/// The pixels (at `SIZE`²) that contain a light of the scene.
+fn light_pixels(scene: &Path) -> Vec<usize> {
+    let description = volshadow::scene_file::SceneDescription::load(scene).unwrap();
+    let camera = common_examples::with_aspect(&description.camera, 1.0).unwrap();
+    let clip_from_world = camera.projection() * camera.view();
+    description
+        .lights
+        .iter()
+        .filter_map(|l| {
+            let clip = clip_from_world * l.light.position()?.extend(1.0);
+            let (x, y) = (clip.x / clip.w, clip.y / clip.w);
+            let px = ((x + 1.0) * 0.5 * SIZE as f32).floor();
+            let py = ((1.0 - y) * 0.5 * SIZE as f32).floor();
+            let inside = clip.w > 0.0
+                && (0.0..SIZE as f32).contains(&px)
+                && (0.0..SIZE as f32).contains(&py);
+            inside.then(|| py as usize * SIZE as usize + px as usize)
+        })
+        .collect()
+}
+
+/// Prints and records how much of `stem`'s PNG its `what` (shadows, penumbrae) change against
+/// `against`, and adds a failure below [`MIN_VISIBLE_FRACTION`].
+fn judge_visible(stem: &str, what: &str, against: &str, fraction: f64, failures: &mut Vec<String>) {
+    println!(
+        "{stem:<14} {what} visible: {:.1}% of the PNG differs from {against} by >= {:.0}% of the \
+         pixel value (at least {MIN_LEVELS} levels); required {:.0}%",
+        100.0 * fraction,
+        100.0 * MIN_PIXEL_CHANGE,
+        100.0 * MIN_VISIBLE_FRACTION
+    );
+    metric::accuracy(
+        &format!(
+            "{stem}: {what} visible in the tone-mapped PNG (pixels ≥ {:.0}% and {MIN_LEVELS} \
+             levels off {against})",
+            100.0 * MIN_PIXEL_CHANGE
+        ),
+        format!("{:.1}%", 100.0 * fraction),
+        format!("≥ {:.0}%", 100.0 * MIN_VISIBLE_FRACTION),
+    );
+    if fraction.is_nan() || fraction < MIN_VISIBLE_FRACTION {
+        failures.push(format!(
+            "{stem}: {what} visible over {:.1}% of the image < {:.0}%",
+            100.0 * fraction,
+            100.0 * MIN_VISIBLE_FRACTION
+        ));
+    }
+}
+
+#[test]
+fn render_every_scene_and_match_the_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let size = format!("{SIZE}x{SIZE}");
+    let mut failures = Vec::new();
+    for scene in scene_files() {
+        let stem = scene.file_stem().unwrap().to_string_lossy().into_owned();
+        let scene_arg = scene.to_str().unwrap();
+        let start = Instant::now();
+        let out = dir.path().join(&stem);
+        let gpu = render_scene::run(&args(&[
+            scene_arg,
+            "-o",
+            out.to_str().unwrap(),
+            "--size",
+            &size,
+        ]))
+        .unwrap_or_else(|e| panic!("{stem}: {e}"));
+        let gpu_time = start.elapsed().as_secs_f64();
+        let gpu_inscatter = check_outputs(&gpu);
+        let method = gpu.report["method"].as_str().unwrap().to_owned();
+
+        // The same scene without occluder shadows (`--method analytic` passes no occluders;
+        // the app's frame is the same), tone-mapped with the shadowed render's exposure.
+        let exposure = gpu.report["exposure"].as_f64().unwrap().to_string();
+        let out = dir.path().join(format!("{stem}.unshadowed"));
+        let unshadowed = render_scene::run(&args(&[
+            scene_arg,
+            "-o",
+            out.to_str().unwrap(),
+            "--size",
+            &size,
+            "--method",
+            "analytic",
+            "--exposure",
+            &exposure,
+        ]))
+        .unwrap_or_else(|e| panic!("{stem} unshadowed: {e}"));
+        let visible = visible_fraction(&gpu.files[1], &unshadowed.files[1]);
+        judge_visible(
+            &stem,
+            "shadows",
+            "the unshadowed render",
+            visible,
+            &mut failures,
+        );
+
+        // A light with a radius: its penumbrae must show too. The same scene with every
+        // radius 0 (hard shadows), tone-mapped with the soft render's exposure, must differ by
+        // the same measure.
+        let mut hard_scene: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&scene).unwrap()).unwrap();
+        let mut soft = false;
+        for light in hard_scene["lights"].as_array_mut().into_iter().flatten() {
+            if light
+                .get("radius")
+                .and_then(|r| r.as_f64())
+                .is_some_and(|r| r > 0.0)
+            {
+                light["radius"] = serde_json::json!(0.0);
+                soft = true;
+            }
+        }
+        if soft {
+            let hard_file = dir.path().join(format!("{stem}.hard-scene.json"));
+            std::fs::write(&hard_file, hard_scene.to_string()).unwrap();
+            let out = dir.path().join(format!("{stem}.hard"));
+            let hard = render_scene::run(&args(&[
+                hard_file.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+                "--size",
+                &size,
+                "--exposure",
+                &exposure,
+            ]))
+            .unwrap_or_else(|e| panic!("{stem} hard: {e}"));
+            let penumbra = visible_fraction(&gpu.files[1], &hard.files[1]);
+            judge_visible(
+                &stem,
+                "penumbrae",
+                "the scene drawn hard",
+                penumbra,
+                &mut failures,
+            );
+        }
+
+        let start = Instant::now();
+        let out = dir.path().join(format!("{stem}.reference"));
+        let reference = render_scene::run(&args(&[
+            scene_arg,
+            "-o",
+            out.to_str().unwrap(),
+            "--size",
+            &size,
+            "--method",
+            "reference",
+        ]))
+        .unwrap_or_else(|e| panic!("{stem} reference: {e}"));
+        let reference_time = start.elapsed().as_secs_f64();
+        let reference_inscatter = check_outputs(&reference);
+
+        let with_lights = relative_rmse(&gpu_inscatter, &reference_inscatter, &[]);
+        // As in every GPU test: without the pixels that hold a light, where the GPU clamps the
+        // singular 1/h by the pixel footprint on purpose while the reference integrates the one
+        // ray through the pixel centre (README, "Accuracy"). Both are printed.
+        let rmse = relative_rmse(&gpu_inscatter, &reference_inscatter, &light_pixels(&scene));
+        println!(
+            "{stem:<14} {method:<36} in-scatter RMSE {:.2}% of the reference mean \
+             without the lights' own pixels ({:.2}% with them); GPU run {gpu_time:.1} s, \
+             reference run {reference_time:.1} s",
+            100.0 * rmse,
+            100.0 * with_lights
+        );
+        metric::accuracy(
+            &format!("{stem}: `render` ({method}) against `--method reference`"),
+            format!("RMSE {:.2}%", 100.0 * rmse),
+            format!("RMSE {}%", 100.0 * MAX_RMSE),
+        );
+        if rmse.is_nan() || rmse > MAX_RMSE {
+            failures.push(format!("{stem}: RMSE {rmse:.4} > {MAX_RMSE}"));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn render_parses_every_method() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sphere.json");
+    let dir = tempfile::tempdir().unwrap();
+    for method in [
+        "analytic",
+        "brute:16",
+        "hybrid:16:2:separable:2",
+        "hybrid:8:4:bilinear",
+    ] {
+        let out = dir.path().join(method.replace(':', "_"));
+        let rendered = render_scene::run(&args(&[
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--size",
+            &format!("{SIZE}x{SIZE}"),
+            "--method",
+            method,
+        ]))
+        .unwrap_or_else(|e| panic!("{method}: {e}"));
+        check_outputs(&rendered);
+        let parsed = RenderMethod::parse(method).unwrap();
+        assert_eq!(RenderMethod::parse(&parsed.describe()).unwrap(), parsed);
+        assert_eq!(rendered.report["method"], parsed.describe());
+    }
+}
+
+/// `render --surface-scatter` on the lamp-and-wall scene: `OUT.surface.exr` is finite and
+/// non-negative, zero on sky, positive on the surfaces near the lamp, and it is exactly what
+/// the term adds: `OUT.exr` minus the same render without the option, within f32 rounding
+/// (1e-5 of the largest radiance). Without the surfaces passed (or the term not added) the
+/// difference is zero and the test fails on the positive-pixel count.
+#[test]
+fn render_surface_scatter_writes_the_added_radiance() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/lamp_wall.json");
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let mut list = vec![
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--size",
+            "64x64",
+            "--method",
+            "analytic",
+        ];
+        list.extend(extra);
+        render_scene::run(&args(&list)).unwrap();
+        out
+    };
+    let with = run("with", &["--surface-scatter"]);
+    let without = run("without", &[]);
+    let path = |out: &Path, suffix: &str| {
+        let mut s = out.as_os_str().to_owned();
+        s.push(suffix);
+        PathBuf::from(s)
+    };
+    let surface = read_exr(&path(&with, ".surface.exr"));
+    let (a, b) = (
+        read_exr(&path(&with, ".exr")),
+        read_exr(&path(&without, ".exr")),
+    );
+    let depth = read_exr(&path(&with, ".depth.exr"));
+    let sky = |k: usize| depth[k][0] >= common_examples::SKY_DISTANCE;
+    let max = a.iter().flatten().fold(0.0f32, |m, &v| m.max(v));
+    let mut worst = 0.0f32;
+    let mut positive = 0;
+    for k in 0..surface.len() {
+        for c in 0..3 {
+            assert!(surface[k][c] >= 0.0, "pixel {k}: {:?}", surface[k]);
+            if sky(k) {
+                assert_eq!(surface[k][c], 0.0, "sky pixel {k}");
+            }
+            worst = worst.max((a[k][c] - b[k][c] - surface[k][c]).abs());
+        }
+        positive += usize::from(surface[k][0] > 1e-3 * max);
+    }
+    println!(
+        "surface term above 1e-3 of the max in {positive} pixels; difference off by {worst:e}"
+    );
+    assert!(worst <= 1e-5 * max, "{worst:e}");
+    assert!(
+        positive > surface.len() / 4,
+        "{positive} pixels gain the term"
+    );
+}
+
+#[test]
+fn render_rejects_bad_arguments_and_files() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sphere.json");
+    let scene = scene.to_str().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let bad_json = dir.path().join("bad.json");
+    std::fs::write(&bad_json, "{\"name\": 3}").unwrap();
+    for bad in [
+        vec![],
+        vec!["no/such/scene.json"],
+        vec![bad_json.to_str().unwrap()],
+        vec![scene, "--method", "fast"],
+        vec![scene, "--method", "hybrid:0"],
+        vec![scene, "--method", "hybrid:64:3"],
+        vec![scene, "--method", "hybrid:64:2:separable,4,1,1"],
+        vec![scene, "--size", "0x64"],
+        vec![scene, "--size", "64"],
+        vec![scene, "--bogus"],
+        vec![scene, "-o"],
+        vec![scene, "--method", "reference", "--surface-scatter"],
+    ] {
+        let result = render_scene::run(&args(&bad));
+        assert!(result.is_err(), "{bad:?} should be an error");
+        println!("{bad:?}: {}", result.err().unwrap());
+    }
+}
+
+/// The bytes of every file in `dir` (names and contents), to show a refused run wrote nothing.
+fn snapshot(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    let mut files: Vec<(PathBuf, Vec<u8>)> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.is_file())
+        .map(|p| {
+            let bytes = std::fs::read(&p).unwrap();
+            (p, bytes)
+        })
+        .collect();
+    files.sort();
+    files
+}
+
+/// A refused run: the error is [`WouldOverwriteInput`] naming the input (its file name) and
+/// the output, and nothing in `dir` changed.
+fn assert_refused<T>(
+    result: Result<T, common_examples::BoxError>,
+    input: &str,
+    dir: &Path,
+    before: &[(PathBuf, Vec<u8>)],
+    case: &str,
+) {
+    let error = match result {
+        Ok(_) => panic!("{case}: the run was not refused"),
+        Err(e) => e,
+    };
+    let refusal = error
+        .downcast_ref::<WouldOverwriteInput>()
+        .unwrap_or_else(|| panic!("{case}: another error than the refusal: {error}"));
+    let message = error.to_string();
+    println!("{case}: {message}");
+    assert!(
+        refusal.input.ends_with(input) && message.contains(&refusal.output.display().to_string()),
+        "{case}: {message}"
+    );
+    assert_eq!(snapshot(dir), before, "{case}: files changed");
+}
+
+/// `render` never writes over its input: an output path naming the scene file (`-o` with its
+/// stem, with its extension, through `.` or `..`, through a symbolic link to the file or to
+/// its folder, or a hard link: the same file under another name) is refused before anything
+/// is written, and every file in the folder keeps its bytes. Without `-o` the outputs go to `out/STEM`,
+/// not beside the input. No GPU: the refusal comes first.
+#[test]
+fn render_never_overwrites_its_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("lamp.json");
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/lamp_wall.json"),
+        &scene,
+    )
+    .unwrap();
+    let d = dir.path().to_str().unwrap();
+    std::fs::create_dir(dir.path().join("sub")).unwrap();
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink(&scene, dir.path().join("alias.json")).unwrap();
+        std::os::unix::fs::symlink(dir.path(), dir.path().join("here")).unwrap();
+        std::fs::hard_link(&scene, dir.path().join("hard.json")).unwrap();
+    }
+    let before = snapshot(dir.path());
+    let mut cases = vec![
+        format!("{d}/lamp"),
+        format!("{d}/lamp.json"),
+        format!("{d}/./lamp"),
+        format!("{d}/sub/../lamp"),
+    ];
+    if cfg!(unix) {
+        // A link to the file, a link to its folder, a second name of the same file.
+        cases.extend([
+            format!("{d}/alias"),
+            format!("{d}/here/lamp"),
+            format!("{d}/hard"),
+        ]);
+    }
+    for out in &cases {
+        let result = render_scene::run(&args(&[
+            scene.to_str().unwrap(),
+            "-o",
+            out,
+            "--size",
+            "16x16",
+        ]));
+        assert_refused(result, "lamp.json", dir.path(), &before, out);
+    }
+    // The outputs' default: `out/STEM`, whatever folder the scene is in.
+    let Parsed::Run(options) =
+        render_scene::Options::parse(&args(&[scene.to_str().unwrap()])).unwrap()
+    else {
+        panic!("not a run")
+    };
+    assert_eq!(options.out, Path::new(cli::OUT_DIR).join("lamp"));
+    for output in options.outputs() {
+        assert!(output.starts_with(cli::OUT_DIR), "{}", output.display());
+    }
+}
+
+/// A file the scene names (a spot light's texture `glass.png`) is an input too: `-o glass`
+/// would write `glass.png` over it.
+#[cfg(feature = "image")]
+#[test]
+fn render_never_overwrites_a_file_the_scene_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/stained_glass.json"),
+    )
+    .unwrap();
+    let text = text.replace(
+        r#""texture": { "stained_glass": { "size": 256, "cells": 8, "seed": 2024 } }"#,
+        r#""texture": { "file": "glass.png" }"#,
+    );
+    assert!(text.contains("glass.png"), "the scene's texture line moved");
+    let scene = dir.path().join("spot.json");
+    std::fs::write(&scene, text).unwrap();
+    image::RgbImage::from_fn(8, 8, |x, y| {
+        image::Rgb([(x * 30) as u8, (y * 30) as u8, 200])
+    })
+    .save(dir.path().join("glass.png"))
+    .unwrap();
+    // A valid scene that reads the texture.
+    volshadow::scene_file::SceneDescription::load(&scene).unwrap();
+    let before = snapshot(dir.path());
+    let out = dir.path().join("glass");
+    let result = render_scene::run(&args(&[
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--size",
+        "16x16",
+    ]));
+    assert_refused(result, "glass.png", dir.path(), &before, "-o glass");
+}
+
+/// `--help` and `-h` are a request for the usage, not an error, for every example's parser,
+/// whatever else is on the line; and `render`'s help lists every method its parser accepts
+/// (both come from `METHODS`).
+#[test]
+fn every_example_answers_help() {
+    for flag in ["--help", "-h"] {
+        let scene = "scenes/sphere.json";
+        for line in [
+            vec![flag],
+            vec![scene, flag],
+            vec![scene, "--method", "bogus", flag],
+        ] {
+            let line = args(&line);
+            assert!(
+                render_scene::Options::parse(&line).unwrap().is_help(),
+                "render {line:?}"
+            );
+            #[cfg(feature = "gltf")]
+            assert!(
+                common_examples::gltf_scene::Options::parse(&line)
+                    .unwrap()
+                    .is_help(),
+                "gltf {line:?}"
+            );
+        }
+        let line = args(&[flag]);
+        assert!(
+            common_examples::report::Options::parse(&args(&["--size", "64", flag]))
+                .unwrap()
+                .is_help()
+        );
+        assert!(cli::parse_quickstart(&line).unwrap().is_help());
+        assert!(cli::parse_interactive(&line).unwrap().is_help());
+        assert!(cli::parse_probe(&args(&["storage", flag]))
+            .unwrap()
+            .is_help());
+    }
+    // Without --help, the same parsers run (or refuse) as before.
+    assert!(!render_scene::Options::parse(&args(&["s.json"]))
+        .unwrap()
+        .is_help());
+    assert!(render_scene::Options::parse(&args(&["--bogus"])).is_err());
+    assert!(cli::parse_interactive(&args(&["--bogus"])).is_err());
+    assert_eq!(cli::parse_interactive(&[]).unwrap(), Parsed::Run(()));
+
+    let help = render_scene::help();
+    for m in &render_scene::METHODS {
+        assert!(
+            help.contains(&m.syntax()),
+            "{} missing from:\n{help}",
+            m.syntax()
+        );
+        for name in std::iter::once(&m.name).chain(m.aliases) {
+            RenderMethod::parse(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+        }
+    }
+    for method in ["exact", "exact:2:separable:16", "textbook:32:4"] {
+        RenderMethod::parse(method).unwrap_or_else(|e| panic!("{method}: {e}"));
+    }
+    let unknown = RenderMethod::parse("fast").unwrap_err().to_string();
+    for m in &render_scene::METHODS {
+        assert!(unknown.contains(m.name), "{unknown}");
+    }
+    assert!(RenderMethod::parse("textbook:32:4:1").is_err());
+    // The interactive keys: each listed key does what it says, every action has a key.
+    let keys = cli::keys_help();
+    for (key, name, action, _) in cli::KEYS {
+        assert_eq!(cli::action_of(key), Some(action));
+        assert!(keys.contains(name) && cli::interactive_help().contains(name));
+    }
+    assert!(
+        keys.contains("exact -> hybrid -> brute force -> textbook"),
+        "{keys}"
+    );
+}
+
+/// The small examples' options: quickstart writes to `out/quickstart.png` unless told
+/// otherwise (one PNG path); uniform_probe's arguments are checked, not unwrapped.
+#[test]
+fn small_examples_parse_their_options() {
+    let run = |list: &[&str]| match cli::parse_quickstart(&args(list)).unwrap() {
+        Parsed::Run(o) => o.output,
+        Parsed::Help => panic!("help"),
+    };
+    assert_eq!(run(&[]), Path::new(cli::OUT_DIR).join("quickstart.png"));
+    assert_eq!(run(&["a/b.png"]), Path::new("a/b.png"));
+    assert_eq!(run(&["-o", "c.PNG"]), Path::new("c.PNG"));
+    for bad in [
+        &["a.png", "b.png"][..],
+        &["-o", "x.jpg"],
+        &["--bogus"],
+        &["-o"],
+    ] {
+        assert!(cli::parse_quickstart(&args(bad)).is_err(), "{bad:?}");
+    }
+    let probe = |list: &[&str]| cli::parse_probe(&args(list));
+    assert_eq!(
+        probe(&["storage", "100", "composite"]).unwrap(),
+        Parsed::Run(cli::ProbeOptions {
+            storage: true,
+            frames: 100,
+            composite: true
+        })
+    );
+    assert_eq!(
+        probe(&[]).unwrap(),
+        Parsed::Run(cli::ProbeOptions {
+            storage: false,
+            frames: 2000,
+            composite: false
+        })
+    );
+    for bad in [
+        &["bogus"][..],
+        &["uniform", "x"],
+        &["uniform", "0"],
+        &["uniform", "9", "y"],
+    ] {
+        assert!(probe(bad).is_err(), "{bad:?}");
+    }
+}
+
+/// A box of half extents (1, 0.5, 0.75) as a binary glTF, placed 1.5 above the origin.
+#[cfg(feature = "gltf")]
+fn box_glb() -> Vec<u8> {
+    let positions: Vec<[f32; 3]> = (0..8)
+        .map(|i| {
+            let c = |bit: u32, h: f32| if i & (1 << bit) != 0 { h } else { -h };
+            [c(0, 1.0), c(1, 0.5), c(2, 0.75)]
+        })
+        .collect();
+    const INDICES: [u16; 36] = [
+        0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6,
+        1, 3, 5, 3, 7, 5,
+    ];
+    let mut bin: Vec<u8> = positions
+        .iter()
+        .flatten()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    bin.extend(INDICES.iter().flat_map(|i| i.to_le_bytes()));
+    let json = r#"{"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+        "nodes": [{"name": "Box", "mesh": 0, "translation": [0, 1.5, 0]}],
+        "meshes": [{"name": "Box", "primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+        "buffers": [{"byteLength": 168}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 96},
+                        {"buffer": 0, "byteOffset": 96, "byteLength": 72}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 8, "type": "VEC3",
+                       "min": [-1, -0.5, -0.75], "max": [1, 0.5, 0.75]},
+                      {"bufferView": 1, "componentType": 5123, "count": 36, "type": "SCALAR"}]}"#;
+    files::glb(json, &bin)
+}
+
+#[cfg(feature = "gltf")]
+#[test]
+fn gltf_renders_a_box() {
+    use common_examples::gltf_scene;
+
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("box.glb");
+    std::fs::write(&model, box_glb()).unwrap();
+    let png = dir.path().join("box.png");
+    let rendered = gltf_scene::run(&args(&[
+        model.to_str().unwrap(),
+        "-o",
+        png.to_str().unwrap(),
+        "--size",
+        &format!("{SIZE}x{SIZE}"),
+    ]))
+    .unwrap();
+    let image = image::open(&png).unwrap();
+    assert_eq!((image.width(), image.height()), (SIZE, SIZE));
+    assert_eq!(rendered.png, png);
+    assert_eq!(rendered.inscatter.len(), (SIZE * SIZE) as usize);
+    // The in-scatter EXR beside the PNG holds what the run returned (f32 of the f64 sums).
+    assert_eq!(rendered.inscatter_exr, dir.path().join("box.inscatter.exr"));
+    let exr = read_exr(&rendered.inscatter_exr);
+    for (e, r) in exr.iter().zip(&rendered.inscatter) {
+        assert_eq!(*e, r.as_vec3().to_array());
+    }
+    // The box is closed: 12 triangles, no boundary or non-manifold edge, tight extents.
+    assert_eq!(rendered.summaries.len(), 1);
+    let summary = &rendered.summaries[0];
+    println!("{summary}");
+    assert!(
+        summary.contains("\"Box\": 12 triangles, closed, 0 boundary and 0 non-manifold edges")
+            && summary.contains("tight"),
+        "{summary}"
+    );
+    assert!(rendered
+        .inscatter
+        .iter()
+        .all(|v| v.is_finite() && v.min_element() >= 0.0));
+    assert!(rendered.radiance.iter().all(|v| v.is_finite()));
+    assert!(
+        rendered.inscatter.iter().any(|v| v.max_element() > 0.0),
+        "no in-scatter at all"
+    );
+    // The box is an occluder: its shadow volume's extents are rasterised every frame.
+    let plan = &rendered.stats.plan;
+    assert!(
+        plan.iter()
+            .any(|l| l.contains("run") && l.contains("extents")),
+        "{plan:?}"
+    );
+
+    assert!(gltf_scene::run(&args(&[dir.path().join("missing.glb").to_str().unwrap()])).is_err());
+    assert!(
+        gltf_scene::run(&args(&[png.to_str().unwrap()])).is_err(),
+        "a PNG is not a glTF"
+    );
+}
+
+/// `gltf` never writes over its input: a model whose own name an output takes (`-o` naming
+/// `box.png` when the model is a GLB called `box.png`) or an image the model names (`tex.png`
+/// of a `.gltf`) is refused before anything is written; without `-o` the outputs go to
+/// `out/STEM`.
+#[cfg(feature = "gltf")]
+#[test]
+fn gltf_never_overwrites_its_input() {
+    use common_examples::gltf_scene;
+    let dir = tempfile::tempdir().unwrap();
+    // A GLB under a PNG's name: `-o box` would write box.png over it.
+    let glb = dir.path().join("box.png");
+    std::fs::write(&glb, box_glb()).unwrap();
+    // A .gltf whose buffer and image are files beside it: `-o tex` would write tex.png.
+    let bytes = box_glb();
+    let json_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let bin = &bytes[28 + json_len..];
+    std::fs::write(dir.path().join("box data.bin"), bin).unwrap();
+    std::fs::write(dir.path().join("tex.png"), b"an image").unwrap();
+    let json: String = String::from_utf8(bytes[20..20 + json_len].to_vec()).unwrap();
+    let json = json.replace(
+        r#""buffers": [{"byteLength": 168}]"#,
+        r#""buffers": [{"byteLength": 168, "uri": "box%20data.bin"}],
+        "images": [{"uri": "tex.png"}]"#,
+    );
+    assert!(json.contains("tex.png"));
+    let gltf = dir.path().join("model.gltf");
+    std::fs::write(&gltf, json).unwrap();
+    // Both are models the loader reads.
+    volshadow::gltf::load(&glb).unwrap();
+    volshadow::gltf::load(&gltf).unwrap();
+    let before = snapshot(dir.path());
+    let d = dir.path().to_str().unwrap();
+    for (model, out, input) in [
+        (&glb, format!("{d}/box"), "box.png"),
+        (&glb, format!("{d}/./box.png"), "box.png"),
+        (&gltf, format!("{d}/tex"), "tex.png"),
+    ] {
+        let result = gltf_scene::run(&args(&[
+            model.to_str().unwrap(),
+            "-o",
+            &out,
+            "--size",
+            "16x16",
+        ]));
+        assert_refused(result, input, dir.path(), &before, &out);
+    }
+    let Parsed::Run(options) = gltf_scene::Options::parse(&args(&[glb.to_str().unwrap()])).unwrap()
+    else {
+        panic!("not a run")
+    };
+    assert_eq!(options.out, Path::new(cli::OUT_DIR).join("box"));
+}
+
+#[test]
+fn report_metrics_measure_what_they_say() {
+    use common_examples::report::errors;
+    use volshadow::glam::DVec3;
+    // A ramp of in-scatter (2..=101: every pixel above 1% of the maximum, so all count).
+    let reference: Vec<DVec3> = (2..=101).map(|i| DVec3::splat(f64::from(i))).collect();
+    let keep = vec![true; 100];
+    let exact = errors(&reference, &reference, &keep);
+    assert_eq!((exact.rmse, exact.p95, exact.p99), (0.0, 0.0, 0.0));
+    let mut image: Vec<DVec3> = reference.iter().map(|r| *r * 1.1).collect();
+    let scaled = errors(&image, &reference, &keep);
+    assert!((scaled.p95 - 0.1).abs() < 1e-12 && (scaled.p99 - 0.1).abs() < 1e-12);
+    // RMSE relative to the mean: 0.1·sqrt(mean r²)/mean r for r = 2..=101.
+    let mean_sq = (2..=101).map(|i| f64::from(i * i)).sum::<f64>() / 100.0;
+    assert!((scaled.rmse - 0.1 * mean_sq.sqrt() / 51.5).abs() < 1e-12);
+    // One pixel 5x off moves p99 (the 99th of 100 values) but not p95; a pixel left out of
+    // the mask (a light's own) moves nothing.
+    image[99] = reference[99] * 6.0;
+    let outlier = errors(&image, &reference, &keep);
+    assert!((outlier.p95 - 0.1).abs() < 1e-12 && (outlier.p99 - 0.1).abs() < 1e-12);
+    let mut masked = keep.clone();
+    masked[99] = false;
+    image[50] = reference[50] * 6.0;
+    let two = errors(&image, &reference, &masked);
+    assert!((two.p99 - 5.0).abs() < 1e-12, "{}", two.p99);
+    // A light's glow in view: one pixel a million times brighter does not set the scale (1% of
+    // the maximum would count that pixel alone and see none of the errors on the ramp).
+    let mut glow = reference.clone();
+    glow[0] = DVec3::splat(1e6);
+    let mut off = glow.clone();
+    for r in &mut off[10..20] {
+        *r *= 1.5;
+    }
+    let lit = errors(&off, &glow, &keep);
+    assert!((lit.p95 - 0.5).abs() < 1e-12, "{}", lit.p95);
+}
+
+#[test]
+fn report_runs_every_kind_of_configuration_and_writes_its_files() {
+    // The report's own code path at a small size: two scenes (one with a textured spot), a
+    // few configurations each, one timed frame. Checks the outputs exist and agree, and that
+    // the measured errors order as the methods should.
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_string_lossy().into_owned();
+    let report = common_examples::report::run(&args(&[
+        "--quick",
+        "--size",
+        "48",
+        "--frames",
+        "1",
+        "--scenes",
+        &format!(
+            "{}/scenes/sphere.json,{}/scenes/stained_glass.json",
+            env!("CARGO_MANIFEST_DIR"),
+            env!("CARGO_MANIFEST_DIR")
+        ),
+        "--out",
+        &out,
+    ]))
+    .unwrap();
+    for f in &report.files {
+        let len = std::fs::metadata(f).unwrap().len();
+        assert!(len > 100, "{} has {len} bytes", f.display());
+    }
+    let csv = std::fs::read_to_string(dir.path().join("report.csv")).unwrap();
+    assert_eq!(csv.lines().count(), report.rows.len() + 1);
+    let svg = std::fs::read_to_string(dir.path().join("error_vs_time.svg")).unwrap();
+    assert!(svg.contains("<svg") && svg.contains("brute force") && svg.contains("hybrid"));
+    for r in &report.rows {
+        assert!(r.total_ms.is_finite() && r.total_ms > 0.0, "{r:?}");
+        assert!(
+            r.errors.rmse.is_finite() && r.errors.p95.is_finite(),
+            "{r:?}"
+        );
+    }
+    // Three tolerances per scene were checked, none judged at 48x48 (the error table was
+    // built at 512x512): the run's verdict (the binary's exit status) is a success whatever
+    // the p95, and the report says why.
+    assert_eq!(report.checks.len(), 6);
+    use common_examples::report::Verdict;
+    assert!(report
+        .checks
+        .iter()
+        .all(|c| c.size == 48 && c.verdict() == Verdict::NotJudged));
+    assert!(report.verdict().is_ok());
+    let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
+    assert_eq!(
+        md.matches("not judged (table built at 512²)").count(),
+        6,
+        "{md}"
+    );
+    assert!(!md.contains("FAIL"), "{md}");
+    assert!(std::fs::read_to_string(dir.path().join("error_table.rs"))
+        .unwrap()
+        .contains("at 48x48"));
+    // On the sphere the hybrid at full resolution beats brute force at 16 steps (measured at
+    // 48x48: p95 0.2% vs 16%), and the unshadowed floor is far off (89%).
+    use common_examples::report::Curve;
+    let p95 = |curve: Curve, steps: u32| {
+        report
+            .rows
+            .iter()
+            .find(|r| r.scene == "sphere" && r.curve == curve && r.steps == steps)
+            .map(|r| r.errors.p95)
+            .unwrap()
+    };
+    let hybrid = p95(
+        Curve::Hybrid(1, common_examples::report::Filter::None, 0),
+        8,
+    );
+    let brute = p95(Curve::Brute, 16);
+    let floor = p95(Curve::Analytic, 0);
+    println!("sphere 48x48 p95: hybrid 8 {hybrid:.4}, brute force 16 {brute:.4}, floor {floor:.4}");
+    // The 2% accuracy target, met by the hybrid at 8 steps; brute force at 16 does worse.
+    const TARGET_P95: f64 = 0.02;
+    assert!(hybrid < TARGET_P95 && hybrid < brute && brute < floor);
+}
+
+/// The error-target checks are judged only at the size the planner's table was built for
+/// (512²): there a p95 over the tolerance is a FAIL, the summary says so and the run's verdict
+/// (the binary's exit status 1) is an error; at another size the same p95 is "not judged"
+/// and the verdict a success.
+#[test]
+fn report_judges_error_targets_at_the_table_size_only() {
+    use common_examples::report::{summary, Check, Report, Verdict, ERROR_TABLE_SIZE};
+    assert_eq!(ERROR_TABLE_SIZE, 512);
+    let check = |size: u32, p95: f64| Check {
+        scene: "window".into(),
+        tolerance: 0.05,
+        p95,
+        size,
+    };
+    let report = |checks: Vec<Check>| Report {
+        rows: Vec::new(),
+        checks,
+        files: Vec::new(),
+    };
+    assert_eq!(check(512, 0.071).verdict(), Verdict::Fail);
+    assert_eq!(check(512, f64::INFINITY).verdict(), Verdict::Fail);
+    assert_eq!(check(512, 0.049).verdict(), Verdict::Pass);
+    assert_eq!(check(256, 0.071).verdict(), Verdict::NotJudged);
+    assert_eq!(check(256, 0.001).verdict(), Verdict::NotJudged);
+
+    let judged = report(vec![check(512, 0.049), check(512, 0.071)]);
+    let error = judged.verdict().unwrap_err().to_string();
+    println!("{error}");
+    assert!(error.contains("1 error-target check(s) FAIL") && error.contains("window"));
+    let text = summary(&[], &judged.checks);
+    assert!(
+        text.contains("| window | 5% | 0.049% | pass |")
+            || text.contains("| window | 5% | 4.900% | pass |"),
+        "{text}"
+    );
+    assert!(text.contains("FAIL by 2.10 points"), "{text}");
+
+    let elsewhere = report(vec![check(256, 0.071), check(256, 0.001)]);
+    assert!(elsewhere.verdict().is_ok());
+    let text = summary(&[], &elsewhere.checks);
+    assert_eq!(
+        text.matches("not judged (table built at 512²)").count(),
+        2,
+        "{text}"
+    );
+    assert!(!text.contains("FAIL") && !text.contains("pass"), "{text}");
+}
+
+/// `measurements` never writes over its input: a log saved where the run's table would go
+/// (`docs/measurements/NAME.tsv` under its root) is refused before anything is written, and
+/// the same log elsewhere is read and the documents written (so the refusal, not a failing
+/// read, kept the files).
+#[test]
+fn measurements_never_overwrites_its_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let folder = dir.path().join("docs/measurements");
+    std::fs::create_dir_all(&folder).unwrap();
+    let log = format!(
+        "{}\n",
+        metric::line(metric::Doc::Accuracy, "examples::x", "a check", "1%", "2%")
+    );
+    let in_place = folder.join("x.tsv");
+    std::fs::write(&in_place, &log).unwrap();
+    let before = snapshot(dir.path());
+    let run = |path: &Path| {
+        let args = ["--run", "x", "--date", "2026-01-01", path.to_str().unwrap()];
+        measurements::run(args.map(String::from).to_vec(), dir.path())
+    };
+    let message = run(&in_place).expect_err("not refused").to_string();
+    println!("{message}");
+    assert!(message.contains("refusing to write"), "{message}");
+    assert_eq!(snapshot(dir.path()), before, "files changed");
+    let elsewhere = dir.path().join("x.log");
+    std::fs::write(&elsewhere, &log).unwrap();
+    run(&elsewhere).unwrap();
+    assert!(dir.path().join("docs/ACCURACY.md").exists());
+    assert_ne!(std::fs::read(&in_place).unwrap(), log.as_bytes());
+}
+
+/// The report never writes over its input: a scene file where an output would go (here a
+/// scene saved as `report.md` in the output folder) is refused before anything is written
+/// (no cache folder, no other file). Its default output folder is `target/volshadow-report`,
+/// and its default run the quick set.
+#[test]
+fn report_never_overwrites_its_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("report.md");
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sphere.json"),
+        &scene,
+    )
+    .unwrap();
+    let before = snapshot(dir.path());
+    let d = dir.path().to_str().unwrap();
+    for out in [d.to_string(), format!("{d}/.")] {
+        let result = common_examples::report::run(&args(&[
+            "--quick",
+            "--size",
+            "8",
+            "--frames",
+            "1",
+            "--scenes",
+            scene.to_str().unwrap(),
+            "--out",
+            &out,
+        ]));
+        assert_refused(result, "report.md", dir.path(), &before, &out);
+        assert!(
+            !dir.path().join("cache").exists(),
+            "{out}: the cache folder was made"
+        );
+    }
+    use common_examples::report::Options;
+    let Parsed::Run(defaults) = Options::parse(&[]).unwrap() else {
+        panic!("not a run")
+    };
+    assert_eq!(defaults.out, Path::new("target/volshadow-report"));
+    assert_eq!(defaults.size, common_examples::report::DEFAULT_SIZE);
+    assert_eq!(
+        defaults.scenes,
+        common_examples::report::DEFAULT_SCENES
+            .map(|n| Path::new("scenes").join(format!("{n}.json")))
+    );
+    assert!(!defaults.full);
+    // `--full`: every scene file at the table's size; `--size` still applies.
+    let Parsed::Run(full) = Options::parse(&args(&["--full"])).unwrap() else {
+        panic!("not a run")
+    };
+    assert_eq!(full.size, 512);
+    assert_eq!(full.scenes.len(), scene_files().len());
+    let Parsed::Run(full) = Options::parse(&args(&["--full", "--size", "64"])).unwrap() else {
+        panic!("not a run")
+    };
+    assert!(full.full && full.size == 64);
+    // Scenes named on the command line: at the table's size, as before the quick set.
+    let Parsed::Run(named) = Options::parse(&args(&["--scenes", "soft"])).unwrap() else {
+        panic!("not a run")
+    };
+    assert_eq!(named.size, 512);
+    assert_eq!(named.scenes, [Path::new("scenes/soft.json")]);
+}
+
+/// `error_vs_time.svg`: every series the report can plot (13 in a full run) has its own
+/// colour, and its own colour and marker together; none is the analytic floor's grey; and
+/// the legend's entries, at the widths their names need, neither overlap nor leave the header.
+#[test]
+fn report_plot_series_and_legend_are_distinct() {
+    use common_examples::report::FLOOR_GREY;
+    use common_examples::report::{legend_box, legend_layout, series_style, Curve, Filter};
+    let mut curves = vec![Curve::Brute, Curve::Paper003, Curve::Textbook];
+    for (d, f) in [(1, Filter::None), (2, Filter::Box3), (2, Filter::Separable)] {
+        curves.push(Curve::Exact(d, f));
+        curves.push(Curve::Hybrid(d, f, 2));
+    }
+    for f in [Filter::Box3, Filter::Separable] {
+        curves.push(Curve::Exact(4, f));
+        curves.push(Curve::Hybrid(4, f, 2));
+    }
+    assert_eq!(curves.len(), 13);
+    let styles: Vec<_> = (0..curves.len()).map(series_style).collect();
+    for (i, a) in styles.iter().enumerate() {
+        assert_ne!(a.0, FLOOR_GREY);
+        for (j, b) in styles.iter().enumerate().skip(i + 1) {
+            assert_ne!(a.0, b.0, "series {i} and {j} share a colour");
+        }
+    }
+    let pairs: Vec<_> = (0..60).map(series_style).collect();
+    for (i, a) in pairs.iter().enumerate() {
+        assert!(!pairs[i + 1..].contains(a), "style {i} repeats");
+    }
+    let mut names: Vec<String> = curves.iter().map(|c| c.name()).collect();
+    names.push("analytic floor (its time)".into());
+    for width in [1200, 800] {
+        let (places, header) = legend_layout(&names, width);
+        let boxes: Vec<_> = names
+            .iter()
+            .zip(&places)
+            .map(|(n, &p)| legend_box(n, p))
+            .collect();
+        for (i, a) in boxes.iter().enumerate() {
+            assert!(
+                a.2 <= width && a.3 <= header,
+                "{:?} leaves the header",
+                names[i]
+            );
+            for (j, b) in boxes.iter().enumerate().skip(i + 1) {
+                let apart = a.2 <= b.0 || b.2 <= a.0 || a.3 <= b.1 || b.3 <= a.1;
+                assert!(apart, "{:?} and {:?} overlap", names[i], names[j]);
+            }
+        }
+    }
+}
+
+/// The report's reference cache is keyed by every source the reference depends on: the files
+/// the old hand-written list missed (the BVH, the JSON layer, the scene types) are in it, and
+/// every listed file exists (a renamed file would otherwise silently drop out of the key).
+#[test]
+fn report_cache_key_covers_the_reference_sources() {
+    let sources = common_examples::report::reference_sources();
+    let names: Vec<String> = sources
+        .iter()
+        .map(|p| p.to_string_lossy().replace('\\', "/"))
+        .collect();
+    for needed in [
+        "src/reference/bvh.rs",
+        "src/scene_file/spec.rs",
+        "src/scene/shapes.rs",
+        "src/scene/medium.rs",
+        "src/scene/light.rs",
+        "src/scene/camera.rs",
+        "src/scene/mesh.rs",
+        "examples/common/render_scene.rs",
+    ] {
+        assert!(
+            names.iter().any(|n| n.ends_with(needed)),
+            "{needed} is not in the reference cache key: {names:?}"
+        );
+    }
+    for p in &sources {
+        assert!(p.is_file(), "{} does not exist", p.display());
+    }
+}
+
+/// The child of [`headless_runs_print_no_error_lines`]: what `render`'s `main` does, on the
+/// sphere scene at 32×32. Ignored in a normal run; the parent runs it in a fresh process.
+#[test]
+#[ignore = "run in a child process by headless_runs_print_no_error_lines"]
+fn headless_child_render() {
+    common_examples::headless_env::quiet_display_probe();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sphere.json");
+    let dir = tempfile::tempdir().unwrap();
+    render_scene::run(&args(&[
+        scene.to_str().unwrap(),
+        "-o",
+        dir.path().join("sphere").to_str().unwrap(),
+        "--size",
+        "32x32",
+    ]))
+    .unwrap();
+}
+
+/// A run on a machine without a desktop session prints no line starting with `error:` unless
+/// something failed: Mesa's Vulkan device-selection layer used to make libwayland print
+/// `error: XDG_RUNTIME_DIR is invalid or not set in the environment.` twice per run
+/// (`examples/common/headless_env.rs`). The render runs in a child process, since the message
+/// is written by C code straight to the process's standard error.
+#[test]
+fn headless_runs_print_no_error_lines() {
+    // The child's path in this binary: this file's module, then the test's name.
+    let module = module_path!().split_once("::").map_or("", |(_, m)| m);
+    let child = format!("{module}::headless_child_render")
+        .trim_start_matches("::")
+        .to_string();
+    let output = std::process::Command::new(std::env::current_exe().unwrap())
+        .args([
+            child.as_str(),
+            "--exact",
+            "--ignored",
+            "--nocapture",
+            "--test-threads=1",
+        ])
+        // A headless machine: no session, no display, no device choice by the user.
+        .env_remove("XDG_RUNTIME_DIR")
+        .env_remove("WAYLAND_DISPLAY")
+        .env_remove("DISPLAY")
+        .env_remove("NODEVICE_SELECT")
+        .env_remove("MESA_VK_DEVICE_SELECT")
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    );
+    assert!(output.status.success(), "the child render failed:\n{text}");
+    assert!(
+        text.contains("1 passed"),
+        "the child ran no render:\n{text}"
+    );
+    let errors: Vec<&str> = text.lines().filter(|l| l.starts_with("error:")).collect();
+    println!("lines starting with \"error:\": {errors:?}");
+    // Nothing failed, so not one line may read as a failure.
+    assert!(errors.is_empty(), "{errors:?}\n{text}");
+}
+
+/// An open mesh (a box without its top face) and one with a non-manifold edge are reported
+/// as such, with conservative extents.
+#[cfg(feature = "gltf")]
+#[test]
+fn gltf_mesh_report_says_open_and_non_manifold() {
+    use common_examples::gltf_scene::mesh_report;
+    use volshadow::glam::{Mat4, Vec3};
+    use volshadow::scene::Mesh;
+    let corners: Vec<Vec3> = (0..8)
+        .map(|i| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32))
+        .collect();
+    // The closed box of `box_glb` less its +y face (triangles 3 and 4 of 6 faces · 2).
+    const BOX: [u32; 36] = [
+        0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6,
+        1, 3, 5, 3, 7, 5,
+    ];
+    let open: Vec<u32> = BOX[..18].iter().chain(&BOX[24..]).copied().collect();
+    // Three triangles sharing the edge 0-1: non-manifold.
+    let fan = [0, 1, 2, 1, 0, 4, 0, 1, 6];
+    for (indices, expected) in [
+        (
+            &open[..],
+            "10 triangles, open, 4 boundary and 0 non-manifold edges",
+        ),
+        (
+            &fan[..],
+            "3 triangles, open, 6 boundary and 1 non-manifold edges",
+        ),
+    ] {
+        let mesh = volshadow::gltf::GltfMesh {
+            name: Some("m".into()),
+            mesh: Mesh::new(&corners, indices).unwrap(),
+            transform: Mat4::IDENTITY,
+        };
+        let line = mesh_report(0, &mesh);
+        println!("{line}");
+        assert!(
+            line.contains(expected) && line.contains("conservative"),
+            "{line}"
+        );
+    }
+}
