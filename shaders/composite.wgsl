@@ -18,23 +18,20 @@ struct Composite {
 @group(0) @binding(7) var inscatter3: texture_2d<f32>;
 
 // The surface term (indirect single scattering, shaders/iss.wgsl precedes this file).
-// Mirrors `SurfacesUniform` in src/gpu/uniforms.rs.
+// Mirrors `SurfacesUniform` in src/nodes/uniforms.rs (its layout test: the composite node's
+// `params_layouts_match_the_wgsl`); WGSL's alignment pads both structs.
 struct SurfaceLight {
     position: vec3<f32>,
     cos_half: f32,        // a spot's cos(half apex angle)
     intensity: vec3<f32>,
     spot: u32,            // 1: limited to the cone
     direction: vec3<f32>, // a spot's unit axis
-    pad: f32,
 }
 struct Surfaces {
     sigma_s: vec3<f32>,
     count: u32,           // lights (0: no surface term)
     lights: array<SurfaceLight, 4>,
     lattice: u32,         // the spot term's lattice spacing in pixels (0: no lattice)
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
 }
 @group(0) @binding(8) var<storage, read> surf: Surfaces;
 @group(0) @binding(9) var surface_normal: texture_2d<f32>;

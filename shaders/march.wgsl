@@ -17,7 +17,13 @@
 // Pipeline constants, one pipeline per combination (the march node picks it): code a variant
 // does not need is not compiled into it. That matters most on CPU rasterisers such as
 // lavapipe, which execute both sides of every branch under a mask.
-override MODE: u32 = 0u;           // 0 analytic, 1 hybrid, 2 brute force, 3 exact, 4 textbook (and the prelude's SPOT)
+// The march's method, `MODE` (the Rust `Mode` enum's values; a unit test compares them).
+const MODE_ANALYTIC: u32 = 0u;
+const MODE_HYBRID: u32 = 1u;
+const MODE_BRUTE_FORCE: u32 = 2u;
+const MODE_EXACT: u32 = 3u;
+const MODE_TEXTBOOK: u32 = 4u;
+override MODE: u32 = MODE_ANALYTIC;  // one of the above (and the prelude's SPOT)
 override TEXTURED: bool = false;   // textured spot
 override BISECTIONS: u32 = 0u;     // bisection steps per lit/shadow transition
 override SOFT: bool = false;       // the light has a radius: fractional visibility (soft shadows)
@@ -45,14 +51,19 @@ struct MarchParams {
     tex_mips: f32,           // textured spot: mip levels
     cube_near: f32,          // point light: the cube faces' near plane where `cube_clip` may
                              // stand for their matrices (shaders/pcss.wgsl), else 0
-    // Soft shadows (SOFT pipelines): light radius, the least distance from the light of any
-    // occluder's bounding sphere, the number of bounding spheres in `spheres`.
-    soft: vec4<f32>,
+    // Soft shadows (SOFT pipelines), see shaders/pcss.wgsl; 16-byte aligned as the Rust side.
+    @align(16) soft: SoftLight,
     spheres: array<vec4<f32>, 8>,  // occluders' world bounding spheres (centre, radius)
     planes: array<vec4<f32>, 8>,   // each sphere's occluder in n·x ≤ d, (n, d); zero: none
-    // The soft-shadow grid (shaders/soft_shadow.wgsl): directions, slices, layers, and the
-    // angle (radians) a cell subtends at the light (0: no grid bound).
-    soft_grid: vec4<f32>,
+    soft_grid: SoftGrid,           // the soft-shadow grid (shaders/soft_shadow.wgsl)
+}
+
+// The soft-shadow grid the march reads (`SoftGridUniform` in src/nodes/march.rs).
+struct SoftGrid {
+    directions: u32,   // cells across a layer
+    slices: u32,       // cells along the distance from the light
+    layers: u32,       // the shadow map's layers
+    cell_angle: f32,   // the angle (radians) a cell subtends at the light (0: no grid bound)
 }
 
 @group(0) @binding(0) var<storage, read> air: Airlight;
@@ -131,8 +142,8 @@ fn soft_grid(p: vec3<f32>) -> vec3<f32> {
 // interpolation between slices: in front of a surface, the value on p's side of it.
 fn soft_grid_at(p: vec3<f32>, near_side: bool) -> vec3<f32> {
     let dist = length(p - air.light_pos);
-    let nearest = max(mp.soft.y, 1.0e-3 * mp.soft.x);
-    if (dist <= max(nearest, mp.soft.x)) {
+    let nearest = max(mp.soft.nearest, 1.0e-3 * mp.soft.radius);
+    if (dist <= max(nearest, mp.soft.radius)) {
         // As visibility_soft: nearer than every occluder (the grid holds 1 outside the cones).
         return vec3<f32>(1.0, 0.0, 0.0);
     }
@@ -145,15 +156,15 @@ fn soft_grid_of(m: MapPoint, dist: f32, near_side: bool) -> vec3<f32> {
     if (!m.inside) {
         return vec3<f32>(1.0, 0.0, 0.0);
     }
-    let nearest = max(mp.soft.y, 1.0e-3 * mp.soft.x);
-    let slices = mp.soft_grid.y;
+    let nearest = max(mp.soft.nearest, 1.0e-3 * mp.soft.radius);
+    let slices = f32(mp.soft_grid.slices);
     // Cell k's centre lies at (1 − q)·slices = k + 0.5; clamped inside the layer's own slices
     // so that the lookup never blends two layers.
     var k = clamp((1.0 - nearest / dist) * slices, 0.5, slices - 0.5);
     if (near_side) {
         k = floor(k - 0.5) + 0.5;
     }
-    let z = (f32(m.face) * slices + k) / (mp.soft_grid.z * slices);
+    let z = (f32(m.face) * slices + k) / (f32(mp.soft_grid.layers) * slices);
     return textureSampleLevel(soft_volume, light_sampler, vec3<f32>(m.uv, z), 0.0).xyz;
 }
 
@@ -175,7 +186,7 @@ fn soft_grid_visibility(p: vec3<f32>, sharp: bool) -> f32 {
     // One projection into the map for all of the point's lookups (the grid's layers and
     // directions are the map's), not one per lookup.
     let dist = length(p - air.light_pos);
-    if (dist <= max(max(mp.soft.y, 1.0e-3 * mp.soft.x), mp.soft.x)) {
+    if (dist <= max(max(mp.soft.nearest, 1.0e-3 * mp.soft.radius), mp.soft.radius)) {
         return 1.0; // as soft_grid_at: nearer than every occluder
     }
     let m = map_point(p);
@@ -324,12 +335,12 @@ const SOFT_STEPS_PER_CELL: f32 = 0.5;
 // angle the interval subtends at the light (s is that angle over w) over a cell's angle;
 // slices: the change of q = nearest / distance, through the point nearest the light.
 fn soft_grid_steps(ray: PixelRay, r: AirRay, s0: f32, s1: f32) -> u32 {
-    let across = (s1 - s0) * r.w / mp.soft_grid.w;
+    let across = (s1 - s0) * r.w / mp.soft_grid.cell_angle;
     let x0 = x_of_s(r, s0);
     let x1 = x_of_s(r, s1);
     let xc = clamp(dot(air.light_pos - air.eye, ray.dir), x0, x1);
-    let nearest = max(mp.soft.y, 1.0e-3 * mp.soft.x);
-    let slices = mp.soft_grid.y;
+    let nearest = max(mp.soft.nearest, 1.0e-3 * mp.soft.radius);
+    let slices = f32(mp.soft_grid.slices);
     let k0 = slices * (1.0 - nearest / max(length(air.eye + x0 * ray.dir - air.light_pos), nearest));
     let kc = slices * (1.0 - nearest / max(length(air.eye + xc * ray.dir - air.light_pos), nearest));
     let k1 = slices * (1.0 - nearest / max(length(air.eye + x1 * ray.dir - air.light_pos), nearest));
@@ -341,7 +352,7 @@ fn soft_grid_steps(ray: PixelRay, r: AirRay, s0: f32, s1: f32) -> u32 {
 // between them, beyond its apex: the only points from which the sphere can hide part of the
 // light. Its pieces along the ray as cone_support finds them (up to two intervals).
 fn penumbra_cone(dir: vec3<f32>, x_end: f32, c: vec3<f32>, rho: f32) -> vec2<f32> {
-    let radius = mp.soft.x;
+    let radius = mp.soft.radius;
     let to_c = c - air.light_pos;
     let l = length(to_c);
     // With a margin (see PENUMBRA_CONE_MARGIN).
@@ -389,10 +400,10 @@ fn beneath_plane(h: vec2<f32>, dir: vec3<f32>, plane: vec4<f32>) -> vec2<f32> {
 // Where a soft shadow may be along the ray, in s: the hull of the occluders' penumbra cones
 // (empty: (1, 0)). Brute force marches all of it, and so does a shadow map without bounds.
 fn soft_extents(ray: PixelRay, r: AirRay, x_end: f32) -> vec2<f32> {
-    if (MODE == 2u) {
+    if (MODE == MODE_BRUTE_FORCE) {
         return vec2<f32>(0.0, 1.0);
     }
-    let count = u32(mp.soft.z);
+    let count = mp.soft.spheres;
     if (count == 0u) {
         return vec2<f32>(0.0, 1.0); // no bounds given: anywhere
     }
@@ -566,7 +577,7 @@ fn march_shadowed_textured(ray: PixelRay, r: AirRay, s0: f32, s1: f32, n: u32) -
     return out;
 }
 
-// The textbook march (MODE 4, a baseline): the midpoint rule on the integrand of the model,
+// The textbook march (MODE_TEXTBOOK, a baseline): the midpoint rule on the integrand of the model,
 // σs·p(θ)·I0·V·e^{−σt(d + x)}/d², at `n` steps uniform in distance over each lit piece, up to the
 // surface or to where the transmittance from the eye is below 1e-4.
 struct Textbook {
@@ -655,7 +666,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
 
     let sup = support_s(air, r, mp.spot, ray.dir, x_end);
 
-    if (MODE == 4u) {
+    if (MODE == MODE_TEXTBOOK) {
         let tb = march_textbook(ray, r, x_end, mp.steps);
         var value = clamp_radiance(tb.lit);
         if (mp.lit_fraction != 0u) {
@@ -679,12 +690,12 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
     // Soft shadows with the occluders' bounds: outside their penumbra cones no occluder hides
     // any of the light (and the grid holds 1), so the pieces outside `soft_extents` take
     // visibility 1 without a lookup.
-    let lit_outside = SOFT && MODE != 2u && u32(mp.soft.z) > 0u;
+    let lit_outside = SOFT && MODE != MODE_BRUTE_FORCE && mp.soft.spheres > 0u;
     if (SOFT) {
         // Soft shadows: the shadow volumes bound the hard shadow, not the penumbra; march
         // inside the penumbra cones instead.
         ext = soft_extents(ray, r, x_end);
-    } else if (MODE == 1u) {
+    } else if (MODE == MODE_HYBRID) {
         let front = textureLoad(extent_front, gid.xy, 0);
         let back_near = textureLoad(extent_back_near, gid.xy, 0);
         let back_far = textureLoad(extent_back_far, gid.xy, 0);
@@ -704,9 +715,9 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
             // and depth rounding.
             ext = vec2<f32>(s_of_x(air, r, x0 * 0.999), s_of_x(air, r, min(x1 * 1.001, FAR)));
         }
-    } else if (MODE == 2u) {
+    } else if (MODE == MODE_BRUTE_FORCE) {
         ext = vec2<f32>(0.0, 1.0);
-    } else if (MODE == 3u) {
+    } else if (MODE == MODE_EXACT) {
         let p = gid.y * size.x + gid.x;
         let head = heads[4u * p];
         let count = head & 0x7fffffffu;
@@ -749,8 +760,8 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
         let t_u0 = table_tt(table, air, r, u0);
         let t_u1 = table_tt(table, air, r, u1);
         open += t_between(t_u0, t_u1);
-        if (MODE == 0u) {
-            // No occluders: all of it is lit. (MODE == 0 lets the compiler drop the shadow
+        if (MODE == MODE_ANALYTIC) {
+            // No occluders: all of it is lit. (MODE_ANALYTIC lets the compiler drop the shadow
             // code from the analytic pipeline.)
             if (TEXTURED) {
                 let all = march_textured(ray, r, u0, u1, mp.texture_steps);
@@ -761,7 +772,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
             continue;
         }
-        if (MODE == 3u && exact) {
+        if (MODE == MODE_EXACT && exact) {
             // Consecutive crossings (and the piece's ends) bound intervals of constant
             // visibility: closed form times one visibility sample inside each.
             // The crossings are taken in order along the ray without sorting them into a
@@ -866,7 +877,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
         if (TEXTURED) {
             // The hybrid gives the texture its own resolution inside the extents too; brute
             // force marches everything with its `steps`, texture included.
-            let n = select(mp.steps, max(mp.steps, mp.texture_steps), MODE != 2u);
+            let n = select(mp.steps, max(mp.steps, mp.texture_steps), MODE != MODE_BRUTE_FORCE);
             inside = march_shadowed_textured(ray, r, m0, m1, n);
         } else {
             if (SOFT && SOFT_GRID) {

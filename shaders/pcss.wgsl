@@ -3,10 +3,19 @@
 // `shadow_map` and `shadow_back` (texture_depth_2d_array: the front surfaces, and the back
 // faces of closed occluders; the front map again where there is none), `shadow_sampler`
 // (comparison), `mp` with the fields
-// `faces`, `depth_bias`, `soft`, `spheres` and `planes` (as the march's `MarchParams`),
+// `faces`, `depth_bias`, `soft` (a `SoftLight`), `spheres` and `planes` (as the march's
+// `MarchParams`),
 // `fn pcss_light() -> vec3<f32>`, the light's position, and `fn pcss_cube_near() -> f32`, the
 // near plane of a point light's cube faces where they are the shadow-map node's own (see
 // `cube_clip`), else 0.
+
+// A light with a radius, as the soft estimate reads it (`SoftLight` in src/nodes/soft_shadow.rs).
+struct SoftLight {
+    radius: f32,       // the light's radius
+    nearest: f32,      // the least distance from the light of any occluder's bounds
+    spheres: u32,      // bounding spheres (and planes) in `mp.spheres` and `mp.planes`
+    cell_angle: f32,   // the soft-shadow grid: the angle (radians) a cell subtends; else 0
+}
 
 // The shadow map's layer holding the world point `p`: the cube face of a point light (+X, −X,
 // +Y, −Y, +Z, −Z), else the one layer.
@@ -290,12 +299,12 @@ fn soft_basis(p: vec3<f32>) -> SoftBasis {
 // decides alone (no tap needed, lit, umbra, or two layers, whose filter it takes), else
 // (·, ·, width): the filter's width for `soft_filter_at`, the next stage.
 fn soft_search(p: vec3<f32>) -> vec3<f32> {
-    let radius = mp.soft.x;
+    let radius = mp.soft.radius;
     let dist0 = length(p - pcss_light());
     if (dist0 <= radius) {
         return vec3<f32>(1.0, -1.0, -1.0); // inside the light's sphere: all of it is visible (as the reference)
     }
-    let nearest = max(mp.soft.y, 1.0e-3 * radius);
+    let nearest = max(mp.soft.nearest, 1.0e-3 * radius);
     if (!(dist0 > nearest) || !may_be_hidden(p)) {
         return vec3<f32>(1.0, -1.0, -1.0); // nearer than every occluder, or outside every penumbra cone
     }
@@ -485,11 +494,11 @@ const PENUMBRA_CONE_MARGIN: f32 = 1.10;
 
 // Whether p lies in one of the cones of `penumbra_cone` (all of space without bounds).
 fn may_be_hidden(p: vec3<f32>) -> bool {
-    let count = u32(mp.soft.z);
+    let count = mp.soft.spheres;
     if (count == 0u) {
         return true;
     }
-    let radius = mp.soft.x;
+    let radius = mp.soft.radius;
     for (var i = 0u; i < count; i++) {
         // Beyond the occluder's plane, away from it: no line to the light meets it.
         if (dot(mp.planes[i].xyz, p) > mp.planes[i].w) {

@@ -43,7 +43,7 @@
 
 struct VolshadowShadow {
     faces: array<mat4x4<f32>, 6>,  // clip_from_world of each layer (unused ones zero)
-    light_pos: vec3<f32>,          // a directional light: its direction of travel
+    light_position: vec3<f32>,     // a directional light: its direction of travel
     depth_bias: f32,               // relative depth bias
     layers: u32,                   // 6: point light (cube), 1: spot, directional: cascades
     normal_offset: f32,            // relative offset along the normal (directional: world
@@ -99,11 +99,11 @@ fn volshadow_shadow(map: texture_depth_2d_array, cmp: sampler_comparison, sm: Vo
 fn volshadow_hard(map: texture_depth_2d_array, cmp: sampler_comparison, sm: VolshadowShadow,
                   p: vec3<f32>, n: vec3<f32>) -> f32 {
     let directional = sm.directional != 0u;
-    var to_light = sm.light_pos - p;
+    var to_light = sm.light_position - p;
     var scale = sm.normal_offset * length(to_light);
     let size = f32(textureDimensions(map).x);
     if (directional) {
-        to_light = -sm.light_pos;
+        to_light = -sm.light_position;
         // As many texels in the point's cascade as `normal_offset` is in the first.
         let k = volshadow_cascade(sm, size, p);
         if (k >= sm.layers) {
@@ -120,7 +120,7 @@ fn volshadow_hard(map: texture_depth_2d_array, cmp: sampler_comparison, sm: Vols
         offset = select(-n1, n1, dot(n1, to_light) >= 0.0) * scale;
     }
     let q = p + offset;
-    let rel = q - sm.light_pos;
+    let rel = q - sm.light_position;
     var face = 0u;
     if (directional) {
         face = volshadow_cascade(sm, size, q);
@@ -296,7 +296,7 @@ fn volshadow_horizon(s: f32, sin_a: f32) -> f32 {
 fn volshadow_soft(map: texture_depth_2d_array, cmp: sampler_comparison, sm: VolshadowShadow,
                   p: vec3<f32>, n: vec3<f32>) -> f32 {
     let radius = sm.radius;
-    let light = sm.light_pos;
+    let light = sm.light_position;
     let dist0 = length(p - light);
     if (!(dist0 > radius)) {
         return 1.0; // inside the light's sphere: all of it is visible

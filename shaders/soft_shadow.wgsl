@@ -17,8 +17,7 @@ struct SoftShadowParams {
     size: u32,                               // cells across a layer
     slices: u32,                             // cells along the distance from the light
     layers: u32,                             // 6 (point) or 1 (spot)
-    soft: vec4<f32>,                         // as the march's: radius, nearest, sphere count,
-                                             // and the angle (radians) a cell subtends
+    soft: SoftLight,                         // the light, and the angle a cell subtends
     spheres: array<vec4<f32>, 8>,            // occluders' bounding spheres
     planes: array<vec4<f32>, 8>,             // and their planes, as the march's
     // Per layer, in blocks of 2 × 2 directions (the anchor's index, see `rest_block`),
@@ -131,7 +130,7 @@ fn cell_direction(x: u32, y: u32, layer: u32) -> vec3<f32> {
 
 // The cell of slice k in direction `dir`, as a world point.
 fn cell_point(dir: vec3<f32>, k: u32, s: u32) -> vec3<f32> {
-    let nearest = max(mp.soft.y, 1.0e-3 * mp.soft.x);
+    let nearest = max(mp.soft.nearest, 1.0e-3 * mp.soft.radius);
     return pcss_light() + (nearest / slice_q(k, s)) * dir;
 }
 
@@ -265,7 +264,7 @@ fn estimate_listed(
 // penumbra, or the edge between lit and umbra, too sharp for the grid's interpolation across
 // directions): the march blends in the shadow map's own visibility there.
 fn is_sharp(e: vec2<f32>) -> bool {
-    return e.y >= 0.0 && e.y < SHARP_CELLS * vs_tan_poly(mp.soft.w);
+    return e.y >= 0.0 && e.y < SHARP_CELLS * vs_tan_poly(mp.soft.cell_angle);
 }
 
 // Writes a direction's column to the grid. b: 1 where the visibility jumps to a neighbouring
@@ -428,7 +427,7 @@ fn store_anchors(@builtin(global_invocation_id) thread: vec3<u32>) {
 // tap: nothing to resolve).
 fn summary(e: vec2<f32>) -> vec3<f32> {
     let sharp = select(0.0, 1.0, is_sharp(e));
-    let wide = select(min(e.y / vs_tan_poly(mp.soft.w), 1.0e4), 1.0e4, e.y < 0.0);
+    let wide = select(min(e.y / vs_tan_poly(mp.soft.cell_angle), 1.0e4), 1.0e4, e.y < 0.0);
     return vec3<f32>(e.x, sharp, wide);
 }
 

@@ -6,8 +6,13 @@
 //   filter 2: separable N-tap bilateral, horizontal pass then vertical pass
 
 // Mirrors `UpsampleUniform` in src/nodes/upsample.rs.
+// The filters of `Upsample.kind` (the Rust `FILTER_*` constants; a unit test compares them).
+const FILTER_BILINEAR: u32 = 0u;
+const FILTER_3X3: u32 = 1u;
+const FILTER_SEPARABLE: u32 = 2u;
+
 struct Upsample {
-    kind: u32,            // the filter: 0 bilinear, 1 3×3, 2 separable
+    kind: u32,            // the filter: one of FILTER_*
     taps: u32,            // separable: taps per direction
     sigma_spatial: f32,   // separable: in low-resolution pixels
     sigma_depth: f32,     // separable: relative to the pixel's eye distance
@@ -69,7 +74,7 @@ fn upsample(@builtin(global_invocation_id) gid: vec3<u32>) {
     let z = analytic.w;
     let q = low_coord(gid.xy);
     var result = vec3<f32>(0.0);
-    if (up.kind == 0u) {
+    if (up.kind == FILTER_BILINEAR) {
         let b = floor(q);
         let f = q - b;
         let i = vec2<i32>(b);

@@ -116,13 +116,16 @@ fn storage_format_name(device: &wgpu::Device, format: wgpu::TextureFormat) -> Op
         .then_some(name)
 }
 
+/// The composite's WGSL: the surface term's functions (`ISS_WGSL`'s), then the composite.
+const SOURCE: &str = concat!(
+    include_str!("../../shaders/iss.wgsl"),
+    include_str!("../../shaders/composite.wgsl")
+);
+
 impl Pipelines {
     pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
         let label = "volshadow composite";
-        let source = concat!(
-            include_str!("../../shaders/iss.wgsl"),
-            include_str!("../../shaders/composite.wgsl")
-        );
+        let source = SOURCE;
         let stages = wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE;
         Self {
             layout: layout(device, label, stages, &BINDINGS),
@@ -156,8 +159,7 @@ fn cs_spot_lattice(@builtin(global_invocation_id) id: vec3<u32>) {{
     textureStore(lattice_out, id.xy, out);
 }}
 ",
-                include_str!("../../shaders/iss.wgsl"),
-                include_str!("../../shaders/composite.wgsl"),
+                SOURCE, "",
             );
             self.with_output(
                 device,
@@ -233,8 +235,7 @@ fn cs_composite(@builtin(global_invocation_id) id: vec3<u32>) {{
     }}
 }}
 ",
-                include_str!("../../shaders/iss.wgsl"),
-                include_str!("../../shaders/composite.wgsl"),
+                SOURCE, "",
             );
             self.with_output(device, label, &source, "cs_composite", format, surfaces)
         }))
@@ -859,4 +860,33 @@ impl CompositeNode {
             pass.dispatch_workgroups(w.div_ceil(WORKGROUP), h.div_ceil(WORKGROUP), 1);
         }
     }
+}
+
+#[cfg(test)]
+#[test]
+fn params_layouts_match_the_wgsl() {
+    use crate::nodes::layout::{assert_same, rust_layout};
+    use crate::nodes::uniforms::{CompositeUniform, SurfaceLightUniform, SurfacesUniform};
+    assert_same(
+        rust_layout!(CompositeUniform { sigma_t, count }),
+        SOURCE,
+        "Composite",
+    );
+    let light = rust_layout!(SurfaceLightUniform {
+        position,
+        cos_half,
+        intensity,
+        spot,
+        direction,
+        _pad,
+    });
+    assert_same(light, SOURCE, "SurfaceLight");
+    let surfaces = rust_layout!(SurfacesUniform {
+        sigma_s,
+        count,
+        lights,
+        lattice,
+        _pad,
+    });
+    assert_same(surfaces, SOURCE, "Surfaces");
 }

@@ -957,3 +957,44 @@ impl ExtentsNode {
         Ok(())
     }
 }
+
+#[cfg(test)]
+#[test]
+fn params_layouts_match_the_wgsl() {
+    use crate::nodes::layout::{assert_same, rust_layout};
+    let extents = include_str!("../../shaders/extents.wgsl");
+    let extrude = rust_layout!(ExtrudeUniform {
+        world_from_object,
+        light,
+        mirror,
+        edges,
+        triangles,
+        closed,
+        capacity,
+        directional,
+        _pad,
+    });
+    assert_same(extrude, extents, "Extrude");
+    assert_same(
+        rust_layout!(CrossingUniform {
+            size,
+            entries,
+            near
+        }),
+        extents,
+        "CrossingParams",
+    );
+    let bin = rust_layout!(BinUniform {
+        view,
+        clip_from_world,
+        size,
+        entries,
+        near,
+        tiles,
+        bin_capacity,
+        face_capacity,
+        affine,
+        _pad,
+    });
+    assert_same(bin, include_str!("../../shaders/crossings.wgsl"), "Params");
+}

@@ -50,7 +50,7 @@ use crate::gpu::{
 };
 use crate::nodes::extents::{CrossingsBuild, Extents};
 use crate::nodes::shadow_map::{standard_cube_near, ShadowMap};
-use crate::nodes::soft_shadow::{cell_angle, soft_params, SoftShadow, MAX_SOFT_SPHERES};
+use crate::nodes::soft_shadow::{cell_angle, soft_params, SoftLight, SoftShadow, MAX_SOFT_SPHERES};
 use crate::nodes::uniforms::{AirlightUniform, ViewUniform};
 use crate::nodes::Cache;
 use crate::nodes::{AirlightTableNode, Scale};
@@ -112,12 +112,15 @@ pub(crate) struct Pipelines {
     variants: Arc<Mutex<HashMap<Variant, wgpu::ComputePipeline>>>,
 }
 
+/// The march's WGSL: the shared shadow-map visibility, then the march.
+const SOURCE: &str = concat!(
+    include_str!("../../shaders/pcss.wgsl"),
+    include_str!("../../shaders/march.wgsl")
+);
+
 impl Pipelines {
     pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
-        let source = concat!(
-            include_str!("../../shaders/pcss.wgsl"),
-            include_str!("../../shaders/march.wgsl")
-        );
+        let source = SOURCE;
         Self {
             layout: layout(
                 device,
@@ -397,10 +400,21 @@ struct MarchUniform {
     tex_mips: f32,
     cube_near: f32,
     _pad: [u32; 2],
-    soft: [f32; 4],
+    soft: SoftLight,
     spheres: [[f32; 4]; MAX_SOFT_SPHERES],
     planes: [[f32; 4]; MAX_SOFT_SPHERES],
-    soft_grid: [f32; 4],
+    soft_grid: SoftGridUniform,
+}
+
+/// WGSL `SoftGrid` (`shaders/march.wgsl`): the soft-shadow grid the march reads.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct SoftGridUniform {
+    directions: u32,
+    slices: u32,
+    layers: u32,
+    /// The angle (radians) a cell subtends at a layer's centre (0: no grid).
+    cell_angle: f32,
 }
 
 /// Half the width of an orthographic shadow map's square, from its `clip_from_world` (`None`
@@ -823,7 +837,7 @@ impl MarchNode {
 
         let mut faces = [[0.0; 16]; 6];
         let (mut soft_consts, mut spheres, mut planes) = (
-            [0.0; 4],
+            SoftLight::default(),
             [[0.0; 4]; MAX_SOFT_SPHERES],
             [[0.0; 4]; MAX_SOFT_SPHERES],
         );
@@ -893,13 +907,13 @@ impl MarchNode {
                 spheres,
                 planes,
                 soft_grid: match (grid, &inputs.shadows) {
-                    (Some(g), Some(s)) => [
-                        g.size.directions as f32,
-                        g.size.slices as f32,
-                        s.shadow_map.faces.len() as f32,
-                        cell_angle(&s.shadow_map.faces[0], g.size.directions),
-                    ],
-                    _ => [0.0; 4],
+                    (Some(g), Some(s)) => SoftGridUniform {
+                        directions: g.size.directions,
+                        slices: g.size.slices,
+                        layers: s.shadow_map.faces.len() as u32,
+                        cell_angle: cell_angle(&s.shadow_map.faces[0], g.size.directions),
+                    },
+                    _ => SoftGridUniform::default(),
                 },
             },
         );
@@ -964,4 +978,48 @@ impl MarchNode {
     pub fn step_counts(&self) -> Option<&wgpu::Texture> {
         self.outputs.as_ref().map(|o| &o[1])
     }
+}
+
+#[cfg(test)]
+#[test]
+fn params_layout_matches_the_wgsl() {
+    use crate::nodes::layout::{assert_same, rust_layout};
+    let rust = rust_layout!(MarchUniform {
+        faces,
+        tex_frame,
+        spot,
+        steps,
+        list_entries,
+        texture_steps,
+        lit_fraction,
+        depth_bias,
+        extents_near,
+        tan_half_angle,
+        tex_width,
+        tex_mips,
+        cube_near,
+        _pad,
+        soft,
+        spheres,
+        planes,
+        soft_grid,
+    });
+    assert_same(rust, SOURCE, "MarchParams");
+    let grid = rust_layout!(SoftGridUniform {
+        directions,
+        slices,
+        layers,
+        cell_angle,
+    });
+    assert_same(grid, SOURCE, "SoftGrid");
+    crate::nodes::layout::assert_constants(
+        SOURCE,
+        &[
+            ("MODE_ANALYTIC", Mode::Analytic as u32),
+            ("MODE_HYBRID", Mode::Hybrid as u32),
+            ("MODE_BRUTE_FORCE", Mode::BruteForce as u32),
+            ("MODE_EXACT", Mode::Exact as u32),
+            ("MODE_TEXTBOOK", Mode::Textbook as u32),
+        ],
+    );
 }

@@ -20,6 +20,8 @@ pub(crate) mod cache;
 pub(crate) mod composite;
 pub(crate) mod extents;
 pub(crate) mod iss_table;
+#[cfg(test)]
+pub(crate) mod layout;
 pub(crate) mod light_texture;
 pub(crate) mod march;
 pub(crate) mod shadow_map;

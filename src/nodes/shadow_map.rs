@@ -1293,3 +1293,19 @@ pub(crate) mod tests {
         assert_eq!(small, [false, false, false, false, false, true]);
     }
 }
+
+#[cfg(test)]
+#[test]
+fn params_layout_matches_shadow_wgsl() {
+    use crate::nodes::layout::{assert_same, rust_layout};
+    let rust = rust_layout!(ShadowParams {
+        faces,
+        light_position,
+        depth_bias,
+        layers,
+        normal_offset,
+        directional,
+        radius,
+    });
+    assert_same(rust, crate::SHADOW_WGSL, "VolshadowShadow");
+}

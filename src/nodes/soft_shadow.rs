@@ -195,7 +195,7 @@ pub(crate) fn soft_params(
     light: &Light,
     map: &ShadowMap<'_>,
 ) -> (
-    [f32; 4],
+    SoftLight,
     [[f32; 4]; MAX_SOFT_SPHERES],
     [[f32; 4]; MAX_SOFT_SPHERES],
 ) {
@@ -242,10 +242,37 @@ pub(crate) fn soft_params(
     // `nearest` out, would otherwise spread over a light with an occluder's bounds around it.
     let nearest = if nearest.is_finite() { nearest } else { 0.0 }.max(light.radius());
     (
-        [light.radius(), nearest, count as f32, 0.0],
+        SoftLight {
+            radius: light.radius(),
+            nearest,
+            spheres: count as u32,
+            cell_angle: 0.0,
+        },
         spheres,
         planes,
     )
+}
+
+/// WGSL `SoftLight` (`shaders/pcss.wgsl`): a light with a radius as the soft estimate reads it,
+/// in the march's and the grid's parameters.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct SoftLight {
+    /// The light's radius.
+    pub radius: f32,
+    /// The least distance from the light of any occluder's bounds (at least the radius).
+    pub nearest: f32,
+    /// Bounding spheres (and planes) given beside it.
+    pub spheres: u32,
+    /// The grid's cells: the angle (radians) one subtends at a layer's centre; 0 in the march.
+    pub cell_angle: f32,
+}
+
+impl SoftLight {
+    /// The grid's least distance from the light, as the shaders take it (`soft_estimate`).
+    pub fn near(&self) -> f32 {
+        self.nearest.max(1.0e-3 * self.radius)
+    }
 }
 
 /// The angle (radians) a grid cell subtends at the centre of a layer of `directions` cells
@@ -286,13 +313,13 @@ fn every_block(n: u32, layers: usize) -> Blocks {
 pub(crate) fn penumbra_blocks(
     faces: &[glam::Mat4],
     light: glam::Vec3,
-    soft: [f32; 4],
+    soft: SoftLight,
     spheres: &[[f32; 4]; MAX_SOFT_SPHERES],
     n: u32,
 ) -> Blocks {
     use glam::DVec3;
     let every = every_block(n, faces.len());
-    let count = soft[2] as usize;
+    let count = soft.spheres as usize;
     if count == 0 {
         return every; // no bounds: every cell is estimated
     }
@@ -303,7 +330,7 @@ pub(crate) fn penumbra_blocks(
         let to_c = DVec3::new(sphere[0].into(), sphere[1].into(), sphere[2].into()) - light;
         let l = to_c.length();
         // 1% beyond the shaders' margin: their f32 arithmetic against this f64.
-        let sin_t = 1.01 * PENUMBRA_CONE_MARGIN * (f64::from(soft[0]) + f64::from(sphere[3]))
+        let sin_t = 1.01 * PENUMBRA_CONE_MARGIN * (f64::from(soft.radius) + f64::from(sphere[3]))
             / l.max(1e-30);
         if sin_t.is_nan() || sin_t >= 0.99 {
             return every;
@@ -313,7 +340,7 @@ pub(crate) fn penumbra_blocks(
     let a = i64::from(n.div_ceil(2));
     let cells = f64::from(n);
     // The grid's least distance, as the shaders take it.
-    let nearest = f64::from(soft[1].max(1.0e-3 * soft[0]));
+    let nearest = f64::from(soft.near());
     let mut blocks = [[0; 4]; 6];
     for (layer, face) in faces.iter().enumerate() {
         let m = face.as_dmat4();
@@ -475,12 +502,18 @@ struct SoftShadowUniform {
     size: u32,
     slices: u32,
     layers: u32,
-    soft: [f32; 4],
+    soft: SoftLight,
     spheres: [[f32; 4]; MAX_SOFT_SPHERES],
     planes: [[f32; 4]; MAX_SOFT_SPHERES],
     built: Blocks,
     lit: Blocks,
 }
+
+/// The grid's WGSL: the shared shadow-map visibility, then the grid's passes.
+const SOURCE: &str = concat!(
+    include_str!("../../shaders/pcss.wgsl"),
+    include_str!("../../shaders/soft_shadow.wgsl")
+);
 
 /// The passes of a build (see `shaders/soft_shadow.wgsl`) for one kind of light.
 #[derive(Clone)]
@@ -515,11 +548,7 @@ impl Pipelines {
         let rest_layout = layout(device, label, stages, &REST_BINDINGS);
         let estimate_layout = layout(device, label, stages, &ESTIMATE_BINDINGS);
         let store_layout = layout(device, label, stages, &STORE_BINDINGS);
-        let source = concat!(
-            include_str!("../../shaders/pcss.wgsl"),
-            include_str!("../../shaders/soft_shadow.wgsl")
-        );
-        let module = module(device, "volshadow soft_shadow.wgsl", source, precision);
+        let module = module(device, "volshadow soft_shadow.wgsl", SOURCE, precision);
         let build = |constants: &[(&str, f64)]| {
             let pipeline =
                 |layout, entry| compute_pipeline(device, label, layout, &module, entry, constants);
@@ -888,9 +917,8 @@ impl SoftShadowNode {
         let (mut soft, spheres, planes) = soft_params(light, &map);
         // A cell's angle: a layer's field of view (its projection's x scale is 1 / tan(half
         // the angle)) over its cells.
-        soft[3] = cell_angle(&map.faces[0], n);
-        // As the shaders take it (pcss.wgsl's `soft_estimate`).
-        self.near = soft[1].max(1.0e-3 * soft[0]);
+        soft.cell_angle = cell_angle(&map.faces[0], n);
+        self.near = soft.near();
         let position = light.position().unwrap_or_default();
         let built = if self.every_block {
             every_block(n, layers as usize)
@@ -1164,8 +1192,17 @@ mod tests {
                 let at = light + Vec3::new(next(), next(), next()) * 3.0 * scale;
                 *sphere = at.extend(scale * (0.05 + 0.5 * next().abs())).to_array();
             }
-            let blocks =
-                penumbra_blocks(&faces, light, [radius, 0.0, count as f32, 0.0], &spheres, n);
+            let blocks = penumbra_blocks(
+                &faces,
+                light,
+                SoftLight {
+                    radius,
+                    spheres: count as u32,
+                    ..SoftLight::default()
+                },
+                &spheres,
+                n,
+            );
             for sphere in &spheres[..count] {
                 let to_c = DVec3::new(sphere[0].into(), sphere[1].into(), sphere[2].into())
                     - light.as_dvec3();
@@ -1213,4 +1250,32 @@ mod tests {
         eprintln!("{reached} directions of the cones in their blocks");
         assert!(reached > 50_000, "{reached}");
     }
+}
+
+#[cfg(test)]
+#[test]
+fn params_layout_matches_the_wgsl() {
+    use crate::nodes::layout::{assert_same, rust_layout};
+    let rust = rust_layout!(SoftShadowUniform {
+        faces,
+        world_from_clip,
+        light,
+        depth_bias,
+        size,
+        slices,
+        layers,
+        soft,
+        spheres,
+        planes,
+        built,
+        lit,
+    });
+    assert_same(rust, SOURCE, "SoftShadowParams");
+    let light = rust_layout!(SoftLight {
+        radius,
+        nearest,
+        spheres,
+        cell_angle,
+    });
+    assert_same(light, SOURCE, "SoftLight");
 }

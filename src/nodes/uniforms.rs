@@ -216,3 +216,40 @@ impl SurfacesUniform {
         out
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{AirlightUniform, ViewUniform};
+    use crate::nodes::layout::{assert_same, rust_layout};
+
+    /// The prelude's structs, which every node's shader holds.
+    #[test]
+    fn prelude_layouts_match_the_wgsl() {
+        let airlight = rust_layout!(AirlightUniform {
+            light_pos,
+            distance,
+            eye,
+            pixel_radius,
+            intensity,
+            hg_g,
+            sigma_s,
+            table_along,
+            sigma_t,
+            table_across,
+            w_iso,
+            w_rayleigh,
+            w_hg,
+            w_hazy,
+            w_murky,
+        });
+        assert_same(airlight, "", "Airlight");
+        let view = rust_layout!(ViewUniform {
+            view_from_clip,
+            world_from_view,
+            size,
+            far_depth,
+            _pad,
+        });
+        assert_same(view, "", "View");
+    }
+}

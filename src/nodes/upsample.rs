@@ -196,6 +196,11 @@ pub struct UpsampleInputs<'a> {
     pub medium: &'a crate::scene::Medium,
 }
 
+/// `UpsampleUniform::kind` for each filter: WGSL `FILTER_*` of `shaders/upsample.wgsl`.
+const FILTER_BILINEAR: u32 = 0;
+const FILTER_3X3: u32 = 1;
+const FILTER_SEPARABLE: u32 = 2;
+
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 struct UpsampleUniform {
@@ -366,13 +371,13 @@ impl UpsampleNode {
             self.bound = Some((textures, groups));
         }
         let (kind, taps, sigma_spatial, sigma_depth) = match self.filter {
-            UpsampleFilter::Bilinear => (0, 0, 1.0, 1.0),
-            UpsampleFilter::DepthAware3x3 => (1, 3, 1.0, 1.0),
+            UpsampleFilter::Bilinear => (FILTER_BILINEAR, 0, 1.0, 1.0),
+            UpsampleFilter::DepthAware3x3 => (FILTER_3X3, 3, 1.0, 1.0),
             UpsampleFilter::Separable {
                 taps,
                 sigma_spatial,
                 sigma_depth,
-            } => (2, taps, sigma_spatial, sigma_depth),
+            } => (FILTER_SEPARABLE, taps, sigma_spatial, sigma_depth),
         };
         self.uniform.write(
             queue,
@@ -466,4 +471,28 @@ fn storage_texture(device: &wgpu::Device, label: &str, width: u32, height: u32) 
             | wgpu::TextureUsages::TEXTURE_BINDING
             | wgpu::TextureUsages::COPY_SRC,
     )
+}
+
+#[cfg(test)]
+#[test]
+fn params_layout_matches_the_wgsl() {
+    use crate::nodes::layout::{assert_same, rust_layout};
+    let rust = rust_layout!(UpsampleUniform {
+        kind,
+        taps,
+        sigma_spatial,
+        sigma_depth,
+        low_size,
+        out_size,
+    });
+    let source = include_str!("../../shaders/upsample.wgsl");
+    assert_same(rust, source, "Upsample");
+    crate::nodes::layout::assert_constants(
+        source,
+        &[
+            ("FILTER_BILINEAR", FILTER_BILINEAR),
+            ("FILTER_3X3", FILTER_3X3),
+            ("FILTER_SEPARABLE", FILTER_SEPARABLE),
+        ],
+    );
 }
