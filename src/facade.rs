@@ -10,7 +10,7 @@ use crate::nodes::{
     ShadowMapNode, ShadowMapSettings, Shadows, SoftShadowInputs, SoftShadowNode, SoftShadowSize,
     TableInputs, TableSize, UpsampleFilter, UpsampleInputs, UpsampleNode, MAX_LIGHTS,
 };
-use crate::nodes::{Cache, LightKind};
+use crate::nodes::{Cache, Encode, LightKind, Node};
 use crate::plan::{self, AdapterKind, Culled, FrameFacts, LightFacts, Pass, Plan};
 use crate::scene::{Camera, Light, Medium};
 
@@ -235,7 +235,142 @@ struct LightSlot {
     soft: Option<SoftShadowNode>,
 }
 
+/// What one light's step of a frame reads.
+struct StepInputs<'a, 'f> {
+    frame: &'a Frame<'f>,
+    /// The light as drawn (see `VolumetricShadows::gather`).
+    light: &'a Light,
+    /// Its occluders after culling.
+    occluders: &'a [Occluder<'f>],
+    /// Its index in the frame.
+    index: usize,
+}
+
 impl LightSlot {
+    fn new(device: &wgpu::Device, cache: &Cache, settings: &Settings) -> Result<Self> {
+        Ok(LightSlot {
+            texture: LightTextureNode::new(device, cache)?,
+            shadow: ShadowMapNode::new(device, cache, settings.shadow_map)?,
+            extents: ExtentsNode::new(device, cache)?,
+            table: AirlightTableNode::new(device, cache, settings.table)?,
+            march: MarchNode::new(device, cache, settings.march)?,
+            upsample: UpsampleNode::new(device, cache, settings.upsample)?,
+            soft: None,
+        })
+    }
+
+    /// Prepares this light's planned step `pass`; returns whether it records work.
+    #[allow(clippy::too_many_arguments)]
+    fn prepare(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        cache: &Cache,
+        settings: &Settings,
+        plan: &Plan,
+        pass: Pass,
+        step: &StepInputs<'_, '_>,
+    ) -> Result<bool> {
+        let (frame, light, occluders, i) = (step.frame, step.light, step.occluders, step.index);
+        let (camera, medium) = (frame.camera, frame.medium);
+        let fl = &frame.lights[i];
+        let (width, height) = (frame.scene_depth.width(), frame.scene_depth.height());
+        Ok(match pass {
+            Pass::LightTexture => match fl.texture {
+                Some(t) => self.texture.prepare(device, queue, t)?,
+                None => false,
+            },
+            Pass::ShadowMap => {
+                let inputs = ShadowMapInputs {
+                    light,
+                    occluders,
+                    camera,
+                };
+                self.shadow.prepare(device, queue, &inputs)?
+            }
+            Pass::Extents => self.extents.prepare(
+                device,
+                queue,
+                &ExtentsInputs {
+                    camera,
+                    light,
+                    occluders,
+                    size: plan.scale(i).apply(width, height),
+                    crossings: (settings.march.method == MarchMethod::Exact).then_some(
+                        CrossingsRequest {
+                            per_pixel: settings.march.crossings,
+                            scene_depth: frame.scene_depth,
+                            build: settings.march.crossings_build,
+                        },
+                    ),
+                },
+            )?,
+            Pass::SoftShadow => {
+                let soft = match &mut self.soft {
+                    Some(node) => node,
+                    None => {
+                        self.soft
+                            .insert(SoftShadowNode::new(device, cache, settings.soft_shadow)?)
+                    }
+                };
+                let Some(shadow_map) = self.shadow.shadow_map() else {
+                    return Err(Error::NotPrepared {
+                        reason: "the plan names a soft shadow without a shadow map",
+                    });
+                };
+                soft.prepare(device, queue, &SoftShadowInputs { light, shadow_map })?
+            }
+            Pass::AirlightTable => {
+                let eye = camera.eye();
+                let inputs = TableInputs { eye, light, medium };
+                self.table.prepare(device, queue, &inputs)?
+            }
+            Pass::March => {
+                self.march.set_settings(MarchSettings {
+                    scale: plan.scale(i),
+                    ..settings.march
+                })?;
+                let light_index = Some(i);
+                let shadows = plan.runs(Pass::ShadowMap, light_index).then(|| {
+                    Some(Shadows {
+                        shadow_map: self.shadow.shadow_map()?,
+                        extents: plan
+                            .runs(Pass::Extents, light_index)
+                            .then(|| self.extents.extents())
+                            .flatten(),
+                        soft: plan
+                            .runs(Pass::SoftShadow, light_index)
+                            .then(|| self.soft.as_ref()?.output())
+                            .flatten(),
+                    })
+                });
+                let inputs = MarchInputs {
+                    camera,
+                    light,
+                    medium,
+                    table: &self.table,
+                    scene_depth: frame.scene_depth,
+                    shadows: shadows.flatten(),
+                    light_texture: fl.texture.and(self.texture.texture()),
+                };
+                self.march.prepare(device, queue, &inputs)?
+            }
+            Pass::Upsample => {
+                self.upsample.set_settings(settings.upsample)?;
+                let inputs = UpsampleInputs {
+                    camera,
+                    scene_depth: frame.scene_depth,
+                    low: self.march.output().expect("prepared by the planned march"),
+                    table: &self.table,
+                    light,
+                    medium,
+                };
+                self.upsample.prepare(device, queue, &inputs)?
+            }
+            Pass::Composite | Pass::IssTable => true,
+        })
+    }
+
     /// The light's in-scatter at the output resolution: the upsample's when it is planned.
     fn inscatter(&self, plan: &Plan, light: usize) -> Option<&wgpu::Texture> {
         match plan.runs(Pass::Upsample, Some(light)) {
@@ -389,47 +524,75 @@ impl VolumetricShadows {
             });
         }
         while self.slots.len() < frame.lights.len() {
-            self.slots.push(LightSlot {
-                texture: LightTextureNode::new(device, &self.cache)?,
-                shadow: ShadowMapNode::new(device, &self.cache, self.settings.shadow_map)?,
-                extents: ExtentsNode::new(device, &self.cache)?,
-                table: AirlightTableNode::new(device, &self.cache, self.settings.table)?,
-                march: MarchNode::new(device, &self.cache, self.settings.march)?,
-                upsample: UpsampleNode::new(device, &self.cache, self.settings.upsample)?,
-                soft: None,
-            });
+            self.slots
+                .push(LightSlot::new(device, &self.cache, &self.settings)?);
         }
         // Cheap facts first (no GPU work), then the plan, then exactly the planned steps.
-        let scatters = frame.medium.sigma_s().max_element() > 0.0;
-        let (width, height) = (frame.scene_depth.width(), frame.scene_depth.height());
+        let (facts, kept, drawn) = self.gather(frame)?;
+        let mut plan = plan::plan(&facts);
+        if plan.runs(Pass::IssTable, None) && self.iss.is_none() {
+            let size = IssTableSize::default();
+            self.iss = Some(IssTableNode::new(device, &self.cache, size)?);
+        }
+        let mut unchanged = Vec::new();
+        for (index, step) in plan.steps.iter().enumerate() {
+            let work = match (step.pass, step.light) {
+                (Pass::IssTable, _) => match self.iss.as_mut() {
+                    Some(iss) => iss.prepare(device, queue, frame.medium)?,
+                    None => true,
+                },
+                (_, None) => true,
+                (pass, Some(i)) => {
+                    let inputs = StepInputs {
+                        frame,
+                        light: &drawn[i],
+                        occluders: &kept[i],
+                        index: i,
+                    };
+                    let (cache, settings) = (&self.cache, &self.settings);
+                    self.slots[i].prepare(device, queue, cache, settings, &plan, pass, &inputs)?
+                }
+            };
+            if !work {
+                unchanged.push(index);
+            }
+        }
+        plan.unchanged(&unchanged);
+        self.plan = plan;
+        let surface_term = self.prepare_composite(device, queue, frame)?;
+        self.first_frame = self.note_forms(frame, &drawn, surface_term);
+        Ok(())
+    }
+
+    /// The frame's facts for the planner: each light's occluders after culling (those whose
+    /// effect is provably below the threshold stay out of its shadow map and extents), and
+    /// the lights as drawn (one whose penumbrae the shadow map cannot resolve, hard).
+    #[allow(clippy::type_complexity)]
+    fn gather<'f>(
+        &self,
+        frame: &Frame<'f>,
+    ) -> Result<(FrameFacts, Vec<Vec<Occluder<'f>>>, Vec<Light>)> {
+        let settings = &self.settings;
         let mut facts = FrameFacts {
-            scatters,
+            scatters: frame.medium.sigma_s().max_element() > 0.0,
             lights: Vec::new(),
-            method: self.settings.march.method,
-            steps: self.settings.march.steps,
-            crossings: self.settings.march.crossings,
-            scale: self.settings.march.scale,
-            filter: self.settings.upsample,
+            method: settings.march.method,
+            steps: settings.march.steps,
+            crossings: settings.march.crossings,
+            scale: settings.march.scale,
+            filter: settings.upsample,
             culled: Vec::new(),
-            error_target: self.settings.error_target,
+            error_target: settings.error_target,
             surfaces: frame.surfaces.is_some(),
         };
-        let mut kept: Vec<Vec<Occluder<'_>>> = Vec::new();
-        // The lights as drawn: one whose penumbrae the shadow map cannot resolve, hard.
-        let mut drawn: Vec<Light> = Vec::new();
+        let (mut kept, mut drawn) = (Vec::new(), Vec::new());
         for (i, fl) in frame.lights.iter().enumerate() {
-            // Occluders whose effect is provably below the threshold stay out of this light's
-            // shadow map and extents.
             let mut light_kept = Vec::new();
             for (j, o) in frame.occluders.iter().enumerate() {
                 o.validate()?;
-                let bound = plan::occluder_bound(
-                    frame.camera.eye(),
-                    &fl.light,
-                    frame.medium,
-                    o.world_bounds(),
-                );
-                if bound < f64::from(self.settings.cull_threshold) {
+                let eye = frame.camera.eye();
+                let bound = plan::occluder_bound(eye, &fl.light, frame.medium, o.world_bounds());
+                if bound < f64::from(settings.cull_threshold) {
                     facts.culled.push(Culled {
                         light: i,
                         occluder: j,
@@ -442,7 +605,7 @@ impl VolumetricShadows {
             let penumbra_below_texel = ShadowMapNode::penumbra_below_texel(
                 &fl.light,
                 nearest_occluder(&fl.light, &light_kept),
-                self.settings.shadow_map.resolution,
+                settings.shadow_map.resolution,
             );
             let light = if penumbra_below_texel {
                 without_radius(fl.light)
@@ -459,126 +622,18 @@ impl VolumetricShadows {
             kept.push(light_kept);
             drawn.push(light);
         }
-        let mut plan = plan::plan(&facts);
-        let mut unchanged = Vec::new();
-        if plan.runs(Pass::IssTable, None) && self.iss.is_none() {
-            self.iss = Some(IssTableNode::new(
-                device,
-                &self.cache,
-                IssTableSize::default(),
-            )?);
-        }
-        for (index, step) in plan.steps.iter().enumerate() {
-            if let (Pass::IssTable, Some(iss)) = (step.pass, self.iss.as_mut()) {
-                if !iss.prepare(device, queue, frame.medium)? {
-                    unchanged.push(index);
-                }
-            }
-            let Some(i) = step.light else { continue };
-            let (fl, slot, occluders) = (&frame.lights[i], &mut self.slots[i], &kept[i]);
-            let (camera, light, medium) = (frame.camera, &drawn[i], frame.medium);
-            let work = match step.pass {
-                Pass::LightTexture => match fl.texture {
-                    Some(t) => slot.texture.prepare(device, queue, t)?,
-                    None => false,
-                },
-                Pass::ShadowMap => {
-                    let inputs = ShadowMapInputs { light, occluders };
-                    match light {
-                        Light::Directional(_) => slot
-                            .shadow
-                            .prepare_directional(device, queue, &inputs, camera)?,
-                        _ => slot.shadow.prepare(device, queue, &inputs)?,
-                    }
-                }
-                Pass::Extents => slot.extents.prepare(
-                    device,
-                    queue,
-                    &ExtentsInputs {
-                        camera,
-                        light,
-                        occluders,
-                        size: plan.scale(i).apply(width, height),
-                        crossings: (self.settings.march.method == MarchMethod::Exact).then_some(
-                            CrossingsRequest {
-                                per_pixel: self.settings.march.crossings,
-                                scene_depth: frame.scene_depth,
-                                build: self.settings.march.crossings_build,
-                            },
-                        ),
-                    },
-                )?,
-                Pass::SoftShadow => {
-                    let soft = match &mut slot.soft {
-                        Some(node) => node,
-                        None => slot.soft.insert(SoftShadowNode::new(
-                            device,
-                            &self.cache,
-                            self.settings.soft_shadow,
-                        )?),
-                    };
-                    let Some(shadow_map) = slot.shadow.shadow_map() else {
-                        return Err(Error::NotPrepared {
-                            reason: "the plan names a soft shadow without a shadow map",
-                        });
-                    };
-                    soft.prepare(device, queue, &SoftShadowInputs { light, shadow_map })?
-                }
-                Pass::AirlightTable => {
-                    let eye = camera.eye();
-                    let inputs = TableInputs { eye, light, medium };
-                    slot.table.prepare(device, queue, &inputs)?
-                }
-                Pass::March => {
-                    slot.march.set_settings(MarchSettings {
-                        scale: plan.scale(i),
-                        ..self.settings.march
-                    })?;
-                    let shadows = plan.runs(Pass::ShadowMap, step.light).then(|| {
-                        Some(Shadows {
-                            shadow_map: slot.shadow.shadow_map()?,
-                            extents: plan
-                                .runs(Pass::Extents, step.light)
-                                .then(|| slot.extents.extents())
-                                .flatten(),
-                            soft: plan
-                                .runs(Pass::SoftShadow, step.light)
-                                .then(|| slot.soft.as_ref()?.output())
-                                .flatten(),
-                        })
-                    });
-                    let inputs = MarchInputs {
-                        camera,
-                        light,
-                        medium,
-                        table: &slot.table,
-                        scene_depth: frame.scene_depth,
-                        shadows: shadows.flatten(),
-                        light_texture: fl.texture.and(slot.texture.texture()),
-                    };
-                    slot.march.prepare(device, queue, &inputs)?
-                }
-                Pass::Upsample => {
-                    slot.upsample.set_settings(self.settings.upsample)?;
-                    let inputs = UpsampleInputs {
-                        camera,
-                        scene_depth: frame.scene_depth,
-                        low: slot.march.output().expect("prepared by the planned march"),
-                        table: &slot.table,
-                        light,
-                        medium,
-                    };
-                    slot.upsample.prepare(device, queue, &inputs)?
-                }
-                Pass::Composite | Pass::IssTable => true,
-            };
-            if !work {
-                unchanged.push(index);
-            }
-        }
-        plan.unchanged(&unchanged);
-        self.plan = plan;
+        Ok((facts, kept, drawn))
+    }
 
+    /// The composite's inputs: each light's in-scatter and the surface term. Returns whether
+    /// the surface term is on.
+    fn prepare_composite(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        frame: &Frame<'_>,
+    ) -> Result<bool> {
+        let scatters = frame.medium.sigma_s().max_element() > 0.0;
         let inscatter: Vec<&wgpu::Texture> = if scatters {
             let slots = self.slots.iter().enumerate().take(frame.lights.len());
             slots
@@ -611,7 +666,12 @@ impl VolumetricShadows {
                 inscatter: &inscatter,
             },
         )?;
+        Ok(surface_term)
+    }
 
+    /// Records the forms this frame's steps take (see [`is_first_frame`](Self::is_first_frame));
+    /// returns whether one is new.
+    fn note_forms(&mut self, frame: &Frame<'_>, drawn: &[Light], surface_term: bool) -> bool {
         let plan = &self.plan;
         let present = |pass, light| {
             plan.runs(pass, light)
@@ -636,8 +696,7 @@ impl VolumetricShadows {
             });
             first |= self.seen.insert((step.pass, light, surface_term));
         }
-        self.first_frame = first;
-        Ok(())
+        first
     }
 
     /// Whether the last prepared frame records a step in a form (its pass, its light's
@@ -757,22 +816,25 @@ impl VolumetricShadows {
                 reason: "the plan names a light that has no resources",
             });
         };
-        match step.pass {
-            Pass::LightTexture => slot.texture.encode(encoder, timer),
-            Pass::ShadowMap => slot.shadow.encode(encoder, timer),
-            Pass::Extents => slot.extents.encode(encoder, timer),
-            Pass::AirlightTable => slot.table.encode(encoder, timer),
-            Pass::March => slot.march.encode(encoder, timer),
-            Pass::Upsample => slot.upsample.encode(encoder, timer),
-            Pass::Composite => self.composite.encode(encoder, output, timer),
-            Pass::IssTable => Ok(()), // a frame step, recorded above
+        let node: &mut dyn Encode = match step.pass {
+            Pass::LightTexture => &mut slot.texture,
+            Pass::ShadowMap => &mut slot.shadow,
+            Pass::Extents => &mut slot.extents,
+            Pass::AirlightTable => &mut slot.table,
+            Pass::March => &mut slot.march,
+            Pass::Upsample => &mut slot.upsample,
+            Pass::Composite => return self.composite.encode(encoder, output, timer),
+            Pass::IssTable => return Ok(()), // a frame step, recorded above
             Pass::SoftShadow => match slot.soft.as_mut() {
-                Some(node) => node.encode(encoder, timer),
-                None => Err(Error::NotPrepared {
-                    reason: "the plan names a soft shadow that has no resources",
-                }),
+                Some(node) => node,
+                None => {
+                    return Err(Error::NotPrepared {
+                        reason: "the plan names a soft shadow that has no resources",
+                    })
+                }
             },
-        }
+        };
+        node.encode(encoder, timer)
     }
 
     /// Forgets every per-light resource, so the next frame rebuilds all of it (shadow maps,

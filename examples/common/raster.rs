@@ -17,6 +17,7 @@
 //! volshadow's shadow-map node, sampled with `volshadow::SHADOW_WGSL`).
 
 use volshadow::glam::{Mat4, Vec3};
+use volshadow::nodes::{Encode, Node};
 use volshadow::nodes::{ShadowMap, ShadowMapInputs, ShadowMapNode, ShadowMapSettings};
 use volshadow::scene::Mesh;
 use volshadow::{Cache, Camera, HeadlessGpu, Light, Medium, Occluder};
@@ -66,12 +67,12 @@ pub fn surface_shadow_maps(
             continue;
         }
         let mut node = ShadowMapNode::new(&gpu.device, &cache, ShadowMapSettings::default())?;
-        let inputs = ShadowMapInputs { light, occluders };
-        if matches!(light, Light::Directional(_)) {
-            node.prepare_directional(&gpu.device, &gpu.queue, &inputs, camera)?;
-        } else {
-            node.prepare(&gpu.device, &gpu.queue, &inputs)?;
-        }
+        let inputs = ShadowMapInputs {
+            light,
+            occluders,
+            camera,
+        };
+        node.prepare(&gpu.device, &gpu.queue, &inputs)?;
         node.encode(&mut encoder, None)?;
         nodes.push(Some(node));
     }

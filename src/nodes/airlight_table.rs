@@ -46,6 +46,7 @@ use crate::gpu::ShaderPrecision;
 use crate::gpu::{check_buffer_size, texture_2d, GpuTimer, UniformBuffer};
 use crate::nodes::uniforms::AirlightUniform;
 use crate::nodes::Cache;
+use crate::nodes::{Encode, Node};
 use crate::pass::Pass;
 use crate::scene::{Light, Medium};
 
@@ -296,10 +297,24 @@ impl AirlightTableNode {
         })
     }
 
+    /// The table texture (see the module docs for its layout).
+    pub fn texture(&self) -> &wgpu::Texture {
+        &self.texture
+    }
+
+    /// The table's size.
+    pub fn size(&self) -> TableSize {
+        self.size
+    }
+}
+
+impl Node for AirlightTableNode {
+    type Inputs<'a> = TableInputs<'a>;
+
     /// Uploads the parameters for a frame. Returns whether the next [`encode`](Self::encode)
     /// rebuilds the table: it changed now, or it changed at an earlier `prepare` that no
     /// `encode` followed.
-    pub fn prepare(
+    fn prepare(
         &mut self,
         _device: &wgpu::Device,
         queue: &wgpu::Queue,
@@ -311,10 +326,12 @@ impl AirlightTableNode {
         self.pending |= self.uniform.write(queue, key);
         Ok(self.pending)
     }
+}
 
+impl Encode for AirlightTableNode {
     /// Records the table build into `encoder` if [`prepare`](Self::prepare) found a change since
     /// the last build; otherwise records nothing.
-    pub fn encode(
+    fn encode(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
         timer: Option<&mut GpuTimer>,
@@ -344,21 +361,12 @@ impl AirlightTableNode {
         );
         Ok(())
     }
-
-    /// The table texture (see the module docs for its layout).
-    pub fn texture(&self) -> &wgpu::Texture {
-        &self.texture
-    }
-
-    /// The table's size.
-    pub fn size(&self) -> TableSize {
-        self.size
-    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::{AirlightTableNode, Pipelines, RowSum, TableInputs, TableSize};
+    use crate::nodes::{Encode, Node};
     use crate::{HeadlessGpu, Light, Medium, PhaseFunction, PointLight, ShaderPrecision};
     use glam::Vec3;
 

@@ -51,6 +51,7 @@ use crate::gpu::{
 };
 use crate::nodes::uniforms::ViewUniform;
 use crate::nodes::Cache;
+use crate::nodes::{Encode, Node};
 use crate::pass::Pass;
 use crate::scene::{Camera, Light};
 
@@ -454,315 +455,6 @@ impl ExtentsNode {
         })
     }
 
-    /// Uploads the occluders' transforms, the light and the camera, and (re)creates the targets
-    /// when `width × height` changed. Returns `true` (the extents are recorded every frame).
-    ///
-    /// # Errors
-    ///
-    /// [`Error::InvalidSize`](crate::Error::InvalidSize) for a size beyond the device's
-    /// limits, [`Error::NonFinite`](crate::Error::NonFinite) or
-    /// [`Error::SingularMatrix`](crate::Error::SingularMatrix) for an occluder's transform,
-    /// and [`Error::DeviceLimitExceeded`](crate::Error::DeviceLimitExceeded) naming the limit
-    /// for buffers the device cannot hold: `shadow volumes`, `occluder transforms`,
-    /// `crossing lists` (16 bytes a pixel of heads, bound whole: more than 8.4 million
-    /// pixels, such as 4096² at full resolution, at the core limit of 128 MiB), or
-    /// `crossing bins` (the compute build's 80 bytes a volume face).
-    pub fn prepare(
-        &mut self,
-        device: &wgpu::Device,
-        queue: &wgpu::Queue,
-        inputs: &ExtentsInputs<'_>,
-    ) -> Result<bool> {
-        let ExtentsInputs {
-            camera,
-            light,
-            occluders,
-            size: (width, height),
-            crossings,
-        } = *inputs;
-        check_target_size("extents size", device, width, height)?;
-        for o in occluders {
-            o.validate()?;
-        }
-        if !self
-            .targets
-            .as_ref()
-            .is_some_and(|t| t[0].width() == width && t[0].height() == height)
-        {
-            let make = |label| {
-                crate::gpu::texture_2d(
-                    device,
-                    label,
-                    (width, height, 1),
-                    wgpu::TextureFormat::Depth32Float,
-                    // COPY_SRC so tests and debug views can read the extents back.
-                    wgpu::TextureUsages::RENDER_ATTACHMENT
-                        | wgpu::TextureUsages::TEXTURE_BINDING
-                        | wgpu::TextureUsages::COPY_SRC,
-                )
-            };
-            self.targets = Some([
-                make("volshadow extents front"),
-                make("volshadow extents back near"),
-                make("volshadow extents back far"),
-            ]);
-        }
-
-        // The camera's projection with its depth row replaced: depth = near / view depth
-        // (reversed Z, infinite), keeping x and y (and any jitter or asymmetry) as they are.
-        let eye_light = match light.position() {
-            Some(p) => p.distance(camera.eye()),
-            // A directional light: the scene's size seen from the eye instead.
-            None => occluders
-                .iter()
-                .map(|o| {
-                    let (lo, hi) = o.world_bounds();
-                    (camera.eye() - 0.5 * (lo + hi)).length() + 0.5 * (hi - lo).length()
-                })
-                .fold(0.0, f32::max),
-        }
-        .max(1e-20);
-        self.near = EXTENTS_NEAR * eye_light;
-        let mut proj = camera.projection();
-        let w_row = proj.row(3);
-        let k = -w_row.z; // clip w = −k z_view
-        proj.x_axis.z = 0.0;
-        proj.y_axis.z = 0.0;
-        proj.z_axis.z = 0.0;
-        proj.w_axis.z = self.near * k;
-        let clip_from_world: Mat4 = proj * camera.view();
-        queue.write_buffer(&self.view_buffer, 0, bytemuck::bytes_of(&clip_from_world));
-        self.crossings_on = crossings.is_some();
-
-        // Volume vertices: 6 per extruded edge, 3 + 3 per triangle (front and back cap).
-        let capacity: u64 = occluders
-            .iter()
-            .map(|o| 6 * u64::from(o.mesh.edge_count) + 6 * u64::from(o.mesh.triangle_count))
-            .sum::<u64>()
-            .max(6);
-        let vertex_bytes = VOLUME_VERTEX_BYTES;
-        crate::gpu::check_buffer_size(device, "shadow volumes", capacity * vertex_bytes)?;
-        if self
-            .volume
-            .as_ref()
-            .is_none_or(|b| b.size() < capacity * vertex_bytes)
-        {
-            self.volume = Some(device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("volshadow shadow volumes"),
-                size: capacity * vertex_bytes,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::VERTEX,
-                mapped_at_creation: false,
-            }));
-        }
-        let needed = (occluders.len().max(1) as u64) * SLOT;
-        crate::gpu::check_buffer_allocation(device, "occluder transforms", needed)?;
-        if self
-            .extrude_buffer
-            .as_ref()
-            .is_none_or(|b| b.size() < needed)
-        {
-            self.extrude_buffer = Some(device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("volshadow extrude params"),
-                size: needed,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }));
-        }
-        if let Some(request) = crossings {
-            let faces = u32::try_from(capacity / 3).unwrap_or(u32::MAX);
-            let lists = (camera, clip_from_world, (width, height), faces);
-            self.prepare_crossings(device, queue, &request, lists)?;
-        }
-        let extrude_buffer = self.extrude_buffer.as_ref().expect("created above");
-        let volume = self.volume.as_ref().expect("created above");
-        self.jobs.clear();
-        for (i, o) in occluders.iter().enumerate() {
-            let uniform = ExtrudeUniform {
-                world_from_object: o.transform.to_cols_array(),
-                light: match light {
-                    Light::Directional(l) => l.direction(),
-                    _ => light.position().unwrap_or_default(),
-                }
-                .to_array(),
-                mirror: o.transform.determinant().signum(),
-                edges: o.mesh.edge_count,
-                triangles: o.mesh.triangle_count,
-                closed: u32::from(o.mesh.is_closed()),
-                capacity: capacity as u32,
-                directional: u32::from(matches!(light, Light::Directional(_))),
-                _pad: [0; 3],
-            };
-            queue.write_buffer(
-                extrude_buffer,
-                i as u64 * SLOT,
-                bytemuck::bytes_of(&uniform),
-            );
-            let bind_group = bind_group(
-                device,
-                "volshadow extrude",
-                &self.pipelines.extrude_layout,
-                [
-                    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                        buffer: extrude_buffer,
-                        offset: i as u64 * SLOT,
-                        size: wgpu::BufferSize::new(std::mem::size_of::<ExtrudeUniform>() as u64),
-                    }),
-                    o.mesh.positions.as_entire_binding(),
-                    o.mesh.indices.as_entire_binding(),
-                    o.mesh.edges.as_entire_binding(),
-                    volume.as_entire_binding(),
-                    self.args.as_entire_binding(),
-                ],
-            );
-            self.jobs.push(Job {
-                bind_group,
-                invocations: o.mesh.edge_count + o.mesh.triangle_count,
-            });
-        }
-        Ok(true)
-    }
-
-    /// Records the extrusion and the three depth passes (or the crossing lists).
-    ///
-    /// # Errors
-    ///
-    /// [`Error::NotPrepared`] before the first successful `prepare`, recording nothing.
-    pub fn encode(
-        &mut self,
-        encoder: &mut wgpu::CommandEncoder,
-        mut timer: Option<&mut GpuTimer>,
-    ) -> Result<()> {
-        let (Some(targets), Some(volume)) = (&self.targets, &self.volume) else {
-            return Err(Error::NotPrepared {
-                reason: "ExtentsNode::prepare has not succeeded yet",
-            });
-        };
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("volshadow extrude reset"),
-                timestamp_writes: timer
-                    .as_deref_mut()
-                    .and_then(|t| t.compute_pass(Pass::Extents)),
-            });
-            if let Some(first) = self.jobs.first() {
-                pass.set_pipeline(&self.pipelines.reset);
-                pass.set_bind_group(0, &first.bind_group, &[]);
-                pass.dispatch_workgroups(1, 1, 1);
-            }
-        }
-        if !self.jobs.is_empty() {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("volshadow extrude"),
-                timestamp_writes: timer
-                    .as_deref_mut()
-                    .and_then(|t| t.compute_pass(Pass::Extents)),
-            });
-            pass.set_pipeline(&self.pipelines.extrude);
-            for job in &self.jobs {
-                pass.set_bind_group(0, &job.bind_group, &[]);
-                pass.dispatch_workgroups(job.invocations.div_ceil(64), 1, 1);
-            }
-        }
-        if self.crossings_on {
-            let Some(lists) = &self.crossings else {
-                return Ok(());
-            };
-            if let (CrossingsBuild::Compute, Some(bins)) = (lists.build, &lists.bins) {
-                let Some((group, ..)) = &bins.bound else {
-                    return Ok(());
-                };
-                if self.jobs.is_empty() {
-                    // No volume: nothing crosses.
-                    encoder.clear_buffer(&lists.heads, 0, None);
-                    return Ok(());
-                }
-                encoder.clear_buffer(&bins.tiles, 0, None);
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("volshadow crossings"),
-                    timestamp_writes: timer
-                        .as_deref_mut()
-                        .and_then(|t| t.compute_pass(Pass::Extents)),
-                });
-                let [setup, count, scan, fill, build] = &self.pipelines.bin;
-                let groups = bins.face_capacity.div_ceil(64);
-                let gx = groups.min(65535);
-                pass.set_bind_group(0, group, &[]);
-                pass.set_pipeline(setup);
-                pass.dispatch_workgroups(gx, groups.div_ceil(gx), 1);
-                pass.set_pipeline(count);
-                pass.dispatch_workgroups(BIN_GROUPS, 1, 1);
-                pass.set_pipeline(scan);
-                pass.dispatch_workgroups(1, 1, 1);
-                pass.set_pipeline(fill);
-                pass.dispatch_workgroups(BIN_GROUPS, 1, 1);
-                pass.set_pipeline(build);
-                pass.dispatch_workgroups(bins.tile_count.0, bins.tile_count.1, 1);
-                return Ok(());
-            }
-            encoder.clear_buffer(&lists.heads, 0, None);
-            // The depth target is only there because a render pass needs an attachment:
-            // the pipeline neither tests nor writes it.
-            let view = targets[0].create_view(&Default::default());
-            let timestamp_writes = timer
-                .as_deref_mut()
-                .and_then(|t| t.render_pass(Pass::Extents));
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("volshadow extents crossings"),
-                color_attachments: &[],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(0.0),
-                        store: wgpu::StoreOp::Discard,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            if !self.jobs.is_empty() {
-                pass.set_pipeline(&self.pipelines.crossings);
-                pass.set_bind_group(0, &lists.bind_group, &[]);
-                pass.set_vertex_buffer(0, volume.slice(..));
-                pass.draw_indirect(&self.args, 0);
-            }
-            return Ok(());
-        }
-        for ((target, pipeline), clear) in targets
-            .iter()
-            .zip(&self.pipelines.depths)
-            .zip([0.0, 0.0, 1.0])
-        {
-            let view = target.create_view(&Default::default());
-            let timestamp_writes = timer
-                .as_deref_mut()
-                .and_then(|t| t.render_pass(Pass::Extents));
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("volshadow extents"),
-                color_attachments: &[],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(clear),
-                        store: wgpu::StoreOp::Store,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            if !self.jobs.is_empty() {
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, &self.raster_bind_group, &[]);
-                pass.set_vertex_buffer(0, volume.slice(..));
-                pass.draw_indirect(&self.args, 0);
-            }
-        }
-        Ok(())
-    }
-
     /// The extents for the march; `None` before the first `prepare`.
     pub fn extents(&self) -> Option<Extents<'_>> {
         let crossings = if self.crossings_on {
@@ -954,6 +646,321 @@ impl ExtentsNode {
             build: request.build,
             bins,
         });
+        Ok(())
+    }
+}
+
+impl Node for ExtentsNode {
+    type Inputs<'a> = ExtentsInputs<'a>;
+
+    /// Uploads the occluders' transforms, the light and the camera, and (re)creates the targets
+    /// when `width × height` changed. Returns `true` (the extents are recorded every frame).
+    ///
+    /// # Errors
+    ///
+    /// [`Error::InvalidSize`](crate::Error::InvalidSize) for a size beyond the device's
+    /// limits, [`Error::NonFinite`](crate::Error::NonFinite) or
+    /// [`Error::SingularMatrix`](crate::Error::SingularMatrix) for an occluder's transform,
+    /// and [`Error::DeviceLimitExceeded`](crate::Error::DeviceLimitExceeded) naming the limit
+    /// for buffers the device cannot hold: `shadow volumes`, `occluder transforms`,
+    /// `crossing lists` (16 bytes a pixel of heads, bound whole: more than 8.4 million
+    /// pixels, such as 4096² at full resolution, at the core limit of 128 MiB), or
+    /// `crossing bins` (the compute build's 80 bytes a volume face).
+    fn prepare(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        inputs: &ExtentsInputs<'_>,
+    ) -> Result<bool> {
+        let ExtentsInputs {
+            camera,
+            light,
+            occluders,
+            size: (width, height),
+            crossings,
+        } = *inputs;
+        check_target_size("extents size", device, width, height)?;
+        for o in occluders {
+            o.validate()?;
+        }
+        if !self
+            .targets
+            .as_ref()
+            .is_some_and(|t| t[0].width() == width && t[0].height() == height)
+        {
+            let make = |label| {
+                crate::gpu::texture_2d(
+                    device,
+                    label,
+                    (width, height, 1),
+                    wgpu::TextureFormat::Depth32Float,
+                    // COPY_SRC so tests and debug views can read the extents back.
+                    wgpu::TextureUsages::RENDER_ATTACHMENT
+                        | wgpu::TextureUsages::TEXTURE_BINDING
+                        | wgpu::TextureUsages::COPY_SRC,
+                )
+            };
+            self.targets = Some([
+                make("volshadow extents front"),
+                make("volshadow extents back near"),
+                make("volshadow extents back far"),
+            ]);
+        }
+
+        // The camera's projection with its depth row replaced: depth = near / view depth
+        // (reversed Z, infinite), keeping x and y (and any jitter or asymmetry) as they are.
+        let eye_light = match light.position() {
+            Some(p) => p.distance(camera.eye()),
+            // A directional light: the scene's size seen from the eye instead.
+            None => occluders
+                .iter()
+                .map(|o| {
+                    let (lo, hi) = o.world_bounds();
+                    (camera.eye() - 0.5 * (lo + hi)).length() + 0.5 * (hi - lo).length()
+                })
+                .fold(0.0, f32::max),
+        }
+        .max(1e-20);
+        self.near = EXTENTS_NEAR * eye_light;
+        let mut proj = camera.projection();
+        let w_row = proj.row(3);
+        let k = -w_row.z; // clip w = −k z_view
+        proj.x_axis.z = 0.0;
+        proj.y_axis.z = 0.0;
+        proj.z_axis.z = 0.0;
+        proj.w_axis.z = self.near * k;
+        let clip_from_world: Mat4 = proj * camera.view();
+        queue.write_buffer(&self.view_buffer, 0, bytemuck::bytes_of(&clip_from_world));
+        self.crossings_on = crossings.is_some();
+
+        // Volume vertices: 6 per extruded edge, 3 + 3 per triangle (front and back cap).
+        let capacity: u64 = occluders
+            .iter()
+            .map(|o| 6 * u64::from(o.mesh.edge_count) + 6 * u64::from(o.mesh.triangle_count))
+            .sum::<u64>()
+            .max(6);
+        let vertex_bytes = VOLUME_VERTEX_BYTES;
+        crate::gpu::check_buffer_size(device, "shadow volumes", capacity * vertex_bytes)?;
+        if self
+            .volume
+            .as_ref()
+            .is_none_or(|b| b.size() < capacity * vertex_bytes)
+        {
+            self.volume = Some(device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("volshadow shadow volumes"),
+                size: capacity * vertex_bytes,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::VERTEX,
+                mapped_at_creation: false,
+            }));
+        }
+        let needed = (occluders.len().max(1) as u64) * SLOT;
+        crate::gpu::check_buffer_allocation(device, "occluder transforms", needed)?;
+        if self
+            .extrude_buffer
+            .as_ref()
+            .is_none_or(|b| b.size() < needed)
+        {
+            self.extrude_buffer = Some(device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("volshadow extrude params"),
+                size: needed,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }));
+        }
+        if let Some(request) = crossings {
+            let faces = u32::try_from(capacity / 3).unwrap_or(u32::MAX);
+            let lists = (camera, clip_from_world, (width, height), faces);
+            self.prepare_crossings(device, queue, &request, lists)?;
+        }
+        let extrude_buffer = self.extrude_buffer.as_ref().expect("created above");
+        let volume = self.volume.as_ref().expect("created above");
+        self.jobs.clear();
+        for (i, o) in occluders.iter().enumerate() {
+            let uniform = ExtrudeUniform {
+                world_from_object: o.transform.to_cols_array(),
+                light: match light {
+                    Light::Directional(l) => l.direction(),
+                    _ => light.position().unwrap_or_default(),
+                }
+                .to_array(),
+                mirror: o.transform.determinant().signum(),
+                edges: o.mesh.edge_count,
+                triangles: o.mesh.triangle_count,
+                closed: u32::from(o.mesh.is_closed()),
+                capacity: capacity as u32,
+                directional: u32::from(matches!(light, Light::Directional(_))),
+                _pad: [0; 3],
+            };
+            queue.write_buffer(
+                extrude_buffer,
+                i as u64 * SLOT,
+                bytemuck::bytes_of(&uniform),
+            );
+            let bind_group = bind_group(
+                device,
+                "volshadow extrude",
+                &self.pipelines.extrude_layout,
+                [
+                    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: extrude_buffer,
+                        offset: i as u64 * SLOT,
+                        size: wgpu::BufferSize::new(std::mem::size_of::<ExtrudeUniform>() as u64),
+                    }),
+                    o.mesh.positions.as_entire_binding(),
+                    o.mesh.indices.as_entire_binding(),
+                    o.mesh.edges.as_entire_binding(),
+                    volume.as_entire_binding(),
+                    self.args.as_entire_binding(),
+                ],
+            );
+            self.jobs.push(Job {
+                bind_group,
+                invocations: o.mesh.edge_count + o.mesh.triangle_count,
+            });
+        }
+        Ok(true)
+    }
+}
+
+impl Encode for ExtentsNode {
+    /// Records the extrusion and the three depth passes (or the crossing lists).
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NotPrepared`] before the first successful `prepare`, recording nothing.
+    fn encode(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        mut timer: Option<&mut GpuTimer>,
+    ) -> Result<()> {
+        let (Some(targets), Some(volume)) = (&self.targets, &self.volume) else {
+            return Err(Error::NotPrepared {
+                reason: "ExtentsNode::prepare has not succeeded yet",
+            });
+        };
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("volshadow extrude reset"),
+                timestamp_writes: timer
+                    .as_deref_mut()
+                    .and_then(|t| t.compute_pass(Pass::Extents)),
+            });
+            if let Some(first) = self.jobs.first() {
+                pass.set_pipeline(&self.pipelines.reset);
+                pass.set_bind_group(0, &first.bind_group, &[]);
+                pass.dispatch_workgroups(1, 1, 1);
+            }
+        }
+        if !self.jobs.is_empty() {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("volshadow extrude"),
+                timestamp_writes: timer
+                    .as_deref_mut()
+                    .and_then(|t| t.compute_pass(Pass::Extents)),
+            });
+            pass.set_pipeline(&self.pipelines.extrude);
+            for job in &self.jobs {
+                pass.set_bind_group(0, &job.bind_group, &[]);
+                pass.dispatch_workgroups(job.invocations.div_ceil(64), 1, 1);
+            }
+        }
+        if self.crossings_on {
+            let Some(lists) = &self.crossings else {
+                return Ok(());
+            };
+            if let (CrossingsBuild::Compute, Some(bins)) = (lists.build, &lists.bins) {
+                let Some((group, ..)) = &bins.bound else {
+                    return Ok(());
+                };
+                if self.jobs.is_empty() {
+                    // No volume: nothing crosses.
+                    encoder.clear_buffer(&lists.heads, 0, None);
+                    return Ok(());
+                }
+                encoder.clear_buffer(&bins.tiles, 0, None);
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("volshadow crossings"),
+                    timestamp_writes: timer
+                        .as_deref_mut()
+                        .and_then(|t| t.compute_pass(Pass::Extents)),
+                });
+                let [setup, count, scan, fill, build] = &self.pipelines.bin;
+                let groups = bins.face_capacity.div_ceil(64);
+                let gx = groups.min(65535);
+                pass.set_bind_group(0, group, &[]);
+                pass.set_pipeline(setup);
+                pass.dispatch_workgroups(gx, groups.div_ceil(gx), 1);
+                pass.set_pipeline(count);
+                pass.dispatch_workgroups(BIN_GROUPS, 1, 1);
+                pass.set_pipeline(scan);
+                pass.dispatch_workgroups(1, 1, 1);
+                pass.set_pipeline(fill);
+                pass.dispatch_workgroups(BIN_GROUPS, 1, 1);
+                pass.set_pipeline(build);
+                pass.dispatch_workgroups(bins.tile_count.0, bins.tile_count.1, 1);
+                return Ok(());
+            }
+            encoder.clear_buffer(&lists.heads, 0, None);
+            // The depth target is only there because a render pass needs an attachment:
+            // the pipeline neither tests nor writes it.
+            let view = targets[0].create_view(&Default::default());
+            let timestamp_writes = timer
+                .as_deref_mut()
+                .and_then(|t| t.render_pass(Pass::Extents));
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("volshadow extents crossings"),
+                color_attachments: &[],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(0.0),
+                        store: wgpu::StoreOp::Discard,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            if !self.jobs.is_empty() {
+                pass.set_pipeline(&self.pipelines.crossings);
+                pass.set_bind_group(0, &lists.bind_group, &[]);
+                pass.set_vertex_buffer(0, volume.slice(..));
+                pass.draw_indirect(&self.args, 0);
+            }
+            return Ok(());
+        }
+        for ((target, pipeline), clear) in targets
+            .iter()
+            .zip(&self.pipelines.depths)
+            .zip([0.0, 0.0, 1.0])
+        {
+            let view = target.create_view(&Default::default());
+            let timestamp_writes = timer
+                .as_deref_mut()
+                .and_then(|t| t.render_pass(Pass::Extents));
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("volshadow extents"),
+                color_attachments: &[],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(clear),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            if !self.jobs.is_empty() {
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, &self.raster_bind_group, &[]);
+                pass.set_vertex_buffer(0, volume.slice(..));
+                pass.draw_indirect(&self.args, 0);
+            }
+        }
         Ok(())
     }
 }

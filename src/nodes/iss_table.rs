@@ -56,6 +56,7 @@ use crate::gpu::ShaderPrecision;
 use crate::gpu::{texture_2d, GpuTimer, UniformBuffer};
 use crate::nodes::uniforms::AirlightUniform;
 use crate::nodes::Cache;
+use crate::nodes::{Encode, Node};
 use crate::pass::Pass;
 use crate::scene::Medium;
 
@@ -238,10 +239,30 @@ impl IssTableNode {
         Ok(())
     }
 
+    /// The table texture (see the module docs for its layout).
+    pub fn texture(&self) -> &wgpu::Texture {
+        &self.texture
+    }
+
+    /// A view of the whole table, to bind as the `texture_2d<f32>` (non-filterable float,
+    /// read with `textureLoad`) that [`ISS_WGSL`](crate::ISS_WGSL)'s functions take.
+    pub fn view(&self) -> &wgpu::TextureView {
+        &self.view
+    }
+
+    /// The table's size.
+    pub fn size(&self) -> IssTableSize {
+        self.size
+    }
+}
+
+impl Node for IssTableNode {
+    type Inputs<'a> = crate::scene::Medium;
+
     /// Uploads the parameters for a frame (the medium's phase function). Returns whether the
     /// next [`encode`](Self::encode) rebuilds the table: they changed now (or the size did), or
     /// they changed at an earlier `prepare` that no `encode` followed.
-    pub fn prepare(
+    fn prepare(
         &mut self,
         _device: &wgpu::Device,
         queue: &wgpu::Queue,
@@ -251,10 +272,12 @@ impl IssTableNode {
         self.pending |= self.uniform.write(queue, key);
         Ok(self.pending)
     }
+}
 
+impl Encode for IssTableNode {
     /// Records the table build into `encoder` if [`prepare`](Self::prepare) found a change since
     /// the last build; otherwise records nothing.
-    pub fn encode(
+    fn encode(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
         timer: Option<&mut GpuTimer>,
@@ -272,21 +295,5 @@ impl IssTableNode {
             &[(pipeline, bind_group, groups)],
         );
         Ok(())
-    }
-
-    /// The table texture (see the module docs for its layout).
-    pub fn texture(&self) -> &wgpu::Texture {
-        &self.texture
-    }
-
-    /// A view of the whole table, to bind as the `texture_2d<f32>` (non-filterable float,
-    /// read with `textureLoad`) that [`ISS_WGSL`](crate::ISS_WGSL)'s functions take.
-    pub fn view(&self) -> &wgpu::TextureView {
-        &self.view
-    }
-
-    /// The table's size.
-    pub fn size(&self) -> IssTableSize {
-        self.size
     }
 }

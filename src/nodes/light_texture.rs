@@ -15,6 +15,7 @@ use crate::gpu::pipeline::{bind_group, fullscreen_pipeline, layout, module, Bind
 use crate::gpu::GpuTimer;
 use crate::gpu::ShaderPrecision;
 use crate::nodes::Cache;
+use crate::nodes::{Encode, Node};
 use crate::pass::Pass;
 
 /// The binding table: `@binding(i)` of `shaders/light_texture.wgsl` is entry `i`.
@@ -72,6 +73,15 @@ impl LightTextureNode {
         })
     }
 
+    /// The mip chain (`None` before the first `prepare`).
+    pub fn texture(&self) -> Option<&wgpu::Texture> {
+        self.mips.as_ref()
+    }
+}
+
+impl Node for LightTextureNode {
+    type Inputs<'a> = wgpu::Texture;
+
     /// Validates `texture` and schedules a rebuild when it differs from the last one. Returns
     /// whether the next [`encode`](Self::encode) rebuilds the mip chain.
     ///
@@ -79,7 +89,7 @@ impl LightTextureNode {
     ///
     /// [`Error::InvalidTexture`] naming `light_texture` for a texture that is not a filterable 2D
     /// colour texture with `TEXTURE_BINDING`.
-    pub fn prepare(
+    fn prepare(
         &mut self,
         device: &wgpu::Device,
         _queue: &wgpu::Queue,
@@ -175,9 +185,11 @@ impl LightTextureNode {
         self.pending = true;
         Ok(true)
     }
+}
 
+impl Encode for LightTextureNode {
     /// Records the mip chain build if the texture changed since the last build.
-    pub fn encode(
+    fn encode(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
         mut timer: Option<&mut GpuTimer>,
@@ -210,10 +222,5 @@ impl LightTextureNode {
             pass.draw(0..3, 0..1);
         }
         Ok(())
-    }
-
-    /// The mip chain (`None` before the first `prepare`).
-    pub fn texture(&self) -> Option<&wgpu::Texture> {
-        self.mips.as_ref()
     }
 }

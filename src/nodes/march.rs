@@ -54,6 +54,7 @@ use crate::nodes::soft_shadow::{cell_angle, soft_params, SoftLight, SoftShadow, 
 use crate::nodes::uniforms::{AirlightUniform, ViewUniform};
 use crate::nodes::Cache;
 use crate::nodes::{AirlightTableNode, Scale};
+use crate::nodes::{Encode, Node};
 use crate::pass::Pass;
 use crate::scene::{Camera, Light, Medium};
 
@@ -627,6 +628,26 @@ impl MarchNode {
         Ok(())
     }
 
+    /// The in-scatter texture (see the module docs); `None` before the first `prepare`.
+    pub fn output(&self) -> Option<&wgpu::Texture> {
+        self.outputs.as_ref().map(|o| &o[0])
+    }
+
+    /// What the last recorded march met: four `u32` ([`MarchStats::from_bytes`] decodes them),
+    /// cleared and written by every `encode` (`STORAGE | COPY_SRC`, 16 bytes).
+    pub fn stats_buffer(&self) -> &wgpu::Buffer {
+        &self.stats
+    }
+
+    /// Steps each pixel executed (`R32Uint`); `None` before the first `prepare`.
+    pub fn step_counts(&self) -> Option<&wgpu::Texture> {
+        self.outputs.as_ref().map(|o| &o[1])
+    }
+}
+
+impl Node for MarchNode {
+    type Inputs<'a> = MarchInputs<'a>;
+
     /// Validates the inputs, (re)creates the outputs when the size changed, and uploads the
     /// uniforms that changed. Returns `true` (the march is recorded every frame).
     ///
@@ -635,7 +656,7 @@ impl MarchNode {
     /// [`Error::InvalidTexture`] naming the input (`scene_depth`, `shadow_map`, `extents`,
     /// the light texture) for a wrong format, usage, layer count or size, or a texture on a light
     /// that is not a spot; [`Error::InvalidSize`] for a size beyond the device's limits.
-    pub fn prepare(
+    fn prepare(
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
@@ -935,13 +956,15 @@ impl MarchNode {
         ));
         Ok(true)
     }
+}
 
+impl Encode for MarchNode {
     /// Records the march.
     ///
     /// # Errors
     ///
     /// [`Error::NotPrepared`] before the first successful `prepare`, recording nothing.
-    pub fn encode(
+    fn encode(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
         timer: Option<&mut GpuTimer>,
@@ -961,22 +984,6 @@ impl MarchNode {
             &[(pipeline, &bound.bind_group, groups)],
         );
         Ok(())
-    }
-
-    /// The in-scatter texture (see the module docs); `None` before the first `prepare`.
-    pub fn output(&self) -> Option<&wgpu::Texture> {
-        self.outputs.as_ref().map(|o| &o[0])
-    }
-
-    /// What the last recorded march met: four `u32` ([`MarchStats::from_bytes`] decodes them),
-    /// cleared and written by every `encode` (`STORAGE | COPY_SRC`, 16 bytes).
-    pub fn stats_buffer(&self) -> &wgpu::Buffer {
-        &self.stats
-    }
-
-    /// Steps each pixel executed (`R32Uint`); `None` before the first `prepare`.
-    pub fn step_counts(&self) -> Option<&wgpu::Texture> {
-        self.outputs.as_ref().map(|o| &o[1])
     }
 }
 

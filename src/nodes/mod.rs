@@ -4,14 +4,18 @@
 //! * `new(device, &Cache, settings) -> Result<Self>`: long-lived resources (`settings` left out
 //!   where a node has none); `settings()` and `set_settings(settings) -> Result<()>` where they
 //!   can change between frames (the march, the upsample), taking effect at the next `prepare`;
-//! * `prepare(device, queue, &inputs) -> Result<bool>`: validates the inputs, resizes, uploads
-//!   what changed; returns whether the next `encode` records work (`false` only for the
-//!   passes whose result is kept while nothing changes: table, shadow map, light texture);
-//! * `encode(&mut self, encoder, timer) -> Result<()>`: records into the caller's
+//! * [`Node::prepare`]`(device, queue, &inputs) -> Result<bool>`: validates the inputs,
+//!   resizes, uploads what changed; returns whether the next `encode` records work (`false`
+//!   only for the passes whose result is kept while nothing changes: table, shadow map, light
+//!   texture);
+//! * [`Encode::encode`]`(&mut self, encoder, timer) -> Result<()>`: records into the caller's
 //!   `CommandEncoder` (never submits), timed by `timer` when given; a node whose output
 //!   depends on every frame returns [`Error::NotPrepared`](crate::Error::NotPrepared) before its
-//!   first successful `prepare`. The composite also takes the target it writes;
+//!   first successful `prepare`;
 //! * accessors for its outputs, `None` before the first `prepare`.
+//!
+//! The composite keeps the same shape with its own methods: it writes the caller's target,
+//! which `encode` takes.
 //!
 //! Each module documents the format, usage and size of every texture it reads or writes.
 
@@ -28,6 +32,46 @@ pub(crate) mod shadow_map;
 pub(crate) mod soft_shadow;
 pub(crate) mod uniforms;
 pub(crate) mod upsample;
+
+use crate::error::Result;
+use crate::gpu::GpuTimer;
+
+/// A node's per-frame contract: `prepare` reads its [`Inputs`](Node::Inputs), uploads what
+/// changed and says whether [`Encode::encode`] will record work. Bring it into scope
+/// (`use volshadow::nodes::{Encode, Node};`) to drive nodes by hand.
+pub trait Node: Encode {
+    /// What `prepare` reads each frame.
+    type Inputs<'a>: ?Sized;
+
+    /// Validates `inputs`, (re)allocates and uploads what changed. Returns whether the next
+    /// [`encode`](Encode::encode) records work (`false`: the last result stands).
+    ///
+    /// # Errors
+    ///
+    /// The node's own (see each node), never a wgpu validation error.
+    fn prepare(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        inputs: &Self::Inputs<'_>,
+    ) -> Result<bool>;
+}
+
+/// Recording a prepared node into the caller's encoder (never submitting), timed by `timer`
+/// when given. Object safe: a frame's steps are recorded through `&mut dyn Encode`.
+pub trait Encode {
+    /// Records the node's passes.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NotPrepared`](crate::Error::NotPrepared) where the node's output depends on
+    /// every frame and no `prepare` succeeded yet.
+    fn encode(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: Option<&mut GpuTimer>,
+    ) -> Result<()>;
+}
 
 pub use airlight_table::{AirlightTableNode, TableInputs, TableSize};
 pub use cache::{Cache, LightKind};

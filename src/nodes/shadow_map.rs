@@ -6,7 +6,7 @@
 //! nearest occluder has the largest depth and nothing is clipped far away.
 //!
 //! A directional light gets cascaded orthographic maps (rendered by
-//! [`ShadowMapNode::prepare_directional`]; Engel 2006, "Cascaded shadow maps", ShaderX⁵; the
+//! [`ShadowMapNode::prepare`] (the camera in [`ShadowMapInputs`]); Engel 2006, "Cascaded shadow maps", ShaderX⁵; the
 //! splits of Zhang et al. 2006, "Parallel-split shadow maps for large-scale virtual
 //! environments"): the view depth from the eye to the light's
 //! [shadow distance](crate::DirectionalLight::with_shadow_distance) is split into
@@ -51,6 +51,7 @@ use crate::gpu::pipeline::{bind_group, depth_pipeline, layout, module, Binding};
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{GpuTimer, Occluder};
 use crate::nodes::Cache;
+use crate::nodes::{Encode, Node};
 use crate::pass::Pass;
 use crate::scene::{Camera, DirectionalLight, Light};
 
@@ -110,6 +111,9 @@ pub struct ShadowMapInputs<'a> {
     pub light: &'a Light,
     /// The occluders.
     pub occluders: &'a [Occluder<'a>],
+    /// The view: a directional light's map is fitted to what it sees (point and spot lights do
+    /// not read it).
+    pub camera: &'a Camera,
 }
 
 /// Shadow-map settings.
@@ -712,57 +716,6 @@ impl ShadowMapNode {
         1.0 / (1.0 + 2.0 * half_tan * half_tan).sqrt()
     }
 
-    /// Validates the occluders and decides whether the map must be re-rendered. Returns
-    /// whether the next [`encode`](Self::encode) will render.
-    ///
-    /// # Errors
-    ///
-    /// [`Error::NonFinite`] or [`Error::SingularMatrix`] for an occluder's transform;
-    /// [`Error::InvalidSetting`] naming `light` for a directional light, whose map is fitted to
-    /// the camera ([`prepare_directional`](Self::prepare_directional)).
-    pub fn prepare(
-        &mut self,
-        device: &wgpu::Device,
-        queue: &wgpu::Queue,
-        inputs: &ShadowMapInputs<'_>,
-    ) -> Result<bool> {
-        if matches!(inputs.light, Light::Directional(_)) {
-            return Err(Error::InvalidSetting {
-                field: "light",
-                problem: "a directional light's map is fitted to the camera: \
-                          use ShadowMapNode::prepare_directional"
-                    .into(),
-            });
-        }
-        self.prepare_for(device, queue, inputs, None)
-    }
-
-    /// [`prepare`](Self::prepare) for a directional light: its orthographic map is fitted to
-    /// what `camera` sees up to the light's
-    /// [shadow distance](DirectionalLight::with_shadow_distance), or, without one, up to the
-    /// farthest corner of the occluders' bounds (see [`directional_matrix`](Self::directional_matrix)).
-    /// Re-renders only when the fitted map moved by a texel, the light or an occluder changed.
-    ///
-    /// # Errors
-    ///
-    /// As [`prepare`](Self::prepare), and [`Error::InvalidSetting`] naming `light` for a light
-    /// that is not directional.
-    pub fn prepare_directional(
-        &mut self,
-        device: &wgpu::Device,
-        queue: &wgpu::Queue,
-        inputs: &ShadowMapInputs<'_>,
-        camera: &Camera,
-    ) -> Result<bool> {
-        if !matches!(inputs.light, Light::Directional(_)) {
-            return Err(Error::InvalidSetting {
-                field: "light",
-                problem: "prepare_directional needs a directional light".into(),
-            });
-        }
-        self.prepare_for(device, queue, inputs, Some(camera))
-    }
-
     fn prepare_for(
         &mut self,
         device: &wgpu::Device,
@@ -770,7 +723,9 @@ impl ShadowMapNode {
         inputs: &ShadowMapInputs<'_>,
         camera: Option<&Camera>,
     ) -> Result<bool> {
-        let ShadowMapInputs { light, occluders } = *inputs;
+        let ShadowMapInputs {
+            light, occluders, ..
+        } = *inputs;
         for occluder in occluders {
             occluder.validate()?;
         }
@@ -992,8 +947,49 @@ impl ShadowMapNode {
         (faces, drawn)
     }
 
+    /// The shadow map for the march (`None` before the first `prepare`).
+    pub fn shadow_map(&self) -> Option<ShadowMap<'_>> {
+        Some(ShadowMap {
+            texture: self.texture.as_ref()?,
+            back: self.back.as_ref(),
+            faces: &self.faces,
+            depth_bias: self.settings.depth_bias,
+            bounds: &self.bounds,
+            planes: &self.planes,
+            occluder_distance: self.occluder_distance,
+            generation: self.generation,
+        })
+    }
+}
+
+impl Node for ShadowMapNode {
+    type Inputs<'a> = ShadowMapInputs<'a>;
+
+    /// Validates the occluders and decides whether the map must be re-rendered. Returns
+    /// whether the next [`encode`](Encode::encode) will render. A directional light's
+    /// orthographic map is fitted to what `inputs.camera` sees up to the light's
+    /// [shadow distance](DirectionalLight::with_shadow_distance), or, without one, up to the
+    /// farthest corner of the occluders' bounds (see [`directional_matrix`](Self::directional_matrix)),
+    /// and re-renders only when the fitted map moved by a texel, the light or an occluder
+    /// changed; point and spot lights do not read the camera.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NonFinite`] or [`Error::SingularMatrix`] for an occluder's transform.
+    fn prepare(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        inputs: &ShadowMapInputs<'_>,
+    ) -> Result<bool> {
+        let camera = matches!(inputs.light, Light::Directional(_)).then_some(inputs.camera);
+        self.prepare_for(device, queue, inputs, camera)
+    }
+}
+
+impl Encode for ShadowMapNode {
     /// Records the render of every face, if [`prepare`](Self::prepare) found a change.
-    pub fn encode(
+    fn encode(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
         mut timer: Option<&mut GpuTimer>,
@@ -1068,20 +1064,6 @@ impl ShadowMapNode {
             }
         }
         Ok(())
-    }
-
-    /// The shadow map for the march (`None` before the first `prepare`).
-    pub fn shadow_map(&self) -> Option<ShadowMap<'_>> {
-        Some(ShadowMap {
-            texture: self.texture.as_ref()?,
-            back: self.back.as_ref(),
-            faces: &self.faces,
-            depth_bias: self.settings.depth_bias,
-            bounds: &self.bounds,
-            planes: &self.planes,
-            occluder_distance: self.occluder_distance,
-            generation: self.generation,
-        })
     }
 }
 

@@ -102,6 +102,7 @@ use crate::gpu::ShaderPrecision;
 use crate::gpu::{check_depth_layers, depth_array_view, texture_3d, GpuTimer, UniformBuffer};
 use crate::nodes::shadow_map::{standard_cube_near, ShadowMap};
 use crate::nodes::Cache;
+use crate::nodes::{Encode, Node};
 use crate::pass::Pass;
 use crate::scene::Light;
 
@@ -804,6 +805,19 @@ impl SoftShadowNode {
         self.size
     }
 
+    /// The grid (see the module docs); `None` before the first `prepare`.
+    pub fn output(&self) -> Option<SoftShadow<'_>> {
+        self.texture.as_ref().map(|texture| SoftShadow {
+            texture,
+            size: self.size,
+            near: self.near,
+        })
+    }
+}
+
+impl Node for SoftShadowNode {
+    type Inputs<'a> = SoftShadowInputs<'a>;
+
     /// Validates the inputs, (re)creates the grid when its size changed and uploads the
     /// parameters. Returns whether the next [`encode`](Self::encode) rebuilds the grid: the
     /// shadow map's generation, the light, the occluders' bounds or the size changed now, or
@@ -816,7 +830,7 @@ impl SoftShadowNode {
     /// needs a list of cells larger than the device's storage buffers (at the core limit of
     /// 128 MiB, more than about 44 million cells); [`Error::InvalidTexture`] naming `shadow_map` for a shadow map
     /// whose layers or face matrices do not match the light.
-    pub fn prepare(
+    fn prepare(
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
@@ -959,14 +973,16 @@ impl SoftShadowNode {
         });
         Ok(self.pending)
     }
+}
 
+impl Encode for SoftShadowNode {
     /// Records the grid's build if [`prepare`](Self::prepare) found a change since the last
     /// build; otherwise records nothing.
     ///
     /// # Errors
     ///
     /// [`Error::NotPrepared`] before the first successful `prepare`, recording nothing.
-    pub fn encode(
+    fn encode(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
         timer: Option<&mut GpuTimer>,
@@ -1031,15 +1047,6 @@ impl SoftShadowNode {
         drop(pass);
         self.stale = self.built;
         Ok(())
-    }
-
-    /// The grid (see the module docs); `None` before the first `prepare`.
-    pub fn output(&self) -> Option<SoftShadow<'_>> {
-        self.texture.as_ref().map(|texture| SoftShadow {
-            texture,
-            size: self.size,
-            near: self.near,
-        })
     }
 }
 

@@ -3,6 +3,7 @@
 //! Maps", PLOS ONE, 2017: SoftBiF-VS).
 
 use crate::error::{finite, Error, Result};
+use crate::nodes::{Encode, Node};
 
 /// Resolution of the scattering passes (extents and march) relative to the output.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -275,6 +276,15 @@ impl UpsampleNode {
         Ok(())
     }
 
+    /// The upsampled in-scatter; `None` before the first `prepare`.
+    pub fn output(&self) -> Option<&wgpu::Texture> {
+        self.output.as_ref()
+    }
+}
+
+impl Node for UpsampleNode {
+    type Inputs<'a> = UpsampleInputs<'a>;
+
     /// Validates the inputs, (re)creates textures when sizes change, uploads what changed.
     /// Returns `true` (the upsample is recorded every frame).
     ///
@@ -282,7 +292,7 @@ impl UpsampleNode {
     ///
     /// [`Error::InvalidTexture`] naming the input (`scene_depth`, `low`) for a wrong format,
     /// usage or layer count, or a `low` texture larger than the output.
-    pub fn prepare(
+    fn prepare(
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
@@ -416,13 +426,15 @@ impl UpsampleNode {
         self.low_height = lh;
         Ok(true)
     }
+}
 
+impl Encode for UpsampleNode {
     /// Records the upsample (one pass, or two for the separable filter).
     ///
     /// # Errors
     ///
     /// [`Error::NotPrepared`] before the first successful `prepare`, recording nothing.
-    pub fn encode(
+    fn encode(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
         timer: Option<&mut GpuTimer>,
@@ -453,11 +465,6 @@ impl UpsampleNode {
             pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
         }
         Ok(())
-    }
-
-    /// The upsampled in-scatter; `None` before the first `prepare`.
-    pub fn output(&self) -> Option<&wgpu::Texture> {
-        self.output.as_ref()
     }
 }
 

@@ -10,7 +10,18 @@ pub mod visibility;
 
 use glam::{DMat4, DVec3, DVec4, Vec3};
 use volshadow::nodes::{AirlightTableNode, MarchInputs, MarchNode, MarchSettings, TableSize};
+use volshadow::nodes::{Encode, Node};
 use volshadow::{Cache, Camera, HeadlessGpu, Light, Medium, PointLight};
+
+/// A camera for node inputs only a directional light reads (a point or spot light's shadow
+/// map ignores it).
+pub fn unread_camera() -> Camera {
+    Camera::new(
+        glam::camera::rh::view::look_at_mat4(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, Vec3::Y),
+        glam::camera::rh::proj::directx::perspective(1.0, 1.0, 0.1, 100.0),
+    )
+    .expect("a valid camera")
+}
 
 /// The test device. A missing adapter fails the test with the installation hint.
 pub fn gpu() -> HeadlessGpu {
@@ -480,14 +491,14 @@ pub fn shadow_frame(gpu: &HeadlessGpu, cache: &Cache, passes: &ShadowPasses) -> 
     let mut march = MarchNode::new(&gpu.device, cache, settings).unwrap();
     let mut timer = GpuTimer::new(&gpu.device, &gpu.queue, 32);
 
-    let shadow_inputs = volshadow::nodes::ShadowMapInputs { light, occluders };
-    match light {
-        Light::Directional(_) => {
-            shadow.prepare_directional(&gpu.device, &gpu.queue, &shadow_inputs, camera)
-        }
-        _ => shadow.prepare(&gpu.device, &gpu.queue, &shadow_inputs),
-    }
-    .unwrap();
+    let shadow_inputs = volshadow::nodes::ShadowMapInputs {
+        light,
+        occluders,
+        camera,
+    };
+    shadow
+        .prepare(&gpu.device, &gpu.queue, &shadow_inputs)
+        .unwrap();
     extents
         .prepare(
             &gpu.device,

@@ -3,6 +3,7 @@
 //! eye), isotropic, HG(±0.9) and Rayleigh phases.
 
 use crate::common;
+use volshadow::nodes::{Encode, Node};
 
 use glam::{DVec3, Vec3};
 use volshadow::nodes::{AirlightTableNode, TableSize};

@@ -7,6 +7,7 @@
 //! camera's matrices.
 
 use crate::common;
+use volshadow::nodes::{Encode, Node};
 
 use glam::{DMat4, DVec3, Mat4, Quat, Vec3};
 use volshadow::gpu::{Occluder, OccluderMesh};

@@ -9,6 +9,7 @@
 //!   pixels away from shadow edges by ≤ 0.5% between consecutive frames.
 
 use crate::common;
+use volshadow::nodes::{Encode, Node};
 
 use common::scene::{MeshScene, Shot};
 use glam::{DVec3, Vec3};

@@ -15,6 +15,7 @@
 
 use crate::common;
 use crate::common::rng;
+use volshadow::nodes::{Encode, Node};
 
 use std::f64::consts::PI;
 use std::time::Instant;

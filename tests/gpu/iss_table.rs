@@ -4,6 +4,7 @@
 //! Rayleigh phases, and the bilinear interpolation of the default table between entries.
 
 use crate::common;
+use volshadow::nodes::{Encode, Node};
 
 use std::f64::consts::PI;
 use std::time::Instant;

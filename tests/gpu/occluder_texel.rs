@@ -2,6 +2,7 @@
 //! invertible) and a light texture's texels (within the f16 range they upload in).
 
 use crate::common;
+use volshadow::nodes::Node;
 
 use std::path::Path;
 
@@ -62,6 +63,7 @@ fn occluder_transform_validated_as_scene_files_do() {
         let inputs = ShadowMapInputs {
             light: &light,
             occluders: &occluders,
+            camera: &common::unread_camera(),
         };
         let got = node.prepare(&gpu.device, &gpu.queue, &inputs);
         assert!(
@@ -91,6 +93,7 @@ fn occluder_transform_validated_as_scene_files_do() {
     let inputs = ShadowMapInputs {
         light: &light,
         occluders: &occluders,
+        camera: &common::unread_camera(),
     };
     node.prepare(&gpu.device, &gpu.queue, &inputs)
         .expect("a proper transform passes");

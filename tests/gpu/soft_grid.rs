@@ -5,6 +5,7 @@
 //! Bars: the issue's, in-scatter RMSE ≤ 2% of the mean and p95 ≤ 3% against the reference.
 
 use crate::common;
+use volshadow::nodes::{Encode, Node};
 
 use common::scene::errors;
 use glam::{DVec3, Quat, Vec3};
@@ -782,6 +783,7 @@ fn the_grid_is_rebuilt_only_when_the_shadow_map_changes() {
         let inputs = ShadowMapInputs {
             light: &light,
             occluders: &occluders,
+            camera: &common::unread_camera(),
         };
         let rendered = shadow.prepare(&gpu.device, &gpu.queue, &inputs).unwrap();
         let rebuilt = soft
@@ -846,6 +848,7 @@ fn the_grid_rejects_what_it_cannot_use() {
             &ShadowMapInputs {
                 light: &point,
                 occluders: &occluders,
+                camera: &common::unread_camera(),
             },
         )
         .unwrap();
@@ -1207,6 +1210,7 @@ fn grid_cells_against_the_reference_visible_fraction() {
         let inputs = ShadowMapInputs {
             light: &s.light,
             occluders: &occluders,
+            camera: &common::unread_camera(),
         };
         shadow.prepare(&gpu.device, &gpu.queue, &inputs).unwrap();
         let map = shadow.shadow_map().unwrap();
@@ -1350,6 +1354,7 @@ fn the_grid_built_where_the_cones_reach_is_the_whole_build() {
         let inputs = ShadowMapInputs {
             light: &s.light,
             occluders: &occluders,
+            camera: &common::unread_camera(),
         };
         shadow.prepare(&gpu.device, &gpu.queue, &inputs).unwrap();
         let map = shadow.shadow_map().unwrap();

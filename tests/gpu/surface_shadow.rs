@@ -6,6 +6,7 @@
 //! reference's exact visible fraction of the light's disc.
 
 use crate::common;
+use volshadow::nodes::{Encode, Node};
 
 use glam::{DVec3, Vec3};
 use volshadow::nodes::{ShadowMapInputs, ShadowMapNode, ShadowMapSettings};
@@ -35,22 +36,19 @@ fn visibility(
         transform: glam::Mat4::IDENTITY,
     }];
     let mut node = ShadowMapNode::new(device, &cache, ShadowMapSettings::default()).unwrap();
+    // A camera above the ground looking down at it, so a directional light's fitted map
+    // covers every point (point and spot lights do not read it).
+    let camera = Camera::new(
+        glam::camera::rh::view::look_at_mat4(Vec3::new(0.0, 6.0, 0.0), Vec3::ZERO, Vec3::Z),
+        glam::camera::rh::proj::directx::perspective(1.2, 1.0, 0.1, 100.0),
+    )
+    .unwrap();
     let inputs = ShadowMapInputs {
         light,
         occluders: &occluders,
+        camera: &camera,
     };
-    if matches!(light, Light::Directional(_)) {
-        // A camera above the ground looking down at it, so the fitted map covers every point.
-        let camera = Camera::new(
-            glam::camera::rh::view::look_at_mat4(Vec3::new(0.0, 6.0, 0.0), Vec3::ZERO, Vec3::Z),
-            glam::camera::rh::proj::directx::perspective(1.2, 1.0, 0.1, 100.0),
-        )
-        .unwrap();
-        node.prepare_directional(device, &gpu.queue, &inputs, &camera)
-            .unwrap();
-    } else {
-        node.prepare(device, &gpu.queue, &inputs).unwrap();
-    }
+    node.prepare(device, &gpu.queue, &inputs).unwrap();
     let mut encoder = device.create_command_encoder(&Default::default());
     node.encode(&mut encoder, None).unwrap();
     gpu.submit_and_wait(encoder).unwrap();

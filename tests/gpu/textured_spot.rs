@@ -3,6 +3,7 @@
 //! footprint matches the step.
 
 use crate::common;
+use volshadow::nodes::Node;
 
 use glam::{DVec3, Mat4, Vec3};
 use volshadow::gpu::{Occluder, OccluderMesh};

@@ -2,6 +2,7 @@
 //! and nothing the caller passed is modified.
 
 use crate::common;
+use volshadow::nodes::Node;
 
 use glam::{Mat4, Vec3};
 use volshadow::nodes::{
