@@ -652,8 +652,6 @@ impl VolumetricShadows {
             }),
             _ => None,
         };
-        self.composite
-            .set_surfaces(queue, frame.medium, surfaces.as_ref())?;
         let surface_term = surfaces.is_some();
         self.composite.prepare(
             device,
@@ -664,6 +662,7 @@ impl VolumetricShadows {
                 scene_color: frame.scene_color,
                 scene_depth: frame.scene_depth,
                 inscatter: &inscatter,
+                surfaces: surfaces.as_ref(),
             },
         )?;
         Ok(surface_term)

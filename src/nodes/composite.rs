@@ -278,6 +278,8 @@ pub struct CompositeInputs<'a> {
     pub scene_depth: &'a wgpu::Texture,
     /// The in-scattered radiance of each light (0 ..= [`MAX_LIGHTS`] textures).
     pub inscatter: &'a [&'a wgpu::Texture],
+    /// The surface term: the light the medium scatters onto the surfaces (`None`: none).
+    pub surfaces: Option<&'a CompositeSurfaces<'a>>,
 }
 
 /// The surfaces' normals and albedo, for the light the medium scatters onto them (indirect
@@ -304,6 +306,16 @@ pub struct CompositeSurfaces<'a> {
     pub table: &'a IssTableNode,
     /// Up to [`MAX_LIGHTS`] point or spot lights whose scattered light reaches the surfaces.
     pub lights: &'a [Light],
+}
+
+impl std::fmt::Debug for CompositeSurfaces<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CompositeSurfaces")
+            .field("normal", self.normal)
+            .field("albedo", self.albedo)
+            .field("lights", &self.lights)
+            .finish_non_exhaustive()
+    }
 }
 
 /// The most lights one composite adds.
@@ -495,15 +507,9 @@ impl CompositeNode {
         Ok(())
     }
 
-    /// Sets (or, with `None`, removes) the surface term of the frames that follow; call it
-    /// before [`prepare`](Self::prepare), which checks the textures' sizes against the frame.
-    ///
-    /// # Errors
-    ///
-    /// [`Error::InvalidTexture`] naming `surface_normal` or `surface_albedo` for a texture
-    /// without a float sample type or `TEXTURE_BINDING`, and [`Error::InvalidSetting`] naming
-    /// `lights` for more than [`MAX_LIGHTS`] lights. Nothing changes on an error.
-    pub fn set_surfaces(
+    /// Sets (or, with `None`, removes) the surface term; `prepare` then checks the textures'
+    /// sizes against the frame. Nothing changes on an error.
+    fn set_surfaces(
         &mut self,
         queue: &wgpu::Queue,
         medium: &Medium,
@@ -542,8 +548,9 @@ impl CompositeNode {
     /// # Errors
     ///
     /// [`Error::InvalidTexture`] naming the input (`scene_color`, `scene_depth`, an in-scatter
-    /// texture) for a wrong format, usage, layer count or size, and [`Error::InvalidSetting`] for
-    /// more lights than the composite takes.
+    /// texture, `surface_normal`, `surface_albedo`) for a wrong format, usage, layer count or
+    /// size, and [`Error::InvalidSetting`] for more in-scatter textures or surface lights than
+    /// the composite takes.
     pub fn prepare(
         &mut self,
         device: &wgpu::Device,
@@ -567,6 +574,7 @@ impl CompositeNode {
             check_float_texture("inscatter", t)?;
             check_size("inscatter", t, width, height)?;
         }
+        self.set_surfaces(queue, inputs.medium, inputs.surfaces)?;
         if let Some([normal, albedo, _]) = &self.surfaces {
             check_size("surface_normal", normal, width, height)?;
             check_size("surface_albedo", albedo, width, height)?;

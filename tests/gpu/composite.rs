@@ -123,6 +123,7 @@ fn prepared(
             scene_color: &t[0],
             scene_depth: &t[1],
             inscatter: &[&t[2], &t[3]],
+            surfaces: None,
         },
     )
     .unwrap();

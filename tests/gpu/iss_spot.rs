@@ -122,15 +122,13 @@ fn surface_term_output(
         table,
         lights,
     };
-    composite
-        .set_surfaces(&gpu.queue, medium, Some(&surfaces))
-        .unwrap();
     let frame = CompositeInputs {
         camera,
         medium,
         scene_color: &inputs.black,
         scene_depth: &inputs.depth,
         inscatter: &[],
+        surfaces: Some(&surfaces),
     };
     composite.prepare(&gpu.device, &gpu.queue, &frame).unwrap();
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
@@ -889,19 +887,13 @@ fn composite_cost() {
             table: &table,
             lights: &lights,
         };
-        composite
-            .set_surfaces(
-                &gpu.queue,
-                &medium,
-                (!lights.is_empty()).then_some(&surfaces),
-            )
-            .unwrap();
         let frame = CompositeInputs {
             camera: &camera,
             medium: &medium,
             scene_color: &inputs.black,
             scene_depth: &inputs.depth,
             inscatter: &[],
+            surfaces: (!lights.is_empty()).then_some(&surfaces),
         };
         composite.prepare(&gpu.device, &gpu.queue, &frame).unwrap();
         let mut times = Vec::new();

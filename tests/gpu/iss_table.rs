@@ -261,15 +261,13 @@ fn surface_frame(
         table,
         lights: &lights,
     };
-    composite
-        .set_surfaces(&gpu.queue, medium, Some(&surfaces))
-        .unwrap();
     let inputs = CompositeInputs {
         camera,
         medium,
         scene_color: &black,
         scene_depth: &depth,
         inscatter: &[],
+        surfaces: Some(&surfaces),
     };
     composite.prepare(&gpu.device, &gpu.queue, &inputs).unwrap();
     let mut encoder = gpu.device.create_command_encoder(&Default::default());

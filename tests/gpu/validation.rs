@@ -335,6 +335,7 @@ fn bad_textures_are_typed_errors_not_validation_errors() {
                 scene_color: &colour,
                 scene_depth: &depth,
                 inscatter: &[&small],
+                surfaces: None,
             },
         )
         .err();
