@@ -891,10 +891,7 @@ impl Node for MarchNode {
                 }
             }
         };
-        let spot = match inputs.light {
-            Light::Spot(s) => s.direction().extend(s.cos_half_angle()).to_array(),
-            _ => [0.0; 4],
-        };
+        let spot = crate::nodes::uniforms::spot_cone(inputs.light);
         let (tex_frame, [tan_half_angle, tex_width, tex_mips]) =
             match (inputs.light, inputs.light_texture) {
                 (Light::Spot(s), Some(t)) => (

@@ -134,6 +134,15 @@ impl AirlightUniform {
     }
 }
 
+/// The `spot` vector of the march's and the upsample's parameters: a spot light's unit axis
+/// and the cosine of half its apex angle; zero for other lights.
+pub(crate) fn spot_cone(light: &Light) -> [f32; 4] {
+    match light {
+        Light::Spot(s) => s.direction().extend(s.cos_half_angle()).to_array(),
+        _ => [0.0; 4],
+    }
+}
+
 /// WGSL `View`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]

@@ -413,14 +413,10 @@ impl Node for UpsampleNode {
                 inputs.table.size(),
             ),
         );
-        let (spot, is_spot) = match inputs.light {
-            crate::scene::Light::Spot(s) => {
-                (s.direction().extend(s.cos_half_angle()).to_array(), true)
-            }
-            _ => ([0.0; 4], false),
-        };
+        let is_spot = matches!(inputs.light, crate::scene::Light::Spot(_));
         let directional = matches!(inputs.light, crate::scene::Light::Directional(_));
-        self.spot.write(queue, spot);
+        self.spot
+            .write(queue, crate::nodes::uniforms::spot_cone(inputs.light));
         self.entry_points = Some(self.pipelines.for_light(device, is_spot, directional));
         self.size = (w, h);
         self.low_height = lh;
