@@ -93,7 +93,7 @@ fn cells(@builtin(global_invocation_id) gid: vec3<u32>) {
 // d ≥ 4 h; else 8. The thresholds were chosen on an f64 model of every cell of the default
 // table (σt·D 1e-4 … 1000; isotropic, Rayleigh, HG 0.5, ±0.9, ±0.99): each head and tail
 // within 4.2e-6 of the exact integral, where 8 points everywhere give 1.3e-9. The table
-// itself is checked against the f64 reference by tests/airlight_table.rs.
+// itself is checked against the f64 reference by tests/gpu/airlight_table.rs.
 fn rule(a: Airlight, j: u32, n: u32, ds: f32, w: f32, gamma: f32, sin_half_gamma: f32) -> u32 {
     let s_lo = f32(j - 1u) * ds;
     let s_hi = f32(j) * ds;

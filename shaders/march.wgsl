@@ -181,7 +181,7 @@ fn in_front_of_surface(m: MapPoint) -> bool {
 // the grid's slice on its side, behind it the hard visibility; with `sharp`, for a narrow
 // penumbra the hard visibility, whose edges are the occluders'. A textured spot's march reads
 // it at each of its uniform steps without `sharp`, which makes the textured spot's error worse
-// (tests/textured_spot.rs), as does the grid's value alone (in cells marked for a surface).
+// (tests/gpu/textured_spot.rs), as does the grid's value alone (in cells marked for a surface).
 fn soft_grid_visibility(p: vec3<f32>, sharp: bool) -> f32 {
     // One projection into the map for all of the point's lookups (the grid's layers and
     // directions are the map's), not one per lookup.
@@ -220,7 +220,7 @@ const SHARP_STEP_BITS: u32 = 64u;
 // occluder's outline, or an occluder's surface between two slices) the grid's interpolation
 // would smear it: there the shadow map's own 2×2-filtered visibility, whose edges are the
 // occluders', is blended in by the interpolated mark. On the
-// torus of tests/soft.rs the grid alone is off by RMSE 3.8% (p95 6.5%) in the rows through the
+// torus of tests/gpu/soft.rs the grid alone is off by RMSE 3.8% (p95 6.5%) in the rows through the
 // torus, with the blend 1.1% (p95 1.9%). At an occluder's surface between two slices a point
 // in front of it takes instead the grid's slice on its own side, not interpolated across the
 // surface: a ground far below an occluder receives a wide penumbra, which the hard visibility
@@ -228,7 +228,7 @@ const SHARP_STEP_BITS: u32 = 64u;
 // the hard visibility, 5.2% with the slice); behind it, the hard visibility. Such a step's
 // edge is as sharp as a hard shadow's, so it is marched again at the resolution of `steps`
 // (a small light's penumbrae are sharp
-// almost everywhere: seed 2 of tests/soft_grid.rs, p95 3.9% at the grid's half step a cell,
+// almost everywhere: seed 2 of tests/gpu/soft_grid.rs, p95 3.9% at the grid's half step a cell,
 // 1.8% refined). The refinement runs after the step loop (no shadow-map lookup in the main
 // loop, which every step would pay for on a SIMD device); marked steps beyond
 // MAX_SHARP_STEPS or SHARP_STEP_BITS keep the grid's value. The step loop keeps the marked

@@ -135,7 +135,7 @@ fn visibility_of(m: MapPoint) -> f32 {
 
 // Soft shadows. Taps on a disc: golden-angle spiral, equal areas (Vogel 1979).
 // Taps a blocker-search round: 16 cost more and were no more accurate in the soft tests
-// (tests/soft.rs, tests/soft_grid.rs); 6 were worse.
+// (tests/gpu/soft.rs, tests/gpu/soft_grid.rs); 6 were worse.
 const SOFT_SEARCH_TAPS: u32 = 8u;
 const SOFT_FILTER_TAPS: u32 = 32u;
 // cos and sin of the golden angle π(3 − √5).
@@ -192,7 +192,7 @@ fn spiral_next(cs: vec2<f32>) -> vec2<f32> {
 // back face (both before q; see below), where a convex occluder's outline lies near its rim.
 // The lines from a point to the light's disc graze the outline; its front surface alone is
 // nearer the light and widens the filter, which brightens the deep penumbra (with the eye in
-// an umbra looking away from the light, tests/soft_grid.rs: p95 41% with the front surface).
+// an umbra looking away from the light, tests/gpu/soft_grid.rs: p95 41% with the front surface).
 fn blocker_ratio(q: vec3<f32>) -> f32 {
     return blocker_ratio_of(map_point(q));
 }
@@ -218,7 +218,7 @@ fn blocker_ratio_of(m: MapPoint) -> f32 {
         // distance sets the deep penumbra (visible fraction 0.02 to 0.2) too dark, by 4% to
         // 43% for ρ/L from 0.1 to 0.4, and at the tangent distance too bright, by 12% to 22%
         // (a CPU model against the exact cap overlap). m^¾ g^¼, a fit, leaves the grid's cells
-        // of the seeded scenes without bias there (tests/soft_grid.rs).
+        // of the seeded scenes without bias there (tests/gpu/soft_grid.rs).
         let mid = 0.5 * (front + back);
         // (max: a point so far that its depth is 0 has mid = 0, and 0/0 would be NaN.)
         return mid * vs_sqrt(vs_sqrt(vs_sqrt(front * back) / max(mid, 1.0e-30)));
@@ -368,7 +368,7 @@ fn soft_search(p: vec3<f32>) -> vec3<f32> {
         // other's), each with its own filter width, the farthest blocker of its own layer. A
         // line from p to the disc's point at the spiral's tap k is blocked if either layer
         // hides the tap's direction at its width (the union, not a product of fractions).
-        // Measured (tests/soft_grid.rs, overlapping penumbrae): p95 4.63% → 4.13%; scenes
+        // Measured (tests/gpu/soft_grid.rs, overlapping penumbrae): p95 4.63% → 4.13%; scenes
         // with one occluder never take this branch.
         let split = vs_sqrt(sum * least);
         var near = least;
@@ -395,7 +395,7 @@ fn soft_search(p: vec3<f32>) -> vec3<f32> {
         // the taps and lies just in front of p's distance (a receiver p is above, such as a
         // ground that casts shadows: its edge is its own surface, which the grid marks
         // between slices). Its width would mark the cell sharp, and the march would blend in
-        // the shadow map's hard edge in place of the near layer's wide penumbra (tests/soft_grid.rs:
+        // the shadow map's hard edge in place of the near layer's wide penumbra (tests/gpu/soft_grid.rs:
         // the ground and overlapping-penumbrae scenes).
         let receiver = far_hits == 0u && sum >= RECEIVER_RATIO;
         let region = select(width, near_width, receiver);
@@ -426,7 +426,7 @@ fn soft_deepen(p: vec3<f32>, width: f32, f: f32) -> f32 {
 // Where the filter's 32 taps find a visible fraction of at most SOFT_DEEP (12 taps lit), it
 // takes SOFT_DEEP_TAPS more: each tap is lit or not, so over a small fraction the estimate's
 // error is large relative to it, and a pixel lit by the deep penumbra (the eye in an umbra, in
-// a thick medium) shows it (tests/soft_grid.rs: the grid cells' deep-penumbra error; the eye
+// a thick medium) shows it (tests/gpu/soft_grid.rs: the grid cells' deep-penumbra error; the eye
 // in an umbra looking away).
 const SOFT_DEEP: f32 = 0.375;
 const SOFT_DEEP_TAPS: u32 = 96u;
@@ -485,7 +485,7 @@ fn soft_turn(p: vec3<f32>) -> f32 {
 // march's `penumbra_cone`): the filter's penumbra reaches a little beyond the occluder's own,
 // where the blockers' distance it takes is nearer the light than where the lines to the disc
 // graze the occluder, and the grid interpolates across the cone's edge. Measured on the
-// seeded spot scenes of tests/soft_grid.rs, with the occluders' tight bounding spheres: 1.05
+// seeded spot scenes of tests/gpu/soft_grid.rs, with the occluders' tight bounding spheres: 1.05
 // left seed 210 at RMSE 2.04%, 1.10 at 1.16% (1.15 and 1.3 no better there, and worst p95
 // 7.4% against 7.5%, for a longer march: on the report's soft scene 18.4 steps a pixel at
 // ½ resolution with 1.15, 16.1 with 1.05). With the bounding boxes' circumspheres, √3

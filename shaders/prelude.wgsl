@@ -234,7 +234,7 @@ fn table_row_mix(table: texture_2d<f32>, a: Airlight, gamma: f32, j: u32) -> vec
     return select(mix(t0, t1, f), geometric, (lo > vec3<f32>(0.0)) & (hi > ROW_RATIO * lo));
 }
 
-// See `table_row_mix`. Measured (tests/exact.rs, 200 spot-light scenes in thick fog): with a
+// See `table_row_mix`. Measured (tests/gpu/exact.rs, 200 spot-light scenes in thick fog): with a
 // linear mix everywhere, 198 within p95 1%, the others 2.4% and 11.8% (0.19% and 0.59% with
 // four times the rows); with the logarithms mixed above a ratio of 2, 198 and worst 5.5%;
 // above 1.2, 199 and worst 1.04%. The table's own test and the frame tests are unchanged.

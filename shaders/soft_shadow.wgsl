@@ -75,7 +75,7 @@ fn pcss_cube_near() -> f32 {
 // Most slices a thread holds (SoftShadowSize::MAX_SLICES).
 const MAX_SLICES: u32 = 64u;
 // A penumbra narrower than this many cells (filter radius) is marked sharp: the march blends in
-// the shadow map's own visibility there. Measured (tests/soft_grid.rs, tests/soft.rs): 4 cells
+// the shadow map's own visibility there. Measured (tests/gpu/soft_grid.rs, tests/gpu/soft.rs): 4 cells
 // or a fade from 2 to 4 are worse on the torus and the sphere, where hard edges are too sharp
 // for such penumbrae.
 const SHARP_CELLS: f32 = 2.0;
@@ -108,7 +108,7 @@ fn slice_q(k: u32, s: u32) -> f32 {
 // SoftShadowNode's docs.
 // See `interpolable`. Measured: an absolute spread of 0.02 in place of the relative one
 // interpolated the deep penumbra away (the eye in an umbra looking away from the light,
-// tests/soft_grid.rs: p95 22.9%, 6.0% relative); looser bounds (0.15, 2 cells, 0.4) saved
+// tests/gpu/soft_grid.rs: p95 22.9%, 6.0% relative); looser bounds (0.15, 2 cells, 0.4) saved
 // under 10% of the build.
 const FLAT_SPREAD: f32 = 0.05;
 const WIDE_CELLS: f32 = 4.0;

@@ -559,7 +559,7 @@ impl VolumetricShadows {
         }
         plan.unchanged(&unchanged);
         self.plan = plan;
-        let surface_term = self.prepare_composite(device, queue, frame)?;
+        let surface_term = self.prepare_composite(device, queue, frame, facts.scatters)?;
         self.first_frame = self.note_forms(frame, &drawn, surface_term);
         Ok(())
     }
@@ -625,15 +625,16 @@ impl VolumetricShadows {
         Ok((facts, kept, drawn))
     }
 
-    /// The composite's inputs: each light's in-scatter and the surface term. Returns whether
-    /// the surface term is on.
+    /// The composite's inputs: each light's in-scatter (none where the medium does not
+    /// scatter, `scatters` as the frame's facts say) and the surface term. Returns whether the
+    /// surface term is on.
     fn prepare_composite(
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         frame: &Frame<'_>,
+        scatters: bool,
     ) -> Result<bool> {
-        let scatters = frame.medium.sigma_s().max_element() > 0.0;
         let inscatter: Vec<&wgpu::Texture> = if scatters {
             let slots = self.slots.iter().enumerate().take(frame.lights.len());
             slots

@@ -10,7 +10,6 @@
 
 #[path = "../../examples/common/mod.rs"]
 mod common_examples;
-use crate::common::files;
 // The measurements tool's own copies of `cli.rs` and `metric.rs` (it is a binary of its own).
 #[allow(clippy::duplicate_mod)]
 #[path = "../../examples/measurements/main.rs"]
@@ -694,7 +693,7 @@ fn box_glb() -> Vec<u8> {
         "accessors": [{"bufferView": 0, "componentType": 5126, "count": 8, "type": "VEC3",
                        "min": [-1, -0.5, -0.75], "max": [1, 0.5, 0.75]},
                       {"bufferView": 1, "componentType": 5123, "count": 36, "type": "SCALAR"}]}"#;
-    files::glb(json, &bin)
+    crate::common::files::glb(json, &bin)
 }
 
 #[cfg(feature = "gltf")]
