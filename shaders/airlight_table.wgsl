@@ -1,3 +1,4 @@
+#import prelude.wgsl
 // F′ table builder, first pass: one invocation per cell (j, i) of row γ_i = π t_i²,
 // t_i = i / (rows − 1): the cell's integral ∫_{s_{j−1}}^{s_j} p exp(−σt (d + x − D)) ds,
 // s_j = j / (n − 1), into entry j of row i of `cells_out`. The second pass (airlight_table_sum.wgsl)

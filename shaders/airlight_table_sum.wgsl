@@ -1,3 +1,4 @@
+#import prelude.wgsl
 // F′ table builder, second pass: each row's cells (airlight_table.wgsl) summed into its entries.
 // Entry j holds T(γ_i, s_j) = ∫₀^{s_j}, the cells 1 … j; entry n + j the tail ∫_{s_j}^1, the
 // cells j + 1 … n − 1 summed from s = 1 (never a difference of heads: an interval far beyond

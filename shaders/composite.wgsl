@@ -1,3 +1,5 @@
+#import prelude.wgsl
+#import iss.wgsl
 // Composite node: L = (Ls + kd·E) · exp(−σt ds) + Σ L_sctr (one per light; kd·E the light the
 // medium scatters onto the surface, when normals and albedo are given) into the caller's target
 // (the prelude's fullscreen triangle).

@@ -1,3 +1,4 @@
+#import prelude.wgsl
 // Shadow-volume crossing lists built in compute (the exact method's default build).
 //
 // Per pixel, every shadow-volume face its centre ray crosses: the view depth of each crossing

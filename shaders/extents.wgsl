@@ -1,3 +1,4 @@
+#import prelude.wgsl
 // Shadow-volume extents node.
 //
 // 1. `reset` and `extrude` (compute): per occluder edge, a silhouette edge (one adjacent face

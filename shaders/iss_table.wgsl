@@ -1,3 +1,5 @@
+#import prelude.wgsl
+#import iss.wgsl
 // Indirect single scattering table builder (appended to the prelude and shaders/iss.wgsl): one
 // invocation per entry (τ_i, α_j) writes ln G(τ, α) per RGB channel, where
 //

@@ -1,3 +1,4 @@
+#import prelude.wgsl
 // Light-texture mip chain: each level is the level above it filtered by a 4×4 tent (four
 // bilinear taps), a blurred pyramid the march reads at the level matching each step's footprint.
 

@@ -1,3 +1,5 @@
+#import prelude.wgsl
+#import pcss.wgsl
 // March node: in-scattered radiance per pixel (Wyman and Ramsey 2008, §3.1; Biri et al. 2006).
 //
 // Everything is done in the normalised scattering angle s of the F′ table: the airlight over

@@ -1,5 +1,6 @@
-// Shadow-map visibility, hard and soft: shared by the march and the soft-shadow volume
-// (composed after the prelude, before the node's own shader). The node provides the globals
+#import prelude.wgsl
+// Shadow-map visibility, hard and soft: shared by the march and the soft-shadow volume, which
+// import it (`#import pcss.wgsl`). The importing node provides the globals
 // `shadow_map` and `shadow_back` (texture_depth_2d_array: the front surfaces, and the back
 // faces of closed occluders; the front map again where there is none), `shadow_sampler`
 // (comparison), `mp` with the fields

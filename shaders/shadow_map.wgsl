@@ -1,3 +1,4 @@
+#import prelude.wgsl
 // Shadow-map node: occluder depth from the light, one layer per face (six for a point light's
 // cube, one for a spot light). Reversed-Z infinite perspective: depth = near / distance along
 // the face's axis, so nearer occluders win with `Greater` and nothing is clipped far away.

@@ -1,5 +1,7 @@
+#import prelude.wgsl
+#import pcss.wgsl
 // Soft-shadow node: the fraction of a light's disc visible from each cell of a light-space
-// grid (composed after the prelude and pcss.wgsl), which the march reads with one trilinear
+// grid (it imports the prelude and pcss.wgsl), which the march reads with one trilinear
 // lookup per step instead of a percentage-closer soft shadow (PCSS) estimate of 49 shadow-map
 // taps (145 in the deep penumbra). Cells: per shadow-map layer, `size`² directions (the layer's texel grid, coarser) by
 // `slices` distances uniform in q = nearest / distance ∈ (0, 1], nearest being the least

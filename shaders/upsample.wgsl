@@ -1,3 +1,4 @@
+#import prelude.wgsl
 // Upsample node: the low-resolution lit fraction (rgb in [0, 1], a = eye distance, −1 sky)
 // brought to the output resolution without blending across depth discontinuities (Wyman and
 // Ramsey 2008, §3.3; SoftBiF-VS 2017), times the full-resolution analytic airlight of each output pixel.

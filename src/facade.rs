@@ -1,227 +1,19 @@
 //! `VolumetricShadows`: owns the nodes, asks the planner what to run, records it.
 
 use crate::error::{Error, Result};
+use crate::frame::{Frame, FrameLight};
 use crate::gpu::headless::HeadlessGpu;
 use crate::gpu::{GpuTimer, Occluder, PassTime};
 use crate::nodes::{
-    AirlightTableNode, CompositeInputs, CompositeNode, CompositeSurfaces, CrossingsBuild,
-    CrossingsRequest, ExtentsInputs, ExtentsNode, IssTableNode, IssTableSize, LightTextureNode,
-    MarchInputs, MarchMethod, MarchNode, MarchSettings, OutputTarget, Scale, ShadowMapInputs,
-    ShadowMapNode, ShadowMapSettings, Shadows, SoftShadowInputs, SoftShadowNode, SoftShadowSize,
-    TableInputs, TableSize, UpsampleFilter, UpsampleInputs, UpsampleNode, MAX_LIGHTS,
+    AirlightTableNode, CompositeInputs, CompositeNode, CompositeSurfaces, CrossingsRequest,
+    ExtentsInputs, ExtentsNode, IssTableNode, IssTableSize, LightTextureNode, MarchInputs,
+    MarchMethod, MarchNode, MarchSettings, OutputTarget, ShadowMapInputs, ShadowMapNode, Shadows,
+    SoftShadowInputs, SoftShadowNode, TableInputs, UpsampleInputs, UpsampleNode, MAX_LIGHTS,
 };
 use crate::nodes::{Cache, Encode, LightKind, Node};
-use crate::plan::{self, AdapterKind, Culled, FrameFacts, LightFacts, Pass, Plan};
-use crate::scene::{Camera, Light, Medium};
-
-/// Everything that is fixed for a `VolumetricShadows` (change it with [`VolumetricShadows::set_settings`]).
-///
-/// Used in the [crate-level example](crate#example).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Settings {
-    /// Method, steps, bisections and scattering resolution of the march.
-    pub march: MarchSettings,
-    /// How reduced-resolution scattering is brought to the output.
-    pub upsample: UpsampleFilter,
-    /// The F′ table's size.
-    pub table: TableSize,
-    /// Shadow-map resolution and bias.
-    pub shadow_map: ShadowMapSettings,
-    /// The soft-shadow grid's resolution (lights with a radius; see
-    /// [`SoftShadowNode`](crate::nodes::SoftShadowNode)).
-    pub soft_shadow: SoftShadowSize,
-    /// The format of the caller's output target.
-    pub output_format: wgpu::TextureFormat,
-    /// An occluder whose effect on every pixel is provably below this fraction of the
-    /// in-scatter is left out of the shadow map and extents (0 = never).
-    pub cull_threshold: f32,
-    /// The p95 relative error these settings were chosen for by
-    /// [`Settings::for_error_target`] (`None`: chosen by hand). The planner reads it: under an
-    /// error target a textured spot's scattering runs at full resolution.
-    pub error_target: Option<f32>,
-}
-
-impl Settings {
-    /// Reproducible settings for test images (as egui-wgpu's `PREDICTABLE`): each node's
-    /// `DEFAULT` ([`MarchSettings::DEFAULT`]: the exact method at full resolution, 64 steps
-    /// where a crossing list overflows, no bisection), the 3×3 depth-aware upsample, no
-    /// culling, `Rgba16Float` output.
-    pub const PREDICTABLE: Settings = Settings {
-        march: MarchSettings::DEFAULT,
-        upsample: UpsampleFilter::DepthAware3x3,
-        table: TableSize::DEFAULT,
-        shadow_map: ShadowMapSettings::DEFAULT,
-        soft_shadow: SoftShadowSize::DEFAULT,
-        output_format: wgpu::TextureFormat::Rgba16Float,
-        cull_threshold: 0.0,
-        error_target: None,
-    };
-}
-
-impl Settings {
-    /// Settings whose 95th-percentile per-pixel relative error of the in-scatter stays within
-    /// `p95` (0.02 = 2%) at the least cost on adapters of `kind` ([`AdapterKind::of`] your
-    /// device): the planner picks the method (exact or hybrid), steps, scattering resolution,
-    /// filter and bisections from [`plan::error_table`]`(kind)`, measured by the report on the
-    /// standard scenes with untextured lights, keeping headroom
-    /// ([`plan::ERROR_TARGET_MARGIN`]); textured spots scatter at full resolution with
-    /// [`plan::ERROR_TARGET_TEXTURE_STEPS`]. Everything else is [`Settings::for_adapter`]'s.
-    /// A tolerance tighter than any measured configuration reaches is an error.
-    ///
-    /// # Errors
-    ///
-    /// [`Error::InvalidSetting`] naming `error_target` for a tolerance that is not finite and
-    /// positive, or tighter than every measured configuration reaches.
-    pub fn for_error_target(p95: f32, kind: AdapterKind) -> Result<Settings> {
-        let picked = plan::for_error_target(p95, kind)?;
-        Ok(Settings {
-            march: MarchSettings {
-                method: picked.method,
-                steps: picked.steps,
-                bisections: picked.bisections,
-                scale: picked.scale,
-                texture_steps: plan::ERROR_TARGET_TEXTURE_STEPS,
-                ..MarchSettings::default()
-            },
-            upsample: picked.upsample,
-            error_target: Some(p95),
-            ..Settings::for_adapter(kind)
-        })
-    }
-
-    /// Real-time defaults for adapters of `kind` ([`AdapterKind::of`] your device): the exact
-    /// method (64 steps and 2 bisections where a crossing list overflows), occluders culled
-    /// below 1e-3, scattering at full resolution on a GPU and at half resolution with the 3×3
-    /// depth-aware upsample on a CPU adapter, and the crossing lists built by compute passes
-    /// on a GPU and by the rasteriser on a CPU adapter ([`CrossingsBuild`]). On a GPU the exact method at full resolution is
-    /// exact (worst p95 0.03% on the standard scenes, against 3.4% at half) for 1.5 times the
-    /// cost of half; on a CPU adapter it costs twice as much ([`plan::error_table`]).
-    pub fn for_adapter(kind: AdapterKind) -> Settings {
-        Settings {
-            march: MarchSettings {
-                scale: match kind {
-                    AdapterKind::Gpu => Scale::Full,
-                    AdapterKind::Cpu => Scale::Half,
-                },
-                bisections: 2,
-                // The compute build scales with a GPU's compute units; on a CPU adapter the
-                // rasteriser's build costs a third to a sixth as much (frame bench, lavapipe).
-                crossings_build: match kind {
-                    AdapterKind::Gpu => CrossingsBuild::Compute,
-                    AdapterKind::Cpu => CrossingsBuild::Raster,
-                },
-                ..MarchSettings::default()
-            },
-            cull_threshold: 1e-3,
-            ..Settings::PREDICTABLE
-        }
-    }
-}
-
-impl Settings {
-    /// Builds, before the first frame, every pipeline that a [`VolumetricShadows`] with these
-    /// settings can use for lights of the kinds in `lights` ([`FrameLight::kind`], or
-    /// [`LightKind::ALL`]): [`Cache::warm_up`] with the march settings and the output format.
-    /// Without it each variant is built by the first frame that needs it, inside
-    /// [`prepare`](VolumetricShadows::prepare): a pause of up to seconds on that frame.
-    ///
-    /// # Errors
-    ///
-    /// Those of [`VolumetricShadows::new`] and of [`Cache::warm_up`]
-    /// ([`Error::InvalidSetting`] naming the field), building nothing.
-    pub fn warm_up(
-        &self,
-        device: &wgpu::Device,
-        cache: &Cache,
-        lights: &[LightKind],
-    ) -> Result<()> {
-        validate(self)?;
-        cache.warm_up(device, &self.march, self.output_format, lights)
-    }
-}
-
-impl Default for Settings {
-    /// [`Settings::for_adapter`]`(AdapterKind::Gpu)`: the exact method at full resolution. On a
-    /// CPU adapter, [`Settings::for_adapter`] with [`AdapterKind::of`] the device halves the
-    /// resolution.
-    fn default() -> Self {
-        Settings::for_adapter(AdapterKind::Gpu)
-    }
-}
-
-/// A light of the frame, with an optional texture for a spot light (any filterable format,
-/// `TEXTURE_BINDING`, e.g. from [`LightTexture::upload`](crate::scene::LightTexture::upload)).
-///
-/// Used in the [crate-level example](crate#example).
-#[derive(Clone, Copy)]
-pub struct FrameLight<'a> {
-    /// The light.
-    pub light: Light,
-    /// The spot's projected texture.
-    pub texture: Option<&'a wgpu::Texture>,
-}
-
-impl FrameLight<'_> {
-    /// What decides which pipelines this light's frames use (see [`Settings::warm_up`]).
-    pub fn kind(&self) -> LightKind {
-        let soft = self.light.radius() > 0.0;
-        match self.light {
-            Light::Point(_) => LightKind::Point { soft },
-            Light::Spot(_) => LightKind::Spot {
-                soft,
-                textured: self.texture.is_some(),
-            },
-            Light::Directional(_) => LightKind::Directional,
-        }
-    }
-}
-
-impl From<Light> for FrameLight<'_> {
-    fn from(light: Light) -> Self {
-        Self {
-            light,
-            texture: None,
-        }
-    }
-}
-
-/// One frame's scene and the caller's rendered frame.
-///
-/// Used in the [crate-level example](crate#example).
-#[derive(Clone, Copy)]
-pub struct Frame<'a> {
-    /// The camera the frame was rendered with.
-    pub camera: &'a Camera,
-    /// Up to [`MAX_LIGHTS`] lights, summed.
-    pub lights: &'a [FrameLight<'a>],
-    /// The medium.
-    pub medium: &'a Medium,
-    /// The occluders (for every light).
-    pub occluders: &'a [Occluder<'a>],
-    /// The caller's shaded colour (float sample type, `TEXTURE_BINDING`), the output's size.
-    pub scene_color: &'a wgpu::Texture,
-    /// The caller's depth buffer (any depth format, `TEXTURE_BINDING`), the output's size.
-    pub scene_depth: &'a wgpu::Texture,
-    /// The surfaces' normals and albedo: when given (and the medium scatters), the composite
-    /// adds the light the medium scatters onto them (see [`Surfaces`]); `None` leaves it out.
-    pub surfaces: Option<Surfaces<'a>>,
-}
-
-/// Normals and albedo of the frame's surfaces, for the light the medium scatters onto them
-/// (indirect single scattering, [`nodes::IssTableNode`](crate::nodes::IssTableNode)): each
-/// surface pixel gets `(ρ/π)·E(P)` added to its colour before the medium attenuates it, `E(P)`
-/// summed over the frame's point and spot lights (a spot's limited to its cone; see
-/// [`CompositeSurfaces`](crate::nodes::CompositeSurfaces)), unshadowed. Sky pixels get none.
-#[derive(Clone, Copy)]
-pub struct Surfaces<'a> {
-    /// World-space normals in rgb (any length; zero: no term), any format with a float sample
-    /// type (`Rgba16Float`, `Rgba32Float`, `Rgba8Snorm`, …), usage `TEXTURE_BINDING`, the
-    /// output's size.
-    pub normal: &'a wgpu::Texture,
-    /// Diffuse albedo `ρ` in rgb (zero: no term), any format with a float sample type, usage
-    /// `TEXTURE_BINDING`, the output's size.
-    pub albedo: &'a wgpu::Texture,
-}
+use crate::plan::{self, LightPlan, Pass, Plan};
+use crate::scene::Light;
+use crate::settings::{validate, Settings};
 
 /// The nodes of one light.
 struct LightSlot {
@@ -238,8 +30,8 @@ struct LightSlot {
 /// What one light's step of a frame reads.
 struct StepInputs<'a, 'f> {
     frame: &'a Frame<'f>,
-    /// The light as drawn (see `VolumetricShadows::gather`).
-    light: &'a Light,
+    /// What the plan decided for the light.
+    planned: &'a LightPlan,
     /// Its occluders after culling.
     occluders: &'a [Occluder<'f>],
     /// Its index in the frame.
@@ -271,7 +63,8 @@ impl LightSlot {
         pass: Pass,
         step: &StepInputs<'_, '_>,
     ) -> Result<bool> {
-        let (frame, light, occluders, i) = (step.frame, step.light, step.occluders, step.index);
+        let (frame, occluders, i) = (step.frame, step.occluders, step.index);
+        let (light, scale) = (&step.planned.light, step.planned.scale);
         let (camera, medium) = (frame.camera, frame.medium);
         let fl = &frame.lights[i];
         let (width, height) = (frame.scene_depth.width(), frame.scene_depth.height());
@@ -295,7 +88,7 @@ impl LightSlot {
                     camera,
                     light,
                     occluders,
-                    size: plan.scale(i).apply(width, height),
+                    size: scale.apply(width, height),
                     crossings: (settings.march.method == MarchMethod::Exact).then_some(
                         CrossingsRequest {
                             per_pixel: settings.march.crossings,
@@ -327,7 +120,7 @@ impl LightSlot {
             }
             Pass::March => {
                 self.march.set_settings(MarchSettings {
-                    scale: plan.scale(i),
+                    scale,
                     ..settings.march
                 })?;
                 let light_index = Some(i);
@@ -351,6 +144,7 @@ impl LightSlot {
                     table: &self.table,
                     scene_depth: frame.scene_depth,
                     shadows: shadows.flatten(),
+                    mode: step.planned.march,
                     light_texture: fl.texture.and(self.texture.texture()),
                 };
                 self.march.prepare(device, queue, &inputs)?
@@ -527,13 +321,17 @@ impl VolumetricShadows {
             self.slots
                 .push(LightSlot::new(device, &self.cache, &self.settings)?);
         }
-        // Cheap facts first (no GPU work), then the plan, then exactly the planned steps.
-        let (facts, kept, drawn) = self.gather(frame)?;
-        let mut plan = plan::plan(&facts);
+        // The plan first (no GPU work), then exactly the planned steps.
+        let mut plan = plan::plan_frame(frame, &self.settings)?;
         if plan.runs(Pass::IssTable, None) && self.iss.is_none() {
             let size = IssTableSize::default();
             self.iss = Some(IssTableNode::new(device, &self.cache, size)?);
         }
+        let occluders: Vec<Vec<Occluder<'_>>> = plan
+            .lights
+            .iter()
+            .map(|l| l.occluders.iter().map(|&j| frame.occluders[j]).collect())
+            .collect();
         let mut unchanged = Vec::new();
         for (index, step) in plan.steps.iter().enumerate() {
             let work = match (step.pass, step.light) {
@@ -545,8 +343,8 @@ impl VolumetricShadows {
                 (pass, Some(i)) => {
                     let inputs = StepInputs {
                         frame,
-                        light: &drawn[i],
-                        occluders: &kept[i],
+                        planned: &plan.lights[i],
+                        occluders: &occluders[i],
                         index: i,
                     };
                     let (cache, settings) = (&self.cache, &self.settings);
@@ -558,75 +356,15 @@ impl VolumetricShadows {
             }
         }
         plan.unchanged(&unchanged);
+        let scatters = plan.scatters;
         self.plan = plan;
-        let surface_term = self.prepare_composite(device, queue, frame, facts.scatters)?;
-        self.first_frame = self.note_forms(frame, &drawn, surface_term);
+        let surface_term = self.prepare_composite(device, queue, frame, scatters)?;
+        self.first_frame = self.note_forms(frame, surface_term);
         Ok(())
     }
 
-    /// The frame's facts for the planner: each light's occluders after culling (those whose
-    /// effect is provably below the threshold stay out of its shadow map and extents), and
-    /// the lights as drawn (one whose penumbrae the shadow map cannot resolve, hard).
-    #[allow(clippy::type_complexity)]
-    fn gather<'f>(
-        &self,
-        frame: &Frame<'f>,
-    ) -> Result<(FrameFacts, Vec<Vec<Occluder<'f>>>, Vec<Light>)> {
-        let settings = &self.settings;
-        let mut facts = FrameFacts {
-            scatters: frame.medium.sigma_s().max_element() > 0.0,
-            lights: Vec::new(),
-            method: settings.march.method,
-            steps: settings.march.steps,
-            crossings: settings.march.crossings,
-            scale: settings.march.scale,
-            filter: settings.upsample,
-            culled: Vec::new(),
-            error_target: settings.error_target,
-            surfaces: frame.surfaces.is_some(),
-        };
-        let (mut kept, mut drawn) = (Vec::new(), Vec::new());
-        for (i, fl) in frame.lights.iter().enumerate() {
-            let mut light_kept = Vec::new();
-            for (j, o) in frame.occluders.iter().enumerate() {
-                o.validate()?;
-                let eye = frame.camera.eye();
-                let bound = plan::occluder_bound(eye, &fl.light, frame.medium, o.world_bounds());
-                if bound < f64::from(settings.cull_threshold) {
-                    facts.culled.push(Culled {
-                        light: i,
-                        occluder: j,
-                        bound,
-                    });
-                } else {
-                    light_kept.push(*o);
-                }
-            }
-            let penumbra_below_texel = ShadowMapNode::penumbra_below_texel(
-                &fl.light,
-                nearest_occluder(&fl.light, &light_kept),
-                settings.shadow_map.resolution,
-            );
-            let light = if penumbra_below_texel {
-                without_radius(fl.light)
-            } else {
-                fl.light
-            };
-            facts.lights.push(LightFacts {
-                textured: fl.texture.is_some(),
-                occluders: light_kept.len(),
-                directional: matches!(fl.light, Light::Directional(_)),
-                soft: light.radius() > 0.0,
-                penumbra_below_texel,
-            });
-            kept.push(light_kept);
-            drawn.push(light);
-        }
-        Ok((facts, kept, drawn))
-    }
-
     /// The composite's inputs: each light's in-scatter (none where the medium does not
-    /// scatter, `scatters` as the frame's facts say) and the surface term. Returns whether the
+    /// scatter, as the plan says) and the surface term. Returns whether the
     /// surface term is on.
     fn prepare_composite(
         &mut self,
@@ -671,26 +409,23 @@ impl VolumetricShadows {
 
     /// Records the forms this frame's steps take (see [`is_first_frame`](Self::is_first_frame));
     /// returns whether one is new.
-    fn note_forms(&mut self, frame: &Frame<'_>, drawn: &[Light], surface_term: bool) -> bool {
+    fn note_forms(&mut self, frame: &Frame<'_>, surface_term: bool) -> bool {
         let plan = &self.plan;
-        let present = |pass, light| {
-            plan.runs(pass, light)
-                || plan.skip_reason(pass, light) == Some(&plan::Reason::Unchanged)
-        };
         let mut first = false;
         for step in &plan.steps {
             let light = step.light.map(|i| {
+                let planned = &plan.lights[i];
                 let kind = FrameLight {
-                    light: drawn[i],
+                    light: planned.light,
                     texture: frame.lights[i].texture,
                 }
                 .kind();
                 let light = Some(i);
                 let forms = [
-                    present(Pass::ShadowMap, light),
-                    present(Pass::Extents, light),
-                    present(Pass::SoftShadow, light),
-                    plan.scale(i) == crate::nodes::Scale::Full,
+                    plan.present(Pass::ShadowMap, light),
+                    plan.present(Pass::Extents, light),
+                    plan.present(Pass::SoftShadow, light),
+                    planned.scale == crate::nodes::Scale::Full,
                 ];
                 (kind, forms)
             });
@@ -923,10 +658,8 @@ impl VolumetricShadows {
     /// [`SHADOW_WGSL`](crate::SHADOW_WGSL): record the frame's shadow-map steps
     /// ([`encode_step`](Self::encode_step)) before the surfaces that sample it.
     pub fn shadow_map(&self, light: usize) -> Option<crate::nodes::ShadowMap<'_>> {
-        let planned = self.plan.runs(Pass::ShadowMap, Some(light))
-            || self.plan.skip_reason(Pass::ShadowMap, Some(light))
-                == Some(&plan::Reason::Unchanged);
-        planned
+        self.plan
+            .present(Pass::ShadowMap, Some(light))
             .then(|| self.slots.get(light)?.shadow.shadow_map())
             .flatten()
     }
@@ -935,49 +668,18 @@ impl VolumetricShadows {
     pub fn step_counts(&self, light: usize) -> Option<&wgpu::Texture> {
         self.slots.get(light)?.march.step_counts()
     }
-}
 
-/// The least distance from a light to an occluder's world-space box (0 inside one, infinite
-/// without occluders or for a directional light).
-fn nearest_occluder(light: &Light, occluders: &[Occluder<'_>]) -> f32 {
-    let Some(p) = light.position() else {
-        return f32::INFINITY;
-    };
-    occluders
-        .iter()
-        .map(|o| {
-            let (lo, hi) = o.world_bounds();
-            p.clamp(lo, hi).distance(p)
-        })
-        .fold(f32::INFINITY, f32::min)
-}
+    /// What a light's last march met ([`MarchStats::from_bytes`](crate::nodes::MarchStats::from_bytes)
+    /// reads it; see [`MarchNode::stats_buffer`]).
+    pub fn march_stats(&self, light: usize) -> Option<&wgpu::Buffer> {
+        Some(self.slots.get(light)?.march.stats_buffer())
+    }
 
-/// The light with radius 0.
-fn without_radius(light: Light) -> Light {
-    match light {
-        Light::Point(l) => l.with_radius(0.0).map_or(light, Light::from),
-        Light::Spot(l) => l.with_radius(0.0).map_or(light, Light::from),
-        other => other,
+    /// The shadow volumes' extents of `light` in the last frame, when the plan has them.
+    pub fn extents(&self, light: usize) -> Option<crate::nodes::Extents<'_>> {
+        self.plan
+            .present(Pass::Extents, Some(light))
+            .then(|| self.slots.get(light)?.extents.extents())
+            .flatten()
     }
-}
-
-pub(crate) fn validate(settings: &Settings) -> Result<()> {
-    settings.upsample.validate()?;
-    settings.soft_shadow.validate()?;
-    if let Some(p95) = settings.error_target {
-        if !(p95.is_finite() && p95 > 0.0) {
-            return Err(Error::InvalidSetting {
-                field: "error_target",
-                problem: format!("must be a positive relative error, got {p95}"),
-            });
-        }
-    }
-    crate::error::finite("cull_threshold", &[settings.cull_threshold])?;
-    if !(0.0..=1.0).contains(&settings.cull_threshold) {
-        return Err(Error::InvalidSetting {
-            field: "cull_threshold",
-            problem: format!("must be in [0, 1], got {}", settings.cull_threshold),
-        });
-    }
-    Ok(())
 }

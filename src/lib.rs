@@ -266,6 +266,7 @@
 
 pub mod error;
 mod facade;
+mod frame;
 #[cfg(feature = "gltf")]
 pub mod gltf;
 pub mod gpu;
@@ -285,11 +286,13 @@ pub mod plan;
 pub mod reference;
 pub mod scene;
 pub mod scene_file;
+mod settings;
 
 #[cfg(feature = "gltf")]
 pub use error::GltfError;
 pub use error::{Error, Result, SceneFileError};
-pub use facade::{Frame, FrameLight, Settings, Surfaces, VolumetricShadows};
+pub use facade::VolumetricShadows;
+pub use frame::{Frame, FrameLight, Surfaces};
 pub use gpu::headless::{tone_map, HeadlessGpu};
 pub use gpu::{ErrorSign, ShaderPrecision};
 pub use gpu::{Occluder, OccluderMesh};
@@ -297,6 +300,7 @@ pub use load::{Limit, LoadOptions};
 pub use nodes::{Cache, LightKind};
 pub use plan::{AdapterKind, Plan};
 pub use scene::{Camera, DirectionalLight, Light, Medium, PhaseFunction, PointLight, SpotLight};
+pub use settings::Settings;
 
 pub use glam;
 pub use wgpu;

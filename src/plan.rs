@@ -1,14 +1,24 @@
-//! The planner: the one place that decides which passes a frame records, and says why the
-//! others are left out. It plans from cheap facts (lights, occluders left after culling,
-//! settings); the facade then prepares exactly the planned steps, and the steps whose node
-//! found nothing changed are left out as [`Reason::Unchanged`].
+//! The planner: the one place that decides which passes a frame records and how, and says why
+//! the others are left out. From the frame and the settings it gathers cheap facts (the
+//! occluders left after culling, the lights drawn hard) and returns the steps, the skips and,
+//! per light, a [`LightPlan`]: the light as drawn, its occluders, its resolution and its
+//! march's [`MarchMode`]. The facade prepares exactly the planned steps from it, and the steps
+//! whose node found nothing changed are left out as [`Reason::Unchanged`].
 
 use std::fmt;
 
-use crate::error::{Error, Result};
-use crate::nodes::{MarchMethod, Scale, UpsampleFilter};
+use crate::error::Result;
+use crate::frame::Frame;
+use crate::gpu::Occluder;
+use crate::nodes::{MarchMethod, MarchMode, Scale, ShadowForms, ShadowMapNode, UpsampleFilter};
+use crate::scene::Light;
+use crate::settings::Settings;
 
 pub use crate::pass::Pass;
+pub use crate::settings::{
+    error_table, for_error_target, AdapterKind, MeasuredConfig, ERROR_TABLE_CPU, ERROR_TABLE_GPU,
+    ERROR_TARGET_MARGIN, ERROR_TARGET_TEXTURE_STEPS,
+};
 
 /// Why a pass is left out.
 #[derive(Debug, Clone, PartialEq)]
@@ -119,8 +129,25 @@ pub struct Plan {
     pub skipped: Vec<Skip>,
     /// Occluders culled per light.
     pub culled: Vec<Culled>,
-    /// The scattering resolution of each light.
-    pub(crate) scales: Vec<Scale>,
+    /// What was decided for each light of the frame, in the frame's order.
+    pub lights: Vec<LightPlan>,
+    /// The medium scatters (σs > 0 in some channel); otherwise the frame only attenuates and
+    /// no light adds in-scatter.
+    pub scatters: bool,
+}
+
+/// What the plan decided for one light: the nodes receive it rather than deciding again.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LightPlan {
+    /// The light as drawn: the frame's, without its radius when its penumbrae are narrower
+    /// than a shadow-map texel ([`Reason::PenumbraBelowTexel`]).
+    pub light: Light,
+    /// Indices into the frame's occluders of those that shadow it (the rest are [`Culled`]).
+    pub occluders: Vec<usize>,
+    /// The resolution its scattering runs at.
+    pub scale: Scale,
+    /// How its march integrates each ray.
+    pub march: MarchMode,
 }
 
 impl Plan {
@@ -134,9 +161,10 @@ impl Plan {
     pub fn count(&self, pass: Pass) -> usize {
         self.steps.iter().filter(|s| s.pass == pass).count()
     }
-    /// The scattering resolution of `light` (full for a light the plan does not know).
-    pub(crate) fn scale(&self, light: usize) -> Scale {
-        self.scales.get(light).copied().unwrap_or_default()
+    /// Whether `pass` is part of the frame for `light`: it runs, or its node found nothing
+    /// changed and last frame's result stands.
+    pub fn present(&self, pass: Pass, light: Option<usize>) -> bool {
+        self.runs(pass, light) || self.skip_reason(pass, light) == Some(&Reason::Unchanged)
     }
     /// Leaves out the steps at `indices` (ascending), whose nodes found nothing changed.
     pub(crate) fn unchanged(&mut self, indices: &[usize]) {
@@ -198,34 +226,116 @@ impl fmt::Display for Plan {
 
 /// What the planner knows about one light this frame.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct LightFacts {
-    pub textured: bool,
-    /// Occluders left after culling.
-    pub occluders: usize,
-    /// A directional light (no F′ table).
-    pub directional: bool,
-    /// A light with a radius (soft shadows).
-    pub soft: bool,
-    /// A light with a radius whose penumbrae are narrower than a shadow-map texel, drawn hard
-    /// (`soft` is then false).
-    pub penumbra_below_texel: bool,
+struct LightFacts {
+    /// The light as drawn.
+    light: Light,
+    textured: bool,
+    /// Indices of the occluders left after culling.
+    occluders: Vec<usize>,
+    /// A light with a radius whose penumbrae are narrower than a shadow-map texel, drawn hard.
+    penumbra_below_texel: bool,
 }
 
 /// What the planner knows about the frame.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct FrameFacts {
-    pub scatters: bool,
-    pub lights: Vec<LightFacts>,
-    pub method: MarchMethod,
-    pub steps: u32,
+struct FrameFacts {
+    scatters: bool,
+    lights: Vec<LightFacts>,
+    method: MarchMethod,
+    steps: u32,
     /// Crossing list entries per pixel (exact method).
-    pub crossings: u32,
-    pub scale: Scale,
-    pub filter: UpsampleFilter,
-    pub culled: Vec<Culled>,
-    pub error_target: Option<f32>,
+    crossings: u32,
+    scale: Scale,
+    filter: UpsampleFilter,
+    culled: Vec<Culled>,
+    error_target: Option<f32>,
     /// Surface normals and albedo were given (the indirect single scattering term).
-    pub surfaces: bool,
+    surfaces: bool,
+}
+
+/// Plans `frame` under `settings`: gathers the facts (culling, lights drawn hard) and decides
+/// the passes. Needs no GPU work.
+///
+/// # Errors
+///
+/// Those of [`Occluder::validate`] for an occluder's transform.
+pub(crate) fn plan_frame(frame: &Frame<'_>, settings: &Settings) -> Result<Plan> {
+    Ok(plan(&gather(frame, settings)?))
+}
+
+/// The frame's facts: each light's occluders after culling (those whose effect is provably
+/// below the threshold stay out of its shadow map and extents), and the lights as drawn (one
+/// whose penumbrae the shadow map cannot resolve, hard).
+fn gather(frame: &Frame<'_>, settings: &Settings) -> Result<FrameFacts> {
+    for o in frame.occluders {
+        o.validate()?;
+    }
+    let mut culled = Vec::new();
+    let mut lights = Vec::new();
+    let eye = frame.camera.eye();
+    for (i, fl) in frame.lights.iter().enumerate() {
+        let mut kept = Vec::new();
+        for (j, o) in frame.occluders.iter().enumerate() {
+            let bound = occluder_bound(eye, &fl.light, frame.medium, o.world_bounds());
+            if bound < f64::from(settings.cull_threshold) {
+                culled.push(Culled {
+                    light: i,
+                    occluder: j,
+                    bound,
+                });
+            } else {
+                kept.push(j);
+            }
+        }
+        let nearest = nearest_occluder(&fl.light, kept.iter().map(|&j| &frame.occluders[j]));
+        let penumbra_below_texel =
+            ShadowMapNode::penumbra_below_texel(&fl.light, nearest, settings.shadow_map.resolution);
+        lights.push(LightFacts {
+            light: if penumbra_below_texel {
+                without_radius(fl.light)
+            } else {
+                fl.light
+            },
+            textured: fl.texture.is_some(),
+            occluders: kept,
+            penumbra_below_texel,
+        });
+    }
+    Ok(FrameFacts {
+        scatters: frame.medium.sigma_s().max_element() > 0.0,
+        lights,
+        method: settings.march.method,
+        steps: settings.march.steps,
+        crossings: settings.march.crossings,
+        scale: settings.march.scale,
+        filter: settings.upsample,
+        culled,
+        error_target: settings.error_target,
+        surfaces: frame.surfaces.is_some(),
+    })
+}
+
+/// The least distance from a light to an occluder's world-space box (0 inside one, infinite
+/// without occluders or for a directional light).
+fn nearest_occluder<'o>(light: &Light, occluders: impl Iterator<Item = &'o Occluder<'o>>) -> f32 {
+    let Some(p) = light.position() else {
+        return f32::INFINITY;
+    };
+    occluders
+        .map(|o| {
+            let (lo, hi) = o.world_bounds();
+            p.clamp(lo, hi).distance(p)
+        })
+        .fold(f32::INFINITY, f32::min)
+}
+
+/// The light with radius 0.
+fn without_radius(light: Light) -> Light {
+    match light {
+        Light::Point(l) => l.with_radius(0.0).map_or(light, Light::from),
+        Light::Spot(l) => l.with_radius(0.0).map_or(light, Light::from),
+        other => other,
+    }
 }
 
 /// The resolution a light's scattering runs at. Without shadows the analytic airlight is
@@ -242,13 +352,10 @@ fn light_scale(scale: Scale, shadowed: bool, textured: bool, error_target: Optio
 
 /// Decides the passes of a frame. The light texture, shadow map and table are planned whenever
 /// they apply; [`Plan::unchanged`] leaves them out when their node has nothing new to record.
-pub(crate) fn plan(facts: &FrameFacts) -> Plan {
-    let mut plan = Plan {
-        culled: facts.culled.clone(),
-        ..Plan::default()
-    };
+fn plan(facts: &FrameFacts) -> Plan {
+    let mut steps = Vec::new();
     let mut run = |pass, light, detail: String| {
-        plan.steps.push(Step {
+        steps.push(Step {
             pass,
             light,
             detail,
@@ -262,12 +369,21 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
             reason,
         })
     };
+    let mut lights = Vec::new();
     for (i, l) in facts.lights.iter().enumerate() {
         let light = Some(i);
-        let shadowed = l.occluders > 0;
+        let shadowed = !l.occluders.is_empty();
+        let soft = l.light.radius() > 0.0;
+        let directional = matches!(l.light, Light::Directional(_));
         let scale = light_scale(facts.scale, shadowed, l.textured, facts.error_target);
-        plan.scales.push(scale);
+        let mut light_plan = LightPlan {
+            light: l.light,
+            occluders: l.occluders.clone(),
+            scale,
+            march: MarchMode::choose(facts.method, soft, None),
+        };
         if !facts.scatters {
+            lights.push(light_plan);
             for pass in [
                 Pass::LightTexture,
                 Pass::ShadowMap,
@@ -286,65 +402,67 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
         } else {
             skip(Pass::LightTexture, light, Reason::Untextured);
         }
-        if !shadowed {
-            skip(Pass::ShadowMap, light, Reason::NoOccluders);
-            skip(Pass::Extents, light, Reason::NoOccluders);
-            skip(Pass::SoftShadow, light, Reason::NoOccluders);
-        } else {
-            run(
-                Pass::ShadowMap,
-                light,
-                format!("{} occluder(s)", l.occluders),
-            );
-            if l.soft && matches!(facts.method, MarchMethod::Hybrid | MarchMethod::Exact) {
-                skip(Pass::Extents, light, Reason::SoftLight);
-            } else if facts.method == MarchMethod::Hybrid {
-                run(Pass::Extents, light, format!("at 1/{}", scale.divisor()));
-            } else if facts.method == MarchMethod::Exact {
-                run(
-                    Pass::Extents,
-                    light,
-                    format!(
-                        "crossing lists of {} per pixel, at 1/{}",
-                        facts.crossings,
-                        scale.divisor()
-                    ),
-                );
-            } else {
-                skip(Pass::Extents, light, Reason::BruteForce);
+        // The shadow inputs the march gets. The hybrid and the exact method bound the marched
+        // interval: by the shadow volumes' extents (with crossing lists for the exact method),
+        // or for a light with a radius by the penumbra cones of the soft-shadow grid.
+        let bounded = matches!(facts.method, MarchMethod::Hybrid | MarchMethod::Exact);
+        let forms = shadowed.then_some(ShadowForms {
+            extents: bounded && !soft,
+            crossings: facts.method == MarchMethod::Exact,
+            soft_grid: bounded && soft,
+        });
+        match forms {
+            None => {
+                skip(Pass::ShadowMap, light, Reason::NoOccluders);
+                skip(Pass::Extents, light, Reason::NoOccluders);
+                skip(Pass::SoftShadow, light, Reason::NoOccluders);
             }
-            if l.penumbra_below_texel {
-                skip(Pass::SoftShadow, light, Reason::PenumbraBelowTexel);
-            } else if !l.soft {
-                skip(Pass::SoftShadow, light, Reason::HardLight);
-            } else if matches!(facts.method, MarchMethod::Hybrid | MarchMethod::Exact) {
-                run(
-                    Pass::SoftShadow,
-                    light,
-                    "visible fraction of the light's disc on a light-space grid".into(),
-                );
-            } else {
-                skip(Pass::SoftShadow, light, Reason::BruteForce);
+            Some(f) => {
+                let count = l.occluders.len();
+                run(Pass::ShadowMap, light, format!("{count} occluder(s)"));
+                let at = scale.divisor();
+                if f.extents && f.crossings {
+                    let per_pixel = facts.crossings;
+                    let detail = format!("crossing lists of {per_pixel} per pixel, at 1/{at}");
+                    run(Pass::Extents, light, detail);
+                } else if f.extents {
+                    run(Pass::Extents, light, format!("at 1/{at}"));
+                } else if f.soft_grid {
+                    skip(Pass::Extents, light, Reason::SoftLight);
+                } else {
+                    skip(Pass::Extents, light, Reason::BruteForce);
+                }
+                if f.soft_grid {
+                    let detail = "visible fraction of the light's disc on a light-space grid";
+                    run(Pass::SoftShadow, light, detail.into());
+                } else if l.penumbra_below_texel {
+                    skip(Pass::SoftShadow, light, Reason::PenumbraBelowTexel);
+                } else if !soft {
+                    skip(Pass::SoftShadow, light, Reason::HardLight);
+                } else {
+                    skip(Pass::SoftShadow, light, Reason::BruteForce);
+                }
             }
         }
-        if l.directional {
+        if directional {
             skip(Pass::AirlightTable, light, Reason::ClosedFormAirlight);
         } else {
             run(Pass::AirlightTable, light, "rebuilt".into());
         }
-        let method = match (shadowed, facts.method) {
-            (false, _) => "analytic".to_string(),
-            (true, MarchMethod::Hybrid | MarchMethod::Exact) if l.soft => format!(
+        light_plan.march = MarchMode::choose(facts.method, soft, forms);
+        let method = match light_plan.march {
+            MarchMode::Analytic => "analytic".to_string(),
+            MarchMode::Hybrid if forms.is_some_and(|f| f.soft_grid) => format!(
                 "penumbra cones marched through the soft-shadow grid (half a step a cell, at most {})",
                 facts.steps
             ),
-            (true, MarchMethod::Hybrid) => format!("hybrid, {} steps", facts.steps),
-            (true, MarchMethod::BruteForce) => format!("brute force, {} steps", facts.steps),
-            (true, MarchMethod::Exact) => format!(
+            MarchMode::Hybrid => format!("hybrid, {} steps", facts.steps),
+            MarchMode::BruteForce => format!("brute force, {} steps", facts.steps),
+            MarchMode::Exact => format!(
                 "exact between crossings, overflowing pixels marched with {} steps",
                 facts.steps
             ),
-            (_, MarchMethod::Textbook) => format!("textbook march, {} steps", facts.steps),
+            MarchMode::Textbook => format!("textbook march, {} steps", facts.steps),
         };
         run(
             Pass::March,
@@ -358,6 +476,7 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
         } else {
             run(Pass::Upsample, light, format!("{:?}", facts.filter));
         }
+        lights.push(light_plan);
     }
     if !facts.surfaces {
         skip(Pass::IssTable, None, Reason::NoSurfaceInput);
@@ -371,8 +490,13 @@ pub(crate) fn plan(facts: &FrameFacts) -> Plan {
         None,
         format!("{} light(s)", facts.lights.len()),
     );
-    plan.skipped = skips;
-    plan
+    Plan {
+        steps,
+        skipped: skips,
+        culled: facts.culled.clone(),
+        lights,
+        scatters: facts.scatters,
+    }
 }
 
 /// Upper bound of how much an occluder can change the in-scatter of any pixel, relative to the
@@ -419,163 +543,10 @@ pub(crate) fn occluder_bound(
         .fold(0.0, f64::max)
 }
 
-/// A configuration the error target can pick, with what the report
-/// (`cargo run --release --example report -- --scenes all`, at 512×512) measured for it on the
-/// standard scenes.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct MeasuredConfig {
-    /// The march method (exact or hybrid).
-    pub method: MarchMethod,
-    /// Worst 95th-percentile relative error over the standard scenes.
-    pub p95: f32,
-    /// Mean frame time over the analytic floor's (unshadowed airlight) on the same scenes.
-    pub cost: f32,
-    /// Steps per marched interval.
-    pub steps: u32,
-    /// Scattering resolution.
-    pub scale: Scale,
-    /// Upsampling filter (ignored at full resolution).
-    pub upsample: UpsampleFilter,
-    /// Bisections per lit/shadow transition.
-    pub bisections: u32,
-}
-
-const fn measured(
-    method: MarchMethod,
-    p95: f32,
-    cost: f32,
-    steps: u32,
-    scale: Scale,
-    upsample: UpsampleFilter,
-    bisections: u32,
-) -> MeasuredConfig {
-    MeasuredConfig {
-        method,
-        p95,
-        cost,
-        steps,
-        scale,
-        upsample,
-        bisections,
-    }
-}
-
-/// Steps a textured spot's lit stretches outside the shadow volumes get under an error target
-/// (the budget the error tables were measured with; untextured lights never use it).
-pub const ERROR_TARGET_TEXTURE_STEPS: u32 = 256;
-
-/// The error target keeps this fraction of the tolerance as headroom for scenes unlike the
-/// standard ones: it picks configurations whose measured worst p95 is at most
-/// `ERROR_TARGET_MARGIN × tolerance`.
-pub const ERROR_TARGET_MARGIN: f32 = 0.8;
-
-/// The kind of adapter a device runs on, for the choices whose cost differs between them
-/// ([`Settings::for_adapter`](crate::Settings::for_adapter),
-/// [`Settings::for_error_target`](crate::Settings::for_error_target)).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum AdapterKind {
-    /// A GPU (discrete, integrated or virtual): the passes run in parallel, and the fixed
-    /// passes (shadow maps, crossing lists) dominate a frame, so full resolution costs little
-    /// more than less.
-    Gpu,
-    /// A CPU rasteriser (lavapipe, llvmpipe, SwiftShader, WARP): cost grows with the pixels
-    /// marched, so reduced resolution pays.
-    Cpu,
-}
-
-impl AdapterKind {
-    /// The kind of `device`'s adapter.
-    pub fn of(device: &wgpu::Device) -> Self {
-        Self::from_device_type(device.adapter_info().device_type)
-    }
-
-    /// The kind of an adapter of `device_type` (`Other`, which a driver reports when it does not
-    /// say, counts as a GPU).
-    pub fn from_device_type(device_type: wgpu::DeviceType) -> Self {
-        match device_type {
-            wgpu::DeviceType::Cpu => AdapterKind::Cpu,
-            _ => AdapterKind::Gpu,
-        }
-    }
-}
-
-/// The Pareto front of worst-scene p95 against cost on a GPU, cheapest first, as written to
-/// `target/volshadow-report/error_table.rs` by the report (`--full` on an NVIDIA H200, driver
-/// 580.159.04, Vulkan, 512×512, the eight standard scenes with untextured lights without
-/// a radius, p95 over pixels above 1% of each frame's 99th-percentile brightness). Only the
-/// exact method is on it: at every tolerance it was cheaper than the hybrid there. Full
-/// resolution costs 1.5 times half (the crossing lists scale with the pixels) and is exact.
-#[rustfmt::skip]
-pub const ERROR_TABLE_GPU: &[MeasuredConfig] = &[
-    // measured(method, p95, cost, steps, scale, upsample, bisections)
-    measured(MarchMethod::Exact, 0.0613, 18.003, 64, Scale::Quarter, UpsampleFilter::DepthAware3x3, 2),
-    measured(MarchMethod::Exact, 0.0341, 20.521, 64, Scale::Half, UpsampleFilter::DepthAware3x3, 2),
-    measured(MarchMethod::Exact, 0.0003, 30.519, 64, Scale::Full, UpsampleFilter::DepthAware3x3, 2),
-];
-
-/// The Pareto front on a CPU adapter, as [`ERROR_TABLE_GPU`] (the report on llvmpipe, 512×512,
-/// six of the standard scenes: not the soft and stiff-fog ones). The window scene's thin sun shafts set the
-/// reduced-resolution rows (exact at ½: 3.4%; every other scene ≤ 0.9%). The exact method's
-/// rows list 64 steps and 2 bisections: those only march pixels whose crossing list
-/// overflowed.
-#[rustfmt::skip]
-pub const ERROR_TABLE_CPU: &[MeasuredConfig] = &[
-    // measured(method, p95, cost, steps, scale, upsample, bisections)
-    measured(MarchMethod::Hybrid, 1.0000, 1.685, 8, Scale::Quarter, UpsampleFilter::DepthAware3x3, 0),
-    measured(MarchMethod::Hybrid, 0.4460, 1.726, 16, Scale::Quarter, UpsampleFilter::DepthAware3x3, 0),
-    measured(MarchMethod::Hybrid, 0.3303, 1.872, 16, Scale::Quarter, UpsampleFilter::Separable { taps: 7, sigma_spatial: 1.5, sigma_depth: 0.05 }, 0),
-    measured(MarchMethod::Hybrid, 0.3097, 1.905, 16, Scale::Quarter, UpsampleFilter::DepthAware3x3, 2),
-    measured(MarchMethod::Exact, 0.0614, 1.909, 64, Scale::Quarter, UpsampleFilter::DepthAware3x3, 2),
-    measured(MarchMethod::Exact, 0.0342, 2.834, 64, Scale::Half, UpsampleFilter::DepthAware3x3, 2),
-    measured(MarchMethod::Exact, 0.0003, 5.522, 64, Scale::Full, UpsampleFilter::DepthAware3x3, 2),
-];
-
-/// The error table measured on adapters of `kind`.
-pub fn error_table(kind: AdapterKind) -> &'static [MeasuredConfig] {
-    match kind {
-        AdapterKind::Gpu => ERROR_TABLE_GPU,
-        AdapterKind::Cpu => ERROR_TABLE_CPU,
-    }
-}
-
-/// The cheapest configuration of [`error_table`]`(kind)` whose measured worst p95 is within
-/// [`ERROR_TARGET_MARGIN`] of `p95` (a relative error: 0.02 = 2%).
-///
-/// # Errors
-///
-/// [`Error::InvalidSetting`] naming `error_target` for a tolerance that is not finite and
-/// positive, or tighter than every configuration of the table reaches.
-pub fn for_error_target(p95: f32, kind: AdapterKind) -> Result<MeasuredConfig> {
-    if !(p95.is_finite() && p95 > 0.0) {
-        return Err(Error::InvalidSetting {
-            field: "error_target",
-            problem: format!("must be a positive relative error, got {p95}"),
-        });
-    }
-    let allowed = ERROR_TARGET_MARGIN * p95;
-    let table = error_table(kind);
-    table
-        .iter()
-        .filter(|c| c.p95 <= allowed)
-        .min_by(|a, b| a.cost.total_cmp(&b.cost))
-        .copied()
-        .ok_or_else(|| {
-            let best = table.iter().map(|c| c.p95).fold(f32::INFINITY, f32::min);
-            Error::InvalidSetting {
-                field: "error_target",
-                problem: format!(
-                    "p95 {:.3}% is below what any measured configuration reaches with headroom \
-                     (best {:.3}%, headroom {ERROR_TARGET_MARGIN})",
-                    100.0 * p95,
-                    100.0 * best
-                ),
-            }
-        })
-}
-
 #[cfg(test)]
 mod tests {
-    use super::occluder_bound;
+    use super::{occluder_bound, plan, FrameFacts, LightFacts, LightPlan, Pass};
+    use crate::nodes::{MarchMethod, MarchMode, Scale, UpsampleFilter};
     use crate::scene::{Light, Medium, PhaseFunction, PointLight};
     use glam::Vec3;
 
@@ -597,5 +568,70 @@ mod tests {
         eprintln!("cull bounds: radius 0 {hard:e}, 7 {soft:e}, 9.75 {reaching:e}");
         assert!(hard < 1e-3 && soft > 1e-3, "{hard} {soft}");
         assert_eq!(reaching, f64::INFINITY);
+    }
+
+    /// Every light a frame can have, under every method: the march's mode in the plan reads
+    /// only what the plan runs (the exact mode its crossing lists, the hybrid its extents or,
+    /// for a light with a radius, its soft-shadow grid, the shadowed modes a shadow map), and
+    /// the printed march step names that mode. A planner whose steps and march disagree fails
+    /// here: one that runs the soft-shadow grid for the hybrid method only, while the exact
+    /// method's march still reads it, was measured to.
+    #[test]
+    fn the_march_mode_reads_only_what_the_plan_runs() {
+        let point = PointLight::new(Vec3::ZERO, Vec3::ONE).unwrap();
+        let mut cases = 0;
+        for method in [
+            MarchMethod::Exact,
+            MarchMethod::Hybrid,
+            MarchMethod::BruteForce,
+            MarchMethod::Textbook,
+        ] {
+            for (radius, penumbra_below_texel) in [(0.0, false), (0.0, true), (0.5, false)] {
+                for occluders in [vec![], vec![0, 2]] {
+                    let light = Light::from(point.with_radius(radius).unwrap());
+                    let facts = FrameFacts {
+                        scatters: true,
+                        lights: vec![LightFacts {
+                            light,
+                            textured: false,
+                            occluders,
+                            penumbra_below_texel,
+                        }],
+                        method,
+                        steps: 64,
+                        crossings: 16,
+                        scale: Scale::Half,
+                        filter: UpsampleFilter::DepthAware3x3,
+                        culled: Vec::new(),
+                        error_target: None,
+                        surfaces: false,
+                    };
+                    let plan = plan(&facts);
+                    let LightPlan { march, .. } = plan.lights[0];
+                    let runs = |pass| plan.runs(pass, Some(0));
+                    let case = format!("{method:?}, radius {radius}, plan:\n{plan}");
+                    let reads = match march {
+                        MarchMode::Analytic => !runs(Pass::ShadowMap),
+                        MarchMode::Textbook => method == MarchMethod::Textbook,
+                        MarchMode::BruteForce => runs(Pass::ShadowMap),
+                        MarchMode::Exact => runs(Pass::Extents) && method == MarchMethod::Exact,
+                        MarchMode::Hybrid => {
+                            runs(Pass::ShadowMap)
+                                && (runs(Pass::Extents) || (radius > 0.0 && runs(Pass::SoftShadow)))
+                        }
+                    };
+                    assert!(reads, "{march:?} reads what the plan does not run: {case}");
+                    let step = plan.steps.iter().find(|s| s.pass == Pass::March).unwrap();
+                    let named = match march {
+                        MarchMode::Hybrid if runs(Pass::SoftShadow) => "penumbra cones",
+                        MarchMode::Exact => "exact between crossings",
+                        other => &other.to_string(),
+                    };
+                    assert!(step.detail.starts_with(named), "{named}: {case}");
+                    cases += 1;
+                }
+            }
+        }
+        assert_eq!(cases, 24);
     }
 }

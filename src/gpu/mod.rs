@@ -7,6 +7,7 @@ mod mesh;
 pub(crate) mod pipeline;
 pub(crate) mod precision;
 mod timer;
+pub(crate) mod wgsl;
 
 pub use mesh::{Occluder, OccluderMesh};
 pub use precision::{ErrorSign, ShaderPrecision};

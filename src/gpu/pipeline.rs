@@ -1,15 +1,14 @@
 //! The helpers the nodes build their GPU objects with: binding tables, bind groups and
-//! layouts, shader modules (the prelude and the precision wrappers joined to a node's WGSL),
+//! layouts, shader modules (a node's WGSL with its imports, [`wgsl::compose`]),
 //! compute, depth and fullscreen pipelines, and timed compute dispatches.
 
 use std::collections::HashMap;
 use std::sync::Mutex;
 
-use crate::gpu::precision::{self, ShaderPrecision};
+use crate::gpu::precision::ShaderPrecision;
+use crate::gpu::wgsl::{self, Wgsl};
 use crate::gpu::GpuTimer;
 use crate::pass::Pass;
-
-const PRELUDE: &str = include_str!("../../shaders/prelude.wgsl");
 
 /// What one binding of a node's bind group holds. Each node lists its bindings once, in a
 /// `const` table whose entry `i` is `@binding(i)` of its WGSL; the layout ([`layout`]) and
@@ -180,23 +179,16 @@ pub(crate) fn cached<K: std::hash::Hash + Eq, V: Clone>(
         .clone()
 }
 
-/// The precision wrappers (at `precision`) and the prelude followed by one node's WGSL, as
-/// compiled.
-pub(crate) fn compose(node_source: &str, precision: ShaderPrecision) -> String {
-    let wrappers = precision::wgsl(precision);
-    format!("{wrappers}\n{PRELUDE}\n{node_source}")
-}
-
-/// Creates a shader module from the prelude followed by one node's WGSL.
+/// Creates the shader module of `source` with its imports ([`wgsl::compose`]), labelled
+/// `volshadow <name>`.
 pub(crate) fn module(
     device: &wgpu::Device,
-    label: &str,
-    node_source: &str,
+    source: &Wgsl<'_>,
     precision: ShaderPrecision,
 ) -> wgpu::ShaderModule {
     device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(label),
-        source: wgpu::ShaderSource::Wgsl(compose(node_source, precision).into()),
+        label: Some(&format!("volshadow {}", source.name)),
+        source: wgpu::ShaderSource::Wgsl(wgsl::compose(source, precision).text.into()),
     })
 }
 
@@ -341,103 +333,70 @@ pub(crate) fn fullscreen_pipeline(
 
 #[cfg(test)]
 mod tests {
-    use super::compose;
+    use crate::gpu::wgsl::{compose, wgsl_file, Wgsl};
     use crate::gpu::ShaderPrecision;
 
-    /// Where line `line` (1-based) of `compose`'s output for `file` comes from: `(file, line)` in
-    /// that file or in `prelude.wgsl` (naga numbers the composed source's lines).
-    fn source_line(file: &str, line: usize) -> (&str, usize) {
-        // `compose` adds a line break after each.
-        let precision = super::precision::WGSL.lines().count() + 1;
-        let prelude = precision + super::PRELUDE.lines().count() + 1;
-        match (line.checked_sub(prelude), line.checked_sub(precision)) {
-            (Some(l), _) if l > 0 => (file, l),
-            (_, Some(l)) if l > 0 => ("prelude.wgsl", l),
-            _ => ("precision.wgsl", line),
-        }
-    }
-
-    /// Parses and validates `source` composed with the prelude; an error names the file and
-    /// line it comes from.
-    fn check(file: &str, source: &str, precision: ShaderPrecision) -> Result<(), String> {
+    /// Parses and validates `source` with its imports; an error names the file and line it is
+    /// in.
+    fn check(source: &Wgsl<'_>, precision: ShaderPrecision) -> Result<(), String> {
         let composed = compose(source, precision);
+        let text = &composed.text;
         let at = |location: Option<naga::SourceLocation>, message: String| {
             let line = location.map_or(0, |l| l.line_number as usize);
-            let (file, line) = source_line(file, line);
+            let (file, line) = composed.locate(line);
             format!("{file}:{line}: {message}")
         };
-        let module = naga::front::wgsl::parse_str(&composed)
-            .map_err(|e| at(e.location(&composed), e.message().to_string()))?;
+        let module = naga::front::wgsl::parse_str(text)
+            .map_err(|e| at(e.location(text), e.message().to_string()))?;
         naga::valid::Validator::new(Default::default(), naga::valid::Capabilities::all())
             .validate(&module)
-            .map_err(|e| at(e.location(&composed), format!("{:?}", e.into_inner())))?;
+            .map_err(|e| at(e.location(text), format!("{:?}", e.into_inner())))?;
         Ok(())
     }
 
+    /// Every module a node builds (and the self-contained `SHADOW_WGSL`, on its own) parses and
+    /// validates at every precision.
     #[test]
     fn every_shader_compiles() {
-        for (file, source) in [
-            (
-                "airlight_table.wgsl",
-                include_str!("../../shaders/airlight_table.wgsl"),
-            ),
-            (
-                "airlight_table_sum.wgsl",
-                include_str!("../../shaders/airlight_table_sum.wgsl"),
-            ),
-            (
-                "composite.wgsl",
-                concat!(
-                    include_str!("../../shaders/iss.wgsl"),
-                    include_str!("../../shaders/composite.wgsl")
-                ),
-            ),
-            ("extents.wgsl", include_str!("../../shaders/extents.wgsl")),
-            (
-                "light_texture.wgsl",
-                include_str!("../../shaders/light_texture.wgsl"),
-            ),
-            (
-                "march.wgsl",
-                concat!(
-                    include_str!("../../shaders/pcss.wgsl"),
-                    include_str!("../../shaders/march.wgsl")
-                ),
-            ),
-            (
-                "soft_shadow.wgsl",
-                concat!(
-                    include_str!("../../shaders/pcss.wgsl"),
-                    include_str!("../../shaders/soft_shadow.wgsl")
-                ),
-            ),
-            (
-                "shadow_map.wgsl",
-                include_str!("../../shaders/shadow_map.wgsl"),
-            ),
-            ("upsample.wgsl", include_str!("../../shaders/upsample.wgsl")),
-            ("shadow.wgsl", include_str!("../../shaders/shadow.wgsl")),
-            (
-                "iss_table.wgsl",
-                concat!(
-                    include_str!("../../shaders/iss.wgsl"),
-                    include_str!("../../shaders/iss_table.wgsl")
-                ),
-            ),
+        for source in [
+            wgsl_file!("airlight_table.wgsl"),
+            wgsl_file!("airlight_table_sum.wgsl"),
+            wgsl_file!("composite.wgsl"),
+            wgsl_file!("extents.wgsl"),
+            wgsl_file!("crossings.wgsl"),
+            wgsl_file!("light_texture.wgsl"),
+            wgsl_file!("march.wgsl"),
+            wgsl_file!("soft_shadow.wgsl"),
+            wgsl_file!("shadow_map.wgsl"),
+            wgsl_file!("upsample.wgsl"),
+            wgsl_file!("shadow.wgsl"),
+            wgsl_file!("iss_table.wgsl"),
         ] {
             for precision in ShaderPrecision::ALL {
-                if let Err(e) = check(file, source, precision) {
+                if let Err(e) = check(&source, precision) {
                     panic!("{precision:?}: {e}");
                 }
             }
         }
     }
 
+    /// An error names the file and line it is in: in the node after an import of 500 lines,
+    /// and in the imported file itself.
     #[test]
-    fn errors_point_at_the_node_file_and_line() {
-        // A syntax error on line 3 of a node's source, not on line 3 + the prelude's length.
-        let source = "// a node\nfn f() -> f32 {\n    let x = ;\n    return 1.0;\n}\n";
-        let e = check("node.wgsl", source, ShaderPrecision::Native).unwrap_err();
-        assert!(e.starts_with("node.wgsl:3:"), "{e}");
+    fn errors_point_at_the_file_and_line() {
+        let node = Wgsl {
+            name: "node.wgsl",
+            text:
+                "#import pcss.wgsl\n// a node\nfn f() -> f32 {\n    let x = ;\n    return 1.0;\n}\n",
+        };
+        let e = check(&node, ShaderPrecision::Native).unwrap_err();
+        assert!(e.starts_with("node.wgsl:4:"), "{e}");
+        // pcss.wgsl reads `mp`, which this node does not define: the error is in pcss.wgsl.
+        let bare = Wgsl {
+            name: "bare.wgsl",
+            text: "#import pcss.wgsl\n",
+        };
+        let e = check(&bare, ShaderPrecision::Native).unwrap_err();
+        assert!(e.starts_with("pcss.wgsl:"), "{e}");
     }
 }

@@ -42,6 +42,7 @@
 
 use crate::error::{Error, Result};
 use crate::gpu::pipeline::{bind_group, compute_pipeline, dispatch, layout, module, Binding};
+use crate::gpu::wgsl::wgsl_file;
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{check_buffer_size, texture_2d, GpuTimer, UniformBuffer};
 use crate::nodes::uniforms::AirlightUniform;
@@ -169,8 +170,7 @@ impl Pipelines {
     ) -> Self {
         let label = "volshadow F' table cells";
         let cell_layout = layout(device, label, wgpu::ShaderStages::COMPUTE, &CELL_BINDINGS);
-        let source = include_str!("../../shaders/airlight_table.wgsl");
-        let cell_module = module(device, "volshadow airlight_table.wgsl", source, precision);
+        let cell_module = module(device, &wgsl_file!("airlight_table.wgsl"), precision);
         let constants = [("TAIL_PIECES", f64::from(TAIL_PIECES))];
         let cells = compute_pipeline(
             device,
@@ -182,13 +182,7 @@ impl Pipelines {
         );
         let label = "volshadow F' table sums";
         let sum_layout = layout(device, label, wgpu::ShaderStages::COMPUTE, &SUM_BINDINGS);
-        let source = include_str!("../../shaders/airlight_table_sum.wgsl");
-        let sum_module = module(
-            device,
-            "volshadow airlight_table_sum.wgsl",
-            source,
-            precision,
-        );
+        let sum_module = module(device, &wgsl_file!("airlight_table_sum.wgsl"), precision);
         let entry = match row_sum {
             RowSum::Scan => "sum_scan",
             RowSum::Serial => "sum_serial",

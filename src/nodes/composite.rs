@@ -34,6 +34,7 @@ use bytemuck::Zeroable;
 
 use crate::error::{Error, Result};
 use crate::gpu::pipeline::{bind_group, cached, fullscreen_pipeline, layout, module, Binding};
+use crate::gpu::wgsl::{wgsl_file, Wgsl};
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{
     check_depth_texture, check_float_texture, check_size, depth_view, texture_2d, GpuTimer,
@@ -117,19 +118,15 @@ fn storage_format_name(device: &wgpu::Device, format: wgpu::TextureFormat) -> Op
 }
 
 /// The composite's WGSL: the surface term's functions (`ISS_WGSL`'s), then the composite.
-const SOURCE: &str = concat!(
-    include_str!("../../shaders/iss.wgsl"),
-    include_str!("../../shaders/composite.wgsl")
-);
+const SOURCE: Wgsl<'static> = wgsl_file!("composite.wgsl");
 
 impl Pipelines {
     pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
         let label = "volshadow composite";
-        let source = SOURCE;
         let stages = wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE;
         Self {
             layout: layout(device, label, stages, &BINDINGS),
-            module: module(device, "volshadow composite.wgsl", source, precision),
+            module: module(device, &SOURCE, precision),
             precision,
             formats: Arc::default(),
             storing: Arc::default(),
@@ -143,7 +140,7 @@ impl Pipelines {
         cached(&self.lattice, (), || {
             let label = "volshadow spot lattice";
             let source = format!(
-                "{}{}
+                "#import composite.wgsl
 @group(1) @binding(0) var lattice_out: texture_storage_2d<rgba32float, write>;
 
 @compute @workgroup_size({WORKGROUP}, {WORKGROUP})
@@ -158,8 +155,7 @@ fn cs_spot_lattice(@builtin(global_invocation_id) id: vec3<u32>) {{
     }}
     textureStore(lattice_out, id.xy, out);
 }}
-",
-                SOURCE, "",
+"
             );
             self.with_output(
                 device,
@@ -173,7 +169,7 @@ fn cs_spot_lattice(@builtin(global_invocation_id) id: vec3<u32>) {{
     }
 
     /// A compute pipeline over the composite's bindings (group 0) and one storage texture of
-    /// `format` (group 1), from the composite's WGSL followed by an entry point (`source`).
+    /// `format` (group 1), from `source`: an import of the composite's WGSL and an entry point.
     fn with_output(
         &self,
         device: &wgpu::Device,
@@ -183,7 +179,18 @@ fn cs_spot_lattice(@builtin(global_invocation_id) id: vec3<u32>) {{
         format: wgpu::TextureFormat,
         surfaces: bool,
     ) -> Storing {
-        let module = module(device, label, source, self.precision);
+        let name = format!(
+            "{} (composite.wgsl and its entry point {entry})",
+            SOURCE.name
+        );
+        let module = module(
+            device,
+            &Wgsl {
+                name: &name,
+                text: source,
+            },
+            self.precision,
+        );
         let output_layout = layout(
             device,
             label,
@@ -225,7 +232,7 @@ fn cs_spot_lattice(@builtin(global_invocation_id) id: vec3<u32>) {{
         Some(cached(&self.storing, (format, surfaces), || {
             let label = "volshadow composite (compute)";
             let source = format!(
-                "{}{}
+                "#import composite.wgsl
 @group(1) @binding(0) var composite_out: texture_storage_2d<{name}, write>;
 
 @compute @workgroup_size({WORKGROUP}, {WORKGROUP})
@@ -234,8 +241,7 @@ fn cs_composite(@builtin(global_invocation_id) id: vec3<u32>) {{
         textureStore(composite_out, id.xy, composite_pixel(id.xy));
     }}
 }}
-",
-                SOURCE, "",
+"
             );
             self.with_output(device, label, &source, "cs_composite", format, surfaces)
         }))
@@ -877,7 +883,7 @@ fn params_layouts_match_the_wgsl() {
     use crate::nodes::uniforms::{CompositeUniform, SurfaceLightUniform, SurfacesUniform};
     assert_same(
         rust_layout!(CompositeUniform { sigma_t, count }),
-        SOURCE,
+        SOURCE.text,
         "Composite",
     );
     let light = rust_layout!(SurfaceLightUniform {
@@ -888,7 +894,7 @@ fn params_layouts_match_the_wgsl() {
         direction,
         _pad,
     });
-    assert_same(light, SOURCE, "SurfaceLight");
+    assert_same(light, SOURCE.text, "SurfaceLight");
     let surfaces = rust_layout!(SurfacesUniform {
         sigma_s,
         count,
@@ -896,5 +902,5 @@ fn params_layouts_match_the_wgsl() {
         lattice,
         _pad,
     });
-    assert_same(surfaces, SOURCE, "Surfaces");
+    assert_same(surfaces, SOURCE.text, "Surfaces");
 }

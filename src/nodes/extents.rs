@@ -45,6 +45,7 @@ use glam::Mat4;
 
 use crate::error::{Error, Result};
 use crate::gpu::pipeline::{bind_group, compute_pipeline, depth_pipeline, layout, module, Binding};
+use crate::gpu::wgsl::wgsl_file;
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{
     check_depth_texture, check_target_size, depth_view, GpuTimer, Occluder, UniformBuffer,
@@ -133,8 +134,7 @@ impl Pipelines {
             fragment,
             &CROSSINGS_BINDINGS,
         );
-        let source = include_str!("../../shaders/extents.wgsl");
-        let module = module(device, "volshadow extents.wgsl", source, precision);
+        let module = module(device, &wgsl_file!("extents.wgsl"), precision);
         let compute =
             |label, entry| compute_pipeline(device, label, &extrude_layout, &module, entry, &[]);
         let volume_vertices = [wgpu::VertexBufferLayout {
@@ -163,12 +163,8 @@ impl Pipelines {
             wgpu::ShaderStages::COMPUTE,
             &BIN_BINDINGS,
         );
-        let bin_module = crate::gpu::pipeline::module(
-            device,
-            "volshadow crossings.wgsl",
-            include_str!("../../shaders/crossings.wgsl"),
-            precision,
-        );
+        let bin_module =
+            crate::gpu::pipeline::module(device, &wgsl_file!("crossings.wgsl"), precision);
         let bin = ["setup", "count", "scan", "fill", "build"].map(|entry| {
             compute_pipeline(
                 device,
@@ -480,31 +476,11 @@ impl ExtentsNode {
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
-        request: &CrossingsRequest<'_>,
+        (request, per_pixel): (&CrossingsRequest<'_>, u32),
         (camera, clip_from_world, (width, height), max_faces): (&Camera, Mat4, (u32, u32), u32),
     ) -> Result<()> {
-        if !(1..=MAX_CROSSINGS_PER_PIXEL).contains(&request.per_pixel) {
-            return Err(Error::InvalidSetting {
-                field: "crossings per pixel",
-                problem: format!(
-                    "must be in 1..={MAX_CROSSINGS_PER_PIXEL}, got {}",
-                    request.per_pixel
-                ),
-            });
-        }
-        check_depth_texture("scene_depth", request.scene_depth)?;
         let pixels = u64::from(width) * u64::from(height);
-        let limits = device.limits();
-        let max_binding = limits
-            .max_storage_buffer_binding_size
-            .min(limits.max_buffer_size);
-        // The heads (16 bytes a pixel) must fit whole, like every buffer beyond a device limit
-        // (`DeviceLimitExceeded`); then at least 4 entries of 4 bytes a pixel fit too.
         let heads_size = 16 * pixels;
-        crate::gpu::check_buffer_size(device, "crossing lists", heads_size)?;
-        // Fewer entries rather than a buffer the device cannot bind: overflowing pixels are
-        // still correct, only marched.
-        let per_pixel = u64::from(request.per_pixel).min(max_binding / (4 * pixels)) as u32;
         let reuse = self
             .crossings
             .as_ref()
@@ -683,6 +659,74 @@ impl Node for ExtentsNode {
         for o in occluders {
             o.validate()?;
         }
+        let per_pixel = crossings
+            .map(|request| crossings_per_pixel(device, &request, (width, height)))
+            .transpose()?;
+        let capacity = volume_capacity(occluders);
+        self.allocate(device, (width, height), capacity, occluders.len())?;
+        let clip_from_world = self.upload_view(queue, camera, light, occluders);
+        self.crossings_on = crossings.is_some();
+        if let (Some(request), Some(per_pixel)) = (crossings, per_pixel) {
+            let faces = u32::try_from(capacity / 3).unwrap_or(u32::MAX);
+            let lists = (camera, clip_from_world, (width, height), faces);
+            self.prepare_crossings(device, queue, (&request, per_pixel), lists)?;
+        }
+        self.bind_occluders(device, queue, light, occluders, capacity);
+        Ok(true)
+    }
+}
+
+/// Volume vertices: 6 per extruded edge, 3 + 3 per triangle (front and back cap).
+fn volume_capacity(occluders: &[Occluder<'_>]) -> u64 {
+    occluders
+        .iter()
+        .map(|o| 6 * u64::from(o.mesh.edge_count) + 6 * u64::from(o.mesh.triangle_count))
+        .sum::<u64>()
+        .max(6)
+}
+
+/// Checks a crossing-list request for a `width × height` frame; returns the entries per pixel
+/// that fit the device's bindings.
+fn crossings_per_pixel(
+    device: &wgpu::Device,
+    request: &CrossingsRequest<'_>,
+    (width, height): (u32, u32),
+) -> Result<u32> {
+    if !(1..=MAX_CROSSINGS_PER_PIXEL).contains(&request.per_pixel) {
+        return Err(Error::InvalidSetting {
+            field: "crossings per pixel",
+            problem: format!(
+                "must be in 1..={MAX_CROSSINGS_PER_PIXEL}, got {}",
+                request.per_pixel
+            ),
+        });
+    }
+    check_depth_texture("scene_depth", request.scene_depth)?;
+    let pixels = u64::from(width) * u64::from(height);
+    let limits = device.limits();
+    let max_binding = limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size);
+    // The heads (16 bytes a pixel) must fit whole, like every buffer beyond a device limit
+    // (`DeviceLimitExceeded`); then at least 4 entries of 4 bytes a pixel fit too.
+    let heads_size = 16 * pixels;
+    crate::gpu::check_buffer_size(device, "crossing lists", heads_size)?;
+    // Fewer entries rather than a buffer the device cannot bind: overflowing pixels are
+    // still correct, only marched.
+    let per_pixel = u64::from(request.per_pixel).min(max_binding / (4 * pixels)) as u32;
+    Ok(per_pixel)
+}
+
+impl ExtentsNode {
+    /// (Re)creates the targets when the size changed and the buffers when they are too small
+    /// for `capacity` volume vertices of `occluders` occluders.
+    fn allocate(
+        &mut self,
+        device: &wgpu::Device,
+        (width, height): (u32, u32),
+        capacity: u64,
+        occluders: usize,
+    ) -> Result<()> {
         if !self
             .targets
             .as_ref()
@@ -707,6 +751,46 @@ impl Node for ExtentsNode {
             ]);
         }
 
+        let vertex_bytes = VOLUME_VERTEX_BYTES;
+        crate::gpu::check_buffer_size(device, "shadow volumes", capacity * vertex_bytes)?;
+        if self
+            .volume
+            .as_ref()
+            .is_none_or(|b| b.size() < capacity * vertex_bytes)
+        {
+            self.volume = Some(device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("volshadow shadow volumes"),
+                size: capacity * vertex_bytes,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::VERTEX,
+                mapped_at_creation: false,
+            }));
+        }
+        let needed = (occluders.max(1) as u64) * SLOT;
+        crate::gpu::check_buffer_allocation(device, "occluder transforms", needed)?;
+        if self
+            .extrude_buffer
+            .as_ref()
+            .is_none_or(|b| b.size() < needed)
+        {
+            self.extrude_buffer = Some(device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("volshadow extrude params"),
+                size: needed,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }));
+        }
+        Ok(())
+    }
+
+    /// Writes the extents' view (the camera's, with reversed infinite depth from a near plane
+    /// scaled to the scene); returns its clip-from-world matrix.
+    fn upload_view(
+        &mut self,
+        queue: &wgpu::Queue,
+        camera: &Camera,
+        light: &Light,
+        occluders: &[Occluder<'_>],
+    ) -> Mat4 {
         // The camera's projection with its depth row replaced: depth = near / view depth
         // (reversed Z, infinite), keeping x and y (and any jitter or asymmetry) as they are.
         let eye_light = match light.position() {
@@ -731,47 +815,18 @@ impl Node for ExtentsNode {
         proj.w_axis.z = self.near * k;
         let clip_from_world: Mat4 = proj * camera.view();
         queue.write_buffer(&self.view_buffer, 0, bytemuck::bytes_of(&clip_from_world));
-        self.crossings_on = crossings.is_some();
+        clip_from_world
+    }
 
-        // Volume vertices: 6 per extruded edge, 3 + 3 per triangle (front and back cap).
-        let capacity: u64 = occluders
-            .iter()
-            .map(|o| 6 * u64::from(o.mesh.edge_count) + 6 * u64::from(o.mesh.triangle_count))
-            .sum::<u64>()
-            .max(6);
-        let vertex_bytes = VOLUME_VERTEX_BYTES;
-        crate::gpu::check_buffer_size(device, "shadow volumes", capacity * vertex_bytes)?;
-        if self
-            .volume
-            .as_ref()
-            .is_none_or(|b| b.size() < capacity * vertex_bytes)
-        {
-            self.volume = Some(device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("volshadow shadow volumes"),
-                size: capacity * vertex_bytes,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::VERTEX,
-                mapped_at_creation: false,
-            }));
-        }
-        let needed = (occluders.len().max(1) as u64) * SLOT;
-        crate::gpu::check_buffer_allocation(device, "occluder transforms", needed)?;
-        if self
-            .extrude_buffer
-            .as_ref()
-            .is_none_or(|b| b.size() < needed)
-        {
-            self.extrude_buffer = Some(device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("volshadow extrude params"),
-                size: needed,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }));
-        }
-        if let Some(request) = crossings {
-            let faces = u32::try_from(capacity / 3).unwrap_or(u32::MAX);
-            let lists = (camera, clip_from_world, (width, height), faces);
-            self.prepare_crossings(device, queue, &request, lists)?;
-        }
+    /// Writes each occluder's extrusion parameters and binds its mesh.
+    fn bind_occluders(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        light: &Light,
+        occluders: &[Occluder<'_>],
+        capacity: u64,
+    ) {
         let extrude_buffer = self.extrude_buffer.as_ref().expect("created above");
         let volume = self.volume.as_ref().expect("created above");
         self.jobs.clear();
@@ -818,7 +873,6 @@ impl Node for ExtentsNode {
                 invocations: o.mesh.edge_count + o.mesh.triangle_count,
             });
         }
-        Ok(true)
     }
 }
 

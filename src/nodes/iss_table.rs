@@ -52,6 +52,7 @@
 
 use crate::error::{Error, Result};
 use crate::gpu::pipeline::{bind_group, compute_pipeline, dispatch, layout, module, Binding};
+use crate::gpu::wgsl::wgsl_file;
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{texture_2d, GpuTimer, UniformBuffer};
 use crate::nodes::uniforms::AirlightUniform;
@@ -150,11 +151,7 @@ impl Pipelines {
     pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
         let label = "volshadow ISS table";
         let layout = layout(device, label, wgpu::ShaderStages::COMPUTE, &BINDINGS);
-        let source = concat!(
-            include_str!("../../shaders/iss.wgsl"),
-            include_str!("../../shaders/iss_table.wgsl")
-        );
-        let module = module(device, "volshadow iss_table.wgsl", source, precision);
+        let module = module(device, &wgsl_file!("iss_table.wgsl"), precision);
         let build = compute_pipeline(device, label, &layout, &module, "build", &[]);
         Self { layout, build }
     }

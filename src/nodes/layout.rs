@@ -3,7 +3,7 @@
 //! the Rust fields tile the struct (an unlisted field leaves a hole), and the sizes agree. The
 //! WGSL side comes from naga's reflection of the composed shader, not from the source text.
 
-use crate::gpu::pipeline::compose;
+use crate::gpu::wgsl::{compose, Wgsl};
 use crate::gpu::ShaderPrecision;
 
 /// One Rust field: name, byte offset, byte size.
@@ -27,11 +27,20 @@ macro_rules! rust_layout {
 }
 pub(crate) use rust_layout;
 
-/// The WGSL struct `name` in `source` (composed with the prelude as the pipelines compile it):
+/// `source` with its imports, as the pipelines compile it, parsed by naga.
+fn parse(source: &str) -> Result<naga::Module, String> {
+    let source = Wgsl {
+        name: "the checked source",
+        text: source,
+    };
+    let composed = compose(&source, ShaderPrecision::Native).text;
+    naga::front::wgsl::parse_str(&composed).map_err(|e| e.message().to_string())
+}
+
+/// The WGSL struct `name` in `source` (composed with its imports as the pipelines compile it):
 /// its span and its members (name, offset, size).
 fn wgsl_layout(source: &str, name: &str) -> Result<WgslLayout, String> {
-    let composed = compose(source, ShaderPrecision::Native);
-    let module = naga::front::wgsl::parse_str(&composed).map_err(|e| e.message().to_string())?;
+    let module = parse(source)?;
     let ctx = module.to_ctx();
     for (_, ty) in module.types.iter() {
         if ty.name.as_deref() != Some(name) {
@@ -99,11 +108,10 @@ pub(crate) fn mismatches(
     out
 }
 
-/// Asserts that each WGSL `const NAME: u32` of `source` (composed with the prelude) has the
+/// Asserts that each WGSL `const NAME: u32` of `source` (composed with its imports) has the
 /// value the Rust side gives it, listing every difference.
 pub(crate) fn assert_constants(source: &str, expected: &[(&str, u32)]) {
-    let composed = compose(source, ShaderPrecision::Native);
-    let module = naga::front::wgsl::parse_str(&composed).expect("the shader parses");
+    let module = parse(source).expect("the shader parses");
     let mut bad = Vec::new();
     for &(name, value) in expected {
         let found = module

@@ -12,6 +12,7 @@
 
 use crate::error::{Error, Result};
 use crate::gpu::pipeline::{bind_group, fullscreen_pipeline, layout, module, Binding};
+use crate::gpu::wgsl::wgsl_file;
 use crate::gpu::GpuTimer;
 use crate::gpu::ShaderPrecision;
 use crate::nodes::Cache;
@@ -35,8 +36,7 @@ impl Pipelines {
     pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
         let label = "volshadow light texture";
         let layout = layout(device, label, wgpu::ShaderStages::FRAGMENT, &BINDINGS);
-        let source = include_str!("../../shaders/light_texture.wgsl");
-        let module = module(device, "volshadow light_texture.wgsl", source, precision);
+        let module = module(device, &wgsl_file!("light_texture.wgsl"), precision);
         let format = wgpu::TextureFormat::Rgba16Float;
         let levels = ["fs_copy", "fs_down"]
             .map(|entry| fullscreen_pipeline(device, label, &layout, &module, entry, format, &[]));

@@ -43,6 +43,7 @@ use crate::error::{Error, Result};
 use crate::gpu::pipeline::{
     bind_group, cached, compute_pipeline, dispatch, layout, module, Binding,
 };
+use crate::gpu::wgsl::{wgsl_file, Wgsl};
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{
     check_depth_layers, check_depth_texture, check_size, check_target_size, depth_array_view,
@@ -81,20 +82,101 @@ const BINDINGS: [Binding; 19] = [
     Binding::DepthArray,                                // shadow_back
 ];
 
-/// The march shader's `MODE` pipeline constant: how a pixel's ray is integrated.
+/// How the march integrates each pixel's ray for one light this frame: the form its
+/// [`MarchMethod`] takes given the shadow inputs the frame has, and the shader's `MODE`
+/// pipeline constant. The planner picks it with [`MarchMode::choose`]
+/// ([`LightPlan::march`](crate::plan::LightPlan::march)); a caller wiring the nodes by hand
+/// calls `choose` too, and [`MarchNode::prepare`] checks that its inputs carry what the mode reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-enum Mode {
+pub enum MarchMode {
+    /// No occluders: the closed-form airlight, one table lookup per pixel.
     Analytic = 0,
+    /// Closed form outside the shadow volumes' extents (for a light with a radius, outside the
+    /// penumbra cones of the soft-shadow grid), marched between them.
     Hybrid = 1,
+    /// Marched over the whole ray.
     BruteForce = 2,
+    /// Closed form between the crossings of each pixel's list.
     Exact = 3,
+    /// The textbook Riemann sum over the whole ray.
     Textbook = 4,
+}
+
+/// Which shadow inputs a light's march has this frame (see [`MarchMode::choose`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ShadowForms {
+    /// The shadow volumes' extents ([`Shadows::extents`]).
+    pub extents: bool,
+    /// The extents carry crossing lists.
+    pub crossings: bool,
+    /// A soft-shadow grid ([`Shadows::soft`]).
+    pub soft_grid: bool,
+}
+
+impl ShadowForms {
+    /// The forms `shadows` has.
+    pub fn of(shadows: &Shadows<'_>) -> Self {
+        Self {
+            extents: shadows.extents.is_some(),
+            crossings: shadows.extents.is_some_and(|e| e.crossings.is_some()),
+            soft_grid: shadows.soft.is_some(),
+        }
+    }
+}
+
+impl MarchMode {
+    /// The mode `method` takes for a light (`soft`: with a radius) whose shadows have `shadows`
+    /// (`None`: no occluders): the one rule, read by the planner and by [`Cache::warm_up`].
+    /// Without occluders the airlight is analytic (the textbook march still marches). A light
+    /// with a radius and a soft-shadow grid is marched inside its penumbra cones (the extents
+    /// bound the hard shadow only); otherwise the hybrid needs extents, the exact method
+    /// extents with crossing lists, and what lacks them is marched over the whole ray.
+    pub fn choose(method: MarchMethod, soft: bool, shadows: Option<ShadowForms>) -> MarchMode {
+        use MarchMethod as M;
+        match (method, shadows) {
+            (M::Textbook, _) => MarchMode::Textbook,
+            (_, None) => MarchMode::Analytic,
+            (M::Exact | M::Hybrid, Some(s)) if soft && s.soft_grid => MarchMode::Hybrid,
+            (M::Hybrid, Some(s)) if s.extents && !s.crossings => MarchMode::Hybrid,
+            (M::Exact, Some(s)) if s.extents && s.crossings => MarchMode::Exact,
+            _ => MarchMode::BruteForce,
+        }
+    }
+
+    /// What this mode reads that `inputs` lack, if anything.
+    fn missing(self, inputs: &MarchInputs<'_>) -> Option<&'static str> {
+        let forms = inputs.shadows.as_ref().map(ShadowForms::of);
+        let soft = inputs.light.radius() > 0.0;
+        match (self, forms) {
+            (MarchMode::Analytic | MarchMode::Textbook, _) => None,
+            (_, None) => Some("shadows"),
+            (MarchMode::BruteForce, Some(_)) => None,
+            (MarchMode::Hybrid, Some(f)) if (soft && f.soft_grid) || f.extents => None,
+            (MarchMode::Hybrid, Some(_)) => {
+                Some("shadows.extents (or, for a light with a radius, shadows.soft)")
+            }
+            (MarchMode::Exact, Some(f)) if f.crossings => None,
+            (MarchMode::Exact, Some(_)) => Some("shadows.extents with crossing lists"),
+        }
+    }
+}
+
+impl std::fmt::Display for MarchMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            MarchMode::Analytic => "analytic",
+            MarchMode::Hybrid => "hybrid",
+            MarchMode::BruteForce => "brute force",
+            MarchMode::Exact => "exact",
+            MarchMode::Textbook => "textbook march",
+        })
+    }
 }
 
 /// The march shader's pipeline constants: one pipeline each.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 struct Variant {
-    mode: Mode,
+    mode: MarchMode,
     spot: bool,
     textured: bool,
     bisections: u32,
@@ -102,6 +184,33 @@ struct Variant {
     soft: bool,
     /// `soft` with the soft-shadow grid bound.
     soft_grid: bool,
+}
+
+impl Variant {
+    /// The variant of `mode` for a light of this kind (`grid`: a soft-shadow grid is bound).
+    fn new(
+        mode: MarchMode,
+        spot: bool,
+        textured: bool,
+        directional: bool,
+        soft: bool,
+        grid: bool,
+        bisections: u32,
+    ) -> Self {
+        Variant {
+            mode,
+            spot,
+            textured,
+            directional,
+            bisections: if mode == MarchMode::Analytic || soft {
+                0
+            } else {
+                bisections
+            },
+            soft: soft && !matches!(mode, MarchMode::Analytic | MarchMode::Textbook),
+            soft_grid: soft && grid && mode == MarchMode::Hybrid,
+        }
+    }
 }
 
 /// The march's layout and its pipelines, one per [`Variant`] built on first use; held by the
@@ -113,15 +222,11 @@ pub(crate) struct Pipelines {
     variants: Arc<Mutex<HashMap<Variant, wgpu::ComputePipeline>>>,
 }
 
-/// The march's WGSL: the shared shadow-map visibility, then the march.
-const SOURCE: &str = concat!(
-    include_str!("../../shaders/pcss.wgsl"),
-    include_str!("../../shaders/march.wgsl")
-);
+/// The march's WGSL (it imports the shared shadow-map visibility, `pcss.wgsl`).
+const SOURCE: Wgsl<'static> = wgsl_file!("march.wgsl");
 
 impl Pipelines {
     pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
-        let source = SOURCE;
         Self {
             layout: layout(
                 device,
@@ -129,7 +234,7 @@ impl Pipelines {
                 wgpu::ShaderStages::COMPUTE,
                 &BINDINGS,
             ),
-            module: module(device, "volshadow march.wgsl", source, precision),
+            module: module(device, &SOURCE, precision),
             variants: Arc::default(),
         }
     }
@@ -150,51 +255,39 @@ impl Pipelines {
             LightKind::Spot { soft, textured } => (true, textured, false, soft),
             LightKind::Directional => (false, false, true, false),
         };
-        // (mode, soft-shadow grid bound) of a shadowed frame, as `prepare` chooses them.
-        let shadowed: &[(Mode, bool)] = match settings.method {
-            MarchMethod::Exact => &[
-                (Mode::Exact, false),
-                (Mode::BruteForce, false),
-                (Mode::Hybrid, true),
-            ],
-            MarchMethod::Hybrid => &[
-                (Mode::Hybrid, false),
-                (Mode::BruteForce, false),
-                (Mode::Hybrid, true),
-            ],
-            MarchMethod::BruteForce => &[(Mode::BruteForce, false)],
-            MarchMethod::Textbook => &[(Mode::Textbook, false)],
-        };
-        let unshadowed = match settings.method {
-            MarchMethod::Textbook => Mode::Textbook,
-            _ => Mode::Analytic,
-        };
+        // Every mode `MarchMode::choose` can pick for this method: without occluders, and
+        // with each set of shadow inputs the facade binds (crossing lists with the exact
+        // method's extents).
+        let crossings = settings.method == MarchMethod::Exact;
+        let forms = [(false, false), (true, false), (false, true), (true, true)].map(
+            |(extents, soft_grid)| {
+                Some(ShadowForms {
+                    extents,
+                    crossings: extents && crossings,
+                    soft_grid,
+                })
+            },
+        );
         let softness: &[bool] = if can_be_soft {
             &[false, true]
         } else {
             &[false]
         };
         for &soft in softness {
-            let modes = std::iter::once((unshadowed, false)).chain(shadowed.iter().copied());
-            for (mode, grid) in modes {
-                if grid && !soft {
-                    continue; // the grid is bound for a light with a radius only
-                }
+            for shadows in std::iter::once(None).chain(forms) {
+                let mode = MarchMode::choose(settings.method, soft, shadows);
+                let grid = shadows.is_some_and(|s| s.soft_grid);
                 self.variant(
                     device,
-                    Variant {
+                    Variant::new(
                         mode,
                         spot,
                         textured,
-                        bisections: if mode == Mode::Analytic || soft {
-                            0
-                        } else {
-                            settings.bisections
-                        },
                         directional,
-                        soft: soft && !matches!(mode, Mode::Analytic | Mode::Textbook),
-                        soft_grid: grid,
-                    },
+                        soft,
+                        grid,
+                        settings.bisections,
+                    ),
                 );
             }
         }
@@ -377,6 +470,10 @@ pub struct MarchInputs<'a> {
     pub scene_depth: &'a wgpu::Texture,
     /// Occluders' shadows; `None`: no occluders, analytic everywhere.
     pub shadows: Option<Shadows<'a>>,
+    /// How each ray is integrated: [`MarchMode::choose`] for the settings' method, the light's
+    /// radius and these `shadows`' [`ShadowForms`] (the planner's
+    /// [`LightPlan::march`](crate::plan::LightPlan::march) in the facade).
+    pub mode: MarchMode,
     /// A spot light's texture as a blurred mip chain
     /// ([`LightTextureNode::texture`](crate::nodes::LightTextureNode::texture)); `None` for an
     /// untextured light.
@@ -655,14 +752,41 @@ impl Node for MarchNode {
     ///
     /// [`Error::InvalidTexture`] naming the input (`scene_depth`, `shadow_map`, `extents`,
     /// the light texture) for a wrong format, usage, layer count or size, or a texture on a light
-    /// that is not a spot; [`Error::InvalidSize`] for a size beyond the device's limits.
+    /// that is not a spot; [`Error::InvalidSize`] for a size beyond the device's limits;
+    /// [`Error::InvalidSetting`] naming `mode` when the inputs lack what
+    /// [`MarchInputs::mode`] reads (extents for the hybrid, crossing lists for the exact
+    /// method, a shadow map for both and for brute force).
     fn prepare(
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         inputs: &MarchInputs<'_>,
     ) -> Result<bool> {
-        let table = inputs.table;
+        let (width, height) = self.validate(device, inputs)?;
+        let grid = soft_grid(inputs)?;
+        self.allocate(device, width, height);
+        self.bind(device, inputs, grid, (width, height));
+        self.upload(queue, inputs, grid, (width, height));
+        let (mode, soft) = (inputs.mode, inputs.light.radius() > 0.0);
+        self.pipeline = Some(self.pipelines.variant(
+            device,
+            Variant::new(
+                mode,
+                matches!(inputs.light, Light::Spot(_)),
+                inputs.light_texture.is_some(),
+                matches!(inputs.light, Light::Directional(_)),
+                soft,
+                grid.is_some(),
+                self.settings.bisections,
+            ),
+        ));
+        Ok(true)
+    }
+}
+
+impl MarchNode {
+    /// Checks the inputs (see [`MarchNode::prepare`]); returns the march's size.
+    fn validate(&self, device: &wgpu::Device, inputs: &MarchInputs<'_>) -> Result<(u32, u32)> {
         check_depth_texture("scene_depth", inputs.scene_depth)?;
         let (full_width, full_height) = (inputs.scene_depth.width(), inputs.scene_depth.height());
         check_target_size("scene_depth size", device, full_width, full_height)?;
@@ -704,6 +828,20 @@ impl Node for MarchNode {
                 problem: "only a spot light can be textured".into(),
             });
         }
+        if let Some(missing) = inputs.mode.missing(inputs) {
+            return Err(Error::InvalidSetting {
+                field: "mode",
+                problem: format!(
+                    "the {} mode reads {missing}, which the inputs lack (see MarchMode::choose)",
+                    inputs.mode
+                ),
+            });
+        }
+        Ok((width, height))
+    }
+
+    /// (Re)creates the outputs when the size changed.
+    fn allocate(&mut self, device: &wgpu::Device, width: u32, height: u32) {
         if !self
             .outputs
             .as_ref()
@@ -729,6 +867,17 @@ impl Node for MarchNode {
                 ),
             ]);
         }
+    }
+
+    /// Binds the inputs and outputs, building a bind group when one of them changed.
+    fn bind(
+        &mut self,
+        device: &wgpu::Device,
+        inputs: &MarchInputs<'_>,
+        grid: Option<SoftShadow<'_>>,
+        (width, height): (u32, u32),
+    ) {
+        let table = inputs.table;
         let outputs = self.outputs.as_ref().expect("created above");
 
         let shadow_texture = inputs
@@ -736,29 +885,6 @@ impl Node for MarchNode {
             .as_ref()
             .map_or(&self.dummy_shadow, |s| s.shadow_map.texture);
         let extents = inputs.shadows.as_ref().and_then(|s| s.extents);
-        let soft = inputs.light.radius() > 0.0;
-        let grid = inputs
-            .shadows
-            .as_ref()
-            .and_then(|s| s.soft)
-            .filter(|_| soft && self.settings.method != MarchMethod::BruteForce);
-        if let Some(g) = &grid {
-            let t = g.texture;
-            let layers = inputs
-                .shadows
-                .map_or(0, |s| s.shadow_map.faces.len() as u32);
-            if t.dimension() != wgpu::TextureDimension::D3
-                || t.format() != wgpu::TextureFormat::Rgba16Float
-                || !t.usage().contains(wgpu::TextureUsages::TEXTURE_BINDING)
-                || (t.width(), t.height(), t.depth_or_array_layers())
-                    != (g.size.directions, g.size.directions, layers * g.size.slices)
-            {
-                return Err(Error::InvalidTexture {
-                    field: "soft",
-                    problem: "is not the 3D Rgba16Float grid of a SoftShadowNode for this light's shadow map".into(),
-                });
-            }
-        }
         let extent_textures: [&wgpu::Texture; 3] = match &extents {
             Some(e) => [&e.textures[0], &e.textures[1], &e.textures[2]],
             None => [&self.dummy_depth; 3],
@@ -836,7 +962,19 @@ impl Node for MarchNode {
                 size: (width, height),
             });
         }
+    }
 
+    /// Writes the uniforms.
+    fn upload(
+        &mut self,
+        queue: &wgpu::Queue,
+        inputs: &MarchInputs<'_>,
+        grid: Option<SoftShadow<'_>>,
+        (width, height): (u32, u32),
+    ) {
+        let (table, soft) = (inputs.table, inputs.light.radius() > 0.0);
+        let extents = inputs.shadows.as_ref().and_then(|s| s.extents);
+        let crossings = extents.and_then(|e| e.crossings);
         let camera = inputs.camera;
         let mut airlight = AirlightUniform::new(
             camera.eye(),
@@ -863,34 +1001,19 @@ impl Node for MarchNode {
             [[0.0; 4]; MAX_SOFT_SPHERES],
         );
         let (mut depth_bias, mut extents_near, mut cube_near) = (0.0, 0.0, 0.0);
-        let mode = match &inputs.shadows {
-            None if self.settings.method == MarchMethod::Textbook => Mode::Textbook,
-            None => Mode::Analytic,
-            Some(s) => {
-                for (slot, face) in faces.iter_mut().zip(s.shadow_map.faces) {
-                    *slot = face.to_cols_array();
-                }
-                depth_bias = s.shadow_map.depth_bias;
-                if let Light::Point(point) = inputs.light {
-                    cube_near = standard_cube_near(s.shadow_map.faces, point.position());
-                }
-                if soft {
-                    (soft_consts, spheres, planes) = soft_params(inputs.light, &s.shadow_map);
-                }
-                extents_near = s.extents.map_or(0.0, |e| e.near);
-                match (self.settings.method, s.extents) {
-                    // A light with a radius: the penumbra cones bound the marched interval
-                    // (the extents bound the hard shadow only).
-                    (MarchMethod::Exact | MarchMethod::Hybrid, _) if soft && grid.is_some() => {
-                        Mode::Hybrid
-                    }
-                    (MarchMethod::Hybrid, Some(e)) if e.crossings.is_none() => Mode::Hybrid,
-                    (MarchMethod::Exact, Some(e)) if e.crossings.is_some() => Mode::Exact,
-                    (MarchMethod::Textbook, _) => Mode::Textbook,
-                    _ => Mode::BruteForce,
-                }
+        if let Some(s) = &inputs.shadows {
+            for (slot, face) in faces.iter_mut().zip(s.shadow_map.faces) {
+                *slot = face.to_cols_array();
             }
-        };
+            depth_bias = s.shadow_map.depth_bias;
+            if let Light::Point(point) = inputs.light {
+                cube_near = standard_cube_near(s.shadow_map.faces, point.position());
+            }
+            if soft {
+                (soft_consts, spheres, planes) = soft_params(inputs.light, &s.shadow_map);
+            }
+            extents_near = s.extents.map_or(0.0, |e| e.near);
+        }
         let spot = crate::nodes::uniforms::spot_cone(inputs.light);
         let (tex_frame, [tan_half_angle, tex_width, tex_mips]) =
             match (inputs.light, inputs.light_texture) {
@@ -935,24 +1058,38 @@ impl Node for MarchNode {
                 },
             },
         );
-        self.pipeline = Some(self.pipelines.variant(
-            device,
-            Variant {
-                mode,
-                spot: matches!(inputs.light, Light::Spot(_)),
-                textured: inputs.light_texture.is_some(),
-                directional: matches!(inputs.light, Light::Directional(_)),
-                bisections: if mode == Mode::Analytic || soft {
-                    0
-                } else {
-                    self.settings.bisections
-                },
-                soft: soft && !matches!(mode, Mode::Analytic | Mode::Textbook),
-                soft_grid: soft && grid.is_some() && mode == Mode::Hybrid,
-            },
-        ));
-        Ok(true)
     }
+}
+
+/// The soft-shadow grid the march reads (a light with a radius, in a mode that reads it),
+/// checked against the light's shadow map.
+fn soft_grid<'a>(inputs: &MarchInputs<'a>) -> Result<Option<SoftShadow<'a>>> {
+    let soft = inputs.light.radius() > 0.0;
+    let grid = inputs
+        .shadows
+        .as_ref()
+        .and_then(|s| s.soft)
+        .filter(|_| soft && inputs.mode != MarchMode::BruteForce);
+    if let Some(g) = &grid {
+        let t = g.texture;
+        let layers = inputs
+            .shadows
+            .map_or(0, |s| s.shadow_map.faces.len() as u32);
+        if t.dimension() != wgpu::TextureDimension::D3
+            || t.format() != wgpu::TextureFormat::Rgba16Float
+            || !t.usage().contains(wgpu::TextureUsages::TEXTURE_BINDING)
+            || (t.width(), t.height(), t.depth_or_array_layers())
+                != (g.size.directions, g.size.directions, layers * g.size.slices)
+        {
+            return Err(Error::InvalidTexture {
+                field: "soft",
+                problem:
+                    "is not the 3D Rgba16Float grid of a SoftShadowNode for this light's shadow map"
+                        .into(),
+            });
+        }
+    }
+    Ok(grid)
 }
 
 impl Encode for MarchNode {
@@ -1008,22 +1145,22 @@ fn params_layout_matches_the_wgsl() {
         planes,
         soft_grid,
     });
-    assert_same(rust, SOURCE, "MarchParams");
+    assert_same(rust, SOURCE.text, "MarchParams");
     let grid = rust_layout!(SoftGridUniform {
         directions,
         slices,
         layers,
         cell_angle,
     });
-    assert_same(grid, SOURCE, "SoftGrid");
+    assert_same(grid, SOURCE.text, "SoftGrid");
     crate::nodes::layout::assert_constants(
-        SOURCE,
+        SOURCE.text,
         &[
-            ("MODE_ANALYTIC", Mode::Analytic as u32),
-            ("MODE_HYBRID", Mode::Hybrid as u32),
-            ("MODE_BRUTE_FORCE", Mode::BruteForce as u32),
-            ("MODE_EXACT", Mode::Exact as u32),
-            ("MODE_TEXTBOOK", Mode::Textbook as u32),
+            ("MODE_ANALYTIC", MarchMode::Analytic as u32),
+            ("MODE_HYBRID", MarchMode::Hybrid as u32),
+            ("MODE_BRUTE_FORCE", MarchMode::BruteForce as u32),
+            ("MODE_EXACT", MarchMode::Exact as u32),
+            ("MODE_TEXTBOOK", MarchMode::Textbook as u32),
         ],
     );
 }

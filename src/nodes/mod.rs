@@ -17,6 +17,10 @@
 //! The composite keeps the same shape with its own methods: it writes the caller's target,
 //! which `encode` takes.
 //!
+//! Nodes take decisions as inputs rather than making them: the march is told its
+//! [`MarchMode`] (the facade's planner picks it with [`MarchMode::choose`], as a caller wiring
+//! the nodes by hand does) and only checks that its inputs carry what that mode reads.
+//!
 //! Each module documents the format, usage and size of every texture it reads or writes.
 
 pub(crate) mod airlight_table;
@@ -83,7 +87,8 @@ pub use extents::{
 pub use iss_table::{IssPhase, IssTableNode, IssTableSize, ISS_TAU_RANGE};
 pub use light_texture::LightTextureNode;
 pub use march::{
-    MarchInputs, MarchMethod, MarchNode, MarchSettings, MarchStats, Shadows, DEFAULT_CROSSINGS,
+    MarchInputs, MarchMethod, MarchMode, MarchNode, MarchSettings, MarchStats, ShadowForms,
+    Shadows, DEFAULT_CROSSINGS,
 };
 pub use shadow_map::{
     ShadowMap, ShadowMapInputs, ShadowMapNode, ShadowMapSettings, ShadowParams, CASCADE_RANGE,

@@ -48,6 +48,7 @@ use glam::{Mat4, Vec3, Vec4};
 
 use crate::error::{finite, Error, Result};
 use crate::gpu::pipeline::{bind_group, depth_pipeline, layout, module, Binding};
+use crate::gpu::wgsl::wgsl_file;
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{GpuTimer, Occluder};
 use crate::nodes::Cache;
@@ -75,8 +76,7 @@ impl Pipelines {
     pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
         let label = "volshadow shadow map";
         let layout = layout(device, label, wgpu::ShaderStages::VERTEX, &BINDINGS);
-        let source = include_str!("../../shaders/shadow_map.wgsl");
-        let module = module(device, "volshadow shadow_map.wgsl", source, precision);
+        let module = module(device, &wgsl_file!("shadow_map.wgsl"), precision);
         let pipeline = |cull_mode| {
             depth_pipeline(
                 device,
@@ -729,6 +729,33 @@ impl ShadowMapNode {
         for occluder in occluders {
             occluder.validate()?;
         }
+        let needed = (occluders.len().max(1) as u64) * SLOT;
+        crate::gpu::check_buffer_allocation(device, "occluder transforms", needed)?;
+        let recreate = self.allocate(device, light, needed);
+        // Re-render only when something the map depends on changed.
+        let directional = match (light, camera) {
+            (Light::Directional(l), Some(camera)) => {
+                Some(self.directional_faces(l, camera, occluders))
+            }
+            _ => None,
+        };
+        let key = Self::key(light, occluders, directional.as_ref());
+        if !recreate && key == self.key {
+            // Still pending when an earlier prepare's render was never encoded.
+            return Ok(self.pending);
+        }
+        self.key = key;
+        self.place(light, occluders, directional);
+        self.upload(queue, occluders);
+        self.pending = true;
+        self.generation += 1;
+        Ok(true)
+    }
+
+    /// (Re)creates the map (and its back faces' layer for a light with a radius) when its
+    /// layers changed, and the occluders' transforms buffer when it is smaller than `needed`
+    /// bytes. Returns whether the map was recreated.
+    fn allocate(&mut self, device: &wgpu::Device, light: &Light, needed: u64) -> bool {
         let layers = match light {
             Light::Point(_) => 6,
             Light::Directional(d) => d.cascades(),
@@ -762,15 +789,43 @@ impl ShadowMapNode {
             self.texture = Some(map("volshadow shadow map"));
             self.back = wants_back.then(|| map("volshadow shadow map back faces"));
         }
+        if self
+            .instance_buffer
+            .as_ref()
+            .is_none_or(|b| b.size() < needed)
+        {
+            let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("volshadow shadow instances"),
+                size: needed,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let slot = |buffer| {
+                wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer,
+                    offset: 0,
+                    size: wgpu::BufferSize::new(64),
+                })
+            };
+            self.bind_group = Some(bind_group(
+                device,
+                "volshadow shadow map",
+                &self.pipelines.layout,
+                [slot(&self.face_buffer), slot(&buffer)],
+            ));
+            self.instance_buffer = Some(buffer);
+        }
+        recreate
+    }
 
-        // Re-render only when something the map depends on changed.
+    /// What the map depends on: the light's placement, the directional cascades' faces, the
+    /// occluders' meshes and transforms.
+    fn key(
+        light: &Light,
+        occluders: &[Occluder<'_>],
+        directional: Option<&(Vec<Mat4>, Vec<Vec<u32>>)>,
+    ) -> Vec<u32> {
         let bits = |v: &[f32]| v.iter().map(|f| f.to_bits()).collect::<Vec<u32>>();
-        let directional = match (light, camera) {
-            (Light::Directional(l), Some(camera)) => {
-                Some(self.directional_faces(l, camera, occluders))
-            }
-            _ => None,
-        };
         let mut key = match (light.position(), &directional) {
             (Some(p), _) => bits(&p.to_array()),
             (None, Some((faces, _))) => faces
@@ -789,12 +844,16 @@ impl ShadowMapNode {
             key.extend([o.mesh.id() as u32, (o.mesh.id() >> 32) as u32]);
             key.extend(bits(&o.transform.to_cols_array()));
         }
-        if !recreate && key == self.key {
-            // Still pending when an earlier prepare's render was never encoded.
-            return Ok(self.pending);
-        }
-        self.key = key;
+        key
+    }
 
+    /// The faces' matrices, the occluders' bounds and their separating planes for this light.
+    fn place(
+        &mut self,
+        light: &Light,
+        occluders: &[Occluder<'_>],
+        directional: Option<(Vec<Mat4>, Vec<Vec<u32>>)>,
+    ) {
         // The least distance from the light to an occluder's bounds, each in its own frame as
         // well as the world's (0 without occluders or with the light inside their bounds): a
         // spot map widens by it for a light with a radius (`spot_fov`).
@@ -850,37 +909,12 @@ impl ShadowMapNode {
                     .map_or(Vec4::ZERO, |p| o.separating_plane(p, light.radius()))
             })
             .collect();
+    }
+
+    /// Writes the faces' matrices and the occluders' transforms, and lists the draws.
+    fn upload(&mut self, queue: &wgpu::Queue, occluders: &[Occluder<'_>]) {
         for (i, face) in self.faces.iter().enumerate() {
             queue.write_buffer(&self.face_buffer, i as u64 * SLOT, bytemuck::bytes_of(face));
-        }
-
-        let needed = (occluders.len().max(1) as u64) * SLOT;
-        crate::gpu::check_buffer_allocation(device, "occluder transforms", needed)?;
-        if self
-            .instance_buffer
-            .as_ref()
-            .is_none_or(|b| b.size() < needed)
-        {
-            let buffer = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("volshadow shadow instances"),
-                size: needed,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            let slot = |buffer| {
-                wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                    buffer,
-                    offset: 0,
-                    size: wgpu::BufferSize::new(64),
-                })
-            };
-            self.bind_group = Some(bind_group(
-                device,
-                "volshadow shadow map",
-                &self.pipelines.layout,
-                [slot(&self.face_buffer), slot(&buffer)],
-            ));
-            self.instance_buffer = Some(buffer);
         }
         let instances = self.instance_buffer.as_ref().expect("just created");
         self.draws.clear();
@@ -893,9 +927,6 @@ impl ShadowMapNode {
                 closed: o.mesh.is_closed(),
             });
         }
-        self.pending = true;
-        self.generation += 1;
-        Ok(true)
     }
 
     /// The directional map's cascades for this camera and these occluders: each one's face,

@@ -98,6 +98,7 @@
 
 use crate::error::{Error, Result};
 use crate::gpu::pipeline::{bind_group, compute_pipeline, layout, module, Binding};
+use crate::gpu::wgsl::{wgsl_file, Wgsl};
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{check_depth_layers, depth_array_view, texture_3d, GpuTimer, UniformBuffer};
 use crate::nodes::shadow_map::{standard_cube_near, ShadowMap};
@@ -511,10 +512,7 @@ struct SoftShadowUniform {
 }
 
 /// The grid's WGSL: the shared shadow-map visibility, then the grid's passes.
-const SOURCE: &str = concat!(
-    include_str!("../../shaders/pcss.wgsl"),
-    include_str!("../../shaders/soft_shadow.wgsl")
-);
+const SOURCE: Wgsl<'static> = wgsl_file!("soft_shadow.wgsl");
 
 /// The passes of a build (see `shaders/soft_shadow.wgsl`) for one kind of light.
 #[derive(Clone)]
@@ -549,7 +547,7 @@ impl Pipelines {
         let rest_layout = layout(device, label, stages, &REST_BINDINGS);
         let estimate_layout = layout(device, label, stages, &ESTIMATE_BINDINGS);
         let store_layout = layout(device, label, stages, &STORE_BINDINGS);
-        let module = module(device, "volshadow soft_shadow.wgsl", SOURCE, precision);
+        let module = module(device, &SOURCE, precision);
         let build = |constants: &[(&str, f64)]| {
             let pipeline =
                 |layout, entry| compute_pipeline(device, label, layout, &module, entry, constants);
@@ -836,35 +834,65 @@ impl Node for SoftShadowNode {
         queue: &wgpu::Queue,
         inputs: &SoftShadowInputs<'_>,
     ) -> Result<bool> {
-        let light = inputs.light;
-        let (layers, spot) = match light {
-            Light::Point(_) => (6, false),
-            Light::Spot(_) => (1, true),
-            _ => {
-                return Err(Error::InvalidSetting {
-                    field: "light",
-                    problem: "soft shadows need a point or spot light".into(),
-                })
-            }
-        };
-        if light.radius() <= 0.0 {
+        let (layers, spot) = validate(inputs)?;
+        self.allocate(device, layers)?;
+        self.bind(device, inputs.shadow_map);
+        self.upload(queue, inputs, layers);
+        self.pipeline = Some(if spot {
+            self.pipelines.spot.clone()
+        } else {
+            self.pipelines.point.clone()
+        });
+        Ok(self.pending)
+    }
+}
+
+/// Checks the inputs (see [`SoftShadowNode::prepare`]); returns the light's shadow-map layers
+/// and whether it is a spot.
+fn validate(inputs: &SoftShadowInputs<'_>) -> Result<(u32, bool)> {
+    let light = inputs.light;
+    let (layers, spot) = match light {
+        Light::Point(_) => (6, false),
+        Light::Spot(_) => (1, true),
+        _ => {
             return Err(Error::InvalidSetting {
                 field: "light",
-                problem: "soft shadows need a light with a radius > 0".into(),
-            });
+                problem: "soft shadows need a point or spot light".into(),
+            })
         }
-        let map = inputs.shadow_map;
-        check_depth_layers("shadow_map", map.texture, layers)?;
-        map.check_back()?;
-        if map.faces.len() != layers as usize {
+    };
+    if light.radius() <= 0.0 {
+        return Err(Error::InvalidSetting {
+            field: "light",
+            problem: "soft shadows need a light with a radius > 0".into(),
+        });
+    }
+    let map = inputs.shadow_map;
+    check_depth_layers("shadow_map", map.texture, layers)?;
+    map.check_back()?;
+    if map.faces.len() != layers as usize {
+        return Err(Error::InvalidTexture {
+            field: "shadow_map",
+            problem: format!(
+                "has {} face matrices; this light needs {layers}",
+                map.faces.len()
+            ),
+        });
+    }
+    for (i, m) in map.faces.iter().enumerate() {
+        if !m.inverse().is_finite() {
             return Err(Error::InvalidTexture {
                 field: "shadow_map",
-                problem: format!(
-                    "has {} face matrices; this light needs {layers}",
-                    map.faces.len()
-                ),
+                problem: format!("face matrix {i} is not invertible"),
             });
         }
+    }
+    Ok((layers, spot))
+}
+
+impl SoftShadowNode {
+    /// (Re)creates the grid and its scratch buffers when its size changed.
+    fn allocate(&mut self, device: &wgpu::Device, layers: u32) -> Result<()> {
         let (n, s) = (self.size.directions, self.size.slices);
         let extent = (n, n, layers * s);
         if self
@@ -888,6 +916,11 @@ impl Node for SoftShadowNode {
             ));
             self.scratch = Some(scratch);
         }
+        Ok(())
+    }
+
+    /// Binds the shadow map and the grid, building the bind groups when one of them changed.
+    fn bind(&mut self, device: &wgpu::Device, map: ShadowMap<'_>) {
         let texture = self.texture.as_ref().expect("created above");
         let scratch = self.scratch.as_ref().expect("created with the grid");
         let back = map.back.unwrap_or(map.texture);
@@ -915,18 +948,18 @@ impl Node for SoftShadowNode {
             });
             self.pending = true;
         }
+    }
+
+    /// Writes the parameters when they changed (or a build is pending), with the blocks the
+    /// build covers.
+    fn upload(&mut self, queue: &wgpu::Queue, inputs: &SoftShadowInputs<'_>, layers: u32) {
+        let (light, map) = (inputs.light, inputs.shadow_map);
+        let (n, s) = (self.size.directions, self.size.slices);
         let mut faces = [[0.0; 16]; 6];
         let mut world_from_clip = [[0.0; 16]; 6];
         for (i, m) in map.faces.iter().enumerate() {
-            let inverse = m.inverse();
-            if !inverse.is_finite() {
-                return Err(Error::InvalidTexture {
-                    field: "shadow_map",
-                    problem: format!("face matrix {i} is not invertible"),
-                });
-            }
             faces[i] = m.to_cols_array();
-            world_from_clip[i] = inverse.to_cols_array();
+            world_from_clip[i] = m.inverse().to_cols_array();
         }
         let (mut soft, spheres, planes) = soft_params(light, &map);
         // A cell's angle: a layer's field of view (its projection's x scale is 1 / tan(half
@@ -966,12 +999,6 @@ impl Node for SoftShadowNode {
         self.built = built;
         self.generation = Some(map.generation);
         self.layers = layers;
-        self.pipeline = Some(if spot {
-            self.pipelines.spot.clone()
-        } else {
-            self.pipelines.point.clone()
-        });
-        Ok(self.pending)
     }
 }
 
@@ -1277,12 +1304,12 @@ fn params_layout_matches_the_wgsl() {
         built,
         lit,
     });
-    assert_same(rust, SOURCE, "SoftShadowParams");
+    assert_same(rust, SOURCE.text, "SoftShadowParams");
     let light = rust_layout!(SoftLight {
         radius,
         nearest,
         spheres,
         cell_angle,
     });
-    assert_same(light, SOURCE, "SoftLight");
+    assert_same(light, SOURCE.text, "SoftLight");
 }

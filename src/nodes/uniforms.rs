@@ -251,7 +251,7 @@ mod tests {
             w_hazy,
             w_murky,
         });
-        assert_same(airlight, "", "Airlight");
+        assert_same(airlight, "#import prelude.wgsl", "Airlight");
         let view = rust_layout!(ViewUniform {
             view_from_clip,
             world_from_view,
@@ -259,6 +259,6 @@ mod tests {
             far_depth,
             _pad,
         });
-        assert_same(view, "", "View");
+        assert_same(view, "#import prelude.wgsl", "View");
     }
 }

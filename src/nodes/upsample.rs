@@ -113,6 +113,7 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
 use crate::gpu::pipeline::{bind_group, cached, compute_pipeline, layout, module, Binding};
+use crate::gpu::wgsl::wgsl_file;
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{check_depth_texture, check_float_texture, GpuTimer, UniformBuffer};
 use crate::nodes::uniforms::ViewUniform;
@@ -150,10 +151,9 @@ pub(crate) struct Pipelines {
 impl Pipelines {
     pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
         let label = "volshadow upsample";
-        let source = include_str!("../../shaders/upsample.wgsl");
         Self {
             layout: layout(device, label, wgpu::ShaderStages::COMPUTE, &BINDINGS),
-            module: module(device, "volshadow upsample.wgsl", source, precision),
+            module: module(device, &wgsl_file!("upsample.wgsl"), precision),
             lights: Arc::default(),
         }
     }
@@ -298,16 +298,40 @@ impl Node for UpsampleNode {
         queue: &wgpu::Queue,
         inputs: &UpsampleInputs<'_>,
     ) -> Result<bool> {
-        check_depth_texture("scene_depth", inputs.scene_depth)?;
-        check_float_texture("low", inputs.low)?;
-        let (w, h) = (inputs.scene_depth.width(), inputs.scene_depth.height());
-        let (lw, lh) = (inputs.low.width(), inputs.low.height());
-        if lw > w || lh > h {
-            return Err(Error::InvalidTexture {
-                field: "low",
-                problem: format!("is {lw}x{lh}, larger than the output {w}x{h}"),
-            });
-        }
+        let (w, h, lh) = validate(inputs)?;
+        self.allocate(device, (w, h), lh);
+        self.bind(device, inputs);
+        self.upload(queue, inputs);
+        let is_spot = matches!(inputs.light, crate::scene::Light::Spot(_));
+        let directional = matches!(inputs.light, crate::scene::Light::Directional(_));
+        self.spot
+            .write(queue, crate::nodes::uniforms::spot_cone(inputs.light));
+        self.entry_points = Some(self.pipelines.for_light(device, is_spot, directional));
+        self.size = (w, h);
+        self.low_height = lh;
+        Ok(true)
+    }
+}
+
+/// Checks the inputs (see [`UpsampleNode::prepare`]); returns the output's size and the
+/// reduced-resolution input's height.
+fn validate(inputs: &UpsampleInputs<'_>) -> Result<(u32, u32, u32)> {
+    check_depth_texture("scene_depth", inputs.scene_depth)?;
+    check_float_texture("low", inputs.low)?;
+    let (w, h) = (inputs.scene_depth.width(), inputs.scene_depth.height());
+    let (lw, lh) = (inputs.low.width(), inputs.low.height());
+    if lw > w || lh > h {
+        return Err(Error::InvalidTexture {
+            field: "low",
+            problem: format!("is {lw}x{lh}, larger than the output {w}x{h}"),
+        });
+    }
+    Ok((w, h, lh))
+}
+
+impl UpsampleNode {
+    /// (Re)creates the output, and the separable filter's intermediate, when a size changed.
+    fn allocate(&mut self, device: &wgpu::Device, (w, h): (u32, u32), lh: u32) {
         if self
             .output
             .as_ref()
@@ -334,6 +358,11 @@ impl Node for UpsampleNode {
                 lh,
             ));
         }
+    }
+
+    /// Binds the inputs and outputs, building the bind groups when one of them changed.
+    fn bind(&mut self, device: &wgpu::Device, inputs: &UpsampleInputs<'_>) {
+        let separable = matches!(self.filter, UpsampleFilter::Separable { .. });
         let output = self.output.clone().expect("created above");
         let mid = if separable {
             self.intermediate.clone().expect("created above")
@@ -380,6 +409,12 @@ impl Node for UpsampleNode {
             };
             self.bound = Some((textures, groups));
         }
+    }
+
+    /// Writes the filter's, view's, airlight's and spot's uniforms.
+    fn upload(&mut self, queue: &wgpu::Queue, inputs: &UpsampleInputs<'_>) {
+        let (w, h) = (inputs.scene_depth.width(), inputs.scene_depth.height());
+        let (lw, lh) = (inputs.low.width(), inputs.low.height());
         let (kind, taps, sigma_spatial, sigma_depth) = match self.filter {
             UpsampleFilter::Bilinear => (FILTER_BILINEAR, 0, 1.0, 1.0),
             UpsampleFilter::DepthAware3x3 => (FILTER_3X3, 3, 1.0, 1.0),
@@ -413,14 +448,6 @@ impl Node for UpsampleNode {
                 inputs.table.size(),
             ),
         );
-        let is_spot = matches!(inputs.light, crate::scene::Light::Spot(_));
-        let directional = matches!(inputs.light, crate::scene::Light::Directional(_));
-        self.spot
-            .write(queue, crate::nodes::uniforms::spot_cone(inputs.light));
-        self.entry_points = Some(self.pipelines.for_light(device, is_spot, directional));
-        self.size = (w, h);
-        self.low_height = lh;
-        Ok(true)
     }
 }
 

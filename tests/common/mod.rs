@@ -2,6 +2,7 @@
 //! table → march → readback chain.
 #![allow(dead_code)]
 
+pub mod by_hand;
 pub mod files;
 pub mod metric;
 pub mod rng;
@@ -9,9 +10,9 @@ pub mod scene;
 pub mod visibility;
 
 use glam::{DMat4, DVec3, DVec4, Vec3};
-use volshadow::nodes::{AirlightTableNode, MarchInputs, MarchNode, MarchSettings, TableSize};
-use volshadow::nodes::{Encode, Node};
+use volshadow::nodes::{MarchSettings, TableSize};
 use volshadow::{Cache, Camera, HeadlessGpu, Light, Medium, PointLight};
+use volshadow::{Frame, FrameLight, Settings, VolumetricShadows};
 
 /// A camera for node inputs only a directional light reads (a point or spot light's shadow
 /// map ignores it).
@@ -50,16 +51,19 @@ pub const WORST_CASES: [volshadow::ShaderPrecision; 3] = [
 ];
 
 /// Two tests of one body: `$native` runs `$body(ShaderPrecision::Native)`, `$worst` runs it at
-/// each precision of `$cases` (WGSL's worst case: [`WORST_CASES`] or `[WORST_CASE]`).
+/// each precision of `$cases` (WGSL's worst case: [`WORST_CASES`] or `[WORST_CASE]`). Attributes
+/// before `$body` go on both (the sweep tier's `cfg_attr`).
 #[macro_export]
 macro_rules! at_each_precision {
-    ($body:ident => $native:ident, $worst:ident, $cases:expr) => {
+    ($(#[$attr:meta])* $body:ident => $native:ident, $worst:ident, $cases:expr) => {
         #[test]
+        $(#[$attr])*
         fn $native() {
             $body(volshadow::ShaderPrecision::Native);
         }
 
         #[test]
+        $(#[$attr])*
         fn $worst() {
             for precision in $cases {
                 $body(precision);
@@ -293,8 +297,9 @@ pub fn depth_texture_with_format(
     depth
 }
 
-/// Builds the table and runs the analytic march for one frame; returns the in-scatter
-/// texture's texels (rgb radiance, a = distance).
+/// One frame of `light` without occluders through the facade (the table and the analytic
+/// march at full resolution, `table_size`'s F′ table); returns the in-scatter texture's texels
+/// (rgb radiance, a = distance).
 pub fn march_frame(
     gpu: &HeadlessGpu,
     cache: &Cache,
@@ -304,38 +309,70 @@ pub fn march_frame(
     medium: &Medium,
     depth: &wgpu::Texture,
 ) -> Vec<[f32; 4]> {
-    let light = Light::from(light);
-    let mut table = AirlightTableNode::new(&gpu.device, cache, table_size).unwrap();
-    let mut march = MarchNode::new(&gpu.device, cache, MarchSettings::default()).unwrap();
-    let eye = camera.eye();
-    let table_inputs = volshadow::nodes::TableInputs {
-        eye,
-        light: &light,
-        medium,
+    let settings = Settings {
+        table: table_size,
+        ..Settings::PREDICTABLE
     };
-    table
-        .prepare(&gpu.device, &gpu.queue, &table_inputs)
-        .unwrap();
-    march
-        .prepare(
-            &gpu.device,
-            &gpu.queue,
-            &MarchInputs {
-                camera,
-                light: &light,
-                medium,
-                table: &table,
-                scene_depth: depth,
-                shadows: None,
-                light_texture: None,
-            },
-        )
-        .unwrap();
-    let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    table.encode(&mut encoder, None).unwrap();
-    march.encode(&mut encoder, None).unwrap();
-    gpu.submit_and_wait(encoder).unwrap();
-    gpu.read_rgba32f(march.output().unwrap()).unwrap()
+    let lights = [FrameLight::from(Light::from(light))];
+    let mut vs = FacadeFrame::new(gpu, cache, settings, depth);
+    let vs = vs.run(gpu, camera, &lights, medium, &[]);
+    gpu.read_rgba32f(vs.inscatter(0).unwrap()).unwrap()
+}
+
+/// A facade and the colour and output textures one of its frames reads and writes, the depth
+/// buffer's size.
+pub struct FacadeFrame<'d> {
+    vs: VolumetricShadows,
+    depth: &'d wgpu::Texture,
+    color: wgpu::Texture,
+    output: wgpu::Texture,
+}
+
+impl<'d> FacadeFrame<'d> {
+    pub fn new(
+        gpu: &HeadlessGpu,
+        cache: &Cache,
+        settings: Settings,
+        depth: &'d wgpu::Texture,
+    ) -> Self {
+        let size = (depth.width(), depth.height(), 1);
+        let usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST;
+        let color = texture(gpu, wgpu::TextureFormat::Rgba16Float, usage, size, 1);
+        let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
+        let output = texture(gpu, settings.output_format, usage, size, 1);
+        let vs = VolumetricShadows::new(&gpu.device, &gpu.queue, cache, settings).unwrap();
+        Self {
+            vs,
+            depth,
+            color,
+            output,
+        }
+    }
+
+    /// Prepares, records and runs one frame; returns the facade to read its results.
+    pub fn run(
+        &mut self,
+        gpu: &HeadlessGpu,
+        camera: &Camera,
+        lights: &[FrameLight<'_>],
+        medium: &Medium,
+        occluders: &[volshadow::gpu::Occluder<'_>],
+    ) -> &VolumetricShadows {
+        let frame = Frame {
+            camera,
+            lights,
+            medium,
+            occluders,
+            scene_color: &self.color,
+            scene_depth: self.depth,
+            surfaces: None,
+        };
+        self.vs.prepare(&gpu.device, &gpu.queue, &frame).unwrap();
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        self.vs.encode(&mut encoder, &self.output).unwrap();
+        gpu.submit_and_wait(encoder).unwrap();
+        &self.vs
+    }
 }
 
 /// A right-handed look-at camera with a standard-Z perspective projection.
@@ -366,8 +403,9 @@ pub fn gpu_timed() -> HeadlessGpu {
 pub struct ShadowFrame {
     pub inscatter: Vec<[f32; 4]>,
     pub steps: Vec<u32>,
-    /// Front, back-near, back-far extents depths.
-    pub extents: [Vec<f32>; 3],
+    /// Front, back-near, back-far extents depths (`None` where the plan has no extents: a
+    /// light with a radius, brute force, the textbook march).
+    pub extents: Option<[Vec<f32>; 3]>,
     pub times: Vec<volshadow::gpu::PassTime>,
     /// What the exact method met (zeros for the other methods).
     pub stats: volshadow::nodes::MarchStats,
@@ -375,7 +413,11 @@ pub struct ShadowFrame {
 
 impl ShadowFrame {
     pub fn has_extents(&self, i: usize) -> bool {
-        self.extents[0][i] > 0.0 || self.extents[2][i] < 1.0
+        let e = self
+            .extents
+            .as_ref()
+            .expect("a frame whose plan has extents");
+        e[0][i] > 0.0 || e[2][i] < 1.0
     }
     pub fn time_ms(&self, label: &str) -> f64 {
         self.times
@@ -400,7 +442,8 @@ pub struct ShadowPasses<'a> {
     shadow_resolution: u32,
     filter: volshadow::nodes::UpsampleFilter,
     texture: Option<&'a wgpu::Texture>,
-    face_scale: f32,
+    /// Wired by hand with the faces scaled by this (see [`by_hand`]), not through the facade.
+    by_hand: Option<f32>,
 }
 
 impl<'a> ShadowPasses<'a> {
@@ -421,7 +464,7 @@ impl<'a> ShadowPasses<'a> {
             shadow_resolution: 1024,
             filter: volshadow::nodes::UpsampleFilter::DepthAware3x3,
             texture: None,
-            face_scale: 1.0,
+            by_hand: None,
         }
     }
 
@@ -447,15 +490,18 @@ impl<'a> ShadowPasses<'a> {
         Self { texture, ..self }
     }
 
-    /// The shadow map's face matrices as the soft-shadow grid and the march receive them,
-    /// times `face_scale`: a caller's faces that project the same as the node's (clip
-    /// coordinates scaled, the same ndc) but are not the node's own matrices.
-    pub fn face_scale(self, face_scale: f32) -> Self {
-        Self { face_scale, ..self }
+    /// The nodes wired by hand instead of the facade, the shadow map's faces times
+    /// `face_scale` (see [`by_hand::frame`]).
+    pub fn by_hand(self, face_scale: f32) -> Self {
+        Self {
+            by_hand: Some(face_scale),
+            ..self
+        }
     }
 }
 
-/// Runs `passes` (see [`ShadowPasses`]).
+/// Runs `passes` (see [`ShadowPasses`]) through the facade, as one frame of
+/// [`Settings::PREDICTABLE`] with the passes' march settings, shadow-map resolution and filter.
 pub fn shadow_frame(gpu: &HeadlessGpu, cache: &Cache, passes: &ShadowPasses) -> ShadowFrame {
     let ShadowPasses {
         camera,
@@ -467,176 +513,39 @@ pub fn shadow_frame(gpu: &HeadlessGpu, cache: &Cache, passes: &ShadowPasses) -> 
         shadow_resolution,
         filter,
         texture,
-        face_scale,
+        by_hand,
     } = *passes;
-    let mut light_texture = texture.map(|t| {
-        let mut node = volshadow::nodes::LightTextureNode::new(&gpu.device, cache).unwrap();
-        node.prepare(&gpu.device, &gpu.queue, t).unwrap();
-        node
-    });
-    use volshadow::gpu::GpuTimer;
-    use volshadow::nodes::{ExtentsNode, ShadowMapNode, ShadowMapSettings, Shadows};
-    let (w, h) = settings.scale.apply(depth.width(), depth.height());
-    let mut shadow = ShadowMapNode::new(
-        &gpu.device,
-        cache,
-        ShadowMapSettings {
+    if let Some(face_scale) = by_hand {
+        return by_hand::frame(gpu, cache, passes, face_scale);
+    }
+    let settings = Settings {
+        march: settings,
+        upsample: filter,
+        shadow_map: volshadow::nodes::ShadowMapSettings {
             resolution: shadow_resolution,
-            ..Default::default()
+            ..volshadow::nodes::ShadowMapSettings::DEFAULT
         },
-    )
-    .unwrap();
-    let mut extents = ExtentsNode::new(&gpu.device, cache).unwrap();
-    let mut table = AirlightTableNode::new(&gpu.device, cache, TableSize::default()).unwrap();
-    let mut march = MarchNode::new(&gpu.device, cache, settings).unwrap();
-    let mut timer = GpuTimer::new(&gpu.device, &gpu.queue, 32);
-
-    let shadow_inputs = volshadow::nodes::ShadowMapInputs {
-        light,
-        occluders,
-        camera,
+        ..Settings::PREDICTABLE
     };
-    shadow
-        .prepare(&gpu.device, &gpu.queue, &shadow_inputs)
-        .unwrap();
-    extents
-        .prepare(
-            &gpu.device,
-            &gpu.queue,
-            &volshadow::nodes::ExtentsInputs {
-                camera,
-                light,
-                occluders,
-                size: (w, h),
-                crossings: (settings.method == volshadow::nodes::MarchMethod::Exact).then_some(
-                    volshadow::nodes::CrossingsRequest {
-                        per_pixel: settings.crossings,
-                        scene_depth: depth,
-                        build: settings.crossings_build,
-                    },
-                ),
-            },
-        )
-        .unwrap();
-    let faces: Vec<glam::Mat4> = shadow
-        .shadow_map()
-        .unwrap()
-        .faces
-        .iter()
-        .map(|f| *f * face_scale)
-        .collect();
-    // A light with a radius: the soft-shadow grid, for the methods that read it.
-    let mut soft = (light.radius() > 0.0
-        && matches!(
-            settings.method,
-            volshadow::nodes::MarchMethod::Exact | volshadow::nodes::MarchMethod::Hybrid
-        ))
-    .then(|| {
-        let mut node = volshadow::nodes::SoftShadowNode::new(
-            &gpu.device,
-            cache,
-            volshadow::nodes::SoftShadowSize::default(),
-        )
-        .unwrap();
-        node.prepare(
-            &gpu.device,
-            &gpu.queue,
-            &volshadow::nodes::SoftShadowInputs {
-                light,
-                shadow_map: volshadow::nodes::ShadowMap {
-                    faces: &faces,
-                    ..shadow.shadow_map().unwrap()
-                },
-            },
-        )
-        .unwrap();
-        node
-    });
-    let eye = camera.eye();
-    let table_inputs = volshadow::nodes::TableInputs { eye, light, medium };
-    table
-        .prepare(&gpu.device, &gpu.queue, &table_inputs)
-        .unwrap();
-    march
-        .prepare(
-            &gpu.device,
-            &gpu.queue,
-            &MarchInputs {
-                camera,
-                light,
-                medium,
-                table: &table,
-                scene_depth: depth,
-                shadows: Some(Shadows {
-                    shadow_map: volshadow::nodes::ShadowMap {
-                        faces: &faces,
-                        ..shadow.shadow_map().unwrap()
-                    },
-                    extents: extents.extents(),
-                    soft: soft.as_ref().and_then(|n| n.output()),
-                }),
-                light_texture: light_texture.as_ref().and_then(|n| n.texture()),
-            },
-        )
-        .unwrap();
-    let mut upsample = (settings.scale != volshadow::nodes::Scale::Full).then(|| {
-        let mut node = volshadow::nodes::UpsampleNode::new(&gpu.device, cache, filter).unwrap();
-        node.prepare(
-            &gpu.device,
-            &gpu.queue,
-            &volshadow::nodes::UpsampleInputs {
-                camera,
-                scene_depth: depth,
-                low: march.output().unwrap(),
-                table: &table,
-                light,
-                medium,
-            },
-        )
-        .unwrap();
-        node
-    });
-    let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    if let Some(node) = light_texture.as_mut() {
-        node.encode(&mut encoder, Some(&mut timer)).unwrap();
-    }
-    shadow.encode(&mut encoder, Some(&mut timer)).unwrap();
-    extents.encode(&mut encoder, Some(&mut timer)).unwrap();
-    if let Some(node) = soft.as_mut() {
-        node.encode(&mut encoder, Some(&mut timer)).unwrap();
-    }
-    table.encode(&mut encoder, Some(&mut timer)).unwrap();
-    march.encode(&mut encoder, Some(&mut timer)).unwrap();
-    if let Some(node) = upsample.as_mut() {
-        node.encode(&mut encoder, Some(&mut timer)).unwrap();
-    }
-    timer.resolve(&mut encoder);
-    gpu.submit_and_wait(encoder).unwrap();
-    let times = timer.read(&gpu.device).unwrap();
+    let lights = [FrameLight {
+        light: *light,
+        texture,
+    }];
+    let mut frame = FacadeFrame::new(gpu, cache, settings, depth);
+    let vs = frame.run(gpu, camera, &lights, medium, occluders);
+    let times = vs.read_timings(&gpu.device).unwrap();
     let read_depth = |t: &wgpu::Texture| -> Vec<f32> {
         bytemuck::pod_collect_to_vec(&gpu.read_texture_bytes(t).unwrap())
     };
-    let ext = extents.extents().unwrap();
-    let steps_bytes = gpu
-        .read_texture_bytes(march.step_counts().unwrap())
-        .unwrap();
+    let steps_bytes = gpu.read_texture_bytes(vs.step_counts(0).unwrap()).unwrap();
     ShadowFrame {
-        inscatter: gpu
-            .read_rgba32f(match &upsample {
-                Some(node) => node.output().unwrap(),
-                None => march.output().unwrap(),
-            })
-            .unwrap(),
+        inscatter: gpu.read_rgba32f(vs.inscatter(0).unwrap()).unwrap(),
         steps: bytemuck::pod_collect_to_vec(&steps_bytes),
         stats: volshadow::nodes::MarchStats::from_bytes(
-            &gpu.read_buffer_bytes(march.stats_buffer()).unwrap(),
+            &gpu.read_buffer_bytes(vs.march_stats(0).unwrap()).unwrap(),
         )
         .unwrap(),
-        extents: [
-            read_depth(&ext.textures[0]),
-            read_depth(&ext.textures[1]),
-            read_depth(&ext.textures[2]),
-        ],
+        extents: vs.extents(0).map(|e| e.textures.each_ref().map(read_depth)),
         times,
     }
 }

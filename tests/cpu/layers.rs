@@ -18,7 +18,8 @@ const LAYERS: &[&[&str]] = &[
     &["reference", "gltf", "pass"],
     &["gpu"],
     &["nodes"],
-    &["plan", "scene_file"],
+    &["settings", "frame", "scene_file"],
+    &["plan"],
     &["facade"],
 ];
 

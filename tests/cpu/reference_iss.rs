@@ -183,6 +183,10 @@ fn a_hemisphere_integral_against_brute_force() {
 /// `scale · G(σt·D, α)` per channel (normalised units, closed-form φ integral, its own
 /// airlight) within 1e-9 relative: both are computed to 1e-10 (outer) and 1e-12 (inner).
 #[test]
+#[cfg_attr(
+    not(feature = "sweeps"),
+    ignore = "an accuracy sweep: --features sweeps"
+)]
 fn b_scale_times_g_over_random_scenes() {
     let phases = [
         PhaseFunction::Isotropic,

@@ -74,6 +74,7 @@ fn analytic(
                 table: &table,
                 scene_depth: depth,
                 shadows: None,
+                mode: volshadow::nodes::MarchMode::Analytic,
                 light_texture: None,
             },
         )

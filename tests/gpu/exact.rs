@@ -417,7 +417,7 @@ fn f_textured_spot_eye_in_its_occluders_shadow() {
 /// depth), optical depth σt·D from 1e-3 to 50, any phase, and the whole scene scaled by
 /// 1e-2 … 1e5 (up to 1e5: at that scale a cone test sensitive to rounding cuts a spot's cone
 /// wrong for rays nearly parallel to its surface, as seed 204 of `tests/gpu/soft_grid.rs` shows).
-struct RandomScene {
+struct SeededMeshScene {
     scene: MeshScene,
     camera: Camera,
     light: Light,
@@ -444,11 +444,11 @@ fn any_regime() -> Regime {
     }
 }
 
-fn random_scene(seed: u64) -> RandomScene {
+fn random_scene(seed: u64) -> SeededMeshScene {
     random_scene_in(seed, any_regime())
 }
 
-fn random_scene_in(seed: u64, regime: Regime) -> RandomScene {
+fn random_scene_in(seed: u64, regime: Regime) -> SeededMeshScene {
     let mut rng = fastrand::Rng::with_seed(seed);
     let mut uniform = |a: f32, b: f32| a + (b - a) * rng.f32();
     let scale = 10f32.powf(uniform(-2.0, 5.0));
@@ -581,7 +581,7 @@ fn random_scene_in(seed: u64, regime: Regime) -> RandomScene {
     )
     .unwrap();
     let size = 24 + 8 * (uniform(0.0, 2.0) as u32).min(1);
-    RandomScene {
+    SeededMeshScene {
         summary: format!(
             "{count} occluder(s), scale {scale:.1e}, σt·D {tau:.1e}, {phase:?}, {}, near {near:.1e}{}, {size}²",
             if spot { "spot" } else { "point" },

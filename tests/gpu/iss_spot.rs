@@ -668,6 +668,7 @@ fn seeded_spot_scenes(precision: ShaderPrecision) {
 }
 
 crate::at_each_precision!(
+    #[cfg_attr(not(feature = "sweeps"), ignore = "an accuracy sweep: --features sweeps")]
     seeded_spot_scenes => seeded_spot_scenes_native,
     seeded_spot_scenes_worst_case,
     [common::WORST_CASE]

@@ -290,7 +290,7 @@ fn a_caller_s_cube_faces_give_the_node_s_image() {
         let frame = |face_scale| {
             let passes = common::ShadowPasses::new(&camera, &light, &medium, &depth, &occluders)
                 .settings(method(m))
-                .face_scale(face_scale);
+                .by_hand(face_scale);
             common::shadow_frame(&gpu, &cache, &passes).inscatter
         };
         let (own, caller) = (frame(1.0), frame(1.001));

@@ -6,8 +6,8 @@ use volshadow::nodes::Node;
 
 use glam::{Mat4, Vec3};
 use volshadow::nodes::{
-    AirlightTableNode, CompositeInputs, CompositeNode, MarchInputs, MarchNode, MarchSettings,
-    TableSize,
+    AirlightTableNode, CompositeInputs, CompositeNode, MarchInputs, MarchMode, MarchNode,
+    MarchSettings, TableSize,
 };
 use volshadow::{Cache, Camera, Error, Medium, PhaseFunction, PointLight};
 
@@ -272,6 +272,7 @@ fn bad_textures_are_typed_errors_not_validation_errors() {
         table: &table,
         scene_depth: &colour,
         shadows: None,
+        mode: MarchMode::Analytic,
         light_texture: None,
     };
     let err = march.prepare(&gpu.device, &gpu.queue, &inputs).err();
@@ -308,6 +309,28 @@ fn bad_textures_are_typed_errors_not_validation_errors() {
         ),
         "{err:?}"
     );
+
+    // A mode whose inputs are missing: each shadowed mode without shadows. The analytic mode
+    // passes with the same inputs.
+    let depth = tex(wgpu::TextureFormat::Depth32Float, sampled, 16, 16);
+    for mode in [MarchMode::Exact, MarchMode::Hybrid, MarchMode::BruteForce] {
+        let inputs = MarchInputs {
+            scene_depth: &depth,
+            mode,
+            ..inputs
+        };
+        let err = march.prepare(&gpu.device, &gpu.queue, &inputs).err();
+        assert!(
+            matches!(err, Some(Error::InvalidSetting { field: "mode", .. })),
+            "{mode:?}: {err:?}"
+        );
+    }
+    let inputs = MarchInputs {
+        scene_depth: &depth,
+        mode: MarchMode::Analytic,
+        ..inputs
+    };
+    march.prepare(&gpu.device, &gpu.queue, &inputs).unwrap();
 
     // A composite onto a depth format, and with inputs of different sizes.
     let err = CompositeNode::new(&gpu.device, &cache, wgpu::TextureFormat::Depth32Float).err();
