@@ -4,7 +4,7 @@
 // medium scatters onto the surface, when normals and albedo are given) into the caller's target
 // (the prelude's fullscreen triangle).
 
-// Mirrors `CompositeUniform` in src/gpu/uniforms.rs.
+// Mirrors `CompositeUniform` in src/nodes/uniforms.rs.
 struct Composite {
     sigma_t: vec3<f32>,
     count: u32,   // how many in-scatter inputs (one per light, 0 ..= 4) to add
@@ -22,17 +22,10 @@ struct Composite {
 // The surface term (indirect single scattering, shaders/iss.wgsl precedes this file).
 // Mirrors `SurfacesUniform` in src/nodes/uniforms.rs (its layout test: the composite node's
 // `params_layouts_match_the_wgsl`); WGSL's alignment pads both structs.
-struct SurfaceLight {
-    position: vec3<f32>,
-    cos_half: f32,        // a spot's cos(half apex angle)
-    intensity: vec3<f32>,
-    spot: u32,            // 1: limited to the cone
-    direction: vec3<f32>, // a spot's unit axis
-}
 struct Surfaces {
     sigma_s: vec3<f32>,
     count: u32,           // lights (0: no surface term)
-    lights: array<SurfaceLight, 4>,
+    lights: array<Light, 4>,   // point and spot lights
     lattice: u32,         // the spot term's lattice spacing in pixels (0: no lattice)
 }
 @group(0) @binding(8) var<storage, read> surf: Surfaces;
@@ -72,8 +65,8 @@ fn spot_irradiance(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     var e = vec3<f32>(0.0);
     for (var i = 0u; i < min(surf.count, 4u); i++) {
         let l = surf.lights[i];
-        if (l.spot != 0u) {
-            e += volshadow_iss_spot(surf_phase, p, n, l.position, l.direction, l.cos_half,
+        if (l.kind == LIGHT_SPOT) {
+            e += volshadow_iss_spot(surf_phase, p, n, l.position, l.axis, l.cos_half,
                                     l.intensity, surf.sigma_s, comp.sigma_t);
         }
     }
@@ -180,7 +173,7 @@ fn surface_term(pixel: vec2<u32>, ray: PixelRay) -> vec3<f32> {
     var spots = false;
     for (var i = 0u; i < min(surf.count, 4u); i++) {
         let l = surf.lights[i];
-        if (l.spot != 0u) {
+        if (l.kind == LIGHT_SPOT) {
             spots = true;
         } else {
             e += volshadow_iss(iss_table, s.p, s.n, l.position, l.intensity, surf.sigma_s, comp.sigma_t);

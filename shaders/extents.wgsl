@@ -37,13 +37,13 @@ struct VolumeVertex {
 // Mirrors `ExtrudeUniform` in src/nodes/extents.rs.
 struct Extrude {
     world_from_object: mat4x4<f32>,
-    light: vec3<f32>,        // light position (directional: its direction of travel)
+    light: Light,            // volumes extruded away from its position (a directional
+                             // light: along its direction of travel)
     mirror: f32,             // −1 if the transform mirrors (flips the winding), else 1
     edges: u32,
     triangles: u32,
     closed: u32,             // 1 if the mesh is closed
     capacity: u32,           // volume vertices the buffer holds
-    directional: u32,        // 1: a directional light, volumes extruded along `light`
 }
 
 @group(0) @binding(0) var<storage, read> ex: Extrude;
@@ -76,10 +76,10 @@ fn faces_light(face: u32) -> bool {
 
 // From a point towards the light.
 fn towards_light(a: vec3<f32>) -> vec3<f32> {
-    if (ex.directional == 1u) {
-        return -ex.light;
+    if (ex.light.kind == LIGHT_DIRECTIONAL) {
+        return -ex.light.position;
     }
-    return ex.light - a;
+    return ex.light.position - a;
 }
 
 // The plane through `anchor` with normal direction `n` (any length): its unit normal with w = 1,
@@ -109,12 +109,12 @@ fn emit(vertices: array<vec4<f32>, 6>, count: u32, plane: vec4<f32>, anchor: vec
 }
 
 fn at_infinity(p: vec3<f32>) -> vec4<f32> {
-    if (ex.directional == 1u) {
+    if (ex.light.kind == LIGHT_DIRECTIONAL) {
         // Every point goes to the same point at infinity: the volume is a prism along the
         // light's direction, and its cap at infinity is that point (nothing to draw).
-        return vec4<f32>(ex.light, 0.0);
+        return vec4<f32>(ex.light.position, 0.0);
     }
-    return vec4<f32>(p - ex.light, 0.0);
+    return vec4<f32>(p - ex.light.position, 0.0);
 }
 
 @compute @workgroup_size(64)
@@ -164,7 +164,7 @@ fn extrude(@builtin(global_invocation_id) gid: vec3<u32>) {
             let plane = plane_of(cross(b - a, c - a));
             emit(array<vec4<f32>, 6>(vec4<f32>(a, 1.0), vec4<f32>(b, 1.0), vec4<f32>(c, 1.0), zero, zero, zero), 3u, plane, a);
         }
-        if ((!lit || ex.closed != 1u) && ex.directional != 1u) {
+        if ((!lit || ex.closed != 1u) && ex.light.kind != LIGHT_DIRECTIONAL) {
             // At infinity: no finite plane; its fragments have depth 0.
             emit(array<vec4<f32>, 6>(at_infinity(a), at_infinity(b), at_infinity(c), zero, zero, zero), 3u, vec4<f32>(0.0), a);
         }

@@ -25,7 +25,7 @@ const MODE_HYBRID: u32 = 1u;
 const MODE_BRUTE_FORCE: u32 = 2u;
 const MODE_EXACT: u32 = 3u;
 const MODE_TEXTBOOK: u32 = 4u;
-override MODE: u32 = MODE_ANALYTIC;  // one of the above (and the prelude's SPOT)
+override MODE: u32 = MODE_ANALYTIC;  // one of the above (and the prelude's LIGHT)
 override TEXTURED: bool = false;   // textured spot
 override BISECTIONS: u32 = 0u;     // bisection steps per lit/shadow transition
 override SOFT: bool = false;       // the light has a radius: fractional visibility (soft shadows)
@@ -37,27 +37,20 @@ const MAX_EDGES: u32 = 8u;
 // The textbook march stops where the transmittance from the eye is below 1e-4 (−ln 1e-4).
 const TEXTBOOK_DEPTH: f32 = 9.2103404;
 
-// Mirrors `MarchUniform` in src/nodes/march.rs.
+// Mirrors `MarchUniform` in src/nodes/march.rs. The light, its shadow map and the occluders'
+// bounds are pcss.wgsl's (group 1, `shadow`), bound in every mode (a point or spot light's
+// cone and position are read from there without shadows too).
 struct MarchParams {
-    faces: array<mat4x4<f32>, 6>,  // shadow-map face clip_from_world
     tex_frame: mat4x4<f32>,  // textured spot: the spot's texture frame (view matrix)
-    spot: vec4<f32>,         // the cone: axis (unit) and cos(half apex angle)
     steps: u32,              // steps per marched interval
     list_entries: u32,       // exact: crossing list entries per pixel
     texture_steps: u32,      // textured spot: steps before and after the extents
     lit_fraction: u32,       // 1: write the lit fraction (reduced resolution)
-    depth_bias: f32,         // relative shadow-map depth bias
     extents_near: f32,       // the extents' projection near plane
     tan_half_angle: f32,     // textured spot: tan(half apex angle)
     tex_width: f32,          // textured spot: texture width (texels)
     tex_mips: f32,           // textured spot: mip levels
-    cube_near: f32,          // point light: the cube faces' near plane where `cube_clip` may
-                             // stand for their matrices (shaders/pcss.wgsl), else 0
-    // Soft shadows (SOFT pipelines), see shaders/pcss.wgsl; 16-byte aligned as the Rust side.
-    @align(16) soft: SoftLight,
-    spheres: array<vec4<f32>, 8>,  // occluders' world bounding spheres (centre, radius)
-    planes: array<vec4<f32>, 8>,   // each sphere's occluder in n·x ≤ d, (n, d); zero: none
-    soft_grid: SoftGrid,           // the soft-shadow grid (shaders/soft_shadow.wgsl)
+    soft_grid: SoftGrid,     // the soft-shadow grid (shaders/soft_shadow.wgsl)
 }
 
 // The soft-shadow grid the march reads (`SoftGridUniform` in src/nodes/march.rs).
@@ -74,34 +67,30 @@ struct SoftGrid {
 @group(0) @binding(3) var scene_depth: texture_depth_2d;
 @group(0) @binding(4) var inscatter_out: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(5) var<storage, read> mp: MarchParams;
-@group(0) @binding(6) var shadow_map: texture_depth_2d_array;
-@group(0) @binding(7) var shadow_sampler: sampler_comparison;
-@group(0) @binding(8) var extent_front: texture_depth_2d;
-@group(0) @binding(9) var extent_back_near: texture_depth_2d;
-@group(0) @binding(10) var extent_back_far: texture_depth_2d;
-@group(0) @binding(11) var steps_out: texture_storage_2d<r32uint, write>;
-@group(0) @binding(12) var light_tex: texture_2d<f32>;
-@group(0) @binding(13) var light_sampler: sampler;
+@group(0) @binding(6) var extent_front: texture_depth_2d;
+@group(0) @binding(7) var extent_back_near: texture_depth_2d;
+@group(0) @binding(8) var extent_back_far: texture_depth_2d;
+@group(0) @binding(9) var steps_out: texture_storage_2d<r32uint, write>;
+@group(0) @binding(10) var light_tex: texture_2d<f32>;
+@group(0) @binding(11) var light_sampler: sampler;
 // Exact mode: the extents node's crossing lists (per pixel: count | open-mesh bit 31,
 // ~nearest bits, farthest bits, net volumes entered behind the surface; then K signed view
 // depths per pixel, negative where the ray enters a volume).
-@group(0) @binding(14) var<storage, read> heads: array<u32>;
-@group(0) @binding(15) var<storage, read> crossings: array<f32>;
+@group(0) @binding(12) var<storage, read> heads: array<u32>;
+@group(0) @binding(13) var<storage, read> crossings: array<f32>;
 // Overflowed pixels, pixels with more crossings than half the list holds, most crossings
 // among those, unused.
-@group(0) @binding(16) var<storage, read_write> stats: array<atomic<u32>, 4>;
+@group(0) @binding(14) var<storage, read_write> stats: array<atomic<u32>, 4>;
 // A light with a radius: the visible fraction of its disc on a light-space grid (read through
 // `light_sampler`, trilinear, clamped to the edges).
-@group(0) @binding(17) var soft_volume: texture_3d<f32>;
-// The shadow map's back faces (ShadowMap::back), or the map itself without them.
-@group(0) @binding(18) var shadow_back: texture_depth_2d_array;
+@group(0) @binding(15) var soft_volume: texture_3d<f32>;
 
 // Distance along the ray of the point with normalised scattering angle s (law of sines in the
 // eye–point–light triangle: x = D sin δ / sin β, δ = s w, β = (1 − s) w). Each sine is taken
 // of the angle or its supplement (sin β = sin(γ + δ), sin δ = sin(γ + β)), whichever is smaller,
 // by `vs_sin_poly`: a small sine keeps its relative precision.
 fn x_of_s(r: AirRay, s: f32) -> f32 {
-    if (DIRECTIONAL) {
+    if (LIGHT == LIGHT_DIRECTIONAL) {
         return directional_x(air, s);
     }
     let sc = min(s, 1.0 - 1.0e-6);
@@ -109,15 +98,6 @@ fn x_of_s(r: AirRay, s: f32) -> f32 {
     let delta = sc * r.w;
     let sin_beta = sin_supplement(beta, r.gamma + delta);
     return air.distance * sin_supplement(delta, r.gamma + beta) / max(sin_beta, 1.0e-30);
-}
-
-// The shared hard and soft visibility (shaders/pcss.wgsl) reads the light from here.
-fn pcss_light() -> vec3<f32> {
-    return air.light_pos;
-}
-
-fn pcss_cube_near() -> f32 {
-    return mp.cube_near;
 }
 
 fn vis_at(ray: PixelRay, r: AirRay, s: f32) -> f32 {
@@ -144,8 +124,8 @@ fn soft_grid(p: vec3<f32>) -> vec3<f32> {
 // interpolation between slices: in front of a surface, the value on p's side of it.
 fn soft_grid_at(p: vec3<f32>, near_side: bool) -> vec3<f32> {
     let dist = length(p - air.light_pos);
-    let nearest = max(mp.soft.nearest, 1.0e-3 * mp.soft.radius);
-    if (dist <= max(nearest, mp.soft.radius)) {
+    let nearest = max(shadow.soft.nearest, 1.0e-3 * shadow.light.radius);
+    if (dist <= max(nearest, shadow.light.radius)) {
         // As visibility_soft: nearer than every occluder (the grid holds 1 outside the cones).
         return vec3<f32>(1.0, 0.0, 0.0);
     }
@@ -158,7 +138,7 @@ fn soft_grid_of(m: MapPoint, dist: f32, near_side: bool) -> vec3<f32> {
     if (!m.inside) {
         return vec3<f32>(1.0, 0.0, 0.0);
     }
-    let nearest = max(mp.soft.nearest, 1.0e-3 * mp.soft.radius);
+    let nearest = max(shadow.soft.nearest, 1.0e-3 * shadow.light.radius);
     let slices = f32(mp.soft_grid.slices);
     // Cell k's centre lies at (1 − q)·slices = k + 0.5; clamped inside the layer's own slices
     // so that the lookup never blends two layers.
@@ -174,7 +154,7 @@ fn soft_grid_of(m: MapPoint, dist: f32, near_side: bool) -> vec3<f32> {
 // holds in its direction (or outside the map): as `visibility`'s test, at its own texel.
 fn in_front_of_surface(m: MapPoint) -> bool {
     let t = map_texel_of(m);
-    return !t.inside || !(textureLoad(shadow_map, t.texel, i32(t.face), 0) * (1.0 - mp.depth_bias) > t.depth);
+    return !t.inside || !(textureLoad(shadow_map, t.texel, i32(t.face), 0) * (1.0 - shadow.depth_bias) > t.depth);
 }
 
 // The visible fraction at `p` from the soft-shadow grid where its cells are not marked, and
@@ -188,7 +168,7 @@ fn soft_grid_visibility(p: vec3<f32>, sharp: bool) -> f32 {
     // One projection into the map for all of the point's lookups (the grid's layers and
     // directions are the map's), not one per lookup.
     let dist = length(p - air.light_pos);
-    if (dist <= max(max(mp.soft.nearest, 1.0e-3 * mp.soft.radius), mp.soft.radius)) {
+    if (dist <= max(max(shadow.soft.nearest, 1.0e-3 * shadow.light.radius), shadow.light.radius)) {
         return 1.0; // as soft_grid_at: nearer than every occluder
     }
     let m = map_point(p);
@@ -341,7 +321,7 @@ fn soft_grid_steps(ray: PixelRay, r: AirRay, s0: f32, s1: f32) -> u32 {
     let x0 = x_of_s(r, s0);
     let x1 = x_of_s(r, s1);
     let xc = clamp(dot(air.light_pos - air.eye, ray.dir), x0, x1);
-    let nearest = max(mp.soft.nearest, 1.0e-3 * mp.soft.radius);
+    let nearest = max(shadow.soft.nearest, 1.0e-3 * shadow.light.radius);
     let slices = f32(mp.soft_grid.slices);
     let k0 = slices * (1.0 - nearest / max(length(air.eye + x0 * ray.dir - air.light_pos), nearest));
     let kc = slices * (1.0 - nearest / max(length(air.eye + xc * ray.dir - air.light_pos), nearest));
@@ -354,7 +334,7 @@ fn soft_grid_steps(ray: PixelRay, r: AirRay, s0: f32, s1: f32) -> u32 {
 // between them, beyond its apex: the only points from which the sphere can hide part of the
 // light. Its pieces along the ray as cone_support finds them (up to two intervals).
 fn penumbra_cone(dir: vec3<f32>, x_end: f32, c: vec3<f32>, rho: f32) -> vec2<f32> {
-    let radius = mp.soft.radius;
+    let radius = shadow.light.radius;
     let to_c = c - air.light_pos;
     let l = length(to_c);
     // With a margin (see PENUMBRA_CONE_MARGIN).
@@ -405,14 +385,14 @@ fn soft_extents(ray: PixelRay, r: AirRay, x_end: f32) -> vec2<f32> {
     if (MODE == MODE_BRUTE_FORCE) {
         return vec2<f32>(0.0, 1.0);
     }
-    let count = mp.soft.spheres;
+    let count = shadow.soft.spheres;
     if (count == 0u) {
         return vec2<f32>(0.0, 1.0); // no bounds given: anywhere
     }
     var hull = vec2<f32>(FAR, -1.0);
     for (var i = 0u; i < count; i++) {
-        var h = penumbra_cone(ray.dir, x_end, mp.spheres[i].xyz, mp.spheres[i].w);
-        h = beneath_plane(h, ray.dir, mp.planes[i]);
+        var h = penumbra_cone(ray.dir, x_end, shadow.spheres[i].xyz, shadow.spheres[i].w);
+        h = beneath_plane(h, ray.dir, shadow.planes[i]);
         // A piece within rounding of a point (a ray ending on a ground's plane) holds no
         // penumbra: it would only be marched.
         if (h.y - h.x > 1.0e-4 * abs(h.y)) {
@@ -588,7 +568,7 @@ struct Textbook {
 }
 
 fn march_textbook(ray: PixelRay, r: AirRay, x_end: f32, n: u32) -> Textbook {
-    if (DIRECTIONAL) {
+    if (LIGHT == LIGHT_DIRECTIONAL) {
         return march_textbook_directional(ray, r, x_end, n);
     }
     var out: Textbook;
@@ -601,8 +581,8 @@ fn march_textbook(ray: PixelRay, r: AirRay, x_end: f32, n: u32) -> Textbook {
     var sup: Support;
     sup.count = 1u;
     sup.x[0] = vec2<f32>(0.0, x_cap);
-    if (SPOT) {
-        sup = cone_support(air, mp.spot, ray.dir, x_cap);
+    if (LIGHT == LIGHT_SPOT) {
+        sup = cone_support(air, shadow.light, ray.dir, x_cap);
     }
     // The pixel footprint at the light bounds 1/d² as the closed form's prefactor is bounded.
     let d_min = d_light * max(air.pixel_radius * ray.footprint, 1.0e-6);
@@ -666,7 +646,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
     let r = air_ray(air, ray);
     let x_end = select(FAR, ray.distance, ray.distance >= 0.0);
 
-    let sup = support_s(air, r, mp.spot, ray.dir, x_end);
+    let sup = support_s(air, r, shadow.light, ray.dir, x_end);
 
     if (MODE == MODE_TEXTBOOK) {
         let tb = march_textbook(ray, r, x_end, mp.steps);
@@ -692,7 +672,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
     // Soft shadows with the occluders' bounds: outside their penumbra cones no occluder hides
     // any of the light (and the grid holds 1), so the pieces outside `soft_extents` take
     // visibility 1 without a lookup.
-    let lit_outside = SOFT && MODE != MODE_BRUTE_FORCE && mp.soft.spheres > 0u;
+    let lit_outside = SOFT && MODE != MODE_BRUTE_FORCE && shadow.soft.spheres > 0u;
     if (SOFT) {
         // Soft shadows: the shadow volumes bound the hard shadow, not the penumbra; march
         // inside the penumbra cones instead.

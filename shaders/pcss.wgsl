@@ -1,30 +1,42 @@
 #import prelude.wgsl
 // Shadow-map visibility, hard and soft: shared by the march and the soft-shadow volume, which
-// import it (`#import pcss.wgsl`). The importing node provides the globals
-// `shadow_map` and `shadow_back` (texture_depth_2d_array: the front surfaces, and the back
-// faces of closed occluders; the front map again where there is none), `shadow_sampler`
-// (comparison), `mp` with the fields
-// `faces`, `depth_bias`, `soft` (a `SoftLight`), `spheres` and `planes` (as the march's
-// `MarchParams`),
-// `fn pcss_light() -> vec3<f32>`, the light's position, and `fn pcss_cube_near() -> f32`, the
-// near plane of a point light's cube faces where they are the shadow-map node's own (see
-// `cube_clip`), else 0.
+// import it (`#import pcss.wgsl`). It declares what it reads, bind group 1 of its importer's
+// pipelines: the light with its shadow map (`ShadowBinding` in src/nodes/pcss.rs, which
+// builds the layout, the group and the parameters for both importers).
 
 // A light with a radius, as the soft estimate reads it (`SoftLight` in src/nodes/soft_shadow.rs).
 struct SoftLight {
-    radius: f32,       // the light's radius
     nearest: f32,      // the least distance from the light of any occluder's bounds
-    spheres: u32,      // bounding spheres (and planes) in `mp.spheres` and `mp.planes`
+    spheres: u32,      // bounding spheres (and planes) in `shadow.spheres` and `shadow.planes`
     cell_angle: f32,   // the soft-shadow grid: the angle (radians) a cell subtends; else 0
 }
+
+// The light and its shadow map's parameters (`ShadowUniform` in src/nodes/pcss.rs).
+struct LightShadow {
+    light: Light,
+    faces: array<mat4x4<f32>, 6>,  // each layer's clip_from_world
+    depth_bias: f32,               // the shadow map's relative depth bias
+    cube_near: f32,                // a point light's cube faces' near plane where they are the
+                                   // shadow-map node's own (see `cube_clip`), else 0
+    soft: SoftLight,
+    spheres: array<vec4<f32>, 8>,  // occluders' world bounding spheres (centre, radius)
+    planes: array<vec4<f32>, 8>,   // each sphere's occluder in n·x ≤ d, (n, d); zero: none
+}
+
+@group(1) @binding(0) var<storage, read> shadow: LightShadow;
+// The front surfaces, and the back faces of closed occluders (the front map again where
+// there is none): depth arrays, a layer per cube face or cascade.
+@group(1) @binding(1) var shadow_map: texture_depth_2d_array;
+@group(1) @binding(2) var shadow_back: texture_depth_2d_array;
+@group(1) @binding(3) var shadow_sampler: sampler_comparison;
 
 // The shadow map's layer holding the world point `p`: the cube face of a point light (+X, −X,
 // +Y, −Y, +Z, −Z), else the one layer.
 fn shadow_face(p: vec3<f32>) -> u32 {
-    if (SPOT || DIRECTIONAL) {
+    if (LIGHT != LIGHT_POINT) {
         return 0u;
     }
-    let rel = p - pcss_light();
+    let rel = p - shadow.light.position;
     let m = abs(rel);
     if (m.x >= m.y && m.x >= m.z) {
         return select(1u, 0u, rel.x > 0.0);
@@ -49,15 +61,15 @@ struct MapPoint {
 }
 
 fn map_point(p: vec3<f32>) -> MapPoint {
-    if (DIRECTIONAL) {
+    if (LIGHT == LIGHT_DIRECTIONAL) {
         return cascade_point(p);
     }
     let face = shadow_face(p);
-    let near = pcss_cube_near();
-    if (!SPOT && !DIRECTIONAL && near > 0.0) {
-        return map_point_of_clip(face, cube_clip(face, p - pcss_light(), near));
+    let near = shadow.cube_near;
+    if (LIGHT == LIGHT_POINT && near > 0.0) {
+        return map_point_of_clip(face, cube_clip(face, p - shadow.light.position, near));
     }
-    return map_point_of_clip(face, mp.faces[face] * vec4<f32>(p, 1.0));
+    return map_point_of_clip(face, shadow.faces[face] * vec4<f32>(p, 1.0));
 }
 
 // A directional light's cascades (one orthographic layer each, nearest the eye first): the
@@ -76,7 +88,7 @@ fn cascade_point(p: vec3<f32>) -> MapPoint {
     let edge = 1.0 - 2.0 / size;
     var found = MapPoint(0u, vec2<f32>(0.0), 0.0, false);
     for (var k = 0u; k < layers; k++) {
-        let m = mp.faces[k];
+        let m = shadow.faces[k];
         let c = m * vec4<f32>(p, 1.0);
         if (all(abs(c.xy) <= vec2<f32>(edge))) {
             let half = 1.0 / length(vec3<f32>(m[0].x, m[1].x, m[2].x));
@@ -92,7 +104,7 @@ fn cascade_point(p: vec3<f32>) -> MapPoint {
 }
 
 // The clip coordinates of the offset `rel` from a point light in cube face `face`, where the
-// faces are the shadow-map node's own (`pcss_cube_near()` > 0, their near plane): a signed
+// faces are the shadow-map node's own (`shadow.cube_near` > 0, their near plane): a signed
 // permutation of `rel`, in place of the face's matrix, which each SIMD lane would read for its
 // own face (on llvmpipe, the march at ½ resolution 0.9 of its time on the report's soft scene).
 // The faces look along ±X, ±Y, ±Z with up +Y, +Z, +Y; x = (dir × up)·rel, y = up·rel.
@@ -126,8 +138,8 @@ fn visibility_of(m: MapPoint) -> f32 {
     }
     // Reversed Z: depth = near / distance; nearer than the occluder ⇔ larger depth. The bias
     // is relative, so it means the same at every scene scale.
-    var reference = m.depth / (1.0 - mp.depth_bias);
-    if (DIRECTIONAL) {
+    var reference = m.depth / (1.0 - shadow.depth_bias);
+    if (LIGHT == LIGHT_DIRECTIONAL) {
         // `cascade_point` clamped it to the far plane and added the bias in world units.
         reference = m.depth;
     }
@@ -158,9 +170,9 @@ struct TapFrame {
 }
 
 fn tap_frame(b: SoftBasis) -> TapFrame {
-    let face = shadow_face(pcss_light() + b.u);
-    let m = mp.faces[face];
-    return TapFrame(face, m * vec4<f32>(pcss_light(), 1.0), m * vec4<f32>(b.u, 0.0), m * vec4<f32>(b.e1, 0.0), m * vec4<f32>(b.e2, 0.0));
+    let face = shadow_face(shadow.light.position + b.u);
+    let m = shadow.faces[face];
+    return TapFrame(face, m * vec4<f32>(shadow.light.position, 1.0), m * vec4<f32>(b.u, 0.0), m * vec4<f32>(b.e1, 0.0), m * vec4<f32>(b.e2, 0.0));
 }
 
 // Where the tap falls in the map: the point at the distance of `p` from the light (b), in
@@ -171,10 +183,10 @@ fn tap_point(f: TapFrame, b: SoftBasis, t: f32, cs: vec2<f32>) -> MapPoint {
     let d = b.u + t * (cs.x * b.e1 + cs.y * b.e2);
     let k = b.dist * vs_inverse_sqrt(dot(d, d));
     let m = map_point_of_clip(f.face, f.light + k * (f.u + t * (cs.x * f.e1 + cs.y * f.e2)));
-    if (m.inside || SPOT) {
+    if (m.inside || LIGHT == LIGHT_SPOT) {
         return m;
     }
-    return map_point(pcss_light() + k * d);
+    return map_point(shadow.light.position + k * d);
 }
 
 // Tap k of n on the spiral: its radius on the unit disc (equal areas).
@@ -207,7 +219,7 @@ fn blocker_ratio_of(m: MapPoint) -> f32 {
     let depth = textureLoad(shadow_map, t.texel, i32(t.face), 0);
     // Reversed Z: depth = near / distance along the face's axis, so the ratio of distances
     // along one direction is the inverse ratio of depths.
-    if (depth * (1.0 - mp.depth_bias) > t.depth) {
+    if (depth * (1.0 - shadow.depth_bias) > t.depth) {
         let front = t.depth / depth;
         // Reversed Z: the back face is at most as deep as the front; 0 where none was drawn.
         let back_depth = textureLoad(shadow_back, t.texel, i32(t.face), 0);
@@ -286,7 +298,7 @@ struct SoftBasis {
 }
 
 fn soft_basis(p: vec3<f32>) -> SoftBasis {
-    let rel = p - pcss_light();
+    let rel = p - shadow.light.position;
     let dist = length(rel);
     let u = rel / dist;
     let frame = soft_frame(u);
@@ -300,12 +312,12 @@ fn soft_basis(p: vec3<f32>) -> SoftBasis {
 // decides alone (no tap needed, lit, umbra, or two layers, whose filter it takes), else
 // (·, ·, width): the filter's width for `soft_filter_at`, the next stage.
 fn soft_search(p: vec3<f32>) -> vec3<f32> {
-    let radius = mp.soft.radius;
-    let dist0 = length(p - pcss_light());
+    let radius = shadow.light.radius;
+    let dist0 = length(p - shadow.light.position);
     if (dist0 <= radius) {
         return vec3<f32>(1.0, -1.0, -1.0); // inside the light's sphere: all of it is visible (as the reference)
     }
-    let nearest = max(mp.soft.nearest, 1.0e-3 * radius);
+    let nearest = max(shadow.soft.nearest, 1.0e-3 * radius);
     if (!(dist0 > nearest) || !may_be_hidden(p)) {
         return vec3<f32>(1.0, -1.0, -1.0); // nearer than every occluder, or outside every penumbra cone
     }
@@ -495,25 +507,25 @@ const PENUMBRA_CONE_MARGIN: f32 = 1.10;
 
 // Whether p lies in one of the cones of `penumbra_cone` (all of space without bounds).
 fn may_be_hidden(p: vec3<f32>) -> bool {
-    let count = mp.soft.spheres;
+    let count = shadow.soft.spheres;
     if (count == 0u) {
         return true;
     }
-    let radius = mp.soft.radius;
+    let radius = shadow.light.radius;
     for (var i = 0u; i < count; i++) {
         // Beyond the occluder's plane, away from it: no line to the light meets it.
-        if (dot(mp.planes[i].xyz, p) > mp.planes[i].w) {
+        if (dot(shadow.planes[i].xyz, p) > shadow.planes[i].w) {
             continue;
         }
-        let to_c = mp.spheres[i].xyz - pcss_light();
-        let rho = mp.spheres[i].w;
+        let to_c = shadow.spheres[i].xyz - shadow.light.position;
+        let rho = shadow.spheres[i].w;
         let l = length(to_c);
         let sin_t = PENUMBRA_CONE_MARGIN * (radius + rho) / max(l, 1.0e-30);
         if (sin_t >= 0.999) {
             return true;
         }
         let axis = to_c / l;
-        let rel = p - (pcss_light() + axis * (l * radius / (radius + rho)));
+        let rel = p - (shadow.light.position + axis * (l * radius / (radius + rho)));
         if (dot(axis, rel) >= vs_sqrt(1.0 - sin_t * sin_t) * length(rel)) {
             return true;
         }

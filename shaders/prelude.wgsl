@@ -1,14 +1,29 @@
 // volshadow prelude: the maths shared by every node (phase functions, the bounded airlight
 // integrand of the stable airlight form, the F′ table lookup). Each node's WGSL file is appended to this one.
 
-// Pipeline constant of every per-pixel node: the light is a spot (a cone support that may
-// start away from the eye) rather than a point light (support from the eye, where T = 0).
-// Set per pipeline so that a point light's pixels do not pay for the cone.
-override SPOT: bool = false;
-// Pipeline constant: the light is directional (parallel rays along a direction of travel d).
-// Then `Airlight` holds d in `light_pos`, the irradiance E in `intensity`, and in `distance`
-// the length L of the ray parameter s = x / (x + L); no F′ table is read: T is in closed form.
-override DIRECTIONAL: bool = false;
+// The kinds of light (`LightUniform::kind` in src/nodes/light.rs).
+const LIGHT_POINT: u32 = 0u;
+const LIGHT_SPOT: u32 = 1u;
+const LIGHT_DIRECTIONAL: u32 = 2u;
+
+// Pipeline constant of every per-pixel node: the kind of light, so that a point light's pixels
+// do not pay for a spot's cone (a support that may start away from the eye) and a directional
+// light's parallel rays are a separate path. With a directional light `Airlight` holds the
+// direction of travel d in `light_pos`, the irradiance E in `intensity`, and in `distance` the
+// length L of the ray parameter s = x / (x + L); no F′ table is read: T is in closed form.
+override LIGHT: u32 = LIGHT_POINT;
+
+// A light as every node reads it, resolved once from the scene's light (`LightUniform` in
+// src/nodes/light.rs, its only constructor).
+struct Light {
+    position: vec3<f32>,   // a point or spot light's position; a directional light's unit
+                           // direction of travel
+    kind: u32,             // LIGHT_POINT, LIGHT_SPOT or LIGHT_DIRECTIONAL
+    intensity: vec3<f32>,  // radiant intensity I0 (a directional light: irradiance E)
+    radius: f32,           // the light's radius (0: a point source)
+    axis: vec3<f32>,       // a spot's unit axis, else 0
+    cos_half: f32,         // a spot's cos(half apex angle), else 0
+}
 
 const PI: f32 = 3.14159265358979;
 const INV_4PI: f32 = 0.0795774715459477;
@@ -74,7 +89,7 @@ struct AirRay {
 }
 
 fn air_ray(a: Airlight, ray: PixelRay) -> AirRay {
-    if (DIRECTIONAL) {
+    if (LIGHT == LIGHT_DIRECTIONAL) {
         return air_ray_directional(a, ray);
     }
     let dir = ray.dir;
@@ -245,7 +260,7 @@ const ROW_RATIO: f32 = 1.2;
 // would be wrong exactly where the image is brightest (steep rise near the light, optically
 // deep media); the partial cell costs three integrand evaluations and removes that error.
 fn table_t(table: texture_2d<f32>, a: Airlight, r: AirRay, s: f32) -> vec3<f32> {
-    if (DIRECTIONAL) {
+    if (LIGHT == LIGHT_DIRECTIONAL) {
         return directional_t(a, directional_x(a, s));
     }
     let n = a.table_along;
@@ -278,7 +293,7 @@ struct TT {
 // The tail is the entry at or below s less the same partial cell the head adds: head + tail
 // is the row's total, and the cell's rounding stays within the cell.
 fn table_tt(table: texture_2d<f32>, a: Airlight, r: AirRay, s: f32) -> TT {
-    if (DIRECTIONAL) {
+    if (LIGHT == LIGHT_DIRECTIONAL) {
         let t = directional_t(a, directional_x(a, s));
         return TT(t, -t); // differences of heads (directional lights have no table)
     }
@@ -315,9 +330,9 @@ struct Support {
     count: u32,
 }
 
-fn inside_cone(a: Airlight, spot: vec4<f32>, p: vec3<f32>) -> bool {
+fn inside_cone(a: Airlight, light: Light, p: vec3<f32>) -> bool {
     let rel = p - a.light_pos;
-    return dot(spot.xyz, rel) >= spot.w * length(rel);
+    return dot(light.axis, rel) >= light.cos_half * length(rel);
 }
 
 // The ray eye + x·dir, x in [0, x_end], cut where it crosses the double cone with apex `apex`,
@@ -380,11 +395,13 @@ fn cut_piece(c: ConeCuts, i: u32) -> vec2<f32> {
     return select(select(vec2<f32>(x[2], x[3]), vec2<f32>(x[1], x[2]), i == 1u), vec2<f32>(x[0], x[1]), i == 0u);
 }
 
-fn cone_support(air: Airlight, spot: vec4<f32>, dir: vec3<f32>, x_end: f32) -> Support {
+// The cone's apex is the airlight's light position (`air.light_pos`, where the eye–light
+// distance is kept above zero).
+fn cone_support(air: Airlight, light: Light, dir: vec3<f32>, x_end: f32) -> Support {
     var sup: Support;
     sup.count = 0u;
     // Split [0, x_end] at the cone's crossings and keep the pieces whose midpoint is inside it.
-    var cuts = cone_cuts(air.light_pos, spot.xyz, spot.w * spot.w, air.eye, dir, x_end);
+    var cuts = cone_cuts(air.light_pos, light.axis, light.cos_half * light.cos_half, air.eye, dir, x_end);
     let k = cuts.count;
     for (var i = 0u; i < k; i++) {
         let piece = cut_piece(cuts, i);
@@ -394,7 +411,7 @@ fn cone_support(air: Airlight, spot: vec4<f32>, dir: vec3<f32>, x_end: f32) -> S
         if (b >= FAR) {
             mid = a + 1.0 + 2.0 * abs(a) + 1.0e3 * air.distance; // far along an unbounded piece
         }
-        if (b > a && inside_cone(air, spot, air.eye + mid * dir)) {
+        if (b > a && inside_cone(air, light, air.eye + mid * dir)) {
             if (sup.count > 0u && sup.x[sup.count - 1u].y == a) {
                 sup.x[sup.count - 1u].y = b;
             } else if (sup.count < 2u) {
@@ -407,7 +424,7 @@ fn cone_support(air: Airlight, spot: vec4<f32>, dir: vec3<f32>, x_end: f32) -> S
 }
 
 fn s_of_x(a: Airlight, r: AirRay, x: f32) -> f32 {
-    if (DIRECTIONAL) {
+    if (LIGHT == LIGHT_DIRECTIONAL) {
         return directional_s(a, x);
     }
     if (x >= FAR) {
@@ -417,18 +434,18 @@ fn s_of_x(a: Airlight, r: AirRay, x: f32) -> f32 {
 }
 
 // The lit support of a ray in s: [0, s(ds)] for a point light, its intersection with the cone
-// for a spot light (spot.w = cos half angle; unused for a point light).
+// for a spot light (`light`'s cone; unused for other lights).
 struct SupportS {
     s: array<vec2<f32>, 2>,
     count: u32,
 }
 
-fn support_s(a: Airlight, r: AirRay, spot: vec4<f32>, dir: vec3<f32>, x_end: f32) -> SupportS {
+fn support_s(a: Airlight, r: AirRay, light: Light, dir: vec3<f32>, x_end: f32) -> SupportS {
     var out: SupportS;
     out.count = 1u;
     out.s[0] = vec2<f32>(0.0, s_of_x(a, r, x_end));
-    if (SPOT) {
-        let cone = cone_support(a, spot, dir, x_end);
+    if (LIGHT == LIGHT_SPOT) {
+        let cone = cone_support(a, light, dir, x_end);
         out.count = cone.count;
         for (var i = 0u; i < cone.count; i++) {
             out.s[i] = vec2<f32>(s_of_x(a, r, cone.x[i].x), s_of_x(a, r, cone.x[i].y));
@@ -441,7 +458,7 @@ fn support_s(a: Airlight, r: AirRay, spot: vec4<f32>, dir: vec3<f32>, x_end: f32
 fn unshadowed_t(table: texture_2d<f32>, a: Airlight, r: AirRay, sup: SupportS) -> vec3<f32> {
     var t = vec3<f32>(0.0);
     for (var i = 0u; i < sup.count; i++) {
-        if (SPOT) {
+        if (LIGHT == LIGHT_SPOT) {
             t += t_between(table_tt(table, a, r, sup.s[i].x), table_tt(table, a, r, sup.s[i].y));
         } else {
             t += table_t(table, a, r, sup.s[i].y); // from the eye, where T = 0

@@ -9,19 +9,13 @@
 // light, is radius · (1/d_blocker − 1/d): linear in q, so uniform steps in q are uniform
 // steps in penumbra width, and q ∈ (0, 1] reaches infinity.
 
-// Mirrors `SoftShadowUniform` in src/nodes/soft_shadow.rs.
+// Mirrors `SoftShadowUniform` in src/nodes/soft_shadow.rs. The light, its shadow map and the
+// occluders' bounds are pcss.wgsl's (group 1, `shadow`).
 struct SoftShadowParams {
-    faces: array<mat4x4<f32>, 6>,            // clip_from_world of each layer (the shadow map's)
-    world_from_clip: array<mat4x4<f32>, 6>,  // their inverses
-    light: vec4<f32>,                        // xyz: the light's position; w: the cube
-                                             // faces' near plane for `cube_clip`, or 0
-    depth_bias: f32,                         // the shadow map's relative depth bias
+    world_from_clip: array<mat4x4<f32>, 6>,  // the inverses of the shadow map's layers
     size: u32,                               // cells across a layer
     slices: u32,                             // cells along the distance from the light
     layers: u32,                             // 6 (point) or 1 (spot)
-    soft: SoftLight,                         // the light, and the angle a cell subtends
-    spheres: array<vec4<f32>, 8>,            // occluders' bounding spheres
-    planes: array<vec4<f32>, 8>,             // and their planes, as the march's
     // Per layer, in blocks of 2 × 2 directions (the anchor's index, see `rest_block`),
     // [x0, y0) to [x1, y1): those the build runs over (`built`: the penumbra cones reach
     // their directions or their neighbours'; the grid is lit elsewhere), and those `fill_lit`
@@ -31,48 +25,36 @@ struct SoftShadowParams {
 }
 
 @group(0) @binding(0) var<storage, read> mp: SoftShadowParams;
-@group(0) @binding(1) var shadow_map: texture_depth_2d_array;
-@group(0) @binding(2) var shadow_sampler: sampler_comparison;
 // x, y: the cell's direction in its layer; z: layer · slices + slice.
-@group(0) @binding(3) var volume: texture_storage_3d<rgba16float, write>;
-// The shadow map's back faces (ShadowMap::back), or the map itself without them.
-@group(0) @binding(4) var shadow_back: texture_depth_2d_array;
+@group(0) @binding(1) var volume: texture_storage_3d<rgba16float, write>;
 // The anchors: the cells of the directions at even indices in both axes, `anchor_count()`²
 // per layer (x, y: the direction's index halved; z: layer · slices + slice), r = visible
 // fraction, g = 1 where marked sharp. `build_anchors` writes them, `build_rest` reads them (a
 // binding of each entry point's own layout).
-@group(0) @binding(5) var anchors_out: texture_storage_3d<rgba16float, write>;
-@group(0) @binding(5) var anchors_in: texture_3d<f32>;
+@group(0) @binding(2) var anchors_out: texture_storage_3d<rgba16float, write>;
+@group(0) @binding(2) var anchors_in: texture_3d<f32>;
 // Cells before their marks (the grid's layout; r = visible fraction, g = the estimate's
 // region as `soft_estimate` returns it): `estimate_listed` writes the estimated ones,
 // `build_rest` the interpolated cells of the other directions' columns with listed cells;
 // `between_anchors`, `store_anchors` and `store_rest` read them.
-@group(0) @binding(6) var rest_out: texture_storage_3d<rg32float, write>;
-@group(0) @binding(6) var rest_in: texture_3d<f32>;
+@group(0) @binding(3) var rest_out: texture_storage_3d<rg32float, write>;
+@group(0) @binding(3) var rest_in: texture_3d<f32>;
 // A list of cells to estimate, packed by `list_cell` (`build_anchors`, `between_anchors`
 // and `build_rest` each fill one, `estimate_listed` estimates it), and its indirect dispatch:
 // workgroups (x, y, z), then the number of cells listed. `estimate_listed` reads both (its
 // dispatch's own arguments cannot be bound for writing).
-@group(0) @binding(7) var<storage, read_write> work: array<u32>;
-@group(0) @binding(7) var<storage, read> listed: array<u32>;
-@group(0) @binding(8) var<storage, read_write> work_args: array<atomic<u32>, 4>;
-@group(0) @binding(8) var<storage, read> listed_args: array<u32, 4>;
+@group(0) @binding(4) var<storage, read_write> work: array<u32>;
+@group(0) @binding(4) var<storage, read> listed: array<u32>;
+@group(0) @binding(5) var<storage, read_write> work_args: array<atomic<u32>, 4>;
+@group(0) @binding(5) var<storage, read> listed_args: array<u32, 4>;
 // Per block of `build_rest` (see `block_index`): bit j set where its
 // column j has listed cells, which `store_rest` then stores; `build_rest` stores the others.
-@group(0) @binding(9) var<storage, read_write> listed_columns: array<u32>;
-@group(0) @binding(9) var<storage, read> listed_columns_in: array<u32>;
+@group(0) @binding(6) var<storage, read_write> listed_columns: array<u32>;
+@group(0) @binding(6) var<storage, read> listed_columns_in: array<u32>;
 // Per anchor (its block's `block_index`): its slices inside a penumbra cone, [lo, hi) as
 // lo | hi << 8.
-@group(0) @binding(10) var<storage, read_write> anchor_ranges: array<u32>;
-@group(0) @binding(10) var<storage, read> anchor_ranges_in: array<u32>;
-
-fn pcss_light() -> vec3<f32> {
-    return mp.light.xyz;
-}
-
-fn pcss_cube_near() -> f32 {
-    return mp.light.w;
-}
+@group(0) @binding(7) var<storage, read_write> anchor_ranges: array<u32>;
+@group(0) @binding(7) var<storage, read> anchor_ranges_in: array<u32>;
 
 // Most slices a thread holds (SoftShadowSize::MAX_SLICES).
 const MAX_SLICES: u32 = 64u;
@@ -127,13 +109,13 @@ fn cell_direction(x: u32, y: u32, layer: u32) -> vec3<f32> {
     // Any depth inside the frustum names the direction; 0.5 is within reversed-Z's range for
     // the perspective layers.
     let w = mp.world_from_clip[layer] * vec4<f32>(2.0 * uv.x - 1.0, 1.0 - 2.0 * uv.y, 0.5, 1.0);
-    return normalize(w.xyz / w.w - pcss_light());
+    return normalize(w.xyz / w.w - shadow.light.position);
 }
 
 // The cell of slice k in direction `dir`, as a world point.
 fn cell_point(dir: vec3<f32>, k: u32, s: u32) -> vec3<f32> {
-    let nearest = max(mp.soft.nearest, 1.0e-3 * mp.soft.radius);
-    return pcss_light() + (nearest / slice_q(k, s)) * dir;
+    let nearest = max(shadow.soft.nearest, 1.0e-3 * shadow.light.radius);
+    return shadow.light.position + (nearest / slice_q(k, s)) * dir;
 }
 
 // The slices of `dir` inside an occluder's penumbra cone, [lo, hi): only those take taps. A
@@ -266,7 +248,7 @@ fn estimate_listed(
 // penumbra, or the edge between lit and umbra, too sharp for the grid's interpolation across
 // directions): the march blends in the shadow map's own visibility there.
 fn is_sharp(e: vec2<f32>) -> bool {
-    return e.y >= 0.0 && e.y < SHARP_CELLS * vs_tan_poly(mp.soft.cell_angle);
+    return e.y >= 0.0 && e.y < SHARP_CELLS * vs_tan_poly(shadow.soft.cell_angle);
 }
 
 // Writes a direction's column to the grid. b: 1 where the visibility jumps to a neighbouring
@@ -429,7 +411,7 @@ fn store_anchors(@builtin(global_invocation_id) thread: vec3<u32>) {
 // tap: nothing to resolve).
 fn summary(e: vec2<f32>) -> vec3<f32> {
     let sharp = select(0.0, 1.0, is_sharp(e));
-    let wide = select(min(e.y / vs_tan_poly(mp.soft.cell_angle), 1.0e4), 1.0e4, e.y < 0.0);
+    let wide = select(min(e.y / vs_tan_poly(shadow.soft.cell_angle), 1.0e4), 1.0e4, e.y < 0.0);
     return vec3<f32>(e.x, sharp, wide);
 }
 

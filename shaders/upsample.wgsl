@@ -29,14 +29,14 @@ struct Upsample {
 @group(0) @binding(5) var out_tex: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(6) var table: texture_2d<f32>;
 @group(0) @binding(7) var<storage, read> air: Airlight;
-@group(0) @binding(8) var<storage, read> spot: vec4<f32>;     // spot axis, cos half angle (0 = point light)
+@group(0) @binding(8) var<storage, read> light: Light;
 
 // Unshadowed airlight of an output pixel, analytic at full resolution.
 fn airlight_full(p: vec2<u32>) -> vec4<f32> {
     let ray = pixel_ray(view, vec2<f32>(p) + 0.5, textureLoad(scene_depth, p, 0));
     let r = air_ray(air, ray);
     let x_end = select(FAR, ray.distance, ray.distance >= 0.0);
-    let sup = support_s(air, r, spot, ray.dir, x_end);
+    let sup = support_s(air, r, light, ray.dir, x_end);
     return vec4<f32>(r.prefactor * unshadowed_t(table, air, r, sup), ray.distance);
 }
 

@@ -7,7 +7,7 @@ use crate::gpu::{GpuTimer, Occluder, PassTime};
 use crate::nodes::{
     AirlightTableNode, CompositeInputs, CompositeNode, CompositeSurfaces, CrossingsRequest,
     ExtentsInputs, ExtentsNode, IssTableNode, IssTableSize, LightTextureNode, MarchInputs,
-    MarchMethod, MarchNode, MarchSettings, OutputTarget, ShadowMapInputs, ShadowMapNode, Shadows,
+    MarchNode, MarchSettings, OutputTarget, ShadowMapInputs, ShadowMapNode, Shadows,
     SoftShadowInputs, SoftShadowNode, TableInputs, UpsampleInputs, UpsampleNode, MAX_LIGHTS,
 };
 use crate::nodes::{Cache, Encode, LightKind, Node};
@@ -89,7 +89,7 @@ impl LightSlot {
                     light,
                     occluders,
                     size: scale.apply(width, height),
-                    crossings: (settings.march.method == MarchMethod::Exact).then_some(
+                    crossings: step.planned.shadows.is_some_and(|f| f.crossings).then_some(
                         CrossingsRequest {
                             per_pixel: settings.march.crossings,
                             scene_depth: frame.scene_depth,

@@ -148,6 +148,9 @@ pub struct LightPlan {
     pub scale: Scale,
     /// How its march integrates each ray.
     pub march: MarchMode,
+    /// The shadow inputs its march reads (`None`: unshadowed), which the shadow-map, extents
+    /// and soft-shadow steps make: the extents' crossing lists among them.
+    pub shadows: Option<ShadowForms>,
 }
 
 impl Plan {
@@ -381,6 +384,7 @@ fn plan(facts: &FrameFacts) -> Plan {
             occluders: l.occluders.clone(),
             scale,
             march: MarchMode::choose(facts.method, soft, None),
+            shadows: None,
         };
         if !facts.scatters {
             lights.push(light_plan);
@@ -450,6 +454,7 @@ fn plan(facts: &FrameFacts) -> Plan {
             run(Pass::AirlightTable, light, "rebuilt".into());
         }
         light_plan.march = MarchMode::choose(facts.method, soft, forms);
+        light_plan.shadows = forms;
         let method = match light_plan.march {
             MarchMode::Analytic => "analytic".to_string(),
             MarchMode::Hybrid if forms.is_some_and(|f| f.soft_grid) => format!(

@@ -192,30 +192,32 @@ pub(crate) fn module(
     })
 }
 
+/// A pipeline layout of bind groups `0..layouts.len()`.
 fn pipeline_layout(
     device: &wgpu::Device,
     label: &str,
-    layout: &wgpu::BindGroupLayout,
+    layouts: &[&wgpu::BindGroupLayout],
 ) -> wgpu::PipelineLayout {
+    let layouts: Vec<Option<&wgpu::BindGroupLayout>> = layouts.iter().copied().map(Some).collect();
     device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some(label),
-        bind_group_layouts: &[Some(layout)],
+        bind_group_layouts: &layouts,
         immediate_size: 0,
     })
 }
 
-/// A compute pipeline with pipeline-overridable `constants`.
+/// A compute pipeline of bind groups `0..layouts.len()` with pipeline-overridable `constants`.
 pub(crate) fn compute_pipeline(
     device: &wgpu::Device,
     label: &str,
-    layout: &wgpu::BindGroupLayout,
+    layouts: &[&wgpu::BindGroupLayout],
     module: &wgpu::ShaderModule,
     entry_point: &str,
     constants: &[(&str, f64)],
 ) -> wgpu::ComputePipeline {
     device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
         label: Some(label),
-        layout: Some(&pipeline_layout(device, label, layout)),
+        layout: Some(&pipeline_layout(device, label, layouts)),
         module,
         entry_point: Some(entry_point),
         compilation_options: wgpu::PipelineCompilationOptions {
@@ -226,23 +228,33 @@ pub(crate) fn compute_pipeline(
     })
 }
 
+/// One dispatch of a compute pass: the pipeline, its bind groups `0..`, the workgroups.
+pub(crate) type Dispatch<'a> = (
+    &'a wgpu::ComputePipeline,
+    &'a [&'a wgpu::BindGroup],
+    (u32, u32, u32),
+);
+
 /// Records one compute pass, timed as `pass` when a timer is given, of one dispatch per entry
-/// of `dispatches` (pipeline, bind group, workgroups) in order: what a node's `encode` does.
+/// of `dispatches` (pipeline, bind groups `0..`, workgroups) in order: what a node's `encode`
+/// does.
 pub(crate) fn dispatch(
     encoder: &mut wgpu::CommandEncoder,
     timer: Option<&mut GpuTimer>,
     pass: Pass,
     label: &str,
-    dispatches: &[(&wgpu::ComputePipeline, &wgpu::BindGroup, (u32, u32, u32))],
+    dispatches: &[Dispatch<'_>],
 ) {
     let timestamp_writes = timer.and_then(|t| t.compute_pass(pass));
     let mut compute = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
         label: Some(label),
         timestamp_writes,
     });
-    for &(pipeline, bind_group, groups) in dispatches {
+    for &(pipeline, bind_groups, groups) in dispatches {
         compute.set_pipeline(pipeline);
-        compute.set_bind_group(0, bind_group, &[]);
+        for (index, bind_group) in (0u32..).zip(bind_groups) {
+            compute.set_bind_group(index, *bind_group, &[]);
+        }
         compute.dispatch_workgroups(groups.0, groups.1, groups.2);
     }
 }
@@ -263,7 +275,7 @@ pub(crate) fn depth_pipeline(
 ) -> wgpu::RenderPipeline {
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(label),
-        layout: Some(&pipeline_layout(device, label, layout)),
+        layout: Some(&pipeline_layout(device, label, &[layout])),
         vertex: wgpu::VertexState {
             module,
             entry_point: Some(vertex_entry),
@@ -307,7 +319,7 @@ pub(crate) fn fullscreen_pipeline(
 ) -> wgpu::RenderPipeline {
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(label),
-        layout: Some(&pipeline_layout(device, label, layout)),
+        layout: Some(&pipeline_layout(device, label, &[layout])),
         vertex: wgpu::VertexState {
             module,
             entry_point: Some("vs_fullscreen"),
@@ -391,12 +403,29 @@ mod tests {
         };
         let e = check(&node, ShaderPrecision::Native).unwrap_err();
         assert!(e.starts_with("node.wgsl:4:"), "{e}");
-        // pcss.wgsl reads `mp`, which this node does not define: the error is in pcss.wgsl.
-        let bare = Wgsl {
-            name: "bare.wgsl",
-            text: "#import pcss.wgsl\n",
+        let importer = Wgsl {
+            name: "importer.wgsl",
+            text: "#import prelude.wgsl\n#import broken.wgsl\n",
         };
-        let e = check(&bare, ShaderPrecision::Native).unwrap_err();
-        assert!(e.starts_with("pcss.wgsl:"), "{e}");
+        let e = check(&importer, ShaderPrecision::Native).unwrap_err();
+        assert!(e.starts_with("broken.wgsl:3:"), "{e}");
+    }
+
+    /// Each shared file declares what it reads (its imports, and pcss.wgsl its bind group): on
+    /// its own it parses and validates.
+    #[test]
+    fn every_shared_file_compiles_on_its_own() {
+        for file in crate::gpu::wgsl::FILES
+            .iter()
+            .filter(|f| f.name != "broken.wgsl")
+        {
+            let alone = Wgsl {
+                name: "alone.wgsl",
+                text: &format!("#import {}\n", file.name),
+            };
+            if let Err(e) = check(&alone, ShaderPrecision::Native) {
+                panic!("{}: {e}", file.name);
+            }
+        }
     }
 }

@@ -26,13 +26,19 @@ macro_rules! wgsl_file {
 }
 pub(crate) use wgsl_file;
 
-/// Every file an `#import` can name.
-const FILES: &[Wgsl<'static>] = &[
+/// Every file an `#import` can name (in tests, also one with an error, for the check that
+/// errors name their file).
+pub(crate) const FILES: &[Wgsl<'static>] = &[
     wgsl_file!("prelude.wgsl"),
     wgsl_file!("pcss.wgsl"),
     wgsl_file!("iss.wgsl"),
     wgsl_file!("crossings.wgsl"),
     wgsl_file!("composite.wgsl"),
+    #[cfg(test)]
+    Wgsl {
+        name: "broken.wgsl",
+        text: "// a shared file with an error on line 3\n\nfn broken() -> f32 { return no_such_name; }\n",
+    },
 ];
 
 /// The import directive: `#import NAME.wgsl` alone on a line.

@@ -175,7 +175,7 @@ impl Pipelines {
         let cells = compute_pipeline(
             device,
             label,
-            &cell_layout,
+            &[&cell_layout],
             &cell_module,
             "cells",
             &constants,
@@ -187,7 +187,14 @@ impl Pipelines {
             RowSum::Scan => "sum_scan",
             RowSum::Serial => "sum_serial",
         };
-        let sum = compute_pipeline(device, label, &sum_layout, &sum_module, entry, &constants);
+        let sum = compute_pipeline(
+            device,
+            label,
+            &[&sum_layout],
+            &sum_module,
+            entry,
+            &constants,
+        );
         Self {
             cell_layout,
             sum_layout,
@@ -347,10 +354,10 @@ impl Encode for AirlightTableNode {
             &[
                 (
                     &p.cells,
-                    &self.cell_group,
+                    &[&self.cell_group],
                     ((n + TAIL_PIECES - 2).div_ceil(64), rows, 1),
                 ),
-                (&p.sum, &self.sum_group, sum_groups),
+                (&p.sum, &[&self.sum_group], sum_groups),
             ],
         );
         Ok(())

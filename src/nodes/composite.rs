@@ -880,21 +880,12 @@ impl CompositeNode {
 #[test]
 fn params_layouts_match_the_wgsl() {
     use crate::nodes::layout::{assert_same, rust_layout};
-    use crate::nodes::uniforms::{CompositeUniform, SurfaceLightUniform, SurfacesUniform};
+    use crate::nodes::uniforms::{CompositeUniform, SurfacesUniform};
     assert_same(
         rust_layout!(CompositeUniform { sigma_t, count }),
         SOURCE.text,
         "Composite",
     );
-    let light = rust_layout!(SurfaceLightUniform {
-        position,
-        cos_half,
-        intensity,
-        spot,
-        direction,
-        _pad,
-    });
-    assert_same(light, SOURCE.text, "SurfaceLight");
     let surfaces = rust_layout!(SurfacesUniform {
         sigma_s,
         count,

@@ -50,6 +50,7 @@ use crate::gpu::ShaderPrecision;
 use crate::gpu::{
     check_depth_texture, check_target_size, depth_view, GpuTimer, Occluder, UniformBuffer,
 };
+use crate::nodes::light::LightUniform;
 use crate::nodes::uniforms::ViewUniform;
 use crate::nodes::Cache;
 use crate::nodes::{Encode, Node};
@@ -136,7 +137,7 @@ impl Pipelines {
         );
         let module = module(device, &wgsl_file!("extents.wgsl"), precision);
         let compute =
-            |label, entry| compute_pipeline(device, label, &extrude_layout, &module, entry, &[]);
+            |label, entry| compute_pipeline(device, label, &[&extrude_layout], &module, entry, &[]);
         let volume_vertices = [wgpu::VertexBufferLayout {
             array_stride: VOLUME_VERTEX_BYTES,
             step_mode: wgpu::VertexStepMode::Vertex,
@@ -169,7 +170,7 @@ impl Pipelines {
             compute_pipeline(
                 device,
                 "volshadow crossings",
-                &bin_layout,
+                &[&bin_layout],
                 &bin_module,
                 entry,
                 &[],
@@ -217,14 +218,12 @@ const SLOT: u64 = 256;
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct ExtrudeUniform {
     world_from_object: [f32; 16],
-    light: [f32; 3],
+    light: LightUniform,
     mirror: f32,
     edges: u32,
     triangles: u32,
     closed: u32,
     capacity: u32,
-    /// 1: `light` is a directional light's direction of travel.
-    directional: u32,
     _pad: [u32; 3],
 }
 
@@ -833,17 +832,12 @@ impl ExtentsNode {
         for (i, o) in occluders.iter().enumerate() {
             let uniform = ExtrudeUniform {
                 world_from_object: o.transform.to_cols_array(),
-                light: match light {
-                    Light::Directional(l) => l.direction(),
-                    _ => light.position().unwrap_or_default(),
-                }
-                .to_array(),
+                light: LightUniform::new(light),
                 mirror: o.transform.determinant().signum(),
                 edges: o.mesh.edge_count,
                 triangles: o.mesh.triangle_count,
                 closed: u32::from(o.mesh.is_closed()),
                 capacity: capacity as u32,
-                directional: u32::from(matches!(light, Light::Directional(_))),
                 _pad: [0; 3],
             };
             queue.write_buffer(
@@ -1032,7 +1026,6 @@ fn params_layouts_match_the_wgsl() {
         triangles,
         closed,
         capacity,
-        directional,
         _pad,
     });
     assert_same(extrude, extents, "Extrude");

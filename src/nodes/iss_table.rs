@@ -152,7 +152,7 @@ impl Pipelines {
         let label = "volshadow ISS table";
         let layout = layout(device, label, wgpu::ShaderStages::COMPUTE, &BINDINGS);
         let module = module(device, &wgsl_file!("iss_table.wgsl"), precision);
-        let build = compute_pipeline(device, label, &layout, &module, "build", &[]);
+        let build = compute_pipeline(device, label, &[&layout], &module, "build", &[]);
         Self { layout, build }
     }
 }
@@ -289,7 +289,7 @@ impl Encode for IssTableNode {
             timer,
             Pass::IssTable,
             "volshadow ISS table",
-            &[(pipeline, bind_group, groups)],
+            &[(pipeline, &[bind_group], groups)],
         );
         Ok(())
     }

@@ -13,7 +13,7 @@ pub(crate) type Field = (&'static str, usize, usize);
 type WgslLayout = (usize, Vec<(String, usize, usize)>);
 
 /// The layout of a `#[repr(C)]` Pod struct from its field list:
-/// `rust_layout!(MarchUniform { faces, tex_frame, … })` gives `(size, fields)`.
+/// `rust_layout!(MarchUniform { tex_frame, steps, … })` gives `(size, fields)`.
 macro_rules! rust_layout {
     ($t:ty { $($f:ident),* $(,)? }) => {{
         let value = <$t as bytemuck::Zeroable>::zeroed();

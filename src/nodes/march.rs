@@ -46,12 +46,14 @@ use crate::gpu::pipeline::{
 use crate::gpu::wgsl::{wgsl_file, Wgsl};
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{
-    check_depth_layers, check_depth_texture, check_size, check_target_size, depth_array_view,
-    depth_view, texture_2d, texture_3d, GpuTimer, UniformBuffer,
+    check_depth_layers, check_depth_texture, check_size, check_target_size, depth_view, texture_2d,
+    texture_3d, GpuTimer, UniformBuffer,
 };
 use crate::nodes::extents::{CrossingsBuild, Extents};
-use crate::nodes::shadow_map::{standard_cube_near, ShadowMap};
-use crate::nodes::soft_shadow::{cell_angle, soft_params, SoftLight, SoftShadow, MAX_SOFT_SPHERES};
+use crate::nodes::light::{light_constant, LightUniform};
+use crate::nodes::pcss::{shadow_layout, ShadowBinding, ShadowUniform};
+use crate::nodes::shadow_map::ShadowMap;
+use crate::nodes::soft_shadow::{cell_angle, SoftShadow};
 use crate::nodes::uniforms::{AirlightUniform, ViewUniform};
 use crate::nodes::Cache;
 use crate::nodes::{AirlightTableNode, Scale};
@@ -59,16 +61,15 @@ use crate::nodes::{Encode, Node};
 use crate::pass::Pass;
 use crate::scene::{Camera, Light, Medium};
 
-/// The march's binding table: `@binding(i)` of `shaders/march.wgsl` is entry `i`.
-const BINDINGS: [Binding; 19] = [
+/// The march's binding table: `@binding(i)` of `shaders/march.wgsl`'s group 0 is entry `i`
+/// (group 1, the light and its shadow map, is [`ShadowBinding`]'s).
+const BINDINGS: [Binding; 16] = [
     Binding::Params,                                    // air
     Binding::Params,                                    // view
     Binding::Texture,                                   // table
     Binding::Depth,                                     // scene_depth
     Binding::Storage(wgpu::TextureFormat::Rgba32Float), // inscatter_out
     Binding::Params,                                    // mp
-    Binding::DepthArray,                                // shadow_map
-    Binding::Comparison,                                // shadow_sampler
     Binding::Depth,                                     // extent_front
     Binding::Depth,                                     // extent_back_near
     Binding::Depth,                                     // extent_back_far
@@ -79,7 +80,6 @@ const BINDINGS: [Binding; 19] = [
     Binding::Params,                                    // crossings
     Binding::ReadWrite,                                 // stats
     Binding::Volume,                                    // soft_volume
-    Binding::DepthArray,                                // shadow_back
 ];
 
 /// How the march integrates each pixel's ray for one light this frame: the form its
@@ -177,10 +177,10 @@ impl std::fmt::Display for MarchMode {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 struct Variant {
     mode: MarchMode,
-    spot: bool,
+    /// The `LIGHT` constant ([`LightUniform::kind`]).
+    light: u32,
     textured: bool,
     bisections: u32,
-    directional: bool,
     soft: bool,
     /// `soft` with the soft-shadow grid bound.
     soft_grid: bool,
@@ -190,18 +190,16 @@ impl Variant {
     /// The variant of `mode` for a light of this kind (`grid`: a soft-shadow grid is bound).
     fn new(
         mode: MarchMode,
-        spot: bool,
+        light: u32,
         textured: bool,
-        directional: bool,
         soft: bool,
         grid: bool,
         bisections: u32,
     ) -> Self {
         Variant {
             mode,
-            spot,
+            light,
             textured,
-            directional,
             bisections: if mode == MarchMode::Analytic || soft {
                 0
             } else {
@@ -218,6 +216,8 @@ impl Variant {
 #[derive(Clone)]
 pub(crate) struct Pipelines {
     layout: wgpu::BindGroupLayout,
+    /// Group 1, the light and its shadow map ([`ShadowBinding`]).
+    shadow_layout: wgpu::BindGroupLayout,
     module: wgpu::ShaderModule,
     variants: Arc<Mutex<HashMap<Variant, wgpu::ComputePipeline>>>,
 }
@@ -234,6 +234,7 @@ impl Pipelines {
                 wgpu::ShaderStages::COMPUTE,
                 &BINDINGS,
             ),
+            shadow_layout: shadow_layout(device),
             module: module(device, &SOURCE, precision),
             variants: Arc::default(),
         }
@@ -249,12 +250,7 @@ impl Pipelines {
         settings: &MarchSettings,
         kind: crate::nodes::LightKind,
     ) {
-        use crate::nodes::LightKind;
-        let (spot, textured, directional, can_be_soft) = match kind {
-            LightKind::Point { soft } => (false, false, false, soft),
-            LightKind::Spot { soft, textured } => (true, textured, false, soft),
-            LightKind::Directional => (false, false, true, false),
-        };
+        let textured = kind.textured();
         // Every mode `MarchMode::choose` can pick for this method: without occluders, and
         // with each set of shadow inputs the facade binds (crossing lists with the exact
         // method's extents).
@@ -268,7 +264,7 @@ impl Pipelines {
                 })
             },
         );
-        let softness: &[bool] = if can_be_soft {
+        let softness: &[bool] = if kind.soft() {
             &[false, true]
         } else {
             &[false]
@@ -279,15 +275,7 @@ impl Pipelines {
                 let grid = shadows.is_some_and(|s| s.soft_grid);
                 self.variant(
                     device,
-                    Variant::new(
-                        mode,
-                        spot,
-                        textured,
-                        directional,
-                        soft,
-                        grid,
-                        settings.bisections,
-                    ),
+                    Variant::new(mode, kind.gpu(), textured, soft, grid, settings.bisections),
                 );
             }
         }
@@ -298,10 +286,9 @@ impl Pipelines {
             let flag = |b: bool| if b { 1.0 } else { 0.0 };
             let constants = [
                 ("MODE", f64::from(v.mode as u32)),
-                ("SPOT", flag(v.spot)),
+                light_constant(v.light),
                 ("TEXTURED", flag(v.textured)),
                 ("BISECTIONS", f64::from(v.bisections)),
-                ("DIRECTIONAL", flag(v.directional)),
                 ("SOFT", flag(v.soft)),
                 ("SOFT_GRID", flag(v.soft_grid)),
             ];
@@ -309,7 +296,7 @@ impl Pipelines {
             compute_pipeline(
                 device,
                 label,
-                &self.layout,
+                &[&self.layout, &self.shadow_layout],
                 &self.module,
                 "march",
                 &constants,
@@ -484,23 +471,15 @@ pub struct MarchInputs<'a> {
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 /// WGSL `MarchParams` (`shaders/march.wgsl`), field by field.
 struct MarchUniform {
-    faces: [[f32; 16]; 6],
     tex_frame: [f32; 16],
-    spot: [f32; 4],
     steps: u32,
     list_entries: u32,
     texture_steps: u32,
     lit_fraction: u32,
-    depth_bias: f32,
     extents_near: f32,
     tan_half_angle: f32,
     tex_width: f32,
     tex_mips: f32,
-    cube_near: f32,
-    _pad: [u32; 2],
-    soft: SoftLight,
-    spheres: [[f32; 4]; MAX_SOFT_SPHERES],
-    planes: [[f32; 4]; MAX_SOFT_SPHERES],
     soft_grid: SoftGridUniform,
 }
 
@@ -611,10 +590,10 @@ pub struct MarchNode {
     airlight: UniformBuffer<AirlightUniform>,
     view: UniformBuffer<ViewUniform>,
     params: UniformBuffer<MarchUniform>,
-    sampler: wgpu::Sampler,
+    /// Group 1: the light and its shadow map.
+    shadow: ShadowBinding,
     linear: wgpu::Sampler,
     dummy_light: wgpu::Texture,
-    dummy_shadow: wgpu::Texture,
     dummy_depth: wgpu::Texture,
     dummy_buffer: wgpu::Buffer,
     dummy_volume: wgpu::Texture,
@@ -648,13 +627,7 @@ impl MarchNode {
             airlight: UniformBuffer::new(device, "volshadow march airlight"),
             view: UniformBuffer::new(device, "volshadow march view"),
             params: UniformBuffer::new(device, "volshadow march params"),
-            sampler: device.create_sampler(&wgpu::SamplerDescriptor {
-                label: Some("volshadow shadow compare"),
-                mag_filter: wgpu::FilterMode::Linear,
-                min_filter: wgpu::FilterMode::Linear,
-                compare: Some(wgpu::CompareFunction::GreaterEqual),
-                ..Default::default()
-            }),
+            shadow: ShadowBinding::new(device, &cache.march.shadow_layout, "volshadow march light"),
             linear: device.create_sampler(&wgpu::SamplerDescriptor {
                 label: Some("volshadow light texture"),
                 mag_filter: wgpu::FilterMode::Linear,
@@ -667,13 +640,6 @@ impl MarchNode {
                 "volshadow no light texture",
                 (1, 1, 1),
                 wgpu::TextureFormat::Rgba16Float,
-                sampled,
-            ),
-            dummy_shadow: texture_2d(
-                device,
-                "volshadow no shadow map",
-                (1, 1, 1),
-                wgpu::TextureFormat::Depth32Float,
                 sampled,
             ),
             dummy_depth: texture_2d(
@@ -772,9 +738,8 @@ impl Node for MarchNode {
             device,
             Variant::new(
                 mode,
-                matches!(inputs.light, Light::Spot(_)),
+                LightUniform::kind_of(inputs.light),
                 inputs.light_texture.is_some(),
-                matches!(inputs.light, Light::Directional(_)),
                 soft,
                 grid.is_some(),
                 self.settings.bisections,
@@ -879,11 +844,8 @@ impl MarchNode {
     ) {
         let table = inputs.table;
         let outputs = self.outputs.as_ref().expect("created above");
-
-        let shadow_texture = inputs
-            .shadows
-            .as_ref()
-            .map_or(&self.dummy_shadow, |s| s.shadow_map.texture);
+        self.shadow
+            .bind(device, inputs.shadows.as_ref().map(|s| &s.shadow_map));
         let extents = inputs.shadows.as_ref().and_then(|s| s.extents);
         let extent_textures: [&wgpu::Texture; 3] = match &extents {
             Some(e) => [&e.textures[0], &e.textures[1], &e.textures[2]],
@@ -893,18 +855,12 @@ impl MarchNode {
             table.texture(),
             inputs.scene_depth,
             &outputs[0],
-            shadow_texture,
             extent_textures[0],
             extent_textures[1],
             extent_textures[2],
             &outputs[1],
             inputs.light_texture.unwrap_or(&self.dummy_light),
             grid.map_or(&self.dummy_volume, |g| g.texture),
-            inputs
-                .shadows
-                .as_ref()
-                .and_then(|s| s.shadow_map.back)
-                .unwrap_or(shadow_texture),
         ]
         .into_iter()
         .cloned()
@@ -923,8 +879,7 @@ impl MarchNode {
                 .iter()
                 .enumerate()
                 .map(|(i, t)| match i {
-                    1 | 4 | 5 | 6 => depth_view(t),
-                    3 | 10 => depth_array_view(t),
+                    1 | 3..=5 => depth_view(t),
                     _ => t.create_view(&Default::default()),
                 })
                 .collect();
@@ -941,18 +896,15 @@ impl MarchNode {
                     view(2),
                     self.params.binding(),
                     view(3),
-                    wgpu::BindingResource::Sampler(&self.sampler),
                     view(4),
                     view(5),
                     view(6),
                     view(7),
-                    view(8),
                     wgpu::BindingResource::Sampler(&self.linear),
                     buffers[0].as_entire_binding(),
                     buffers[1].as_entire_binding(),
                     self.stats.as_entire_binding(),
-                    view(9),
-                    view(10),
+                    view(8),
                 ],
             );
             self.bound = Some(Bound {
@@ -994,27 +946,14 @@ impl MarchNode {
         self.view
             .write(queue, ViewUniform::new(camera, width, height));
 
-        let mut faces = [[0.0; 16]; 6];
-        let (mut soft_consts, mut spheres, mut planes) = (
-            SoftLight::default(),
-            [[0.0; 4]; MAX_SOFT_SPHERES],
-            [[0.0; 4]; MAX_SOFT_SPHERES],
+        self.shadow.write(
+            queue,
+            match &inputs.shadows {
+                Some(s) => ShadowUniform::new(inputs.light, &s.shadow_map, soft),
+                None => ShadowUniform::unshadowed(inputs.light),
+            },
         );
-        let (mut depth_bias, mut extents_near, mut cube_near) = (0.0, 0.0, 0.0);
-        if let Some(s) = &inputs.shadows {
-            for (slot, face) in faces.iter_mut().zip(s.shadow_map.faces) {
-                *slot = face.to_cols_array();
-            }
-            depth_bias = s.shadow_map.depth_bias;
-            if let Light::Point(point) = inputs.light {
-                cube_near = standard_cube_near(s.shadow_map.faces, point.position());
-            }
-            if soft {
-                (soft_consts, spheres, planes) = soft_params(inputs.light, &s.shadow_map);
-            }
-            extents_near = s.extents.map_or(0.0, |e| e.near);
-        }
-        let spot = crate::nodes::uniforms::spot_cone(inputs.light);
+        let extents_near = extents.map_or(0.0, |e| e.near);
         let (tex_frame, [tan_half_angle, tex_width, tex_mips]) =
             match (inputs.light, inputs.light_texture) {
                 (Light::Spot(s), Some(t)) => (
@@ -1030,23 +969,15 @@ impl MarchNode {
         self.params.write(
             queue,
             MarchUniform {
-                faces,
                 tex_frame,
-                spot,
                 steps: self.settings.steps,
                 list_entries: crossings.map_or(0, |c| c.per_pixel),
                 texture_steps: self.settings.texture_steps,
                 lit_fraction: u32::from(self.settings.scale != Scale::Full),
-                depth_bias,
                 extents_near,
                 tan_half_angle,
                 tex_width,
                 tex_mips,
-                cube_near,
-                _pad: [0; 2],
-                soft: soft_consts,
-                spheres,
-                planes,
                 soft_grid: match (grid, &inputs.shadows) {
                     (Some(g), Some(s)) => SoftGridUniform {
                         directions: g.size.directions,
@@ -1103,7 +1034,9 @@ impl Encode for MarchNode {
         encoder: &mut wgpu::CommandEncoder,
         timer: Option<&mut GpuTimer>,
     ) -> Result<()> {
-        let (Some(bound), Some(pipeline)) = (&self.bound, &self.pipeline) else {
+        let (Some(bound), Some(pipeline), Some(shadow)) =
+            (&self.bound, &self.pipeline, self.shadow.group())
+        else {
             return Err(Error::NotPrepared {
                 reason: "MarchNode::prepare has not succeeded yet",
             });
@@ -1115,7 +1048,7 @@ impl Encode for MarchNode {
             timer,
             Pass::March,
             "volshadow march",
-            &[(pipeline, &bound.bind_group, groups)],
+            &[(pipeline, &[&bound.bind_group, shadow], groups)],
         );
         Ok(())
     }
@@ -1126,23 +1059,15 @@ impl Encode for MarchNode {
 fn params_layout_matches_the_wgsl() {
     use crate::nodes::layout::{assert_same, rust_layout};
     let rust = rust_layout!(MarchUniform {
-        faces,
         tex_frame,
-        spot,
         steps,
         list_entries,
         texture_steps,
         lit_fraction,
-        depth_bias,
         extents_near,
         tan_half_angle,
         tex_width,
         tex_mips,
-        cube_near,
-        _pad,
-        soft,
-        spheres,
-        planes,
         soft_grid,
     });
     assert_same(rust, SOURCE.text, "MarchParams");

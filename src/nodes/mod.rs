@@ -30,8 +30,10 @@ pub(crate) mod extents;
 pub(crate) mod iss_table;
 #[cfg(test)]
 pub(crate) mod layout;
+pub(crate) mod light;
 pub(crate) mod light_texture;
 pub(crate) mod march;
+pub(crate) mod pcss;
 pub(crate) mod shadow_map;
 pub(crate) mod soft_shadow;
 pub(crate) mod uniforms;

@@ -100,32 +100,31 @@ use crate::error::{Error, Result};
 use crate::gpu::pipeline::{bind_group, compute_pipeline, layout, module, Binding};
 use crate::gpu::wgsl::{wgsl_file, Wgsl};
 use crate::gpu::ShaderPrecision;
-use crate::gpu::{check_depth_layers, depth_array_view, texture_3d, GpuTimer, UniformBuffer};
-use crate::nodes::shadow_map::{standard_cube_near, ShadowMap};
+use crate::gpu::{check_depth_layers, texture_3d, GpuTimer, UniformBuffer};
+use crate::nodes::light::{light_constant, LIGHT_POINT, LIGHT_SPOT};
+use crate::nodes::pcss::{shadow_layout, ShadowBinding, ShadowUniform};
+use crate::nodes::shadow_map::ShadowMap;
 use crate::nodes::Cache;
 use crate::nodes::{Encode, Node};
 use crate::pass::Pass;
 use crate::scene::Light;
 
 /// The binding tables of the build's entry points in `shaders/soft_shadow.wgsl`
-/// (`@binding(i)` is entry `i`): each binds every slot, with the type its entry point
-/// declares where it uses the slot. Slots: 0 `mp`, 1 `shadow_map`, 2 `shadow_sampler`,
-/// 3 `volume` (the grid), 4 `shadow_back`, 5 the anchors, 6 the cells before their marks,
-/// 7 a list of cells to estimate, 8 its dispatch, 9 the rest's listed columns, 10 the
-/// anchors' slice ranges.
+/// (`@binding(i)` of group 0 is entry `i`; group 1, the light and its shadow map, is
+/// [`ShadowBinding`]'s): each binds every slot, with the type its entry point declares where
+/// it uses the slot. Slots: 0 `mp`, 1 `volume` (the grid), 2 the anchors, 3 the cells before
+/// their marks, 4 a list of cells to estimate, 5 its dispatch, 6 the rest's listed columns,
+/// 7 the anchors' slice ranges.
 const fn bindings(
     anchors: Binding,
     rest: Binding,
     list: Binding,
     columns: Binding,
     ranges: Binding,
-) -> [Binding; 11] {
+) -> [Binding; 8] {
     [
         Binding::Params,
-        Binding::DepthArray,
-        Binding::Comparison,
         Binding::StorageVolume(wgpu::TextureFormat::Rgba16Float),
-        Binding::DepthArray,
         anchors,
         rest,
         list,
@@ -137,7 +136,7 @@ const fn bindings(
 const ANCHORS_WRITTEN: Binding = Binding::StorageVolume(wgpu::TextureFormat::Rgba16Float);
 const REST_WRITTEN: Binding = Binding::StorageVolume(REST_FORMAT);
 /// `build_anchors`: fills a list and the anchors' ranges.
-const ANCHOR_BINDINGS: [Binding; 11] = bindings(
+const ANCHOR_BINDINGS: [Binding; 8] = bindings(
     ANCHORS_WRITTEN,
     REST_WRITTEN,
     Binding::ReadWrite,
@@ -146,7 +145,7 @@ const ANCHOR_BINDINGS: [Binding; 11] = bindings(
 );
 /// `between_anchors` and `store_anchors`: read the estimated cells and the ranges, fill a list
 /// or write the anchors.
-const BETWEEN_BINDINGS: [Binding; 11] = bindings(
+const BETWEEN_BINDINGS: [Binding; 8] = bindings(
     ANCHORS_WRITTEN,
     Binding::VolumeLoad,
     Binding::ReadWrite,
@@ -154,7 +153,7 @@ const BETWEEN_BINDINGS: [Binding; 11] = bindings(
     Binding::Params,
 );
 /// `build_rest`: reads the anchors, writes cells before their marks, fills a list.
-const REST_BINDINGS: [Binding; 11] = bindings(
+const REST_BINDINGS: [Binding; 8] = bindings(
     Binding::Volume,
     REST_WRITTEN,
     Binding::ReadWrite,
@@ -163,7 +162,7 @@ const REST_BINDINGS: [Binding; 11] = bindings(
 );
 /// `estimate_listed`: reads a list and its dispatch (which cannot be bound for writing while
 /// it dispatches), writes the cells.
-const ESTIMATE_BINDINGS: [Binding; 11] = bindings(
+const ESTIMATE_BINDINGS: [Binding; 8] = bindings(
     Binding::Volume,
     REST_WRITTEN,
     Binding::Params,
@@ -171,7 +170,7 @@ const ESTIMATE_BINDINGS: [Binding; 11] = bindings(
     Binding::Params,
 );
 /// `store_rest`: reads the cells back.
-const STORE_BINDINGS: [Binding; 11] = bindings(
+const STORE_BINDINGS: [Binding; 8] = bindings(
     Binding::Volume,
     Binding::VolumeLoad,
     Binding::ReadWrite,
@@ -245,7 +244,6 @@ pub(crate) fn soft_params(
     let nearest = if nearest.is_finite() { nearest } else { 0.0 }.max(light.radius());
     (
         SoftLight {
-            radius: light.radius(),
             nearest,
             spheres: count as u32,
             cell_angle: 0.0,
@@ -260,8 +258,6 @@ pub(crate) fn soft_params(
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::Pod, bytemuck::Zeroable)]
 pub(crate) struct SoftLight {
-    /// The light's radius.
-    pub radius: f32,
     /// The least distance from the light of any occluder's bounds (at least the radius).
     pub nearest: f32,
     /// Bounding spheres (and planes) given beside it.
@@ -271,9 +267,10 @@ pub(crate) struct SoftLight {
 }
 
 impl SoftLight {
-    /// The grid's least distance from the light, as the shaders take it (`soft_estimate`).
-    pub fn near(&self) -> f32 {
-        self.nearest.max(1.0e-3 * self.radius)
+    /// The grid's least distance from a light of `radius`, as the shaders take it
+    /// (`soft_estimate`).
+    pub fn near(&self, radius: f32) -> f32 {
+        self.nearest.max(1.0e-3 * radius)
     }
 }
 
@@ -315,6 +312,7 @@ fn every_block(n: u32, layers: usize) -> Blocks {
 pub(crate) fn penumbra_blocks(
     faces: &[glam::Mat4],
     light: glam::Vec3,
+    radius: f32,
     soft: SoftLight,
     spheres: &[[f32; 4]; MAX_SOFT_SPHERES],
     n: u32,
@@ -332,8 +330,8 @@ pub(crate) fn penumbra_blocks(
         let to_c = DVec3::new(sphere[0].into(), sphere[1].into(), sphere[2].into()) - light;
         let l = to_c.length();
         // 1% beyond the shaders' margin: their f32 arithmetic against this f64.
-        let sin_t = 1.01 * PENUMBRA_CONE_MARGIN * (f64::from(soft.radius) + f64::from(sphere[3]))
-            / l.max(1e-30);
+        let sin_t =
+            1.01 * PENUMBRA_CONE_MARGIN * (f64::from(radius) + f64::from(sphere[3])) / l.max(1e-30);
         if sin_t.is_nan() || sin_t >= 0.99 {
             return every;
         }
@@ -342,7 +340,7 @@ pub(crate) fn penumbra_blocks(
     let a = i64::from(n.div_ceil(2));
     let cells = f64::from(n);
     // The grid's least distance, as the shaders take it.
-    let nearest = f64::from(soft.near());
+    let nearest = f64::from(soft.near(radius));
     let mut blocks = [[0; 4]; 6];
     for (layer, face) in faces.iter().enumerate() {
         let m = face.as_dmat4();
@@ -497,16 +495,11 @@ pub struct SoftShadow<'a> {
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 /// WGSL `SoftShadowParams` (`shaders/soft_shadow.wgsl`), field by field.
 struct SoftShadowUniform {
-    faces: [[f32; 16]; 6],
     world_from_clip: [[f32; 16]; 6],
-    light: [f32; 4],
-    depth_bias: f32,
     size: u32,
     slices: u32,
     layers: u32,
-    soft: SoftLight,
-    spheres: [[f32; 4]; MAX_SOFT_SPHERES],
-    planes: [[f32; 4]; MAX_SOFT_SPHERES],
+    _pad: u32,
     built: Blocks,
     lit: Blocks,
 }
@@ -534,6 +527,8 @@ pub(crate) struct Pipelines {
     rest_layout: wgpu::BindGroupLayout,
     estimate_layout: wgpu::BindGroupLayout,
     store_layout: wgpu::BindGroupLayout,
+    /// Group 1, the light and its shadow map ([`ShadowBinding`]).
+    shadow_layout: wgpu::BindGroupLayout,
     point: Build,
     spot: Build,
 }
@@ -547,10 +542,20 @@ impl Pipelines {
         let rest_layout = layout(device, label, stages, &REST_BINDINGS);
         let estimate_layout = layout(device, label, stages, &ESTIMATE_BINDINGS);
         let store_layout = layout(device, label, stages, &STORE_BINDINGS);
+        let shadow_layout = shadow_layout(device);
         let module = module(device, &SOURCE, precision);
-        let build = |constants: &[(&str, f64)]| {
-            let pipeline =
-                |layout, entry| compute_pipeline(device, label, layout, &module, entry, constants);
+        let build = |light: u32| {
+            let constants = [light_constant(light)];
+            let pipeline = |layout, entry| {
+                compute_pipeline(
+                    device,
+                    label,
+                    &[layout, &shadow_layout],
+                    &module,
+                    entry,
+                    &constants,
+                )
+            };
             Build {
                 fill: pipeline(&anchor_layout, "fill_lit"),
                 anchors: pipeline(&anchor_layout, "build_anchors"),
@@ -561,14 +566,15 @@ impl Pipelines {
                 store_rest: pipeline(&store_layout, "store_rest"),
             }
         };
-        let point = build(&[]);
-        let spot = build(&[("SPOT", 1.0)]);
+        let point = build(LIGHT_POINT);
+        let spot = build(LIGHT_SPOT);
         Self {
             anchor_layout,
             between_layout,
             rest_layout,
             estimate_layout,
             store_layout,
+            shadow_layout,
             point,
             spot,
         }
@@ -577,8 +583,6 @@ impl Pipelines {
 
 /// What the bind groups were made for, and they.
 struct Bound {
-    map: wgpu::Texture,
-    back: wgpu::Texture,
     grid: wgpu::Texture,
     groups: Groups,
 }
@@ -668,13 +672,12 @@ impl Scratch {
         })
     }
 
-    /// The passes' bind groups, with `common` the bindings 0 to 4 (parameters, shadow map,
-    /// sampler, grid, back faces).
+    /// The passes' bind groups, with `common` the bindings 0 and 1 (parameters, grid).
     fn bind(
         &self,
         device: &wgpu::Device,
         pipelines: &Pipelines,
-        common: [wgpu::BindingResource<'_>; 5],
+        common: [wgpu::BindingResource<'_>; 2],
     ) -> Groups {
         let anchors = self.anchors.create_view(&Default::default());
         let rest = self.rest.create_view(&Default::default());
@@ -686,7 +689,7 @@ impl Scratch {
             })
         };
         let group = |layout: &wgpu::BindGroupLayout, list: u64| {
-            let [c0, c1, c2, c3, c4] = common.clone();
+            let [c0, c1] = common.clone();
             bind_group(
                 device,
                 "volshadow soft shadow",
@@ -694,9 +697,6 @@ impl Scratch {
                 [
                     c0,
                     c1,
-                    c2,
-                    c3,
-                    c4,
                     wgpu::BindingResource::TextureView(&anchors),
                     wgpu::BindingResource::TextureView(&rest),
                     self.work.as_entire_binding(),
@@ -724,7 +724,8 @@ pub struct SoftShadowNode {
     size: SoftShadowSize,
     pipelines: Pipelines,
     uniform: UniformBuffer<SoftShadowUniform>,
-    sampler: wgpu::Sampler,
+    /// Group 1: the light and its shadow map.
+    shadow: ShadowBinding,
     texture: Option<wgpu::Texture>,
     /// The build's own textures and buffers, made with `texture`.
     scratch: Option<Scratch>,
@@ -758,13 +759,11 @@ impl SoftShadowNode {
             size,
             pipelines: cache.soft_shadow.clone(),
             uniform: UniformBuffer::new(device, "volshadow soft shadow params"),
-            sampler: device.create_sampler(&wgpu::SamplerDescriptor {
-                label: Some("volshadow soft shadow compare"),
-                mag_filter: wgpu::FilterMode::Linear,
-                min_filter: wgpu::FilterMode::Linear,
-                compare: Some(wgpu::CompareFunction::GreaterEqual),
-                ..Default::default()
-            }),
+            shadow: ShadowBinding::new(
+                device,
+                &cache.soft_shadow.shadow_layout,
+                "volshadow soft shadow light",
+            ),
             texture: None,
             scratch: None,
             bound: None,
@@ -923,26 +922,17 @@ impl SoftShadowNode {
     fn bind(&mut self, device: &wgpu::Device, map: ShadowMap<'_>) {
         let texture = self.texture.as_ref().expect("created above");
         let scratch = self.scratch.as_ref().expect("created with the grid");
-        let back = map.back.unwrap_or(map.texture);
-        if self
-            .bound
-            .as_ref()
-            .is_none_or(|b| b.map != *map.texture || b.back != *back || b.grid != *texture)
-        {
+        self.pending |= self.shadow.bind(device, Some(&map));
+        if self.bound.as_ref().is_none_or(|b| b.grid != *texture) {
             let groups = scratch.bind(
                 device,
                 &self.pipelines,
                 [
                     self.uniform.binding(),
-                    wgpu::BindingResource::TextureView(&depth_array_view(map.texture)),
-                    wgpu::BindingResource::Sampler(&self.sampler),
                     wgpu::BindingResource::TextureView(&texture.create_view(&Default::default())),
-                    wgpu::BindingResource::TextureView(&depth_array_view(back)),
                 ],
             );
             self.bound = Some(Bound {
-                map: map.texture.clone(),
-                back: back.clone(),
                 grid: texture.clone(),
                 groups,
             });
@@ -955,46 +945,46 @@ impl SoftShadowNode {
     fn upload(&mut self, queue: &wgpu::Queue, inputs: &SoftShadowInputs<'_>, layers: u32) {
         let (light, map) = (inputs.light, inputs.shadow_map);
         let (n, s) = (self.size.directions, self.size.slices);
-        let mut faces = [[0.0; 16]; 6];
         let mut world_from_clip = [[0.0; 16]; 6];
         for (i, m) in map.faces.iter().enumerate() {
-            faces[i] = m.to_cols_array();
             world_from_clip[i] = m.inverse().to_cols_array();
         }
-        let (mut soft, spheres, planes) = soft_params(light, &map);
+        let mut shadow = ShadowUniform::new(light, &map, true);
         // A cell's angle: a layer's field of view (its projection's x scale is 1 / tan(half
         // the angle)) over its cells.
-        soft.cell_angle = cell_angle(&map.faces[0], n);
-        self.near = soft.near();
+        shadow.soft.cell_angle = cell_angle(&map.faces[0], n);
+        self.near = shadow.soft.near(light.radius());
         let position = light.position().unwrap_or_default();
         let built = if self.every_block {
             every_block(n, layers as usize)
         } else {
-            penumbra_blocks(map.faces, position, soft, &spheres, n)
+            penumbra_blocks(
+                map.faces,
+                position,
+                light.radius(),
+                shadow.soft,
+                &shadow.spheres,
+                n,
+            )
         };
         let mut value = SoftShadowUniform {
-            faces,
             world_from_clip,
-            light: position
-                .extend(standard_cube_near(map.faces, position))
-                .to_array(),
-            depth_bias: map.depth_bias,
             size: n,
             slices: s,
             layers,
-            soft,
-            spheres,
-            planes,
+            _pad: 0,
             built,
             lit: self.uniform.last().map_or([[0; 4]; 6], |u| u.lit),
         };
         // The blocks to set lit follow from the last build, not from the inputs: they change
         // only with a build.
         self.pending |= self.uniform.last() != Some(&value);
+        self.pending |= self.shadow.last() != Some(&shadow);
         self.pending |= self.generation != Some(map.generation);
         if self.pending {
             value.lit = self.stale;
             self.uniform.write(queue, value);
+            self.shadow.write(queue, shadow);
         }
         self.built = built;
         self.generation = Some(map.generation);
@@ -1014,7 +1004,9 @@ impl Encode for SoftShadowNode {
         encoder: &mut wgpu::CommandEncoder,
         timer: Option<&mut GpuTimer>,
     ) -> Result<()> {
-        let (Some(Bound { groups, .. }), Some(build)) = (&self.bound, &self.pipeline) else {
+        let (Some(Bound { groups, .. }), Some(build), Some(shadow)) =
+            (&self.bound, &self.pipeline, self.shadow.group())
+        else {
             return Err(Error::NotPrepared {
                 reason: "SoftShadowNode::prepare has not succeeded yet",
             });
@@ -1050,6 +1042,7 @@ impl Encode for SoftShadowNode {
                 pass.dispatch_workgroups(x, y, z);
             }
         };
+        pass.set_bind_group(1, shadow, &[]);
         pass.set_pipeline(&build.fill);
         pass.set_bind_group(0, &groups.anchors, &[]);
         dispatch(&mut pass, groups_over(&self.stale, 0));
@@ -1229,8 +1222,8 @@ mod tests {
             let blocks = penumbra_blocks(
                 &faces,
                 light,
+                radius,
                 SoftLight {
-                    radius,
                     spheres: count as u32,
                     ..SoftLight::default()
                 },
@@ -1291,25 +1284,13 @@ mod tests {
 fn params_layout_matches_the_wgsl() {
     use crate::nodes::layout::{assert_same, rust_layout};
     let rust = rust_layout!(SoftShadowUniform {
-        faces,
         world_from_clip,
-        light,
-        depth_bias,
         size,
         slices,
         layers,
-        soft,
-        spheres,
-        planes,
+        _pad,
         built,
         lit,
     });
     assert_same(rust, SOURCE.text, "SoftShadowParams");
-    let light = rust_layout!(SoftLight {
-        radius,
-        nearest,
-        spheres,
-        cell_angle,
-    });
-    assert_same(light, SOURCE.text, "SoftLight");
 }

@@ -4,6 +4,7 @@
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 
+use crate::nodes::light::LightUniform;
 use crate::scene::{Camera, Light, Medium, PhaseFunction};
 
 /// WGSL `Airlight`, field by field (see there what each holds).
@@ -134,15 +135,6 @@ impl AirlightUniform {
     }
 }
 
-/// The `spot` vector of the march's and the upsample's parameters: a spot light's unit axis
-/// and the cosine of half its apex angle; zero for other lights.
-pub(crate) fn spot_cone(light: &Light) -> [f32; 4] {
-    match light {
-        Light::Spot(s) => s.direction().extend(s.cos_half_angle()).to_array(),
-        _ => [0.0; 4],
-    }
-}
-
 /// WGSL `View`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
@@ -174,25 +166,13 @@ pub(crate) struct CompositeUniform {
     pub count: u32,
 }
 
-/// One light of WGSL `Surfaces`.
-#[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
-pub(crate) struct SurfaceLightUniform {
-    pub position: [f32; 3],
-    pub cos_half: f32,
-    pub intensity: [f32; 3],
-    pub spot: u32,
-    pub direction: [f32; 3],
-    pub _pad: f32,
-}
-
 /// WGSL `Surfaces` (the composite's indirect single scattering term).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
 pub(crate) struct SurfacesUniform {
     pub sigma_s: [f32; 3],
     pub count: u32,
-    pub lights: [SurfaceLightUniform; 4],
+    pub lights: [LightUniform; 4],
     /// The spot term's lattice spacing in pixels (0: evaluated at every pixel).
     pub lattice: u32,
     pub _pad: [u32; 3],
@@ -201,26 +181,14 @@ pub(crate) struct SurfacesUniform {
 impl SurfacesUniform {
     pub fn new(medium: &Medium, lights: &[Light]) -> Self {
         // The term is defined for lights at a position; a directional light adds none.
-        let positioned: Vec<(&Light, glam::Vec3)> = lights
-            .iter()
-            .filter_map(|l| l.position().map(|p| (l, p)))
-            .collect();
+        let positioned: Vec<&Light> = lights.iter().filter(|l| l.position().is_some()).collect();
         let mut out = Self {
             sigma_s: medium.sigma_s().to_array(),
             count: positioned.len().min(4) as u32,
             ..Self::zeroed()
         };
-        for (slot, (light, position)) in out.lights.iter_mut().zip(positioned) {
-            *slot = SurfaceLightUniform {
-                position: position.to_array(),
-                intensity: light.intensity().to_array(),
-                ..SurfaceLightUniform::zeroed()
-            };
-            if let Light::Spot(spot) = light {
-                slot.spot = 1;
-                slot.cos_half = spot.cos_half_angle();
-                slot.direction = spot.direction().to_array();
-            }
+        for (slot, light) in out.lights.iter_mut().zip(positioned) {
+            *slot = LightUniform::new(light);
         }
         out
     }

@@ -116,6 +116,7 @@ use crate::gpu::pipeline::{bind_group, cached, compute_pipeline, layout, module,
 use crate::gpu::wgsl::wgsl_file;
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{check_depth_texture, check_float_texture, GpuTimer, UniformBuffer};
+use crate::nodes::light::{light_constant, LightUniform};
 use crate::nodes::uniforms::ViewUniform;
 use crate::nodes::Cache;
 use crate::pass::Pass;
@@ -131,7 +132,7 @@ const BINDINGS: [Binding; 9] = [
     Binding::Storage(wgpu::TextureFormat::Rgba32Float), // out_tex
     Binding::Texture,                                   // table
     Binding::Params,                                    // air
-    Binding::Params,                                    // spot
+    Binding::Params,                                    // light
 ];
 
 /// The upsample's entry points for one kind of light: the single pass (bilinear and 3×3), and
@@ -144,8 +145,8 @@ type EntryPoints = [wgpu::ComputePipeline; 3];
 pub(crate) struct Pipelines {
     layout: wgpu::BindGroupLayout,
     module: wgpu::ShaderModule,
-    /// Keyed by "the light is a spot" and "the light is directional".
-    lights: Arc<Mutex<HashMap<(bool, bool), EntryPoints>>>,
+    /// Keyed by the `LIGHT` constant ([`LightUniform::kind`]).
+    lights: Arc<Mutex<HashMap<u32, EntryPoints>>>,
 }
 
 impl Pipelines {
@@ -160,18 +161,22 @@ impl Pipelines {
 
     /// Builds the pipelines a light of `kind` uses (see [`Cache::warm_up`]).
     pub(crate) fn warm_up(&self, device: &wgpu::Device, kind: crate::nodes::LightKind) {
-        use crate::nodes::LightKind;
-        let spot = matches!(kind, LightKind::Spot { .. });
-        self.for_light(device, spot, kind == LightKind::Directional);
+        self.for_light(device, kind.gpu());
     }
 
-    fn for_light(&self, device: &wgpu::Device, spot: bool, directional: bool) -> EntryPoints {
-        cached(&self.lights, (spot, directional), || {
-            let flag = |b: bool| if b { 1.0 } else { 0.0 };
-            let constants = [("SPOT", flag(spot)), ("DIRECTIONAL", flag(directional))];
+    fn for_light(&self, device: &wgpu::Device, light: u32) -> EntryPoints {
+        cached(&self.lights, light, || {
+            let constants = [light_constant(light)];
             ["upsample", "separable_h", "separable_v"].map(|entry| {
                 let label = "volshadow upsample";
-                compute_pipeline(device, label, &self.layout, &self.module, entry, &constants)
+                compute_pipeline(
+                    device,
+                    label,
+                    &[&self.layout],
+                    &self.module,
+                    entry,
+                    &constants,
+                )
             })
         })
     }
@@ -226,7 +231,7 @@ pub struct UpsampleNode {
     uniform: UniformBuffer<UpsampleUniform>,
     view: UniformBuffer<ViewUniform>,
     airlight: UniformBuffer<crate::nodes::uniforms::AirlightUniform>,
-    spot: UniformBuffer<[f32; 4]>,
+    light: UniformBuffer<LightUniform>,
     dummy: wgpu::Texture,
     output: Option<wgpu::Texture>,
     intermediate: Option<wgpu::Texture>,
@@ -250,7 +255,7 @@ impl UpsampleNode {
             uniform: UniformBuffer::new(device, "volshadow upsample"),
             view: UniformBuffer::new(device, "volshadow upsample view"),
             airlight: UniformBuffer::new(device, "volshadow upsample airlight"),
-            spot: UniformBuffer::new(device, "volshadow upsample spot"),
+            light: UniformBuffer::new(device, "volshadow upsample light"),
             dummy: storage_texture(device, "volshadow upsample dummy", 1, 1),
             output: None,
             intermediate: None,
@@ -302,11 +307,9 @@ impl Node for UpsampleNode {
         self.allocate(device, (w, h), lh);
         self.bind(device, inputs);
         self.upload(queue, inputs);
-        let is_spot = matches!(inputs.light, crate::scene::Light::Spot(_));
-        let directional = matches!(inputs.light, crate::scene::Light::Directional(_));
-        self.spot
-            .write(queue, crate::nodes::uniforms::spot_cone(inputs.light));
-        self.entry_points = Some(self.pipelines.for_light(device, is_spot, directional));
+        let light = LightUniform::new(inputs.light);
+        self.light.write(queue, light);
+        self.entry_points = Some(self.pipelines.for_light(device, light.kind));
         self.size = (w, h);
         self.low_height = lh;
         Ok(true)
@@ -397,7 +400,7 @@ impl UpsampleNode {
                         view(&out_view),
                         view(&table_view),
                         self.airlight.binding(),
-                        self.spot.binding(),
+                        self.light.binding(),
                     ],
                 )
             };
@@ -411,7 +414,7 @@ impl UpsampleNode {
         }
     }
 
-    /// Writes the filter's, view's, airlight's and spot's uniforms.
+    /// Writes the filter's, view's and airlight's uniforms.
     fn upload(&mut self, queue: &wgpu::Queue, inputs: &UpsampleInputs<'_>) {
         let (w, h) = (inputs.scene_depth.width(), inputs.scene_depth.height());
         let (lw, lh) = (inputs.low.width(), inputs.low.height());

@@ -4,6 +4,9 @@
 
 use glam::DVec3;
 
+use super::{camera_ray, pixel_ndc};
+use crate::scene::{Camera, Light};
+
 /// The error of an in-scatter image against the reference over the pixels a mask keeps.
 ///
 /// * `rmse`: the root mean square of the difference over the kept pixels and their three
@@ -31,6 +34,44 @@ pub struct ImageError {
 }
 
 impl ImageError {
+    /// The pixels of a `width × height` image of `camera` to measure: all but those whose
+    /// centre ray passes within 1.5 pixels of a point or spot light's position. Looking at a
+    /// light through the medium the in-scatter is singular (1/h); a renderer clamps it by the
+    /// pixel's footprint on purpose while the reference integrates the centre ray, so they are
+    /// not the same quantity there. A rectilinear pixel's angular size falls as cos^1.5 of its
+    /// angle to the view axis (its solid angle as cos³), and so does the margin: a wide view's
+    /// edge pixels are small. A directional light has no glow to leave out.
+    pub fn keep_away_from_lights(
+        camera: &Camera,
+        lights: &[Light],
+        width: u32,
+        height: u32,
+    ) -> Vec<bool> {
+        let forward = -camera
+            .view()
+            .as_dmat4()
+            .inverse()
+            .z_axis
+            .truncate()
+            .normalize();
+        let pixel = 2.0 * f64::from(camera.pixel_angular_radius(height));
+        let positions: Vec<DVec3> = lights
+            .iter()
+            .filter_map(|l| l.position())
+            .map(|p| p.as_dvec3())
+            .collect();
+        (0..width * height)
+            .map(|i| {
+                let (eye, dir) = camera_ray(camera, pixel_ndc(width, height, i % width, i / width));
+                let cos_axis = dir.dot(forward).clamp(0.0, 1.0);
+                let margin = 1.5 * pixel * cos_axis.powf(1.5);
+                positions
+                    .iter()
+                    .all(|p| dir.angle_between(*p - eye) >= margin)
+            })
+            .collect()
+    }
+
     /// Measures `image` against `reference` (same layout) over the pixels where `keep` is true
     /// (commonly all but the pixels within 1.5 pixels of a light's centre, where a renderer
     /// clamps the singular glow by the pixel's footprint). Slices of different lengths are
@@ -97,6 +138,47 @@ impl ImageError {
 mod tests {
     use super::ImageError;
     use glam::DVec3;
+
+    /// The light's own pixels are left out over about 1.5 pixels, in the view's centre and at
+    /// the edge of a 170° view, where a pixel subtends 1/30 of a centre pixel's angle radially
+    /// (cos² 80°): a margin of 1.5 centre pixels' angle there (without the cos^1.5) would leave
+    /// out hundreds of pixels.
+    #[test]
+    fn the_light_s_own_pixels_are_left_out_by_their_angular_size() {
+        use crate::reference::{camera_ray, pixel_ndc};
+        use crate::scene::{Camera, Light, PointLight};
+        use glam::Vec3;
+        let n = 96;
+        let left_out = |fov_degrees: f32, (px, py): (u32, u32)| {
+            let view = glam::camera::rh::view::look_at_mat4(Vec3::ZERO, Vec3::NEG_Z, Vec3::Y);
+            let projection = glam::camera::rh::proj::directx::perspective(
+                fov_degrees.to_radians(),
+                1.0,
+                0.1,
+                100.0,
+            );
+            let camera = Camera::new(view, projection).unwrap();
+            // The light on the ray through the pixel's centre.
+            let (eye, dir) = camera_ray(&camera, pixel_ndc(n, n, px, py));
+            let position = (eye + 10.0 * dir).as_vec3();
+            let light = Light::from(PointLight::new(position, Vec3::ONE).unwrap());
+            let keep = ImageError::keep_away_from_lights(&camera, &[light], n, n);
+            assert!(!keep[(py * n + px) as usize], "its own pixel is kept");
+            keep.iter().filter(|k| !**k).count()
+        };
+        let centre = left_out(60.0, (48, 48));
+        // The light 80° off the axis of a 170° view: tan 80° / tan 85° of the half width.
+        let off = (48.0 + 48.0 * 80f32.to_radians().tan() / 85f32.to_radians().tan()) as u32;
+        let edge = left_out(170.0, (off, 48));
+        assert!(
+            (5..=13).contains(&centre),
+            "centre: {centre} pixels left out"
+        );
+        assert!(
+            (1..=2 * centre).contains(&edge),
+            "edge: {edge} pixels left out"
+        );
+    }
 
     /// Hand-computed figures on 100 pixels: 90 exact, 10 off by 10%..100%, one masked out and
     /// one below the brightness floor (neither counted), and a NaN that counts as infinite.

@@ -179,29 +179,8 @@ impl std::fmt::Display for Errors {
     }
 }
 
-/// Whether pixel `i` looks within 1.5 pixels of the light: there the GPU clamps the singular
-/// 1/h by the pixel footprint on purpose while the reference integrates the centre ray.
-pub fn near_light(camera: &Camera, light: &Light, width: u32, height: u32, i: usize) -> bool {
-    let (o, d) = super::pixel_ray(camera, width, height, i as u32 % width, i as u32 / width);
-    // A rectilinear pixel's angular size falls as cos^1.5 of its angle to the view axis (its
-    // solid angle as cos³), as the GPU's clamp does: a 175° view's edge pixels are small.
-    let forward = -camera
-        .view()
-        .as_dmat4()
-        .inverse()
-        .z_axis
-        .truncate()
-        .normalize();
-    let cos_axis = d.normalize().dot(forward).clamp(0.0, 1.0);
-    let pixel_angle = 2.0 * f64::from(camera.pixel_angular_radius(height)) * cos_axis.powf(1.5);
-    // A directional light has no glow to leave out.
-    light
-        .position()
-        .is_some_and(|p| d.angle_between(p.as_dvec3() - o) < 1.5 * pixel_angle)
-}
-
 /// Compares `gpu` with `reference` (same layout), leaving out the light's own pixels
-/// ([`near_light`]), with the crate's metric (`volshadow::reference::ImageError`), as the
+/// (`ImageError::keep_away_from_lights`), with the crate's metric (`volshadow::reference::ImageError`), as the
 /// report does.
 pub fn errors(
     gpu: &[[f32; 4]],
@@ -210,14 +189,12 @@ pub fn errors(
     light: &Light,
     (width, height): (u32, u32),
 ) -> Errors {
-    let keep: Vec<bool> = (0..reference.len())
-        .map(|i| !near_light(camera, light, width, height, i))
-        .collect();
+    let keep = reference::ImageError::keep_away_from_lights(camera, &[*light], width, height);
     let image: Vec<DVec3> = gpu
         .iter()
         .map(|t| DVec3::new(t[0].into(), t[1].into(), t[2].into()))
         .collect();
-    let e = volshadow::reference::ImageError::measure(&image, reference, &keep);
+    let e = reference::ImageError::measure(&image, reference, &keep);
     Errors {
         p95: e.p95,
         max: e.max,

@@ -31,11 +31,8 @@ fn quickstart_matches_the_reference() {
     let open = reference::inscatter_image(&camera, W, H, distance, &medium, &light, &[]);
     // The light's own pixels: there the GPU clamps the singular 1/h by the pixel footprint on
     // purpose (DESIGN §2) while the reference integrates the one ray through the centre.
-    let pixel_angle = 2.0 * f64::from(camera.pixel_angular_radius(H));
-    let near_light = |i: usize| {
-        let (o, d) = common::pixel_ray(&camera, W, H, i as u32 % W, i as u32 / W);
-        d.angle_between(light.position().as_dvec3() - o) < 1.5 * pixel_angle
-    };
+    let keep = reference::ImageError::keep_away_from_lights(&camera, &[light.into()], W, H);
+    let near_light = |i: usize| !keep[i];
     let rmse = |a: &dyn Fn(usize) -> DVec3| {
         let (mut sq, mut sum) = (0.0, 0.0);
         for (i, r) in shadowed.iter().enumerate().filter(|(i, _)| !near_light(*i)) {

@@ -180,11 +180,8 @@ fn frame_error(
         .collect();
     let depth = common::depth_texture(gpu, N, N, &depths);
     let texels = common::march_frame(gpu, cache, size, &camera, &light, medium, &depth);
-    let pixel_angle = 2.0 * f64::from(camera.pixel_angular_radius(N));
-    let near_light = |i: usize| {
-        let (o, d) = common::pixel_ray(&camera, N, N, i as u32 % N, i as u32 / N);
-        d.angle_between(light.position().as_dvec3() - o) < 1.5 * pixel_angle
-    };
+    let keep = reference::ImageError::keep_away_from_lights(&camera, &[light.into()], N, N);
+    let near_light = |i: usize| !keep[i];
     let max_ref = reference_image
         .iter()
         .enumerate()

@@ -66,15 +66,10 @@ fn compare_frame(
     let reference =
         reference::inscatter_image(camera, SIZE, SIZE, ground_distance, medium, light, &[]);
 
-    // The light's own pixels: within one pixel of the light the GPU clamps the singular 1/h by
-    // the pixel footprint on purpose (DESIGN §2), while the reference integrates the one ray
-    // through the pixel centre, so they are not the same quantity there.
-    let pixel_angle = f64::from(camera.pixel_angular_radius(SIZE)) * 2.0;
-    let near_light = |i: usize| {
-        let (eye, dir) = common::pixel_ray(camera, SIZE, SIZE, i as u32 % SIZE, i as u32 / SIZE);
-        let to_light = light.position().as_dvec3() - eye;
-        dir.angle_between(to_light) < 1.5 * pixel_angle
-    };
+    // The light's own pixels, where the GPU clamps the singular 1/h by the pixel footprint on
+    // purpose while the reference integrates the one ray through the pixel centre.
+    let keep = reference::ImageError::keep_away_from_lights(camera, &[light.into()], SIZE, SIZE);
+    let near_light = |i: usize| !keep[i];
     let max_ref = (0..reference.len())
         .filter(|&i| !near_light(i))
         .map(|i| reference[i].max_element())
@@ -349,12 +344,9 @@ fn stiff_optical_depths_random_distances_at(precision: ShaderPrecision) {
                 &light,
                 &[],
             );
-            let pixel_angle = 2.0 * f64::from(camera.pixel_angular_radius(SIZE));
-            let near_light = |i: usize| {
-                let (o, dir) =
-                    common::pixel_ray(&camera, SIZE, SIZE, i as u32 % SIZE, i as u32 / SIZE);
-                dir.angle_between(light.position().as_dvec3() - o) < 1.5 * pixel_angle
-            };
+            let keep =
+                reference::ImageError::keep_away_from_lights(&camera, &[light.into()], SIZE, SIZE);
+            let near_light = |i: usize| !keep[i];
             let max_ref = (0..reference.len())
                 .filter(|&i| !near_light(i))
                 .map(|i| reference[i].x)

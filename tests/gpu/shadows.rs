@@ -180,7 +180,8 @@ fn render_upsampled(
             })
         })
     };
-    let near_light = |i: usize| near_light(camera, light, i);
+    let near = near_light(camera, light);
+    let near_light = |i: usize| near[i];
     let max_ref = (0..reference.len())
         .filter(|&i| !near_light(i))
         .map(|i| reference[i].max_element())
@@ -208,12 +209,14 @@ fn render_upsampled(
     }
 }
 
-/// Whether pixel `i` looks within a pixel of the light: there the GPU clamps the singular 1/h
-/// by the pixel footprint on purpose (DESIGN §2) while the reference integrates one ray.
-fn near_light(camera: &Camera, light: &Light, i: usize) -> bool {
-    let (o, d) = common::pixel_ray(camera, SIZE, SIZE, i as u32 % SIZE, i as u32 / SIZE);
-    let pixel_angle = 2.0 * f64::from(camera.pixel_angular_radius(SIZE));
-    d.angle_between(light.position().unwrap().as_dvec3() - o) < 1.5 * pixel_angle
+/// Per pixel, whether it looks at the light (`ImageError::keep_away_from_lights`): there the
+/// GPU clamps the singular 1/h by the pixel footprint on purpose while the reference
+/// integrates one ray.
+fn near_light(camera: &Camera, light: &Light) -> Vec<bool> {
+    reference::ImageError::keep_away_from_lights(camera, &[*light], SIZE, SIZE)
+        .into_iter()
+        .map(|keep| !keep)
+        .collect()
 }
 
 fn look_at(eye: Vec3, target: Vec3) -> Camera {
@@ -512,12 +515,13 @@ fn check_no_missing_shadow(name: &str, camera: &Camera, light: &Light, scene: &S
         light,
         &[],
     );
+    let near = near_light(camera, light);
     let max_ref = (0..shadowed.len())
-        .filter(|&i| !near_light(camera, light, i))
+        .filter(|&i| !near[i])
         .map(|i| shadowed[i].x)
         .fold(0.0, f64::max);
     let missing = (0..shadowed.len())
-        .filter(|&i| !near_light(camera, light, i) && shadowed[i].x > 0.01 * max_ref)
+        .filter(|&i| !near[i] && shadowed[i].x > 0.01 * max_ref)
         .map(|i| (unshadowed[i].x - shadowed[i].x) / shadowed[i].x)
         .fold(0.0, f64::max);
     println!(
@@ -823,15 +827,16 @@ fn p95_with_shadow_resolution(
         .settings(hybrid(64))
         .shadow_resolution(resolution);
     let frame = common::shadow_frame(gpu, cache, &passes);
+    let near = near_light(camera, light);
     let max = reference_image
         .iter()
         .enumerate()
-        .filter(|(i, _)| !near_light(camera, light, *i))
+        .filter(|(i, _)| !near[*i])
         .map(|(_, r)| r.max_element())
         .fold(0.0, f64::max);
     let mut errors: Vec<f64> = Vec::new();
     for (i, r) in reference_image.iter().enumerate() {
-        if near_light(camera, light, i) {
+        if near[i] {
             continue;
         }
         for c in 0..3 {
