@@ -43,12 +43,15 @@ const VALID: u32 = 64u;        // covers some pixel
 
 // Mirrors `BinUniform` in src/nodes/extents.rs.
 struct Params {
-    view: View,                       // the camera at the pass size
+    view_from_clip: mat4x4<f32>,      // the camera at the pass size (`View`, see `bin_view`)
+    world_from_view: mat4x4<f32>,
     clip_from_world: mat4x4<f32>,     // the extents' reversed-Z infinite projection × view
+    view_size: vec2<f32>,             // the camera's `View::size`
     size: vec2<u32>,                  // the pass size
+    tiles: vec2<u32>,                 // tiles across and down
+    far_depth: f32,                   // the camera's `View::far_depth`
     entries: u32,                     // list entries per pixel (K)
     near: f32,                        // crossings nearer than this view depth are not counted
-    tiles: vec2<u32>,                 // tiles across and down
     bin_capacity: u32,                // entries of `bins`
     face_capacity: u32,               // faces `faces` holds
     affine: u32,                      // 1: a ray's direction is affine in its pixel coordinates
@@ -82,6 +85,11 @@ struct Count {
 @group(0) @binding(7) var<storage, read_write> heads: array<u32>;
 @group(0) @binding(8) var<storage, read_write> crossings: array<f32>;
 
+// The camera at the pass size.
+fn bin_view() -> View {
+    return View(bp.view_from_clip, bp.world_from_view, bp.view_size, bp.far_depth);
+}
+
 fn face_count() -> u32 {
     return min(count_args.vertex_count / 3u, bp.face_capacity);
 }
@@ -91,7 +99,7 @@ fn tile_count() -> u32 {
 }
 
 fn eye() -> vec3<f32> {
-    return bp.view.world_from_view[3].xyz;
+    return bp.world_from_view[3].xyz;
 }
 
 // A homogeneous point relative to the eye: a finite point's offset, or a direction at infinity.
@@ -120,7 +128,7 @@ fn edge_normal(p: vec4<f32>, q: vec4<f32>) -> vec4<f32> {
 
 // The direction (unnormalised, world space) of the ray through pixel coordinates `px`.
 fn ray_dir(px: vec2<f32>) -> vec3<f32> {
-    let v = bp.view;
+    let v = bin_view();
     let ndc = vec2<f32>(px.x / v.size.x * 2.0 - 1.0, 1.0 - px.y / v.size.y * 2.0);
     let near_h = v.view_from_clip * vec4<f32>(ndc, 1.0 - v.far_depth, 1.0);
     let m = mat3x3<f32>(v.world_from_view[0].xyz, v.world_from_view[1].xyz, v.world_from_view[2].xyz);
@@ -168,7 +176,7 @@ fn setup(@builtin(global_invocation_id) gid: vec3<u32>,
     }
 
     // View depths of the vertices (a direction pointing ahead is infinitely far).
-    let fwd = -bp.view.world_from_view[2].xyz;
+    let fwd = -bp.world_from_view[2].xyz;
     var z_lo = 3.0e38;
     var z_hi = 0.0;
     for (var k = 0u; k < 3u; k++) {
@@ -215,8 +223,8 @@ fn setup(@builtin(global_invocation_id) gid: vec3<u32>,
                 everywhere = true; // projects to infinity (or nowhere): no useful box
             } else {
                 let ndc = c.xy / c.w;
-                let px = vec2<f32>((ndc.x * 0.5 + 0.5) * bp.view.size.x,
-                                   (0.5 - ndc.y * 0.5) * bp.view.size.y);
+                let px = vec2<f32>((ndc.x * 0.5 + 0.5) * bp.view_size.x,
+                                   (0.5 - ndc.y * 0.5) * bp.view_size.y);
                 lo = min(lo, px);
                 hi = max(hi, px);
             }
@@ -419,7 +427,7 @@ fn build(@builtin(workgroup_id) wg: vec3<u32>,
     let full = textureDimensions(scene_depth);
     let pc = min(pix, size - 1u);
     let under = min(vec2<u32>((vec2<f32>(pc) + 0.5) * vec2<f32>(full) / vec2<f32>(size)), full - 1u);
-    let ray = pixel_ray(bp.view, vec2<f32>(pc) + 0.5, textureLoad(scene_depth, under, 0));
+    let ray = pixel_ray(bin_view(), vec2<f32>(pc) + 0.5, textureLoad(scene_depth, under, 0));
     let d = ray.dir;
 
     var n_front = 0u;

@@ -15,12 +15,12 @@ struct SoftLight {
 struct LightShadow {
     light: Light,
     faces: array<mat4x4<f32>, 6>,  // each layer's clip_from_world
+    spheres: array<vec4<f32>, 8>,  // occluders' world bounding spheres (centre, radius)
+    planes: array<vec4<f32>, 8>,   // each sphere's occluder in n·x ≤ d, (n, d); zero: none
     depth_bias: f32,               // the shadow map's relative depth bias
     cube_near: f32,                // a point light's cube faces' near plane where they are the
                                    // shadow-map node's own (see `cube_clip`), else 0
     soft: SoftLight,
-    spheres: array<vec4<f32>, 8>,  // occluders' world bounding spheres (centre, radius)
-    planes: array<vec4<f32>, 8>,   // each sphere's occluder in n·x ≤ d, (n, d); zero: none
 }
 
 @group(1) @binding(0) var<storage, read> shadow: LightShadow;

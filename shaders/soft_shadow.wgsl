@@ -12,16 +12,16 @@
 // Mirrors `SoftShadowUniform` in src/nodes/soft_shadow.rs. The light, its shadow map and the
 // occluders' bounds are pcss.wgsl's (group 1, `shadow`).
 struct SoftShadowParams {
-    world_from_clip: array<mat4x4<f32>, 6>,  // the inverses of the shadow map's layers
-    size: u32,                               // cells across a layer
-    slices: u32,                             // cells along the distance from the light
-    layers: u32,                             // 6 (point) or 1 (spot)
     // Per layer, in blocks of 2 × 2 directions (the anchor's index, see `rest_block`),
     // [x0, y0) to [x1, y1): those the build runs over (`built`: the penumbra cones reach
     // their directions or their neighbours'; the grid is lit elsewhere), and those `fill_lit`
     // sets lit first (`lit`: the last build's, which may hold a shadow no longer there).
     built: array<vec4<u32>, 6>,
     lit: array<vec4<u32>, 6>,
+    world_from_clip: array<mat4x4<f32>, 6>,  // the inverses of the shadow map's layers
+    size: u32,                               // cells across a layer
+    slices: u32,                             // cells along the distance from the light
+    layers: u32,                             // 6 (point) or 1 (spot)
 }
 
 @group(0) @binding(0) var<storage, read> mp: SoftShadowParams;

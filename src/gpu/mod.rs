@@ -15,6 +15,19 @@ pub use timer::{GpuTimer, PassTime};
 
 use crate::error::{Error, Result};
 
+/// The bytes a buffer holding a `T` binds: its size rounded up to 16. A WGSL struct's size is
+/// rounded up to its alignment (16 with a vector or matrix member), so the Rust mirrors of the
+/// parameter structs end at their last field and the buffer holds WGSL's trailing padding
+/// (zeroed, never written). `nodes::layout` checks that nothing else differs.
+pub(crate) const fn wgsl_size<T>() -> u64 {
+    wgsl_size_of(std::mem::size_of::<T>())
+}
+
+/// [`wgsl_size`] of a struct of `bytes` bytes.
+pub(crate) const fn wgsl_size_of(bytes: usize) -> u64 {
+    (bytes as u64).next_multiple_of(16)
+}
+
 /// A node's per-frame parameters ("uniforms" in the shaders' sense), in a read-only storage
 /// buffer (see `cache::Binding::Params` for why not a uniform buffer); skips the queue write
 /// when the contents did not change.
@@ -27,7 +40,7 @@ impl<T: bytemuck::Pod + PartialEq> UniformBuffer<T> {
     pub(crate) fn new(device: &wgpu::Device, label: &str) -> Self {
         let buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
-            size: std::mem::size_of::<T>() as u64,
+            size: wgsl_size::<T>(),
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });

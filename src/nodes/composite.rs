@@ -891,7 +891,6 @@ fn params_layouts_match_the_wgsl() {
         count,
         lights,
         lattice,
-        _pad,
     });
     assert_same(surfaces, SOURCE.text, "Surfaces");
 }

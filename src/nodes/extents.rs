@@ -48,7 +48,8 @@ use crate::gpu::pipeline::{bind_group, compute_pipeline, depth_pipeline, layout,
 use crate::gpu::wgsl::wgsl_file;
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{
-    check_depth_texture, check_target_size, depth_view, GpuTimer, Occluder, UniformBuffer,
+    check_depth_texture, check_target_size, depth_view, wgsl_size, GpuTimer, Occluder,
+    UniformBuffer,
 };
 use crate::nodes::light::LightUniform;
 use crate::nodes::uniforms::ViewUniform;
@@ -224,24 +225,25 @@ struct ExtrudeUniform {
     triangles: u32,
     closed: u32,
     capacity: u32,
-    _pad: [u32; 3],
 }
 
 /// WGSL `Params` of `shaders/crossings.wgsl`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 struct BinUniform {
-    view: ViewUniform,
+    view_from_clip: [f32; 16],
+    world_from_view: [f32; 16],
     clip_from_world: [f32; 16],
+    view_size: [f32; 2],
     size: [u32; 2],
+    tiles: [u32; 2],
+    far_depth: f32,
     entries: u32,
     near: f32,
-    tiles: [u32; 2],
     bin_capacity: u32,
     face_capacity: u32,
     /// 1: ray directions are affine in pixel coordinates (see `shaders/crossings.wgsl`).
     affine: u32,
-    _pad: [u32; 3],
 }
 
 #[repr(C)]
@@ -566,7 +568,10 @@ impl ExtentsNode {
                 b.params.write(
                     queue,
                     BinUniform {
-                        view: view_uniform,
+                        view_from_clip: view_uniform.view_from_clip,
+                        world_from_view: view_uniform.world_from_view,
+                        view_size: view_uniform.size,
+                        far_depth: view_uniform.far_depth,
                         clip_from_world: clip_from_world.to_cols_array(),
                         size: [width, height],
                         entries: per_pixel,
@@ -575,7 +580,6 @@ impl ExtentsNode {
                         bin_capacity: (b.bins.size() / 4) as u32,
                         face_capacity: b.face_capacity,
                         affine: u32::from(rays_are_affine(camera)),
-                        _pad: [0; 3],
                     },
                 );
                 let stale = b.bound.as_ref().is_none_or(|(_, v, h, d)| {
@@ -838,7 +842,6 @@ impl ExtentsNode {
                 triangles: o.mesh.triangle_count,
                 closed: u32::from(o.mesh.is_closed()),
                 capacity: capacity as u32,
-                _pad: [0; 3],
             };
             queue.write_buffer(
                 extrude_buffer,
@@ -853,7 +856,7 @@ impl ExtentsNode {
                     wgpu::BindingResource::Buffer(wgpu::BufferBinding {
                         buffer: extrude_buffer,
                         offset: i as u64 * SLOT,
-                        size: wgpu::BufferSize::new(std::mem::size_of::<ExtrudeUniform>() as u64),
+                        size: wgpu::BufferSize::new(wgsl_size::<ExtrudeUniform>()),
                     }),
                     o.mesh.positions.as_entire_binding(),
                     o.mesh.indices.as_entire_binding(),
@@ -1026,7 +1029,6 @@ fn params_layouts_match_the_wgsl() {
         triangles,
         closed,
         capacity,
-        _pad,
     });
     assert_same(extrude, extents, "Extrude");
     assert_same(
@@ -1039,16 +1041,18 @@ fn params_layouts_match_the_wgsl() {
         "CrossingParams",
     );
     let bin = rust_layout!(BinUniform {
-        view,
+        view_from_clip,
+        world_from_view,
         clip_from_world,
+        view_size,
         size,
+        tiles,
+        far_depth,
         entries,
         near,
-        tiles,
         bin_capacity,
         face_capacity,
         affine,
-        _pad,
     });
     assert_same(bin, include_str!("../../shaders/crossings.wgsl"), "Params");
 }

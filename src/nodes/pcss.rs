@@ -36,12 +36,11 @@ pub(crate) fn shadow_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
 pub(crate) struct ShadowUniform {
     pub light: LightUniform,
     pub faces: [[f32; 16]; 6],
+    pub spheres: [[f32; 4]; MAX_SOFT_SPHERES],
+    pub planes: [[f32; 4]; MAX_SOFT_SPHERES],
     pub depth_bias: f32,
     pub cube_near: f32,
     pub soft: SoftLight,
-    pub _pad: [u32; 3],
-    pub spheres: [[f32; 4]; MAX_SOFT_SPHERES],
-    pub planes: [[f32; 4]; MAX_SOFT_SPHERES],
 }
 
 impl ShadowUniform {
@@ -156,12 +155,11 @@ fn the_shadow_parameters_match_the_wgsl() {
     let rust = rust_layout!(ShadowUniform {
         light,
         faces,
+        spheres,
+        planes,
         depth_bias,
         cube_near,
         soft,
-        _pad,
-        spheres,
-        planes,
     });
     assert_same(rust, source, "LightShadow");
     let soft = rust_layout!(SoftLight {

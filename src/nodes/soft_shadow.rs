@@ -495,13 +495,12 @@ pub struct SoftShadow<'a> {
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 /// WGSL `SoftShadowParams` (`shaders/soft_shadow.wgsl`), field by field.
 struct SoftShadowUniform {
+    built: Blocks,
+    lit: Blocks,
     world_from_clip: [[f32; 16]; 6],
     size: u32,
     slices: u32,
     layers: u32,
-    _pad: u32,
-    built: Blocks,
-    lit: Blocks,
 }
 
 /// The grid's WGSL: the shared shadow-map visibility, then the grid's passes.
@@ -972,7 +971,6 @@ impl SoftShadowNode {
             size: n,
             slices: s,
             layers,
-            _pad: 0,
             built,
             lit: self.uniform.last().map_or([[0; 4]; 6], |u| u.lit),
         };
@@ -1284,13 +1282,12 @@ mod tests {
 fn params_layout_matches_the_wgsl() {
     use crate::nodes::layout::{assert_same, rust_layout};
     let rust = rust_layout!(SoftShadowUniform {
+        built,
+        lit,
         world_from_clip,
         size,
         slices,
         layers,
-        _pad,
-        built,
-        lit,
     });
     assert_same(rust, SOURCE.text, "SoftShadowParams");
 }

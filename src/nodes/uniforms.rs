@@ -143,7 +143,6 @@ pub(crate) struct ViewUniform {
     pub world_from_view: [f32; 16],
     pub size: [f32; 2],
     pub far_depth: f32,
-    pub _pad: f32,
 }
 
 impl ViewUniform {
@@ -153,7 +152,6 @@ impl ViewUniform {
             world_from_view: camera.view().inverse().to_cols_array(),
             size: [width as f32, height as f32],
             far_depth: camera.far_depth(),
-            _pad: 0.0,
         }
     }
 }
@@ -175,7 +173,6 @@ pub(crate) struct SurfacesUniform {
     pub lights: [LightUniform; 4],
     /// The spot term's lattice spacing in pixels (0: evaluated at every pixel).
     pub lattice: u32,
-    pub _pad: [u32; 3],
 }
 
 impl SurfacesUniform {
@@ -225,7 +222,6 @@ mod tests {
             world_from_view,
             size,
             far_depth,
-            _pad,
         });
         assert_same(view, "#import prelude.wgsl", "View");
     }
