@@ -1,0 +1,272 @@
+//! From Bevy's main world to volshadow's scene: occluder meshes once per asset, lights,
+//! occluders' transforms and cameras' media every frame.
+
+use std::collections::{HashMap, HashSet};
+use std::sync::Arc;
+
+use bevy::asset::{AssetEvent, AssetId, Assets};
+use bevy::camera::visibility::InheritedVisibility;
+use bevy::camera::{Camera, Exposure};
+use bevy::ecs::message::MessageReader;
+use bevy::ecs::prelude::*;
+use bevy::light::{DirectionalLight, PointLight, SpotLight};
+use bevy::mesh::{Mesh, Mesh3d, PrimitiveTopology};
+use bevy::render::Extract;
+use bevy::transform::components::GlobalTransform;
+use volshadow::glam;
+
+use crate::{exposure_of, VolshadowLight, VolshadowMedium, VolshadowOccluder};
+
+/// A mesh asset as volshadow's mesh, or why it cannot occlude.
+type Converted = Result<Arc<volshadow::scene::Mesh>, String>;
+
+/// The occluder meshes in use, converted once per mesh asset (and again when it changes).
+#[derive(Resource, Clone, Default)]
+pub struct OccluderSources {
+    /// Per mesh asset: its generation (new on every conversion) and the mesh, or why it cannot
+    /// occlude.
+    pub(crate) meshes: HashMap<AssetId<Mesh>, (u64, Converted)>,
+    next_generation: u64,
+}
+
+impl OccluderSources {
+    /// Why the mesh asset `id` cannot be an occluder, if it was converted and failed.
+    pub fn error(&self, id: AssetId<Mesh>) -> Option<&str> {
+        self.meshes.get(&id)?.1.as_ref().err().map(String::as_str)
+    }
+}
+
+/// A Bevy mesh as volshadow's triangle mesh.
+fn convert(mesh: &Mesh) -> Result<volshadow::scene::Mesh, String> {
+    if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
+        return Err(format!(
+            "an occluder must be a triangle list, this mesh is a {:?}",
+            mesh.primitive_topology()
+        ));
+    }
+    let positions = mesh
+        .try_attribute(Mesh::ATTRIBUTE_POSITION)
+        .map_err(|e| format!("its positions cannot be read: {e}"))?
+        .as_float3()
+        .ok_or("its positions are not Float32x3")?;
+    let positions: Vec<glam::Vec3> = positions.iter().map(|p| glam::Vec3::from(*p)).collect();
+    let indices: Vec<u32> = match mesh.try_indices() {
+        Ok(indices) => indices
+            .iter()
+            .map(|i| u32::try_from(i).map_err(|_| format!("index {i} does not fit in u32")))
+            .collect::<Result<_, _>>()?,
+        Err(_) => (0..u32::try_from(positions.len()).map_err(|_| "too many vertices")?).collect(),
+    };
+    volshadow::scene::Mesh::new(&positions, &indices).map_err(|e| e.to_string())
+}
+
+/// Converts the mesh of every occluder not yet converted, again when its asset changed, and
+/// forgets meshes no occluder uses.
+pub(crate) fn track_occluder_meshes(
+    mut events: MessageReader<AssetEvent<Mesh>>,
+    occluders: Query<&Mesh3d, With<VolshadowOccluder>>,
+    assets: Res<Assets<Mesh>>,
+    mut sources: ResMut<OccluderSources>,
+) {
+    for event in events.read() {
+        if let AssetEvent::Modified { id } | AssetEvent::Removed { id } = event {
+            if sources.meshes.contains_key(id) {
+                sources.meshes.remove(id);
+            }
+        }
+    }
+    let used: HashSet<AssetId<Mesh>> = occluders.iter().map(|m| m.id()).collect();
+    if sources.meshes.keys().any(|id| !used.contains(id)) {
+        sources.meshes.retain(|id, _| used.contains(id));
+    }
+    for id in used {
+        if sources.meshes.contains_key(&id) {
+            continue;
+        }
+        let Some(mesh) = assets.get(id) else {
+            continue; // not loaded yet
+        };
+        let converted = convert(mesh).map(Arc::new);
+        if let Err(why) = &converted {
+            bevy::log::error!("volshadow: mesh {id} cannot occlude: {why}");
+        }
+        sources.next_generation += 1;
+        let generation = sources.next_generation;
+        sources.meshes.insert(id, (generation, converted));
+    }
+}
+
+/// A light as Bevy describes it, before the camera's exposure.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum SourceLight {
+    Point {
+        position: glam::Vec3,
+        /// Linear colour times lumens.
+        flux: glam::Vec3,
+        radius: f32,
+    },
+    Spot {
+        position: glam::Vec3,
+        direction: glam::Vec3,
+        outer_angle: f32,
+        flux: glam::Vec3,
+        radius: f32,
+    },
+    Directional {
+        direction: glam::Vec3,
+        /// Linear colour times lux.
+        illuminance: glam::Vec3,
+    },
+}
+
+impl SourceLight {
+    /// Whether the light emits nothing.
+    fn is_dark(&self) -> bool {
+        let emitted = match self {
+            SourceLight::Point { flux, .. } | SourceLight::Spot { flux, .. } => *flux,
+            SourceLight::Directional { illuminance, .. } => *illuminance,
+        };
+        emitted == glam::Vec3::ZERO
+    }
+
+    /// volshadow's light for a camera whose shading multiplies light by `exposure`.
+    pub(crate) fn to_volshadow(self, exposure: f32) -> volshadow::Result<volshadow::Light> {
+        let per_steradian = exposure / (4.0 * std::f32::consts::PI);
+        Ok(match self {
+            SourceLight::Point {
+                position,
+                flux,
+                radius,
+            } => volshadow::PointLight::new(position, flux * per_steradian)?
+                .with_radius(radius)?
+                .into(),
+            SourceLight::Spot {
+                position,
+                direction,
+                outer_angle,
+                flux,
+                radius,
+            } => volshadow::SpotLight::new(
+                position,
+                direction,
+                (2.0 * outer_angle).min(volshadow::SpotLight::MAX_CONE_ANGLE),
+                flux * per_steradian,
+            )?
+            .with_radius(radius)?
+            .into(),
+            SourceLight::Directional {
+                direction,
+                illuminance,
+            } => volshadow::DirectionalLight::new(direction, illuminance * exposure)?.into(),
+        })
+    }
+}
+
+/// One camera's medium and exposure.
+#[derive(Clone, Debug)]
+pub(crate) struct SourceCamera {
+    pub(crate) medium: VolshadowMedium,
+    pub(crate) exposure: f32,
+    /// Whether it renders into part of its target only (not supported).
+    pub(crate) viewport: bool,
+}
+
+/// The frame's scene as the render world sees it.
+#[derive(Resource, Default)]
+pub(crate) struct ExtractedScene {
+    pub(crate) cameras: HashMap<Entity, SourceCamera>,
+    pub(crate) lights: Vec<SourceLight>,
+    pub(crate) occluders: Vec<(AssetId<Mesh>, glam::Mat4)>,
+    pub(crate) sources: OccluderSources,
+}
+
+fn vec3(v: bevy::math::Vec3) -> glam::Vec3 {
+    glam::Vec3::from_array(v.to_array())
+}
+
+fn linear(color: bevy::color::Color) -> glam::Vec3 {
+    let c = color.to_linear();
+    glam::Vec3::new(c.red, c.green, c.blue)
+}
+
+type LightQuery<'w, 's> = Query<
+    'w,
+    's,
+    (
+        &'static VolshadowLight,
+        &'static GlobalTransform,
+        Option<&'static PointLight>,
+        Option<&'static SpotLight>,
+        Option<&'static DirectionalLight>,
+    ),
+>;
+
+/// Copies this frame's cameras, lights, occluders and meshes into the render world.
+#[allow(clippy::type_complexity)]
+pub(crate) fn extract_scene(
+    cameras: Extract<Query<(Entity, &Camera, &VolshadowMedium, Option<&Exposure>)>>,
+    lights: Extract<LightQuery>,
+    occluders: Extract<
+        Query<(&Mesh3d, &GlobalTransform, Option<&InheritedVisibility>), With<VolshadowOccluder>>,
+    >,
+    sources: Extract<Res<OccluderSources>>,
+    mut scene: ResMut<ExtractedScene>,
+) {
+    scene.cameras.clear();
+    for (entity, camera, medium, exposure) in &cameras {
+        if camera.is_active {
+            scene.cameras.insert(
+                entity,
+                SourceCamera {
+                    medium: medium.clone(),
+                    exposure: exposure_of(exposure),
+                    viewport: camera.viewport.is_some(),
+                },
+            );
+        }
+    }
+    scene.lights.clear();
+    for (marker, transform, point, spot, directional) in &lights {
+        let position = vec3(transform.translation());
+        let direction = vec3(transform.forward().into());
+        let light = if let Some(p) = point {
+            SourceLight::Point {
+                position,
+                flux: linear(p.color) * p.intensity,
+                radius: marker.radius.unwrap_or(p.radius),
+            }
+        } else if let Some(s) = spot {
+            SourceLight::Spot {
+                position,
+                direction,
+                outer_angle: s.outer_angle,
+                flux: linear(s.color) * s.intensity,
+                radius: marker.radius.unwrap_or(s.radius),
+            }
+        } else if let Some(d) = directional {
+            SourceLight::Directional {
+                direction,
+                illuminance: linear(d.color) * d.illuminance,
+            }
+        } else {
+            continue;
+        };
+        if light.is_dark() {
+            continue; // a light turned off adds nothing (volshadow refuses a zero intensity)
+        }
+        scene.lights.push(light);
+    }
+    scene.occluders.clear();
+    for (mesh, transform, visibility) in &occluders {
+        if visibility.is_some_and(|v| !v.get()) {
+            continue; // hidden: it neither draws nor occludes
+        }
+        let m = transform.to_matrix().to_cols_array();
+        scene
+            .occluders
+            .push((mesh.id(), glam::Mat4::from_cols_array(&m)));
+    }
+    if sources.is_changed() {
+        scene.sources = sources.clone();
+    }
+}

@@ -1,0 +1,497 @@
+//! The plugin inside a headless Bevy app (lavapipe works): the in-scatter it writes against
+//! volshadow's f64 reference, and cameras, lights, occluders and target sizes changing at run
+//! time without a wgpu error.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use bevy::app::App;
+use bevy::asset::{Assets, Handle, RenderAssetUsages};
+use bevy::camera::{
+    Camera, Camera3d, Exposure, ImageRenderTarget, PerspectiveProjection, Projection, RenderTarget,
+};
+use bevy::ecs::prelude::*;
+use bevy::image::Image;
+use bevy::light::PointLight;
+use bevy::math::{Vec2, Vec3};
+use bevy::mesh::{Mesh, Mesh3d, MeshBuilder, Meshable};
+use bevy::pbr::{MeshMaterial3d, StandardMaterial};
+use bevy::render::error_handler::{RenderErrorHandler, RenderErrorPolicy};
+use bevy::render::render_resource::{PipelineCache, TextureFormat};
+use bevy::render::view::Msaa;
+use bevy::render::RenderApp;
+use bevy::shape::{Plane3d, Sphere};
+use bevy::transform::components::Transform;
+use volshadow::glam::camera::rh;
+use volshadow::glam::{DMat4, DVec3};
+use volshadow::reference::{self, ImageError, TriangleMesh};
+use volshadow_bevy::{
+    ViewReport, VolshadowDiagnostics, VolshadowLight, VolshadowMedium, VolshadowOccluder,
+    VolshadowQuality, VolshadowViews,
+};
+
+const W: u32 = 96;
+const H: u32 = 64;
+const FOV: f32 = std::f32::consts::FRAC_PI_4;
+const NEAR: f32 = 0.1;
+const EYE: Vec3 = Vec3::new(0.0, 1.6, 6.0);
+const TARGET: Vec3 = Vec3::new(0.0, 1.2, 0.0);
+const LIGHT: Vec3 = Vec3::new(0.4, 3.5, -2.5);
+const LUMENS: f32 = 400_000.0;
+const SPHERE_AT: Vec3 = Vec3::new(0.0, 1.7, -0.9);
+const SPHERE_RADIUS: f32 = 0.6;
+const GROUND_HALF: f32 = 20.0;
+
+/// wgpu errors Bevy reported (validation, out of memory): the handler counts them.
+static RENDER_ERRORS: AtomicUsize = AtomicUsize::new(0);
+
+fn count_errors(
+    error: &bevy::render::error_handler::RenderError,
+    _: &mut World,
+    _: &mut World,
+) -> RenderErrorPolicy {
+    eprintln!("render error: {error:?}");
+    RENDER_ERRORS.fetch_add(1, Ordering::SeqCst);
+    RenderErrorPolicy::Ignore
+}
+
+fn medium() -> VolshadowMedium {
+    VolshadowMedium {
+        scattering: volshadow::glam::Vec3::new(0.08, 0.08, 0.09),
+        absorption: volshadow::glam::Vec3::splat(0.01),
+        phase: volshadow::PhaseFunction::HenyeyGreenstein { g: 0.4 },
+        quality: VolshadowQuality::default(),
+    }
+}
+
+fn sphere_mesh() -> Mesh {
+    Sphere::new(SPHERE_RADIUS).mesh().ico(4).unwrap()
+}
+
+/// A headless app with the plugin, its wgpu errors counted.
+fn headless_app() -> App {
+    let mut app = volshadow_bevy::headless::app(true);
+    app.insert_resource(RenderErrorHandler(count_errors));
+    app
+}
+
+fn target_image(app: &mut App, w: u32, h: u32) -> Handle<Image> {
+    let mut image = Image::new_target_texture(w, h, TextureFormat::Rgba8UnormSrgb, None);
+    image.asset_usage = RenderAssetUsages::RENDER_WORLD;
+    app.world_mut().resource_mut::<Assets<Image>>().add(image)
+}
+
+#[allow(dead_code)]
+struct Scene {
+    camera: Entity,
+    light: Entity,
+    occluder: Entity,
+    image: Handle<Image>,
+}
+
+fn spawn_scene(app: &mut App, msaa: Msaa) -> Scene {
+    let image = target_image(app, W, H);
+    let world = app.world_mut();
+    let sphere = world.resource_mut::<Assets<Mesh>>().add(sphere_mesh());
+    let ground = world.resource_mut::<Assets<Mesh>>().add(
+        Plane3d::new(Vec3::Y, Vec2::splat(GROUND_HALF))
+            .mesh()
+            .build(),
+    );
+    let material = world
+        .resource_mut::<Assets<StandardMaterial>>()
+        .add(StandardMaterial::default());
+    let camera = world
+        .spawn((
+            Camera3d::default(),
+            Camera::default(),
+            RenderTarget::Image(ImageRenderTarget::from(image.clone())),
+            Projection::Perspective(PerspectiveProjection {
+                fov: FOV,
+                near: NEAR,
+                ..Default::default()
+            }),
+            Transform::from_translation(EYE).looking_at(TARGET, Vec3::Y),
+            msaa,
+            medium(),
+        ))
+        .id();
+
+    let light = world
+        .spawn((
+            PointLight {
+                intensity: LUMENS,
+                ..Default::default()
+            },
+            Transform::from_translation(LIGHT),
+            VolshadowLight::default(),
+        ))
+        .id();
+    let occluder = world
+        .spawn((
+            Mesh3d(sphere),
+            MeshMaterial3d(material.clone()),
+            Transform::from_translation(SPHERE_AT),
+            VolshadowOccluder,
+        ))
+        .id();
+    world.spawn((Mesh3d(ground), MeshMaterial3d(material)));
+    Scene {
+        camera,
+        light,
+        occluder,
+        image,
+    }
+}
+
+/// Updates until no pipeline is waiting, then `extra` frames more.
+fn settle(app: &mut App, extra: usize) {
+    for _ in 0..50 {
+        app.update();
+        let waiting = app
+            .sub_app(RenderApp)
+            .world()
+            .get_resource::<PipelineCache>()
+            .map_or(0, |c| c.waiting_pipelines().count());
+        if waiting == 0 {
+            break;
+        }
+    }
+    for _ in 0..extra {
+        app.update();
+    }
+}
+
+fn inscatter(app: &App, camera: Entity) -> Vec<[f32; 4]> {
+    let gpu = volshadow_bevy::headless::gpu(app);
+    let views = app.sub_app(RenderApp).world().resource::<VolshadowViews>();
+    let texture = views
+        .inscatter(camera, 0)
+        .expect("the camera's in-scatter after a frame");
+    gpu.read_rgba(texture).unwrap()
+}
+
+fn report(app: &App, camera: Entity) -> Option<ViewReport> {
+    app.world()
+        .resource::<VolshadowDiagnostics>()
+        .report(camera)
+}
+
+/// The same scene in f64: the reference camera from Bevy's projection (infinite, reversed Z),
+/// the ico sphere's own triangles as the occluder, the ground plane and the sphere as the
+/// surfaces a pixel's ray ends on.
+fn reference_image(w: u32, h: u32, shadowed: bool) -> (Vec<DVec3>, Vec<bool>) {
+    // What Bevy's camera builds: a right-handed view, an infinite reversed-Z projection.
+    let v3 = |v: Vec3| volshadow::glam::Vec3::from_array(v.to_array());
+    let view = rh::view::look_at_mat4(v3(EYE), v3(TARGET), volshadow::glam::Vec3::Y);
+    let projection =
+        rh::proj::directx::perspective_infinite_reverse(FOV, w as f32 / h as f32, NEAR);
+    let camera = volshadow::Camera::new(view, projection).unwrap();
+    let mesh = sphere_mesh();
+    let positions: Vec<volshadow::glam::Vec3> = mesh
+        .attribute(Mesh::ATTRIBUTE_POSITION)
+        .unwrap()
+        .as_float3()
+        .unwrap()
+        .iter()
+        .map(|p| volshadow::glam::Vec3::from_array(*p))
+        .collect();
+    let indices: Vec<u32> = mesh.indices().unwrap().iter().map(|i| i as u32).collect();
+    let placed = TriangleMesh::from_indexed(
+        &positions,
+        &indices,
+        DMat4::from_translation(DVec3::from_array(SPHERE_AT.to_array().map(f64::from))),
+    );
+    let exposure = Exposure::default().exposure();
+    let light = volshadow::PointLight::new(
+        volshadow::glam::Vec3::from_array(LIGHT.to_array()),
+        volshadow::glam::Vec3::splat(LUMENS * exposure / (4.0 * std::f32::consts::PI)),
+    )
+    .unwrap();
+    let m = medium();
+    let vs_medium = volshadow::Medium::new(m.scattering, m.absorption, m.phase).unwrap();
+    let ground = |eye: DVec3, dir: DVec3| {
+        if dir.y >= 0.0 {
+            return f64::INFINITY;
+        }
+        let t = -eye.y / dir.y;
+        let p = eye + t * dir;
+        let half = f64::from(GROUND_HALF);
+        if p.x.abs() <= half && p.z.abs() <= half {
+            t
+        } else {
+            f64::INFINITY
+        }
+    };
+    let occluders = [reference::Occluder::Mesh(placed.clone())];
+    let image = reference::inscatter_image(
+        &camera,
+        w,
+        h,
+        |eye, dir| ground(eye, dir).min(placed.ray_distance(eye, dir)),
+        &vs_medium,
+        &light,
+        if shadowed { &occluders } else { &[] },
+    );
+    let keep = ImageError::keep_away_from_lights(&camera, &[light.into()], w, h);
+    (image, keep)
+}
+
+fn as_dvec3(pixels: &[[f32; 4]]) -> Vec<DVec3> {
+    pixels
+        .iter()
+        .map(|p| DVec3::new(p[0].into(), p[1].into(), p[2].into()))
+        .collect()
+}
+
+/// Renders the scene (with `msaa`) and measures the plugin's in-scatter against the
+/// reference; also returns the unshadowed reference's error, which shows what leaving the
+/// occluder out would read.
+fn measure(msaa: Msaa, label: &str) -> (ImageError, ImageError) {
+    let mut app = headless_app();
+    let scene = spawn_scene(&mut app, msaa);
+    settle(&mut app, 2);
+    let plan = report(&app, scene.camera);
+    assert!(
+        matches!(plan, Some(ViewReport::Planned(_))),
+        "the plugin's report: {plan:?}"
+    );
+    let image = as_dvec3(&inscatter(&app, scene.camera));
+    assert_eq!(image.len(), (W * H) as usize);
+    assert!(image.iter().all(|p| p.is_finite()));
+    let (reference_pixels, keep) = reference_image(W, H, true);
+    let error = ImageError::measure(&image, &reference_pixels, &keep);
+    let (unshadowed, _) = reference_image(W, H, false);
+    let without_shadows = ImageError::measure(&unshadowed, &reference_pixels, &keep);
+    println!(
+        "volshadow_bevy headless {W}x{H}, {label}: p95 {:.3}%, RMSE {:.3}%, max {:.2}% over {} \
+         pixels; without the shadows p95 {:.2}%",
+        100.0 * error.p95,
+        100.0 * error.rmse,
+        100.0 * error.max,
+        error.counted,
+        100.0 * without_shadows.p95
+    );
+    assert!(
+        error.counted > (W * H / 2) as usize,
+        "{} counted",
+        error.counted
+    );
+    assert_eq!(RENDER_ERRORS.load(Ordering::SeqCst), 0);
+    (error, without_shadows)
+}
+
+/// The in-scatter the plugin writes inside Bevy at its defaults (Bevy's 4× MSAA, its depth
+/// resolved by the plugin; the plugin's 1% error target; the light converted from lumens)
+/// against the f64 reference of the same scene. Bar: p95 1% (issue 39, the plugin's error
+/// target). Leaving the sphere out of the occluders reads p95 36% (checked: above 5%);
+/// resolving the depth to sample 0 instead of the median read 1.49%, and the plugin's
+/// `Adapter` quality on lavapipe (half resolution) 2.27%.
+#[test]
+fn inscatter_inside_bevy_matches_the_reference() {
+    let (error, without_shadows) = measure(Msaa::Sample4, "4x MSAA");
+    assert!(error.p95 <= 0.01, "p95 {:.4}", error.p95);
+    assert!(
+        without_shadows.p95 > 0.05,
+        "the shadow should matter: {without_shadows:?}"
+    );
+}
+
+/// Without MSAA the depth is Bevy's own and the pixel's ray ends where the reference's does:
+/// the exact method is exact. Bar: p95 0.1% (the exact method at full resolution is within
+/// 0.03% on the crate's standard scenes); measured 0.002%.
+#[test]
+fn without_msaa_the_inscatter_is_exact() {
+    let (error, _) = measure(Msaa::Off, "no MSAA");
+    assert!(error.p95 <= 0.001, "p95 {:.5}", error.p95);
+}
+
+/// One frame, then the camera's report must be a plan and its in-scatter finite, `w × h`, and
+/// Bevy must have seen no wgpu error.
+fn frame_is_valid(app: &mut App, camera: Entity, (w, h): (u32, u32), what: &str) -> String {
+    app.update();
+    let plan = match report(app, camera) {
+        Some(ViewReport::Planned(plan)) => plan,
+        other => panic!("{what}: the plugin's report is {other:?}"),
+    };
+    let pixels = inscatter(app, camera);
+    assert_eq!(pixels.len(), (w * h) as usize, "{what}: in-scatter size");
+    assert!(
+        pixels.iter().all(|p| p.iter().all(|v| v.is_finite())),
+        "{what}: a pixel is not finite"
+    );
+    assert_eq!(
+        RENDER_ERRORS.load(Ordering::SeqCst),
+        0,
+        "{what}: a wgpu error"
+    );
+    plan
+}
+
+/// Occluders, lights and cameras added and removed at run time, a mesh asset changed, a mesh
+/// that cannot occlude, more lights than volshadow takes, and a target resized: every frame
+/// valid (a plan, finite in-scatter of the target's size, no wgpu error). Each step also
+/// checks what it should change: the plan's light count, the occluder's shadow, the error
+/// named for the bad mesh.
+#[test]
+fn cameras_lights_occluders_and_sizes_change_at_run_time() {
+    let mut app = headless_app();
+    let scene = spawn_scene(&mut app, Msaa::Sample4);
+    settle(&mut app, 1);
+    let camera = scene.camera;
+    let shadowed = inscatter(&app, camera);
+    frame_is_valid(&mut app, camera, (W, H), "the scene");
+
+    // The occluder goes: the shadow goes with it.
+    app.world_mut().despawn(scene.occluder);
+    frame_is_valid(&mut app, camera, (W, H), "occluder removed");
+    let open = inscatter(&app, camera);
+    let brighter = shadowed
+        .iter()
+        .zip(&open)
+        .filter(|(s, o)| o[0] > 1.05 * s[0])
+        .count();
+    assert!(
+        brighter > 100,
+        "removing the occluder brightened {brighter} pixels"
+    );
+
+    // A new occluder whose mesh asset then changes (a bigger sphere).
+    let mesh = app
+        .world_mut()
+        .resource_mut::<Assets<Mesh>>()
+        .add(sphere_mesh());
+    let occluder = app
+        .world_mut()
+        .spawn((
+            Mesh3d(mesh.clone()),
+            Transform::from_translation(SPHERE_AT),
+            VolshadowOccluder,
+        ))
+        .id();
+    frame_is_valid(&mut app, camera, (W, H), "occluder added");
+    let small = inscatter(&app, camera);
+    let bigger = Sphere::new(2.0 * SPHERE_RADIUS).mesh().ico(3).unwrap();
+    app.world_mut()
+        .resource_mut::<Assets<Mesh>>()
+        .insert(mesh.id(), bigger)
+        .unwrap();
+    frame_is_valid(&mut app, camera, (W, H), "mesh asset changed");
+    let big = inscatter(&app, camera);
+    let darker = small
+        .iter()
+        .zip(&big)
+        .filter(|(s, b)| b[0] < 0.95 * s[0])
+        .count();
+    assert!(darker > 50, "the bigger sphere darkened {darker} pixels");
+
+    // A mesh that cannot occlude (a line list): named, left out, the frame still drawn.
+    let lines = app.world_mut().resource_mut::<Assets<Mesh>>().add(
+        Mesh::new(
+            bevy::mesh::PrimitiveTopology::LineList,
+            RenderAssetUsages::default(),
+        )
+        .with_inserted_attribute(
+            Mesh::ATTRIBUTE_POSITION,
+            vec![[0.0f32, 0.0, 0.0], [1.0, 1.0, 1.0]],
+        ),
+    );
+    app.world_mut().spawn((
+        Mesh3d(lines.clone()),
+        Transform::default(),
+        VolshadowOccluder,
+    ));
+    frame_is_valid(&mut app, camera, (W, H), "a line mesh as occluder");
+    let why = app
+        .world()
+        .resource::<volshadow_bevy::OccluderSources>()
+        .error(lines.id())
+        .map(str::to_owned);
+    assert!(
+        why.as_deref().is_some_and(|w| w.contains("triangle list")),
+        "the line mesh's error: {why:?}"
+    );
+
+    // Lights: a spot and a sun join, then five more point lights than volshadow takes.
+    app.world_mut().spawn((
+        bevy::light::SpotLight {
+            intensity: LUMENS,
+            outer_angle: 0.5,
+            ..Default::default()
+        },
+        Transform::from_xyz(-1.0, 4.0, -1.0).looking_at(Vec3::ZERO, Vec3::Y),
+        VolshadowLight { radius: Some(0.1) },
+    ));
+    app.world_mut().spawn((
+        bevy::light::DirectionalLight::default(),
+        Transform::default().looking_to(Vec3::new(0.3, -1.0, -0.2), Vec3::Y),
+        VolshadowLight::default(),
+    ));
+    // A light turned off (zero lumens) is skipped, not an error.
+    app.world_mut().spawn((
+        PointLight {
+            intensity: 0.0,
+            ..Default::default()
+        },
+        Transform::from_xyz(2.0, 3.0, 0.0),
+        VolshadowLight::default(),
+    ));
+    let plan = frame_is_valid(&mut app, camera, (W, H), "spot, sun and a dark light added");
+    assert!(!plan.contains("left out)"), "{plan}");
+    let extra: Vec<Entity> = (0..3)
+        .map(|i| {
+            app.world_mut()
+                .spawn((
+                    PointLight::default(),
+                    Transform::from_xyz(i as f32, 5.0, 0.0),
+                    VolshadowLight::default(),
+                ))
+                .id()
+        })
+        .collect();
+    let plan = frame_is_valid(&mut app, camera, (W, H), "six lights");
+    assert!(
+        plan.contains("2 lights beyond the first 4 left out"),
+        "{plan}"
+    );
+    for e in extra {
+        app.world_mut().despawn(e);
+    }
+    app.world_mut().despawn(scene.light);
+    frame_is_valid(&mut app, camera, (W, H), "lights removed");
+
+    // A second camera comes and goes; the first one's target is resized.
+    let second_target = target_image(&mut app, 40, 30);
+    let second = app
+        .world_mut()
+        .spawn((
+            Camera3d::default(),
+            Camera {
+                order: 1,
+                ..Default::default()
+            },
+            RenderTarget::Image(ImageRenderTarget::from(second_target)),
+            Transform::from_xyz(3.0, 2.0, 4.0).looking_at(Vec3::ZERO, Vec3::Y),
+            medium(),
+        ))
+        .id();
+    frame_is_valid(&mut app, second, (40, 30), "second camera");
+    app.world_mut().despawn(second);
+    app.update();
+    assert_eq!(
+        report(&app, second),
+        None,
+        "the removed camera's report is dropped"
+    );
+    let resized = target_image(&mut app, 64, 48);
+    app.world_mut()
+        .entity_mut(camera)
+        .insert(RenderTarget::Image(ImageRenderTarget::from(resized)));
+    // A new image reaches the render world a frame after it is added (Bevy's asset pipeline);
+    // that frame must be valid too, at whichever size it draws.
+    app.update();
+    assert!(matches!(report(&app, camera), Some(ViewReport::Planned(_))));
+    assert_eq!(RENDER_ERRORS.load(Ordering::SeqCst), 0);
+    frame_is_valid(&mut app, camera, (64, 48), "target resized");
+    app.world_mut().despawn(occluder);
+    frame_is_valid(&mut app, camera, (64, 48), "last occluder removed");
+}
