@@ -94,13 +94,48 @@ fn app(mode: Mode) -> App {
     volshadow_bevy::headless::app(mode == Mode::Volshadow)
 }
 
+/// The medium of [`SIGMA_S`], [`SIGMA_A`] and [`G`] for volshadow.
+pub fn medium() -> VolshadowMedium {
+    VolshadowMedium {
+        scattering: volshadow::glam::Vec3::splat(SIGMA_S),
+        absorption: volshadow::glam::Vec3::splat(SIGMA_A),
+        phase: volshadow::PhaseFunction::HenyeyGreenstein { g: G },
+        ..Default::default()
+    }
+}
+
+/// Bevy's fog settings for the camera: no ambient light, no jitter, `steps` steps.
+pub fn bevy_fog(steps: u32) -> VolumetricFog {
+    VolumetricFog {
+        ambient_intensity: 0.0,
+        jitter: 0.0,
+        step_count: steps,
+        ..Default::default()
+    }
+}
+
+/// Bevy's fog volume for the same medium, a box around the scene.
+pub fn fog_volume() -> (FogVolume, Transform) {
+    // σ = density_factor · coefficient: density 1 and the coefficients themselves.
+    (
+        FogVolume {
+            density_factor: 1.0,
+            scattering: SIGMA_S,
+            absorption: SIGMA_A,
+            scattering_asymmetry: G,
+            ..Default::default()
+        },
+        Transform::from_translation(FOG_BOX_CENTRE).with_scale(FOG_BOX_SIZE),
+    )
+}
+
 /// Spawns the scene for `mode` into `world`, rendering into `target`.
 pub fn spawn(
     world: &mut World,
     mode: Mode,
     look: Look,
     msaa: Msaa,
-    target: Handle<Image>,
+    target: RenderTarget,
 ) -> Entity {
     let (sphere, ground) = {
         let mut meshes = world.resource_mut::<Assets<Mesh>>();
@@ -136,7 +171,7 @@ pub fn spawn(
     let mut camera = world.spawn((
         Camera3d::default(),
         Camera::default(),
-        RenderTarget::Image(ImageRenderTarget::from(target)),
+        target,
         Projection::Perspective(PerspectiveProjection {
             fov: FOV,
             near: NEAR,
@@ -153,20 +188,10 @@ pub fn spawn(
     match mode {
         Mode::Plain => {}
         Mode::Volshadow => {
-            camera.insert(VolshadowMedium {
-                scattering: volshadow::glam::Vec3::splat(SIGMA_S),
-                absorption: volshadow::glam::Vec3::splat(SIGMA_A),
-                phase: volshadow::PhaseFunction::HenyeyGreenstein { g: G },
-                ..Default::default()
-            });
+            camera.insert(medium());
         }
         Mode::BevyFog | Mode::BevyFogSteps(_) => {
-            camera.insert(VolumetricFog {
-                ambient_intensity: 0.0,
-                jitter: 0.0,
-                step_count: mode.bevy_steps().unwrap_or(64),
-                ..Default::default()
-            });
+            camera.insert(bevy_fog(mode.bevy_steps().unwrap_or(64)));
         }
     }
     let camera = camera.id();
@@ -201,17 +226,7 @@ pub fn spawn(
     world.spawn((Mesh3d(ground), MeshMaterial3d(grey)));
     if mode.bevy_steps().is_some() {
         // Bevy's fog lives in a box; this one holds the camera, the light and the ground.
-        // σ = density_factor · coefficient: density 1 and the coefficients themselves.
-        world.spawn((
-            FogVolume {
-                density_factor: 1.0,
-                scattering: SIGMA_S,
-                absorption: SIGMA_A,
-                scattering_asymmetry: G,
-                ..Default::default()
-            },
-            Transform::from_translation(FOG_BOX_CENTRE).with_scale(FOG_BOX_SIZE),
-        ));
+        world.spawn(fog_volume());
     }
     camera
 }
@@ -233,7 +248,8 @@ impl Rendered {
         let mut image = Image::new_target_texture(width, height, format, None);
         image.texture_descriptor.usage |= TextureUsages::COPY_SRC;
         let target = app.world_mut().resource_mut::<Assets<Image>>().add(image);
-        spawn(app.world_mut(), mode, look, msaa, target.clone());
+        let image_target = RenderTarget::Image(ImageRenderTarget::from(target.clone()));
+        spawn(app.world_mut(), mode, look, msaa, image_target);
         let mut rendered = Self { app, target };
         for _ in 0..4 {
             rendered.frame();
