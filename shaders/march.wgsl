@@ -30,6 +30,7 @@ override TEXTURED: bool = false;   // textured spot
 override BISECTIONS: u32 = 0u;     // bisection steps per lit/shadow transition
 override SOFT: bool = false;       // the light has a radius: fractional visibility (soft shadows)
 override SOFT_GRID: bool = false;  // SOFT: visibility read from the soft-shadow grid (`soft_volume`)
+override SOFT_SHAFTS: bool = false; // SOFT_GRID: the grid's cells are marked near narrow shafts (w)
 
 // Most transitions a marched interval records before it evaluates T at them (more just take
 // another round of the step loop).
@@ -113,30 +114,31 @@ fn vis_at(ray: PixelRay, r: AirRay, s: f32) -> f32 {
 
 // The soft-shadow grid at `p` (see shaders/soft_shadow.wgsl): x the visible fraction of the
 // light's disc, y > 0 where a cell around p is marked for a narrow penumbra, z > 0 for an
-// occluder's surface between two slices. One trilinear lookup between the cells around p (its
-// layer's directions, and the slices in q = nearest / distance), in place of
-// `visibility_soft`'s 49 shadow-map taps (145 in the deep penumbra).
-fn soft_grid(p: vec3<f32>) -> vec3<f32> {
+// occluder's surface between two slices, w > 0 near a shaft narrower than a few cells. One
+// trilinear lookup between the cells around p (its layer's directions, and the slices in q =
+// nearest / distance), in place of `visibility_soft`'s 49 shadow-map taps (145 in the deep
+// penumbra).
+fn soft_grid(p: vec3<f32>) -> vec4<f32> {
     return soft_grid_at(p, false);
 }
 
 // `soft_grid`; with `near_side` the slice at or before p (nearer the light) instead of an
 // interpolation between slices: in front of a surface, the value on p's side of it.
-fn soft_grid_at(p: vec3<f32>, near_side: bool) -> vec3<f32> {
+fn soft_grid_at(p: vec3<f32>, near_side: bool) -> vec4<f32> {
     let dist = length(p - air.light_pos);
     let nearest = max(shadow.soft.nearest, 1.0e-3 * shadow.light.radius);
     if (dist <= max(nearest, shadow.light.radius)) {
         // As visibility_soft: nearer than every occluder (the grid holds 1 outside the cones).
-        return vec3<f32>(1.0, 0.0, 0.0);
+        return vec4<f32>(1.0, 0.0, 0.0, 0.0);
     }
     return soft_grid_of(map_point(p), dist, near_side);
 }
 
 // `soft_grid_at` of a point at `dist` from the light beyond the nearest occluder, where it
 // falls in the shadow map (the grid's layers and directions are the map's).
-fn soft_grid_of(m: MapPoint, dist: f32, near_side: bool) -> vec3<f32> {
+fn soft_grid_of(m: MapPoint, dist: f32, near_side: bool) -> vec4<f32> {
     if (!m.inside) {
-        return vec3<f32>(1.0, 0.0, 0.0);
+        return vec4<f32>(1.0, 0.0, 0.0, 0.0);
     }
     let nearest = max(shadow.soft.nearest, 1.0e-3 * shadow.light.radius);
     let slices = f32(mp.soft_grid.slices);
@@ -147,7 +149,7 @@ fn soft_grid_of(m: MapPoint, dist: f32, near_side: bool) -> vec3<f32> {
         k = floor(k - 0.5) + 0.5;
     }
     let z = (f32(m.face) * slices + k) / (f32(mp.soft_grid.layers) * slices);
-    return textureSampleLevel(soft_volume, light_sampler, vec3<f32>(m.uv, z), 0.0).xyz;
+    return textureSampleLevel(soft_volume, light_sampler, vec3<f32>(m.uv, z), 0.0);
 }
 
 // Whether a point, where it falls in the map, lies in front of the occluder surface the map
@@ -189,9 +191,11 @@ fn soft_grid_visibility(p: vec3<f32>, sharp: bool) -> f32 {
     return mix(base, hard, blend);
 }
 
-// Most steps of a ray `march_soft_grid` refines (more keep their one sample), and the steps
-// among which it finds them: the first 64, one bit each.
-const MAX_SHARP_STEPS: u32 = 16u;
+// The steps of an interval among which `march_soft_grid` finds those to refine: the first
+// 64, one bit each (later ones keep their one sample). Every marked step among them is
+// refined: a step in `pieces` pieces, so at most `steps` + n pieces in all. With at most 16
+// refined, a thin plate's marked steps beyond the 16th kept the grid's value (the gap scenes
+// of tests/gpu/soft_grid.rs, seed 400: RMSE 6.5% with 16, 0.6% with all).
 const SHARP_STEP_BITS: u32 = 64u;
 
 // ∫ V dT over [s0, s1] (T known at both ends) in n uniform steps through the soft-shadow grid,
@@ -211,11 +215,14 @@ const SHARP_STEP_BITS: u32 = 64u;
 // edge is as sharp as a hard shadow's, so it is marched again at the resolution of `steps`
 // (a small light's penumbrae are sharp
 // almost everywhere: seed 2 of tests/gpu/soft_grid.rs, p95 3.9% at the grid's half step a cell,
-// 1.8% refined). The refinement runs after the step loop (no shadow-map lookup in the main
-// loop, which every step would pay for on a SIMD device); marked steps beyond
-// MAX_SHARP_STEPS or SHARP_STEP_BITS keep the grid's value. The step loop keeps the marked
-// steps as bits, not in an array indexed by a variable, which some compilers (llvmpipe's)
-// spill to memory for every lane.
+// 1.8% refined). Near a narrow shaft (the grid's w, see `mark_shafts` in
+// shaders/soft_shadow.wgsl) neither the grid nor the hard visibility holds: a step there is
+// refined with the per-point estimate, `visibility_soft` (the gap scenes of
+// tests/gpu/soft_grid.rs, seed 400, a slit 0.66 of the light's diameter: p95 10.2% → 1.8%). The
+// refinement runs after the step loop (no shadow-map lookup in the main loop, which every
+// step would pay for on a SIMD device); marked steps beyond SHARP_STEP_BITS keep the grid's
+// value. The step loop keeps the marked steps as bits, not in an array indexed by a
+// variable, which some compilers (llvmpipe's) spill to memory for every lane.
 fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: TT, t1: TT, n: u32) -> Marched {
     var out: Marched;
     out.t = vec3<f32>(0.0);
@@ -227,6 +234,8 @@ fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: TT, t1: TT, n
     // Bit i of (x, y): step i (x: below 32) is marked; `count` of them.
     var mask = vec2<u32>(0u);
     var count = 0u;
+    // The same bits for the marked steps near a narrow shaft (the grid's w).
+    var shafts = vec2<u32>(0u);
     // Σ w_i and Σ V_i w_i over the steps, w_i = dT/ds at step i's midpoint; Σ V_i (for an
     // interval whose weights underflow).
     var weights = vec3<f32>(0.0);
@@ -254,11 +263,12 @@ fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: TT, t1: TT, n
         weights += w;
         let p = air.eye + x * ray.dir;
         let g = soft_grid(p);
-        if ((g.y > 0.0 || g.z > 0.0) && count < MAX_SHARP_STEPS && i < SHARP_STEP_BITS) {
-            if (i < 32u) {
-                mask.x |= 1u << i;
-            } else {
-                mask.y |= 1u << (i - 32u);
+        let shaft = SOFT_SHAFTS && g.w > 0.0;
+        if ((g.y > 0.0 || g.z > 0.0 || shaft) && i < SHARP_STEP_BITS) {
+            let bit = select(vec2<u32>(0u, 1u << (i & 31u)), vec2<u32>(1u << (i & 31u), 0u), i < 32u);
+            mask |= bit;
+            if (shaft) {
+                shafts |= bit;
             }
             count++;
         } else {
@@ -266,37 +276,23 @@ fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: TT, t1: TT, n
             plain += g.x;
         }
     }
-    // The marked steps again, each in as many pieces as make them `steps` to the interval: V
-    // averaged over a step's pieces (weighted by dT/ds at theirs) stands for the step's V.
+    // The marked steps again, each in as many pieces as make them `steps` to the interval:
+    // first those refined through the grid, then those near a narrow shaft with the
+    // per-point estimate (a loop of its own, which a ray without such steps skips whole).
     let pieces = max(1u, (mp.steps + n - 1u) / n);
-    let dp = ds / f32(pieces);
-    for (var m = 0u; m < count; m++) {
-        // The lowest marked step left.
-        var step = 0u;
-        if (mask.x != 0u) {
-            step = firstTrailingBit(mask.x);
-            mask.x &= mask.x - 1u;
-        } else {
-            step = 32u + firstTrailingBit(mask.y);
-            mask.y &= mask.y - 1u;
+    mask &= ~shafts;
+    let near_shafts = countOneBits(shafts.x) + countOneBits(shafts.y);
+    for (var m = 0u; m < count - near_shafts; m++) {
+        let o = refined_step(ray, r, s0, ds, lowest_step(&mask), pieces, false);
+        lit += o.xyz;
+        plain += o.w;
+    }
+    if (SOFT_SHAFTS) {
+        for (var m = 0u; m < near_shafts; m++) {
+            let o = refined_step(ray, r, s0, ds, lowest_step(&shafts), pieces, true);
+            lit += o.xyz;
+            plain += o.w;
         }
-        var piece_lit = vec3<f32>(0.0);
-        var piece_weights = vec3<f32>(0.0);
-        var piece_plain = 0.0;
-        for (var j = 0u; j < pieces; j++) {
-            let mid = s0 + ds * f32(step) + dp * (f32(j) + 0.5);
-            let w = table_integrand(air, mid, r.w, r.gamma, r.sin_half_gamma);
-            let v = soft_grid_visibility(air.eye + x_of_s(r, mid) * ray.dir, true);
-            piece_lit += v * w;
-            piece_weights += w;
-            piece_plain += v;
-        }
-        let v_step = piece_plain / f32(pieces);
-        // dT/ds at the step's midpoint, as the step loop took it (to rounding).
-        let w_step = table_integrand(air, s0 + ds * (f32(step) + 0.5), r.w, r.gamma, r.sin_half_gamma);
-        let v_mean = select(vec3<f32>(v_step), piece_lit / piece_weights, piece_weights > vec3<f32>(0.0));
-        lit += v_mean * w_step;
-        plain += v_step;
     }
     // The midpoint weights normalised to the exact T over the interval: exact where V is
     // constant, and for uniform steps exact too where dT/ds is exponential in s (an optically
@@ -305,6 +301,53 @@ fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: TT, t1: TT, n
     out.t = select(vec3<f32>(plain / f32(n)) * total, total * lit / weights, weights > vec3<f32>(0.0));
     out.steps += count * pieces;
     return out;
+}
+
+// The lowest step of `bits` (see `march_soft_grid`), which it clears.
+fn lowest_step(bits: ptr<function, vec2<u32>>) -> u32 {
+    if ((*bits).x != 0u) {
+        let step = firstTrailingBit((*bits).x);
+        (*bits).x &= (*bits).x - 1u;
+        return step;
+    }
+    let step = 32u + firstTrailingBit((*bits).y);
+    (*bits).y &= (*bits).y - 1u;
+    return step;
+}
+
+// Step `step` (of width ds from s0) of `march_soft_grid` in `pieces` pieces: V averaged over
+// them (weighted by dT/ds at theirs) stands for the step's V. Returns that V times dT/ds at
+// the step's midpoint, as the step loop took it (to rounding), and V's plain mean. V: near a
+// narrow shaft (`shaft`) the per-point estimate, else (and where that estimate takes two
+// layers of blockers) the grid with the hard visibility blended in (`soft_grid_visibility`).
+// Two layers: a lit gap between two occluders' shadows at clearly different distances, where
+// the shadow map hides part of the far occluder behind the near one and the grid's mean of
+// neighbouring estimates is closer (tests/gpu/soft_grid.rs, overlapping penumbrae: p95 4.64%
+// with the per-point estimate there, 2.65% with the grid).
+fn refined_step(ray: PixelRay, r: AirRay, s0: f32, ds: f32, step: u32, pieces: u32, shaft: bool) -> vec4<f32> {
+    let dp = ds / f32(pieces);
+    var piece_lit = vec3<f32>(0.0);
+    var piece_weights = vec3<f32>(0.0);
+    var piece_plain = 0.0;
+    for (var j = 0u; j < pieces; j++) {
+        let mid = s0 + ds * f32(step) + dp * (f32(j) + 0.5);
+        let w = table_integrand(air, mid, r.w, r.gamma, r.sin_half_gamma);
+        let q = air.eye + x_of_s(r, mid) * ray.dir;
+        var v = 0.0;
+        if (shaft) {
+            v = visibility_soft(q);
+        }
+        if (!shaft || soft_two_layers) {
+            v = soft_grid_visibility(q, true);
+        }
+        piece_lit += v * w;
+        piece_weights += w;
+        piece_plain += v;
+    }
+    let v_step = piece_plain / f32(pieces);
+    let w_step = table_integrand(air, s0 + ds * (f32(step) + 0.5), r.w, r.gamma, r.sin_half_gamma);
+    let v_mean = select(vec3<f32>(v_step), piece_lit / piece_weights, piece_weights > vec3<f32>(0.0));
+    return vec4<f32>(v_mean * w_step, v_step);
 }
 
 // Steps per grid cell a marched interval crosses: the grid's trilinear interpolation is smooth

@@ -308,10 +308,16 @@ fn soft_basis(p: vec3<f32>) -> SoftBasis {
     return SoftBasis(dist, u, frame[0], frame[1], vec2<f32>(vs_cos(turn), vs_sin(turn)));
 }
 
+// Whether the last `soft_search` (and so `soft_estimate`, `visibility_soft`) took two layers
+// of blockers: occluders at clearly different distances, one's penumbra over the other's,
+// where the shadow map may hide part of the far one behind the near one.
+var<private> soft_two_layers: bool;
+
 // The first stage of `soft_estimate`, the blocker search: (visibility, region, −1) where it
 // decides alone (no tap needed, lit, umbra, or two layers, whose filter it takes), else
 // (·, ·, width): the filter's width for `soft_filter_at`, the next stage.
 fn soft_search(p: vec3<f32>) -> vec3<f32> {
+    soft_two_layers = false;
     let radius = shadow.light.radius;
     let dist0 = length(p - shadow.light.position);
     if (dist0 <= radius) {
@@ -377,6 +383,7 @@ fn soft_search(p: vec3<f32>) -> vec3<f32> {
     }
     width = min(radius * (1.0 / max(dist * sum, nearest) - 1.0 / dist), search);
     if (sum > LAYER_SPLIT * least) {
+        soft_two_layers = true;
         // Two layers: occluders at clearly different distances (one's penumbra over the
         // other's), each with its own filter width, the farthest blocker of its own layer. A
         // line from p to the disc's point at the spiral's tap k is blocked if either layer

@@ -265,7 +265,7 @@ fn store_column(x: u32, y: u32, layer: u32, j: u32, s: u32) {
         }
         let sharp = select(0.0, 1.0, is_sharp(e));
         let surface = select(0.0, 1.0, jump);
-        textureStore(volume, vec3<u32>(x, y, layer * mp.slices + k), vec4<f32>(e.x, sharp, surface, 1.0));
+        textureStore(volume, vec3<u32>(x, y, layer * mp.slices + k), vec4<f32>(e.x, sharp, surface, 0.0));
     }
 }
 
@@ -313,7 +313,7 @@ fn fill_lit(@builtin(global_invocation_id) thread: vec3<u32>) {
         let xy = 2u * b + vec2<u32>(j & 1u, j >> 1u);
         if (xy.x < mp.size && xy.y < mp.size) {
             for (var k = 0u; k < mp.slices; k++) {
-                textureStore(volume, vec3<u32>(xy, thread.z * mp.slices + k), vec4<f32>(1.0, 0.0, 0.0, 1.0));
+                textureStore(volume, vec3<u32>(xy, thread.z * mp.slices + k), vec4<f32>(1.0, 0.0, 0.0, 0.0));
             }
         }
     }
@@ -472,7 +472,7 @@ fn build_rest(@builtin(global_invocation_id) thread: vec3<u32>) {
         for (var j = 0u; j < 3u; j++) {
             if (xy[j].x < n && xy[j].y < n) {
                 for (var k = 0u; k < s; k++) {
-                    textureStore(volume, vec3<u32>(xy[j], layer * mp.slices + k), vec4<f32>(1.0, 0.0, 0.0, 1.0));
+                    textureStore(volume, vec3<u32>(xy[j], layer * mp.slices + k), vec4<f32>(1.0, 0.0, 0.0, 0.0));
                 }
             }
         }
@@ -564,4 +564,137 @@ fn store_rest(@builtin(global_invocation_id) thread: vec3<u32>) {
             store_column(xy[j].x, xy[j].y, layer, j, s);
         }
     }
+}
+
+// The grid as the build left it (binding 3 of the other entry points, written there), and its
+// copy with the shaft mark (a = 1 near a narrow shaft), which the march reads: the entry
+// point `mark_shafts` reads the one and writes the other.
+@group(0) @binding(1) var grid_in: texture_3d<f32>;
+@group(0) @binding(2) var marked: texture_storage_3d<rgba16float, write>;
+
+// Cells on either side of a cell that `mark_shafts` looks at, along each axis of a layer.
+// Measured on the gap scenes of tests/gpu/soft_grid.rs (12²), on slits 1.30 and 1.34 of the
+// light's diameter (seeds 404, 408), whose plateaus are wide: with 8, seed 404 at p95 3.19%;
+// with 12, 2.41% and 4.00%; with 20, 0.58% and 0.51%.
+const SHAFT_REACH: i32 = 20;
+// How far a peak's visible fraction must rise above the lowest cell on each side of it.
+const SHAFT_RISE: f32 = 0.2;
+// The highest visible fraction a shaft's peak may have: through a gap narrower than the light
+// no point sees all of it, where a lit gap between two occluders' shadows reaches 1 and keeps
+// the grid.
+const SHAFT_PEAK: f32 = 0.95;
+// A workgroup's cells across (one slice of one layer), and the tile of the grid it reads:
+// its cells and SHAFT_REACH more on every side.
+const SHAFT_GROUP: u32 = 8u;
+const SHAFT_SPAN: u32 = 48u; // SHAFT_GROUP + 2 · SHAFT_REACH
+var<workgroup> shaft_tile: array<f32, 2304>; // SHAFT_SPAN²
+// The tile's least and greatest visible fraction (the bits of non-negative floats order as
+// the floats do).
+var<workgroup> shaft_low: atomic<u32>;
+var<workgroup> shaft_high: atomic<u32>;
+
+// Whether, within SHAFT_REACH cells of the tile's cell `t` along `axis`, a cell's visible
+// fraction rises above the lowest on both of its sides by SHAFT_RISE. A cell just behind a
+// surface (stored as -1 in the tile) is neither a peak nor a side: the lowest on a side is
+// taken from beyond the nearest such cell only. A receiver that a penumbra falls on darkens
+// the slices behind it, and those are not the side of a gap.
+fn shaft_along(t: vec2<u32>, axis: vec2<u32>) -> bool {
+    var v: array<f32, 41>; // 2 · SHAFT_REACH + 1
+    // The lowest fraction from the cell back to the nearest cell just behind a surface.
+    var lowest_before: array<f32, 41>;
+    var low = 2.0;
+    let first = t - u32(SHAFT_REACH) * axis;
+    for (var i = 0u; i < 41u; i++) {
+        let q = first + i * axis;
+        v[i] = shaft_tile[q.y * SHAFT_SPAN + q.x];
+        low = select(min(low, v[i]), 2.0, v[i] < 0.0);
+        lowest_before[i] = low;
+    }
+    low = 2.0;
+    for (var i = 40; i >= 0; i--) {
+        low = select(min(low, v[i]), 2.0, v[i] < 0.0);
+        let peak = v[i] >= 0.0 && v[i] < SHAFT_PEAK;
+        if (peak && v[i] - lowest_before[i] > SHAFT_RISE && v[i] - low > SHAFT_RISE) {
+            return true;
+        }
+    }
+    return false;
+}
+
+// The cells of `layer` whose marks this build may change, [x0, y0) to [x1, y1): the blocks
+// it writes (`built`) or sets lit (`lit`), and SHAFT_REACH cells around them. Elsewhere the
+// grid, and so its copy, is as the last build left it.
+fn mark_region(layer: u32) -> vec4<u32> {
+    var r = vec4<u32>(mp.size, mp.size, 0u, 0u);
+    for (var i = 0u; i < 2u; i++) {
+        let b = select(mp.lit[layer], mp.built[layer], i == 0u);
+        if (b.z > b.x && b.w > b.y) {
+            r = vec4<u32>(min(r.xy, 2u * b.xy), max(r.zw, 2u * b.zw));
+        }
+    }
+    let reach = u32(SHAFT_REACH);
+    return vec4<u32>(max(r.xy, vec2<u32>(reach)) - reach, min(r.zw + reach, vec2<u32>(mp.size)));
+}
+
+// The grid's copy for the march, with a = 1 where a cell lies within SHAFT_REACH cells of a
+// narrow shaft: a visible fraction that falls on both sides across the layer, as through a
+// gap narrower than the light. The march's trilinear lookup cuts the corners of such a
+// profile where it meets the umbra (too bright at the shaft's foot) and the shadow map's own
+// visibility, which it blends in at marked cells, is the light's centre alone (0 or 1); the
+// march takes the per-point estimate at its steps there instead (where it takes one layer of
+// blockers: see `refined_step` in march.wgsl). An occluder's own penumbra falls one way only
+// (lit to umbra), so a scene without gaps has no mark and costs no estimate; nor does the
+// shadow that a surface under a penumbra casts on the slices behind it (see `shaft_along`).
+@compute @workgroup_size(8, 8, 1)
+fn mark_shafts(
+    @builtin(workgroup_id) group: vec3<u32>,
+    @builtin(local_invocation_id) local: vec3<u32>,
+    @builtin(local_invocation_index) index: u32,
+) {
+    let n = i32(mp.size);
+    let z = i32(group.z);
+    // A tile outside the region: nothing to change (the same for the whole workgroup).
+    let region = mark_region(group.z / mp.slices);
+    let corner = group.xy * SHAFT_GROUP;
+    if (any(corner >= region.zw) || any(corner + SHAFT_GROUP <= region.xy)) {
+        return;
+    }
+    if (index == 0u) {
+        atomicStore(&shaft_low, bitcast<u32>(2.0));
+        atomicStore(&shaft_high, 0u);
+    }
+    workgroupBarrier();
+    // The tile, clamped to the layer's edges.
+    let origin = vec2<i32>(group.xy * SHAFT_GROUP) - SHAFT_REACH;
+    var low = 2.0;
+    var high = 0.0;
+    for (var i = index; i < SHAFT_SPAN * SHAFT_SPAN; i += SHAFT_GROUP * SHAFT_GROUP) {
+        let q = clamp(origin + vec2<i32>(vec2<u32>(i % SHAFT_SPAN, i / SHAFT_SPAN)), vec2<i32>(0), vec2<i32>(n - 1));
+        let v = clamp(textureLoad(grid_in, vec3<i32>(q, z), 0).x, 0.0, 1.0);
+        // Just behind a surface: the slice before (nearer the light) saw more than SHAFT_RISE
+        // more of the light.
+        var behind = false;
+        if (u32(z) % mp.slices > 0u) {
+            let before = clamp(textureLoad(grid_in, vec3<i32>(q, z - 1), 0).x, 0.0, 1.0);
+            behind = before - v > SHAFT_RISE;
+        }
+        shaft_tile[i] = select(v, -1.0, behind);
+        low = min(low, v);
+        high = max(high, v);
+    }
+    atomicMin(&shaft_low, bitcast<u32>(low));
+    atomicMax(&shaft_high, bitcast<u32>(high));
+    workgroupBarrier();
+    let cell = group.xy * SHAFT_GROUP + local.xy;
+    if (any(cell >= vec2<u32>(mp.size))) {
+        return;
+    }
+    let g = textureLoad(grid_in, vec3<i32>(vec2<i32>(cell), z), 0);
+    // A tile whose fractions all lie within SHAFT_RISE of each other holds no peak.
+    var shaft = false;
+    if (bitcast<f32>(atomicLoad(&shaft_high)) - bitcast<f32>(atomicLoad(&shaft_low)) > SHAFT_RISE) {
+        let t = local.xy + u32(SHAFT_REACH);
+        shaft = shaft_along(t, vec2<u32>(1u, 0u)) || shaft_along(t, vec2<u32>(0u, 1u));
+    }
+    textureStore(marked, vec3<i32>(vec2<i32>(cell), z), vec4<f32>(g.xyz, select(0.0, 1.0, shaft)));
 }

@@ -184,16 +184,19 @@ struct Variant {
     soft: bool,
     /// `soft` with the soft-shadow grid bound.
     soft_grid: bool,
+    /// `soft_grid` with its cells marked near narrow shafts ([`SoftShadow::shafts`]).
+    shafts: bool,
 }
 
 impl Variant {
-    /// The variant of `mode` for a light of this kind (`grid`: a soft-shadow grid is bound).
+    /// The variant of `mode` for a light of this kind (`grid`: a soft-shadow grid is bound,
+    /// and whether its cells are marked near narrow shafts).
     fn new(
         mode: MarchMode,
         light: u32,
         textured: bool,
         soft: bool,
-        grid: bool,
+        (grid, shafts): (bool, bool),
         bisections: u32,
     ) -> Self {
         Variant {
@@ -207,6 +210,7 @@ impl Variant {
             },
             soft: soft && !matches!(mode, MarchMode::Analytic | MarchMode::Textbook),
             soft_grid: soft && grid && mode == MarchMode::Hybrid,
+            shafts: soft && grid && shafts && mode == MarchMode::Hybrid,
         }
     }
 }
@@ -273,10 +277,21 @@ impl Pipelines {
             for shadows in std::iter::once(None).chain(forms) {
                 let mode = MarchMode::choose(settings.method, soft, shadows);
                 let grid = shadows.is_some_and(|s| s.soft_grid);
-                self.variant(
-                    device,
-                    Variant::new(mode, kind.gpu(), textured, soft, grid, settings.bisections),
-                );
+                // A grid with shaft marks or without (its shadow map's occluders may leave
+                // gaps or not).
+                for shafts in [false, grid] {
+                    self.variant(
+                        device,
+                        Variant::new(
+                            mode,
+                            kind.gpu(),
+                            textured,
+                            soft,
+                            (grid, shafts),
+                            settings.bisections,
+                        ),
+                    );
+                }
             }
         }
     }
@@ -291,6 +306,7 @@ impl Pipelines {
                 ("BISECTIONS", f64::from(v.bisections)),
                 ("SOFT", flag(v.soft)),
                 ("SOFT_GRID", flag(v.soft_grid)),
+                ("SOFT_SHAFTS", flag(v.shafts)),
             ];
             let label = "volshadow march";
             compute_pipeline(
@@ -741,7 +757,7 @@ impl Node for MarchNode {
                 LightUniform::kind_of(inputs.light),
                 inputs.light_texture.is_some(),
                 soft,
-                grid.is_some(),
+                (grid.is_some(), grid.is_some_and(|g| g.shafts)),
                 self.settings.bisections,
             ),
         ));

@@ -190,6 +190,12 @@ pub struct ShadowMap<'a> {
     /// holds a blocker (the node leaves a cube face no occluder reaches undrawn). `None`: the
     /// front surface is taken.
     pub back: Option<&'a wgpu::Texture>,
+    /// Whether its occluders may leave gaps narrower than a light with a radius, through which
+    /// it shines as a narrow shaft: more than one occluder, or one that is not convex
+    /// ([`OccluderMesh::is_convex`](crate::gpu::OccluderMesh::is_convex)). Without, the
+    /// [`SoftShadowNode`](crate::nodes::SoftShadowNode) skips its search for shafts. `true`
+    /// where not known (a map the caller renders).
+    pub gaps: bool,
     /// Changes whenever the map's contents do, so that what is derived from it (the
     /// [`SoftShadowNode`](crate::nodes::SoftShadowNode)'s grid) is rebuilt only then:
     /// [`ShadowMapNode`] counts its renders. A map the caller renders must change it at
@@ -319,6 +325,8 @@ pub struct ShadowMapNode {
     layer_draws: Option<Vec<Vec<u32>>>,
     /// See [`ShadowMap::occluder_distance`].
     occluder_distance: f32,
+    /// Whether the occluders may leave gaps (see [`ShadowMap::gaps`]).
+    gaps: bool,
 }
 
 struct Draw {
@@ -573,6 +581,7 @@ impl ShadowMapNode {
             generation: 0,
             layer_draws: None,
             occluder_distance: 0.0,
+            gaps: true,
         })
     }
 
@@ -897,6 +906,7 @@ impl ShadowMapNode {
             self.faces = Self::face_matrices(light, near, self.occluder_distance);
         }
         self.bounds = occluders.iter().map(|o| o.world_sphere()).collect();
+        self.gaps = occluders.len() > 1 || occluders.iter().any(|o| !o.mesh.is_convex());
         self.back_layers = match light {
             Light::Point(point) => cube_faces_touched(point.position(), &self.bounds).to_vec(),
             _ => vec![true; self.faces.len()],
@@ -988,6 +998,7 @@ impl ShadowMapNode {
             bounds: &self.bounds,
             planes: &self.planes,
             occluder_distance: self.occluder_distance,
+            gaps: self.gaps,
             generation: self.generation,
         })
     }

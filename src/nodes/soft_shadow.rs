@@ -43,6 +43,19 @@
 //! a point's filter taps and lies within 0.9 of its distance is a receiver the point lies above
 //! (a ground), not a reason to mark the cell.
 //!
+//! Where the shadow map's occluders may leave gaps ([`ShadowMap::gaps`]: more than one
+//! occluder, or one that is not convex), a last pass copies the grid to the output and marks
+//! the cells within 20 of a narrow shaft: a peak of visible fraction below 0.95 that rises by
+//! more than 0.2 above its lowest on both sides along a layer's rows or columns, as through a
+//! gap narrower than the light (a slit, blinds, a door ajar). There the trilinear lookup cuts
+//! the corners of the shaft's profile (too bright at its foot) and the shadow map's own
+//! visibility is the light's centre alone, so the march takes the per-point estimate at its
+//! steps (the grid's value where that estimate takes two layers of blockers). An occluder's
+//! own penumbra falls one way only, from lit to umbra, so a scene without gaps has no such
+//! mark and pays only for the copy. A cell just behind a surface (the slice before it saw more
+//! than 0.2 more of the light) is neither a peak nor a shaft's side: the slices behind a ground
+//! under a penumbra are darker, and they are not the side of a gap.
+//!
 //! # Accuracy and limits
 //!
 //! Current figures, with their bounds, are in `docs/ACCURACY.md`:
@@ -61,6 +74,10 @@
 //! * A light nearly as large as its distance to an occluder is beyond the one-planar-blocker
 //!   assumption (radius 1.39 against a gap of 1.4, bar 6%; the occluder half inside the light's
 //!   sphere, bar 10%).
+//! * Gaps: a shaft that the shadow map's single surface hides (blinds tilted across the
+//!   light's centre, a door ajar by less than the light's diameter) is beyond the per-point
+//!   estimate, and so is a square hole a little wider than the light (gap scenes of
+//!   `tests/gpu/soft_grid.rs`: 12 of 16 within p95 3%; see `docs/METHOD.md`).
 //! * The blockers' distance is fitted to round occluders: a box's penumbra is wider than the
 //!   model predicts, most where the light is larger than the box (8 seeded box scenes, bar:
 //!   7 within p95 3%, all within 6%).
@@ -79,7 +96,8 @@
 //! (layers · slices)` (layer-major along z), usages `STORAGE_BINDING | TEXTURE_BINDING |
 //! COPY_SRC`;
 //! r = visible fraction in [0, 1], g = 1 where the cell's penumbra is marked sharp, b = 1
-//! where an occluder's surface lies between it and a neighbouring slice, else 0.
+//! where an occluder's surface lies between it and a neighbouring slice, a = 1 near a narrow
+//! shaft, else 0.
 //!
 //! # Cost
 //! The work moves from pixels × steps to the grid's cells, most of which lie outside every
@@ -92,9 +110,10 @@
 //!
 //! # Memory
 //! Besides the grid (8 bytes a cell: 3 MiB at the default size for a point light), the build
-//! holds the cells before their marks (an `Rg32Float` texture of the grid's extent, 8 bytes a
-//! cell), the anchors (a quarter of the cells, 8 bytes each), and a list of up to three
-//! quarters of the cells (4 bytes each): about 7.9 MiB in all at the default size.
+//! holds the grid before its shaft marks (8 bytes a cell), the cells before their marks (an
+//! `Rg32Float` texture of the grid's extent, 8 bytes a cell), the anchors (a quarter of the
+//! cells, 8 bytes each), and a list of up to three quarters of the cells (4 bytes each):
+//! about 10.9 MiB in all at the default size.
 
 use crate::error::{Error, Result};
 use crate::gpu::pipeline::{bind_group, compute_pipeline, layout, module, Binding};
@@ -177,6 +196,13 @@ const STORE_BINDINGS: [Binding; 8] = bindings(
     Binding::Params,
     Binding::Params,
 );
+
+/// `mark_shafts`: reads the built grid, writes its copy with the shaft marks (the output).
+const MARK_BINDINGS: [Binding; 3] = [
+    Binding::Params,
+    Binding::VolumeLoad,
+    Binding::StorageVolume(wgpu::TextureFormat::Rgba16Float),
+];
 
 /// Cells before their marks (see `shaders/soft_shadow.wgsl`): exact f32, so that the marks
 /// are those of the values the estimates gave.
@@ -489,6 +515,10 @@ pub struct SoftShadow<'a> {
     /// `d_near / (1 − (k + ½) / s)` from the light. For reading the grid; the march derives
     /// the same from the shadow map.
     pub near: f32,
+    /// Whether its cells are marked near narrow shafts (a = 1 there; see the module docs):
+    /// only where the shadow map's occluders may leave gaps ([`ShadowMap::gaps`]); else a is
+    /// 0 everywhere and the march skips the shafts' refinement.
+    pub shafts: bool,
 }
 
 #[repr(C)]
@@ -516,6 +546,7 @@ struct Build {
     rest: wgpu::ComputePipeline,
     estimate: wgpu::ComputePipeline,
     store_rest: wgpu::ComputePipeline,
+    mark: wgpu::ComputePipeline,
 }
 
 /// The node's layouts and its pipelines (point and spot), held by the [`Cache`].
@@ -528,6 +559,7 @@ pub(crate) struct Pipelines {
     store_layout: wgpu::BindGroupLayout,
     /// Group 1, the light and its shadow map ([`ShadowBinding`]).
     shadow_layout: wgpu::BindGroupLayout,
+    mark_layout: wgpu::BindGroupLayout,
     point: Build,
     spot: Build,
 }
@@ -541,6 +573,7 @@ impl Pipelines {
         let rest_layout = layout(device, label, stages, &REST_BINDINGS);
         let estimate_layout = layout(device, label, stages, &ESTIMATE_BINDINGS);
         let store_layout = layout(device, label, stages, &STORE_BINDINGS);
+        let mark_layout = layout(device, label, stages, &MARK_BINDINGS);
         let shadow_layout = shadow_layout(device);
         let module = module(device, &SOURCE, precision);
         let build = |light: u32| {
@@ -563,6 +596,15 @@ impl Pipelines {
                 rest: pipeline(&rest_layout, "build_rest"),
                 estimate: pipeline(&estimate_layout, "estimate_listed"),
                 store_rest: pipeline(&store_layout, "store_rest"),
+                // Group 0 alone: it reads the grid, not the shadow map.
+                mark: compute_pipeline(
+                    device,
+                    label,
+                    &[&mark_layout],
+                    &module,
+                    "mark_shafts",
+                    &constants,
+                ),
             }
         };
         let point = build(LIGHT_POINT);
@@ -574,6 +616,7 @@ impl Pipelines {
             estimate_layout,
             store_layout,
             shadow_layout,
+            mark_layout,
             point,
             spot,
         }
@@ -584,6 +627,8 @@ impl Pipelines {
 struct Bound {
     grid: wgpu::Texture,
     groups: Groups,
+    /// `mark_shafts`: the grid in, its marked copy out.
+    mark: wgpu::BindGroup,
 }
 
 /// The build's bind groups: one per pass, and the estimates' one per list.
@@ -725,7 +770,15 @@ pub struct SoftShadowNode {
     uniform: UniformBuffer<SoftShadowUniform>,
     /// Group 1: the light and its shadow map.
     shadow: ShadowBinding,
+    /// The grid as the build writes it.
     texture: Option<wgpu::Texture>,
+    /// Its copy with the shaft marks (`mark_shafts`), the output where the shadow map's
+    /// occluders may leave gaps ([`ShadowMap::gaps`]); else the output is `texture`.
+    marked: Option<wgpu::Texture>,
+    /// This frame's shadow map may have gaps: the build marks shafts.
+    marks: bool,
+    /// `marked` holds the grid of the last build (every cell: the last build marked shafts).
+    marked_current: bool,
     /// The build's own textures and buffers, made with `texture`.
     scratch: Option<Scratch>,
     /// The bind groups of the passes, and the shadow map, its back faces and the grid they
@@ -764,6 +817,9 @@ impl SoftShadowNode {
                 "volshadow soft shadow light",
             ),
             texture: None,
+            marked: None,
+            marks: false,
+            marked_current: false,
             scratch: None,
             bound: None,
             pipeline: None,
@@ -803,10 +859,16 @@ impl SoftShadowNode {
 
     /// The grid (see the module docs); `None` before the first `prepare`.
     pub fn output(&self) -> Option<SoftShadow<'_>> {
-        self.texture.as_ref().map(|texture| SoftShadow {
+        let texture = if self.marks {
+            &self.marked
+        } else {
+            &self.texture
+        };
+        texture.as_ref().map(|texture| SoftShadow {
             texture,
             size: self.size,
             near: self.near,
+            shafts: self.marks,
         })
     }
 }
@@ -901,17 +963,22 @@ impl SoftShadowNode {
             let scratch = Scratch::new(device, n, layers, s)?;
             self.pending = true;
             self.stale = every_block(n, layers as usize);
-            self.texture = Some(texture_3d(
-                device,
-                "volshadow soft shadow",
-                extent,
-                wgpu::TextureFormat::Rgba16Float,
-                // COPY_SRC: for reading the grid back (its tests compare each cell with the
-                // reference).
-                wgpu::TextureUsages::STORAGE_BINDING
-                    | wgpu::TextureUsages::TEXTURE_BINDING
-                    | wgpu::TextureUsages::COPY_SRC,
-            ));
+            self.marked_current = false;
+            let grid = |label| {
+                texture_3d(
+                    device,
+                    label,
+                    extent,
+                    wgpu::TextureFormat::Rgba16Float,
+                    // COPY_SRC: for reading the grid back (its tests compare each cell with
+                    // the reference).
+                    wgpu::TextureUsages::STORAGE_BINDING
+                        | wgpu::TextureUsages::TEXTURE_BINDING
+                        | wgpu::TextureUsages::COPY_SRC,
+                )
+            };
+            self.texture = Some(grid("volshadow soft shadow build"));
+            self.marked = Some(grid("volshadow soft shadow"));
             self.scratch = Some(scratch);
         }
         Ok(())
@@ -920,6 +987,7 @@ impl SoftShadowNode {
     /// Binds the shadow map and the grid, building the bind groups when one of them changed.
     fn bind(&mut self, device: &wgpu::Device, map: ShadowMap<'_>) {
         let texture = self.texture.as_ref().expect("created above");
+        let marked = self.marked.as_ref().expect("created with the grid");
         let scratch = self.scratch.as_ref().expect("created with the grid");
         self.pending |= self.shadow.bind(device, Some(&map));
         if self.bound.as_ref().is_none_or(|b| b.grid != *texture) {
@@ -931,9 +999,20 @@ impl SoftShadowNode {
                     wgpu::BindingResource::TextureView(&texture.create_view(&Default::default())),
                 ],
             );
+            let mark = bind_group(
+                device,
+                "volshadow soft shadow marks",
+                &self.pipelines.mark_layout,
+                [
+                    self.uniform.binding(),
+                    wgpu::BindingResource::TextureView(&texture.create_view(&Default::default())),
+                    wgpu::BindingResource::TextureView(&marked.create_view(&Default::default())),
+                ],
+            );
             self.bound = Some(Bound {
                 grid: texture.clone(),
                 groups,
+                mark,
             });
             self.pending = true;
         }
@@ -944,6 +1023,13 @@ impl SoftShadowNode {
     fn upload(&mut self, queue: &wgpu::Queue, inputs: &SoftShadowInputs<'_>, layers: u32) {
         let (light, map) = (inputs.light, inputs.shadow_map);
         let (n, s) = (self.size.directions, self.size.slices);
+        // A build that marks shafts after one that did not copies every cell: the copy's
+        // cells outside this build's blocks are the older build's.
+        self.marks = map.gaps;
+        if self.marks && !self.marked_current {
+            self.stale = every_block(n, layers as usize);
+            self.pending = true;
+        }
         let mut world_from_clip = [[0.0; 16]; 6];
         for (i, m) in map.faces.iter().enumerate() {
             world_from_clip[i] = m.inverse().to_cols_array();
@@ -1002,7 +1088,7 @@ impl Encode for SoftShadowNode {
         encoder: &mut wgpu::CommandEncoder,
         timer: Option<&mut GpuTimer>,
     ) -> Result<()> {
-        let (Some(Bound { groups, .. }), Some(build), Some(shadow)) =
+        let (Some(Bound { groups, mark, .. }), Some(build), Some(shadow)) =
             (&self.bound, &self.pipeline, self.shadow.group())
         else {
             return Err(Error::NotPrepared {
@@ -1062,6 +1148,15 @@ impl Encode for SoftShadowNode {
                 pass.dispatch_workgroups_indirect(&scratch.work_args, list as u64 * LIST_SLOT);
             }
         }
+        // The marked copy, 8 × 8 cells of a slice a workgroup (those outside the cells this
+        // build may change return at once).
+        if self.marks {
+            pass.set_pipeline(&build.mark);
+            pass.set_bind_group(0, mark, &[]);
+            let n = self.size.directions.div_ceil(8);
+            pass.dispatch_workgroups(n, n, self.layers * self.size.slices);
+        }
+        self.marked_current = self.marks;
         drop(pass);
         self.stale = self.built;
         Ok(())
