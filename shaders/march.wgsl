@@ -193,9 +193,9 @@ fn soft_grid_visibility(p: vec3<f32>, sharp: bool) -> f32 {
 
 // The steps of an interval among which `march_soft_grid` finds those to refine: the first
 // 64, one bit each (later ones keep their one sample). Every marked step among them is
-// refined: a step in `pieces` pieces, so at most `steps` + n pieces in all. With at most 16
-// refined, a thin plate's marked steps beyond the 16th kept the grid's value (the gap scenes
-// of tests/gpu/soft_grid.rs, seed 400: RMSE 6.5% with 16, 0.6% with all).
+// refined: a step in `pieces` pieces, so at most `steps` + n pieces in all. Refining at most
+// 16 would leave a thin plate's marked steps beyond the 16th at the grid's value (the gap
+// scenes of tests/gpu/soft_grid.rs, seed 400: RMSE 6.5% with 16, 0.6% with all).
 const SHARP_STEP_BITS: u32 = 64u;
 
 // ∫ V dT over [s0, s1] (T known at both ends) in n uniform steps through the soft-shadow grid,
