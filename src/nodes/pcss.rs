@@ -166,6 +166,7 @@ fn the_shadow_parameters_match_the_wgsl() {
         nearest,
         spheres,
         cell_angle,
+        reproject,
     });
     assert_same(soft, source, "SoftLight");
 }
