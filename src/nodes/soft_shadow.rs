@@ -46,14 +46,14 @@
 //! Where the shadow map's occluders may leave gaps ([`ShadowMap::gaps`]: more than one
 //! occluder, or one that is not convex), a last pass copies the grid to the output and marks
 //! the cells within 20 of a narrow shaft: a peak of visible fraction below 0.95 that rises by
-//! more than 0.2 above its lowest on both sides along a layer's rows or columns, as through a
+//! more than 0.1 above its lowest on both sides along a layer's rows or columns, as through a
 //! gap narrower than the light (a slit, blinds, a door ajar). There the trilinear lookup cuts
 //! the corners of the shaft's profile (too bright at its foot) and the shadow map's own
 //! visibility is the light's centre alone, so the march takes the per-point estimate at its
 //! steps (the grid's value where that estimate takes two layers of blockers). An occluder's
 //! own penumbra falls one way only, from lit to umbra, so a scene without gaps has no such
 //! mark and pays only for the copy. A cell just behind a surface (the slice before it saw more
-//! than 0.2 more of the light) is neither a peak nor a shaft's side: the slices behind a ground
+//! than 0.1 more of the light) is neither a peak nor a shaft's side: the slices behind a ground
 //! under a penumbra are darker, and they are not the side of a gap.
 //!
 //! # Accuracy and limits
@@ -76,8 +76,9 @@
 //!   sphere, bar 10%).
 //! * Gaps: a shaft that the shadow map's single surface hides (blinds tilted across the
 //!   light's centre, a door ajar by less than the light's diameter) is beyond the per-point
-//!   estimate, and so is a square hole a little wider than the light (gap scenes of
-//!   `tests/gpu/soft_grid.rs`: 12 of 16 within p95 3%; see `docs/METHOD.md`).
+//!   estimate, and a thin shaft that a ray crosses within one of the march's steps is beyond
+//!   the grid's march (gap scenes of `tests/gpu/soft_grid.rs`: 13 of 16 within p95 3%; see
+//!   `docs/METHOD.md`).
 //! * The blockers' distance is fitted to round occluders: a box's penumbra is wider than the
 //!   model predicts, most where the light is larger than the box (8 seeded box scenes, bar:
 //!   7 within p95 3%, all within 6%).
