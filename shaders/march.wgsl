@@ -126,7 +126,7 @@ fn soft_grid(p: vec3<f32>) -> vec4<f32> {
 // interpolation between slices: in front of a surface, the value on p's side of it.
 fn soft_grid_at(p: vec3<f32>, near_side: bool) -> vec4<f32> {
     let dist = length(p - air.light_pos);
-    let nearest = max(shadow.soft.nearest, 1.0e-3 * shadow.light.radius);
+    let nearest = soft_nearest();
     if (dist <= max(nearest, shadow.light.radius)) {
         // As visibility_soft: nearer than every occluder (the grid holds 1 outside the cones).
         return vec4<f32>(1.0, 0.0, 0.0, 0.0);
@@ -140,7 +140,7 @@ fn soft_grid_of(m: MapPoint, dist: f32, near_side: bool) -> vec4<f32> {
     if (!m.inside) {
         return vec4<f32>(1.0, 0.0, 0.0, 0.0);
     }
-    let nearest = max(shadow.soft.nearest, 1.0e-3 * shadow.light.radius);
+    let nearest = soft_nearest();
     let slices = f32(mp.soft_grid.slices);
     // Cell k's centre lies at (1 − q)·slices = k + 0.5; clamped inside the layer's own slices
     // so that the lookup never blends two layers.
@@ -170,7 +170,7 @@ fn soft_grid_visibility(p: vec3<f32>, sharp: bool) -> f32 {
     // One projection into the map for all of the point's lookups (the grid's layers and
     // directions are the map's), not one per lookup.
     let dist = length(p - air.light_pos);
-    if (dist <= max(max(shadow.soft.nearest, 1.0e-3 * shadow.light.radius), shadow.light.radius)) {
+    if (dist <= max(soft_nearest(), shadow.light.radius)) {
         return 1.0; // as soft_grid_at: nearer than every occluder
     }
     let m = map_point(p);
@@ -364,7 +364,7 @@ fn soft_grid_steps(ray: PixelRay, r: AirRay, s0: f32, s1: f32) -> u32 {
     let x0 = x_of_s(r, s0);
     let x1 = x_of_s(r, s1);
     let xc = clamp(dot(air.light_pos - air.eye, ray.dir), x0, x1);
-    let nearest = max(shadow.soft.nearest, 1.0e-3 * shadow.light.radius);
+    let nearest = soft_nearest();
     let slices = f32(mp.soft_grid.slices);
     let k0 = slices * (1.0 - nearest / max(length(air.eye + x0 * ray.dir - air.light_pos), nearest));
     let kc = slices * (1.0 - nearest / max(length(air.eye + xc * ray.dir - air.light_pos), nearest));

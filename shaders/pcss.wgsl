@@ -314,6 +314,23 @@ fn soft_basis(p: vec3<f32>) -> SoftBasis {
 // where the shadow map may hide part of the far one behind the near one.
 var<private> soft_two_layers: bool;
 
+// The least distance from the light of any occluder (its bounds), at least 1e-3 of the
+// light's radius: a point nearer sees all of the light.
+fn soft_nearest() -> f32 {
+    return max(shadow.soft.nearest, 1.0e-3 * shadow.light.radius);
+}
+
+// The filter's width (a tangent) for a point at `dist` from the light and blockers at `ratio`
+// of that distance: a line from the point to the light's point at lateral offset radius·w
+// meets the sphere of distance b around the light in the direction tilted by
+// radius·(1/b − 1/dist)·w. At most the search's width (blockers at the nearest distance;
+// `ratio` 0 gives it).
+fn soft_width(dist: f32, ratio: f32) -> f32 {
+    let radius = shadow.light.radius;
+    let nearest = soft_nearest();
+    return min(radius * (1.0 / max(dist * ratio, nearest) - 1.0 / dist), radius * (1.0 / nearest - 1.0 / dist));
+}
+
 // The first stage of `soft_estimate`, the blocker search: (visibility, region, −1) where it
 // decides alone (no tap needed, lit, umbra, or two layers, whose filter it takes), else
 // (·, ·, width): the filter's width for `soft_filter_at`, the next stage.
@@ -324,17 +341,14 @@ fn soft_search(p: vec3<f32>) -> vec3<f32> {
     if (dist0 <= radius) {
         return vec3<f32>(1.0, -1.0, -1.0); // inside the light's sphere: all of it is visible (as the reference)
     }
-    let nearest = max(shadow.soft.nearest, 1.0e-3 * radius);
-    if (!(dist0 > nearest) || !may_be_hidden(p)) {
+    if (!(dist0 > soft_nearest()) || !may_be_hidden(p)) {
         return vec3<f32>(1.0, -1.0, -1.0); // nearer than every occluder, or outside every penumbra cone
     }
     let basis = soft_basis(p);
     let tf = tap_frame(basis);
     let dist = basis.dist;
     let start = basis.start;
-    // A line from p to the light's point at lateral offset radius·w meets the sphere of
-    // distance b around the light in the direction tilted by radius·(1/b − 1/dist)·w.
-    let search = radius * (1.0 / nearest - 1.0 / dist);
+    let search = soft_width(dist, 0.0);
     var sum = 0.0;
     var count = 0.0;
     var cs = start;
@@ -362,7 +376,7 @@ fn soft_search(p: vec3<f32>) -> vec3<f32> {
     if (count == 0.0) {
         return vec3<f32>(1.0, search, -1.0); // no blocker within `search` of p's direction
     }
-    var width = min(radius * (1.0 / max(dist * sum, nearest) - 1.0 / dist), search);
+    var width = soft_width(dist, sum);
     // Once more over the directions the filter will cover: the blockers nearest to where the
     // lines from p to the disc graze them (a convex occluder's outline) decide.
     var blocked = 0u;
@@ -382,7 +396,7 @@ fn soft_search(p: vec3<f32>) -> vec3<f32> {
     if (blocked == SOFT_SEARCH_TAPS && count == f32(SOFT_SEARCH_TAPS + 1u)) {
         return vec3<f32>(0.0, search, -1.0);
     }
-    width = min(radius * (1.0 / max(dist * sum, nearest) - 1.0 / dist), search);
+    width = soft_width(dist, sum);
     if (sum > LAYER_SPLIT * least) {
         soft_two_layers = true;
         // Two layers: occluders at clearly different distances (one's penumbra over the
@@ -398,7 +412,7 @@ fn soft_search(p: vec3<f32>) -> vec3<f32> {
                 near = max(near, found[k]);
             }
         }
-        let near_width = min(radius * (1.0 / max(dist * near, nearest) - 1.0 / dist), search);
+        let near_width = soft_width(dist, near);
         var lit = 0.0;
         var far_hits = 0u;
         cs = start;
@@ -466,9 +480,6 @@ fn soft_filter(b: SoftBasis, width: f32, n: u32, start: vec2<f32>) -> f32 {
     let tf = tap_frame(b);
     var lit = 0.0;
     var cs = start;
-    let radius = shadow.light.radius;
-    let nearest = max(shadow.soft.nearest, 1.0e-3 * radius);
-    let search = radius * (1.0 / nearest - 1.0 / b.dist);
     for (var k = 0u; k < n; k++) {
         let r = spiral_radius(k, n);
         var m = tap_point(tf, b, width * r, cs);
@@ -484,8 +495,7 @@ fn soft_filter(b: SoftBasis, width: f32, n: u32, start: vec2<f32>) -> f32 {
         if (shadow.soft.reproject != 0u) {
             let bk = blocker_ratio_of(m);
             if (bk < 1.0) {
-                let wk = min(radius * (1.0 / max(b.dist * bk, nearest) - 1.0 / b.dist), search);
-                m = tap_point(tf, b, wk * r, cs);
+                m = tap_point(tf, b, soft_width(b.dist, bk) * r, cs);
             }
         }
         lit += visibility_of(m);

@@ -114,7 +114,7 @@ fn cell_direction(x: u32, y: u32, layer: u32) -> vec3<f32> {
 
 // The cell of slice k in direction `dir`, as a world point.
 fn cell_point(dir: vec3<f32>, k: u32, s: u32) -> vec3<f32> {
-    let nearest = max(shadow.soft.nearest, 1.0e-3 * shadow.light.radius);
+    let nearest = soft_nearest();
     return shadow.light.position + (nearest / slice_q(k, s)) * dir;
 }
 
