@@ -218,7 +218,12 @@ const SHARP_STEP_BITS: u32 = 64u;
 // 1.8% refined). Near a narrow shaft (the grid's w, see `mark_shafts` in
 // shaders/soft_shadow.wgsl) neither the grid nor the hard visibility holds: a step there is
 // refined with the per-point estimate, `visibility_soft` (the gap scenes of
-// tests/gpu/soft_grid.rs, seed 400, a slit 0.66 of the light's diameter: p95 10.2% → 1.8%). The
+// tests/gpu/soft_grid.rs, seed 400, a slit 0.66 of the light's diameter: p95 10.2% → 1.8%).
+// Where the occluders' triangles are given (`soft_exact` in pcss.wgsl: the grid's cells and
+// the per-point estimate are then exact but for its 256 directions), every step whose grid
+// value lies strictly between 0 and 1 is refined so: the trilinear lookup between exact
+// cells still cuts a narrow shaft's corners (blinds of 7 slats, seed 401: p95 4.33% with the
+// shafts' marks alone, 0.85% with every such step). The
 // refinement runs after the step loop (no shadow-map lookup in the main loop, which every
 // step would pay for on a SIMD device); marked steps beyond SHARP_STEP_BITS keep the grid's
 // value. The step loop keeps the marked steps as bits, not in an array indexed by a
@@ -263,7 +268,8 @@ fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: TT, t1: TT, n
         weights += w;
         let p = air.eye + x * ray.dir;
         let g = soft_grid(p);
-        let shaft = SOFT_SHAFTS && g.w > 0.0;
+        // Near a narrow shaft, or (triangles given) anywhere but lit or umbra.
+        let shaft = SOFT_SHAFTS && (g.w > 0.0 || (shadow.soft.groups > 0u && g.x > 0.0 && g.x < 1.0));
         if ((g.y > 0.0 || g.z > 0.0 || shaft) && i < SHARP_STEP_BITS) {
             let bit = select(vec2<u32>(0u, 1u << (i & 31u)), vec2<u32>(1u << (i & 31u), 0u), i < 32u);
             mask |= bit;
@@ -318,8 +324,9 @@ fn lowest_step(bits: ptr<function, vec2<u32>>) -> u32 {
 // Step `step` (of width ds from s0) of `march_soft_grid` in `pieces` pieces: V averaged over
 // them (weighted by dT/ds at theirs) stands for the step's V. Returns that V times dT/ds at
 // the step's midpoint, as the step loop took it (to rounding), and V's plain mean. V: near a
-// narrow shaft (`shaft`) the per-point estimate, else (and where that estimate takes two
-// layers of blockers) the grid with the hard visibility blended in (`soft_grid_visibility`).
+// narrow shaft (`shaft`) the per-point estimate (`soft_exact` where the triangles are given),
+// else (and where the shadow map's estimate takes two layers of blockers) the grid with the
+// hard visibility blended in (`soft_grid_visibility`).
 // Two layers: a lit gap between two occluders' shadows at clearly different distances, where
 // the shadow map hides part of the far occluder behind the near one and the grid's mean of
 // neighbouring estimates is closer (tests/gpu/soft_grid.rs, overlapping penumbrae: p95 4.64%

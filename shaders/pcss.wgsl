@@ -10,6 +10,8 @@ struct SoftLight {
     spheres: u32,      // bounding spheres (and planes) in `shadow.spheres` and `shadow.planes`
     cell_angle: f32,   // the soft-shadow grid: the angle (radians) a cell subtends; else 0
     reproject: u32,    // 1: the filter's taps move to their own blocker's distance (`soft_filter`)
+    groups: u32,       // groups of four of the occluders' triangles in `soft_triangles`
+                       // (`soft_exact`); 0: none
 }
 
 // The light and its shadow map's parameters (`ShadowUniform` in src/nodes/pcss.rs).
@@ -30,6 +32,17 @@ struct LightShadow {
 @group(1) @binding(1) var shadow_map: texture_depth_2d_array;
 @group(1) @binding(2) var shadow_back: texture_depth_2d_array;
 @group(1) @binding(3) var shadow_sampler: sampler_comparison;
+// The occluders' triangles in world space, `shadow.soft.groups` groups of four, each 16 vec4:
+// the corners (w unused), a sphere bounding them (centre, radius), three unused (see
+// `soft_exact`; src/nodes/shadow_map.rs gathers them).
+@group(1) @binding(4) var<storage, read> soft_triangles: array<vec4<f32>>;
+// The half-plane table of `soft_exact` (`half_plane_masks` in src/nodes/pcss.rs): row k,
+// the line whose normal makes the angle 2π(k + ½)/256 with the frame's first axis; texels 2j
+// and 2j + 1, its offset −1 + 2(j + ½)/128: the bits of the directions on the normal's side.
+@group(1) @binding(5) var soft_masks: texture_2d<u32>;
+// Whether `soft_search` takes `soft_exact` where the triangles are given: the grid's build
+// and the march through the grid do; brute force keeps the shadow map's estimate.
+override SOFT_EXACT: bool = true;
 
 // The shadow map's layer holding the world point `p`: the cube face of a point light (+X, −X,
 // +Y, −Y, +Z, −Z), else the one layer.
@@ -344,6 +357,9 @@ fn soft_search(p: vec3<f32>) -> vec3<f32> {
     if (!(dist0 > soft_nearest()) || !may_be_hidden(p)) {
         return vec3<f32>(1.0, -1.0, -1.0); // nearer than every occluder, or outside every penumbra cone
     }
+    if (SOFT_EXACT && shadow.soft.groups > 0u) {
+        return vec3<f32>(soft_exact(p, soft_width(dist0, 0.0)), -1.0);
+    }
     let basis = soft_basis(p);
     let tf = tap_frame(basis);
     let dist = basis.dist;
@@ -570,4 +586,230 @@ fn may_be_hidden(p: vec3<f32>) -> bool {
         }
     }
     return false;
+}
+
+// The directions `soft_exact` tests: 256 points of the unit disc (a golden-angle spiral,
+// equal areas) in 8 rings of 32, a `u32` of bits each, scaled to the light's disc.
+const EXACT_RINGS: u32 = 8u;
+const MASK_ANGLES: f32 = 256.0;
+const MASK_OFFSETS: u32 = 128u;
+
+// A set of the 256 directions (bit i of word i / 32 for direction i).
+struct Mask {
+    lo: vec4<u32>,
+    hi: vec4<u32>,
+}
+
+// The directions d = (tan α · q, 1) of the frame of `soft_exact` with dot(d, m) ≥ 0: the
+// half-plane q·m.xy ≥ −m.z / tan α of the disc, from the table, the line's angle and offset
+// each to the nearest of the table's (1/256 of a turn, 1/64 of the disc's radius; atan2's
+// 4096 ULP are 1e-3 rad at most, a twenty-fifth of a bin).
+fn half_plane(m: vec3<f32>, tan_a: f32) -> Mask {
+    let all = Mask(vec4<u32>(0xffffffffu), vec4<u32>(0xffffffffu));
+    let none = Mask(vec4<u32>(0u), vec4<u32>(0u));
+    let l = length(m.xy);
+    let c = -m.z / (tan_a * l);
+    if (!(l > 0.0) || !(c > -1.0)) {
+        // The line misses the disc (or m is along the axis): all of it or none.
+        if (m.z >= 0.0) {
+            return all;
+        }
+        return none;
+    }
+    if (c > 1.0) {
+        return none;
+    }
+    let turn = atan2(m.y, m.x) * (0.5 / PI);
+    let k = i32(floor(fract(turn + 1.0) * MASK_ANGLES)) % i32(MASK_ANGLES);
+    let j = i32(min(u32((c + 1.0) * 0.5 * f32(MASK_OFFSETS)), MASK_OFFSETS - 1u));
+    return Mask(textureLoad(soft_masks, vec2<i32>(2 * j, k), 0), textureLoad(soft_masks, vec2<i32>(2 * j + 1, k), 0));
+}
+
+fn mask_and(a: Mask, b: Mask) -> Mask {
+    return Mask(a.lo & b.lo, a.hi & b.hi);
+}
+
+// 1 − cos θ for tan²θ = x, without cancellation.
+fn exact_versine(x: f32) -> f32 {
+    let r = vs_sqrt(1.0 + x);
+    return x / (r * (1.0 + r));
+}
+
+// What one triangle hides of the light (see `soft_exact`): its directions, and the least
+// distance from p along the axis where it does (where its plane meets the axis, within its
+// corners' range).
+struct Hidden {
+    mask: Mask,
+    z: f32,
+}
+
+// `soft_exact`'s triangle (a, b, c relative to p, in its frame), cut at z = `cut`.
+fn exact_triangle(a0: vec3<f32>, b0: vec3<f32>, c0: vec3<f32>, cut: f32, tan_a: f32) -> Hidden {
+    var out = Hidden(Mask(vec4<u32>(0u), vec4<u32>(0u)), 3.4e38);
+    var a = a0;
+    var b = b0;
+    var c = c0;
+    // Cut at z = cut: none, one or two corners beyond leave a triangle or a quad
+    // (v0, v1, v2, v3 in the triangle's order; v3 = v0 for a triangle).
+    let beyond = u32(a.z >= cut) + u32(b.z >= cut) + u32(c.z >= cut);
+    if (beyond == 3u) {
+        return out;
+    }
+    if (beyond == 1u) {
+        // The corner beyond last: (a, b, c) turned.
+        if (a.z >= cut) {
+            let o = a;
+            a = b;
+            b = c;
+            c = o;
+        } else if (b.z >= cut) {
+            let o = c;
+            c = b;
+            b = a;
+            a = o;
+        }
+    } else if (beyond == 2u) {
+        // The corner kept first.
+        if (b.z < cut) {
+            let o = a;
+            a = b;
+            b = c;
+            c = o;
+        } else if (c.z < cut) {
+            let o = c;
+            c = b;
+            b = a;
+            a = o;
+        }
+    }
+    let v0 = a;
+    var v1 = b;
+    var v2 = c;
+    var v3 = a;
+    if (beyond == 1u) {
+        v2 = b + (c - b) * ((cut - b.z) / (c.z - b.z));
+        v3 = a + (c - a) * ((cut - a.z) / (c.z - a.z));
+    } else if (beyond == 2u) {
+        v1 = a + (b - a) * ((cut - a.z) / (b.z - a.z));
+        v2 = a + (c - a) * ((cut - a.z) / (c.z - a.z));
+    }
+    let det = dot(v0, cross(v1, v2));
+    if (det == 0.0) {
+        return out; // p in the triangle's plane (or a zero triangle): the lines graze it
+    }
+    let s = select(-1.0, 1.0, det > 0.0);
+    var m = mask_and(half_plane(s * cross(v0, v1), tan_a), mask_and(half_plane(s * cross(v1, v2), tan_a), half_plane(s * cross(v2, v3), tan_a)));
+    if (beyond == 1u) {
+        m = mask_and(m, half_plane(s * cross(v3, v0), tan_a));
+    }
+    out.mask = m;
+    if (any((m.lo | m.hi) != vec4<u32>(0u))) {
+        let n = cross(v1 - v0, v2 - v0);
+        let lo = min(min(v0.z, v1.z), min(v2.z, v3.z));
+        let hi = max(max(v0.z, v1.z), max(v2.z, v3.z));
+        var z = lo;
+        if (n.z != 0.0) {
+            z = clamp(dot(n, v0) / n.z, lo, hi);
+        }
+        out.z = max(z, 0.0);
+    }
+    return out;
+}
+
+// The fraction of the light's sphere visible from `p` (outside it), from the occluders'
+// triangles themselves (`soft_triangles`), not the shadow map: bitmask soft shadows
+// (Schwarz and Stamminger, "Bitmask Soft Shadows", 2007) with the triangles in place of
+// shadow-map texels. A shadow map sees the occluders from the light's centre alone, and
+// through a gap narrower than the light (a slit, blinds, a door ajar) a point sees parts of
+// the light past faces the centre does not see (see docs/METHOD.md, "Gaps narrower than the
+// light").
+//
+// The light's cap, seen from p in a frame whose third axis points at the light's centre, is
+// the disc of radius tan α of the plane one unit from p, and a direction there is d =
+// (tan α · q, 1) for q in the unit disc. A line from p along d meets a triangle (a, b, c
+// relative to p) ahead of p exactly when d is a positive combination of a, b, c: when d lies
+// on the inner side of the three planes through p and an edge, each a half-plane of the disc
+// (`half_plane`). A triangle hides the directions of its three half-planes; the occluders
+// hide their union. The 256 directions lie in 8 rings of equal area of the disc, whose solid
+// angles weigh them (exact per ring: the plane's rings are not equal caps of the sphere).
+// The part of a triangle beyond the plane where the cone of lines from p touches the light's
+// sphere is cut off: every line has entered the sphere there (an occluder reaching into the
+// light's sphere is beyond this model). One pass over groups of four triangles, each group culled
+// by its bounding sphere against the cone of lines to the light: llvmpipe ends every loop of
+// an invocation once its loops together reach 65 535 iterations (Mesa's
+// LP_MAX_TGSI_LOOP_ITERATIONS), and the march takes this at many points of a ray, so the
+// directions are words of bits and the four triangles of a group are not a loop.
+//
+// Returns (fraction, region) as `soft_search` does: the region is the filter width
+// (`soft_width`) of a blocker at the least distance from p, along the axis, of a triangle
+// that hides a direction, or `search` where none or all of the light is hidden.
+fn soft_exact(p: vec3<f32>, search: f32) -> vec2<f32> {
+    let to_light = shadow.light.position - p;
+    let dist = length(to_light);
+    let axis = to_light / dist;
+    let frame = soft_frame(axis);
+    let e1 = frame[0];
+    let e2 = frame[1];
+    let radius = shadow.light.radius;
+    let sin_a = min(radius / dist, 1.0);
+    let cos_a = vs_sqrt(max(1.0 - sin_a * sin_a, 0.0));
+    let tan_a = sin_a / max(cos_a, 1.0e-30);
+    // Where the lines to the light's sphere have all entered it, along the axis: the plane of
+    // the circle where the cone of lines from p touches it (d·cos²α). A point of the cone
+    // nearer p and outside the sphere lies before the sphere on its line; one beyond lies
+    // behind where its line entered the sphere.
+    let cut = dist - radius * sin_a;
+    var hidden = Mask(vec4<u32>(0u), vec4<u32>(0u));
+    var nearest_z = dist;
+    for (var g = 0u; g < shadow.soft.groups; g++) {
+        let bound = soft_triangles[16u * g + 12u];
+        let w = bound.xyz - p;
+        let along = dot(w, axis);
+        let across = length(w - along * axis);
+        // Behind p, beyond the cut, or outside the cone of lines to the light.
+        if (along + bound.w <= 0.0 || along - bound.w >= cut || across * cos_a - along * sin_a > bound.w) {
+            continue;
+        }
+        // The group's 12 corners in the frame, one triangle at a time.
+        var h = exact_triangle(exact_corner(g, 0u, p, e1, e2, axis), exact_corner(g, 1u, p, e1, e2, axis), exact_corner(g, 2u, p, e1, e2, axis), cut, tan_a);
+        hidden = Mask(hidden.lo | h.mask.lo, hidden.hi | h.mask.hi);
+        nearest_z = min(nearest_z, h.z);
+        h = exact_triangle(exact_corner(g, 3u, p, e1, e2, axis), exact_corner(g, 4u, p, e1, e2, axis), exact_corner(g, 5u, p, e1, e2, axis), cut, tan_a);
+        hidden = Mask(hidden.lo | h.mask.lo, hidden.hi | h.mask.hi);
+        nearest_z = min(nearest_z, h.z);
+        h = exact_triangle(exact_corner(g, 6u, p, e1, e2, axis), exact_corner(g, 7u, p, e1, e2, axis), exact_corner(g, 8u, p, e1, e2, axis), cut, tan_a);
+        hidden = Mask(hidden.lo | h.mask.lo, hidden.hi | h.mask.hi);
+        nearest_z = min(nearest_z, h.z);
+        h = exact_triangle(exact_corner(g, 9u, p, e1, e2, axis), exact_corner(g, 10u, p, e1, e2, axis), exact_corner(g, 11u, p, e1, e2, axis), cut, tan_a);
+        hidden = Mask(hidden.lo | h.mask.lo, hidden.hi | h.mask.hi);
+        nearest_z = min(nearest_z, h.z);
+    }
+    // Each ring's solid angle over the cap's: ring k spans tan²θ from tan²α·k/8 to
+    // tan²α·(k + 1)/8 of the plane.
+    let t2 = tan_a * tan_a;
+    let whole = exact_versine(t2);
+    let lit_lo = vec4<f32>(countOneBits(~hidden.lo)) / 32.0;
+    let lit_hi = vec4<f32>(countOneBits(~hidden.hi)) / 32.0;
+    let eighth = t2 / f32(EXACT_RINGS);
+    let v = vec4<f32>(exact_versine(eighth), exact_versine(2.0 * eighth), exact_versine(3.0 * eighth), exact_versine(4.0 * eighth));
+    let u = vec4<f32>(exact_versine(5.0 * eighth), exact_versine(6.0 * eighth), exact_versine(7.0 * eighth), whole);
+    let ring_lo = v - vec4<f32>(0.0, v.xyz);
+    let ring_hi = u - vec4<f32>(v.w, u.xyz);
+    var f = clamp((dot(ring_lo, lit_lo) + dot(ring_hi, lit_hi)) / whole, 0.0, 1.0);
+    if (!(whole > 0.0)) {
+        // A light so small seen from p that tan²α flushes to 0: the rings weigh alike.
+        f = 0.125 * (dot(lit_lo, vec4<f32>(1.0)) + dot(lit_hi, vec4<f32>(1.0)));
+    }
+    let blocked = hidden.lo | hidden.hi;
+    let all_hidden = all((hidden.lo & hidden.hi) == vec4<u32>(0xffffffffu));
+    if (all(blocked == vec4<u32>(0u)) || all_hidden) {
+        return vec2<f32>(f, search);
+    }
+    return vec2<f32>(f, soft_width(dist, clamp(1.0 - nearest_z / dist, 0.0, 1.0)));
+}
+
+// Corner k of group g relative to p, in the frame (e1, e2, axis) of `soft_exact`.
+fn exact_corner(g: u32, k: u32, p: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>, axis: vec3<f32>) -> vec3<f32> {
+    let w = soft_triangles[16u * g + k].xyz - p;
+    return vec3<f32>(dot(w, e1), dot(w, e2), dot(w, axis));
 }

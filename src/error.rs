@@ -100,6 +100,14 @@ pub enum Error {
         /// What is wrong with it.
         problem: String,
     },
+    /// A buffer the caller passed has a size or usage the node cannot use.
+    #[error("`{field}`: {problem}")]
+    InvalidBuffer {
+        /// Which input buffer.
+        field: &'static str,
+        /// What is wrong with it.
+        problem: String,
+    },
     /// A mesh with no positions or no indices.
     #[error("mesh is empty: {positions} positions, {indices} indices")]
     EmptyMesh {

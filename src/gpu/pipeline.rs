@@ -29,6 +29,8 @@ pub(crate) enum Binding {
     ReadWrite,
     /// A 2D float texture read with `textureLoad`.
     Texture,
+    /// A 2D unsigned-integer texture read with `textureLoad`.
+    UintTexture,
     /// A 2D float texture read through a filtering sampler.
     Filterable,
     /// A 2D depth texture.
@@ -71,6 +73,7 @@ impl Binding {
                 texture(wgpu::TextureSampleType::Float { filterable: false }, d2),
                 stages,
             ),
+            Binding::UintTexture => (texture(wgpu::TextureSampleType::Uint, d2), stages),
             Binding::Filterable => (
                 texture(wgpu::TextureSampleType::Float { filterable: true }, d2),
                 stages,
@@ -380,6 +383,7 @@ mod tests {
             wgsl_file!("march.wgsl"),
             wgsl_file!("soft_shadow.wgsl"),
             wgsl_file!("shadow_map.wgsl"),
+            wgsl_file!("triangles.wgsl"),
             wgsl_file!("upsample.wgsl"),
             wgsl_file!("shadow.wgsl"),
             wgsl_file!("iss_table.wgsl"),

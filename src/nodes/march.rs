@@ -307,6 +307,7 @@ impl Pipelines {
                 ("SOFT", flag(v.soft)),
                 ("SOFT_GRID", flag(v.soft_grid)),
                 ("SOFT_SHAFTS", flag(v.shafts)),
+                ("SOFT_EXACT", flag(v.soft_grid)),
             ];
             let label = "volshadow march";
             compute_pipeline(
@@ -786,6 +787,7 @@ impl MarchNode {
             };
             check_depth_layers("shadow_map", shadows.shadow_map.texture, expected)?;
             shadows.shadow_map.check_back()?;
+            shadows.shadow_map.check_triangles()?;
             if shadows.shadow_map.faces.len() != expected as usize {
                 return Err(Error::InvalidTexture {
                     field: "shadow_map",

@@ -94,7 +94,7 @@ pub use march::{
 };
 pub use shadow_map::{
     ShadowMap, ShadowMapInputs, ShadowMapNode, ShadowMapSettings, ShadowParams, CASCADE_RANGE,
-    DIRECTIONAL_BIAS_TEXELS,
+    DIRECTIONAL_BIAS_TEXELS, MAX_EXACT_TRIANGLES,
 };
 pub use soft_shadow::{SoftShadow, SoftShadowInputs, SoftShadowNode, SoftShadowSize};
 pub use upsample::{Scale, UpsampleFilter, UpsampleInputs, UpsampleNode};

@@ -47,7 +47,9 @@
 use glam::{Mat4, Vec3, Vec4};
 
 use crate::error::{finite, Error, Result};
-use crate::gpu::pipeline::{bind_group, depth_pipeline, layout, module, Binding};
+use crate::gpu::pipeline::{
+    bind_group, compute_pipeline, depth_pipeline, dispatch, layout, module, Binding,
+};
 use crate::gpu::wgsl::wgsl_file;
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{GpuTimer, Occluder};
@@ -62,6 +64,28 @@ const BINDINGS: [Binding; 2] = [
     Binding::DynamicParams(64), // instance: world_from_object, one slot per occluder
 ];
 
+/// The binding table of `shaders/triangles.wgsl` (the occluders' triangles for the exact
+/// visible fraction, [`ShadowMap::triangles`]).
+const TRIANGLE_BINDINGS: [Binding; 4] = [
+    Binding::Params,    // instance: world_from_object, the occluder's slot
+    Binding::Params,    // positions
+    Binding::Params,    // indices
+    Binding::ReadWrite, // triangles: this occluder's range
+];
+
+/// Bytes of one group of four triangles of [`ShadowMap::triangles`]: their corners and a
+/// sphere bounding them, in 16 `vec4<f32>` (`shaders/triangles.wgsl`).
+pub(crate) const GROUP_BYTES: u64 = 256;
+
+/// Most triangles (all occluders together) for which the node gathers
+/// [`ShadowMap::triangles`]: each exact visible fraction tests every group of four's bounding
+/// sphere, and the triangles of those in its cone of lines to the light, and the march takes
+/// one at each of up to 64 refined steps (in pieces) of a ray. More, and the soft shadows take
+/// the shadow map's estimate alone. On llvmpipe, which ends every loop of a shader invocation
+/// once its loops together reach 65 535 iterations, 128 groups keep 64 steps in 4 pieces
+/// within half of that.
+pub const MAX_EXACT_TRIANGLES: u32 = 512;
+
 /// The node's layout and pipeline, held by the [`Cache`].
 #[derive(Clone)]
 pub(crate) struct Pipelines {
@@ -70,6 +94,9 @@ pub(crate) struct Pipelines {
     depth: wgpu::RenderPipeline,
     /// Faces turned away from the light only: a closed occluder's nearest back face.
     back: wgpu::RenderPipeline,
+    /// The occluders' triangles in world space (`shaders/triangles.wgsl`).
+    gather_layout: wgpu::BindGroupLayout,
+    gather: wgpu::ComputePipeline,
 }
 
 impl Pipelines {
@@ -94,7 +121,23 @@ impl Pipelines {
                 cull_mode,
             )
         };
+        let gather_layout = crate::gpu::pipeline::layout(
+            device,
+            "volshadow occluder triangles",
+            wgpu::ShaderStages::COMPUTE,
+            &TRIANGLE_BINDINGS,
+        );
+        let gather = compute_pipeline(
+            device,
+            "volshadow occluder triangles",
+            &[&gather_layout],
+            &crate::gpu::pipeline::module(device, &wgsl_file!("triangles.wgsl"), precision),
+            "gather",
+            &[],
+        );
         Self {
+            gather_layout,
+            gather,
             depth: pipeline(None),
             // Counter-clockwise is front (wgpu's default), as the crate's meshes wind faces
             // seen from outside.
@@ -196,6 +239,14 @@ pub struct ShadowMap<'a> {
     /// [`SoftShadowNode`](crate::nodes::SoftShadowNode) skips its search for shafts. `true`
     /// where not known (a map the caller renders).
     pub gaps: bool,
+    /// For a point or spot light with a radius whose occluders may leave gaps (see
+    /// [`gaps`](Self::gaps)), at most [`MAX_EXACT_TRIANGLES`] triangles in all: the occluders'
+    /// triangles in world space, in groups of four (each 16 `vec4<f32>`: the corners, then a
+    /// sphere bounding them; zero triangles pad a group), from which the soft
+    /// shadows take the light's visible fraction exactly in place of the shadow map's
+    /// estimate, which sees the occluders from the light's centre alone (see
+    /// [`SoftShadowNode`](crate::nodes::SoftShadowNode)). `None`: the estimate.
+    pub triangles: Option<&'a wgpu::Buffer>,
     /// Changes whenever the map's contents do, so that what is derived from it (the
     /// [`SoftShadowNode`](crate::nodes::SoftShadowNode)'s grid) is rebuilt only then:
     /// [`ShadowMapNode`] counts its renders. A map the caller renders must change it at
@@ -204,6 +255,42 @@ pub struct ShadowMap<'a> {
 }
 
 impl ShadowMap<'_> {
+    /// The groups of four triangles in [`triangles`](Self::triangles), 0 without.
+    pub(crate) fn triangle_groups(&self) -> u32 {
+        self.triangles
+            .map_or(0, |b| (b.size() / GROUP_BYTES) as u32)
+    }
+
+    /// Checks [`triangles`](Self::triangles): a storage buffer of whole groups of four, at most
+    /// [`MAX_EXACT_TRIANGLES`] triangles.
+    pub(crate) fn check_triangles(&self) -> Result<()> {
+        let Some(buffer) = self.triangles else {
+            return Ok(());
+        };
+        let problem = if !buffer.usage().contains(wgpu::BufferUsages::STORAGE) {
+            Some(format!("usage {:?} lacks STORAGE", buffer.usage()))
+        } else if buffer.size() == 0 || buffer.size() % GROUP_BYTES != 0 {
+            Some(format!(
+                "{} bytes: not whole groups of {GROUP_BYTES} bytes",
+                buffer.size()
+            ))
+        } else if buffer.size() / GROUP_BYTES * 4 > u64::from(MAX_EXACT_TRIANGLES) {
+            Some(format!(
+                "{} groups of four triangles: more than {MAX_EXACT_TRIANGLES} triangles",
+                buffer.size() / GROUP_BYTES
+            ))
+        } else {
+            None
+        };
+        match problem {
+            Some(problem) => Err(Error::InvalidBuffer {
+                field: "shadow_map.triangles",
+                problem,
+            }),
+            None => Ok(()),
+        }
+    }
+
     /// Checks [`back`](Self::back) against the map: a depth array of the same size and layers.
     pub(crate) fn check_back(&self) -> Result<()> {
         let Some(back) = self.back else {
@@ -327,6 +414,9 @@ pub struct ShadowMapNode {
     occluder_distance: f32,
     /// Whether the occluders may leave gaps (see [`ShadowMap::gaps`]).
     gaps: bool,
+    /// See [`ShadowMap::triangles`], and per occluder its gather's bind group and workgroups.
+    triangles: Option<wgpu::Buffer>,
+    gathers: Vec<(wgpu::BindGroup, u32)>,
 }
 
 struct Draw {
@@ -582,6 +672,8 @@ impl ShadowMapNode {
             layer_draws: None,
             occluder_distance: 0.0,
             gaps: true,
+            triangles: None,
+            gathers: Vec::new(),
         })
     }
 
@@ -756,6 +848,7 @@ impl ShadowMapNode {
         self.key = key;
         self.place(light, occluders, directional);
         self.upload(queue, occluders);
+        self.gather_triangles(device, light, occluders);
         self.pending = true;
         self.generation += 1;
         Ok(true)
@@ -939,6 +1032,67 @@ impl ShadowMapNode {
         }
     }
 
+    /// Lists the gathers of [`ShadowMap::triangles`] where the soft shadows take them (a point
+    /// or spot light with a radius, occluders that may leave gaps, at most
+    /// [`MAX_EXACT_TRIANGLES`] in all), each occluder's in groups of four.
+    fn gather_triangles(
+        &mut self,
+        device: &wgpu::Device,
+        light: &Light,
+        occluders: &[Occluder<'_>],
+    ) {
+        self.gathers.clear();
+        let groups = |o: &Occluder<'_>| o.mesh.triangle_count.div_ceil(4);
+        let total: u64 = occluders.iter().map(|o| u64::from(groups(o))).sum();
+        let wanted = light.radius() > 0.0
+            && light.position().is_some()
+            && self.gaps
+            && total > 0
+            && 4 * total <= u64::from(MAX_EXACT_TRIANGLES);
+        if !wanted {
+            self.triangles = None;
+            return;
+        }
+        let size = total * GROUP_BYTES;
+        if self.triangles.as_ref().is_none_or(|b| b.size() != size) {
+            self.triangles = Some(device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("volshadow occluder triangles"),
+                size,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }));
+        }
+        let (Some(triangles), Some(instances)) = (&self.triangles, &self.instance_buffer) else {
+            return;
+        };
+        let mut first = 0u64;
+        for (i, o) in occluders.iter().enumerate() {
+            let count = groups(o);
+            let range = u64::from(count) * GROUP_BYTES;
+            let group = bind_group(
+                device,
+                "volshadow occluder triangles",
+                &self.pipelines.gather_layout,
+                [
+                    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: instances,
+                        offset: i as u64 * SLOT,
+                        size: wgpu::BufferSize::new(64),
+                    }),
+                    o.mesh.positions.as_entire_binding(),
+                    o.mesh.indices.as_entire_binding(),
+                    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: triangles,
+                        offset: first,
+                        size: wgpu::BufferSize::new(range),
+                    }),
+                ],
+            );
+            self.gathers.push((group, count.div_ceil(64)));
+            first += range;
+        }
+    }
+
     /// The directional map's cascades for this camera and these occluders: each one's face,
     /// and which occluders can shadow its region (the only ones drawn into it).
     fn directional_faces(
@@ -999,6 +1153,7 @@ impl ShadowMapNode {
             planes: &self.planes,
             occluder_distance: self.occluder_distance,
             gaps: self.gaps,
+            triangles: self.triangles.as_ref(),
             generation: self.generation,
         })
     }
@@ -1104,6 +1259,23 @@ impl Encode for ShadowMapNode {
                     pass.draw_indexed(0..draw.index_count, 0, 0..1);
                 }
             }
+        }
+        if !self.gathers.is_empty() {
+            let groups: Vec<[&wgpu::BindGroup; 1]> =
+                self.gathers.iter().map(|(g, _)| [g]).collect();
+            let dispatches: Vec<_> = self
+                .gathers
+                .iter()
+                .zip(&groups)
+                .map(|((_, n), g)| (&self.pipelines.gather, &g[..], (*n, 1, 1)))
+                .collect();
+            dispatch(
+                encoder,
+                timer,
+                Pass::ShadowMap,
+                "volshadow occluder triangles",
+                &dispatches,
+            );
         }
         Ok(())
     }

@@ -43,6 +43,16 @@
 //! a point's filter taps and lies within 0.9 of its distance is a receiver the point lies above
 //! (a ground), not a reason to mark the cell.
 //!
+//! Where the shadow map carries the occluders' triangles ([`ShadowMap::triangles`]: occluders
+//! that may leave gaps, at most [`MAX_EXACT_TRIANGLES`](crate::nodes::MAX_EXACT_TRIANGLES) of
+//! them), a cell's estimate is the exact visible fraction in place of PCSS: bitmask soft
+//! shadows (Schwarz and Stamminger, "Bitmask Soft Shadows", 2007) with the triangles in place
+//! of shadow-map texels, 256 directions over the light's cap, each triangle hiding the
+//! intersection of three half-planes of it from a precomputed table. A shadow map sees the
+//! occluders from the light's centre alone, and through a gap narrower than the light a point
+//! sees parts of the light past faces the centre does not (`docs/METHOD.md`). The march then
+//! takes the same fraction at every step whose grid value lies strictly between 0 and 1.
+//!
 //! Where the shadow map's occluders may leave gaps ([`ShadowMap::gaps`]: more than one
 //! occluder, or one that is not convex), a last pass copies the grid to the output and marks
 //! the cells within 20 of a narrow shaft: a peak of visible fraction below 0.95 that rises by
@@ -74,11 +84,14 @@
 //! * A light nearly as large as its distance to an occluder is beyond the one-planar-blocker
 //!   assumption (radius 1.39 against a gap of 1.4, bar 6%; the occluder half inside the light's
 //!   sphere, bar 10%).
-//! * Gaps: a shaft that the shadow map's single surface hides (blinds tilted across the
-//!   light's centre, a door ajar by less than the light's diameter) is beyond the per-point
-//!   estimate, and a thin shaft that a ray crosses within one of the march's steps is beyond
-//!   the grid's march (gap scenes of `tests/gpu/soft_grid.rs`: 13 of 16 within p95 3%; see
-//!   `docs/METHOD.md`).
+//! * Gaps: with the occluders' triangles, 15 of the 16 gap scenes of `tests/gpu/soft_grid.rs`
+//!   are within p95 3% (13 with the shadow map's estimate, which cannot see a shaft the
+//!   light's centre does not: blinds tilted across it, a door ajar). A gap a tenth of the
+//!   light's disc wide is finer than the 256 directions (and the reference's 16 × 16): a door
+//!   ajar by 0.23 of the light's diameter, p95 14.8%. A thin shaft that a ray crosses within
+//!   one of the march's steps is beyond the grid's march (see `docs/METHOD.md`).
+//! * The exact fraction cuts a triangle where the cone of lines to the light touches the
+//!   light's sphere: an occluder reaching into the sphere is beyond it.
 //! * The blockers' distance is fitted to round occluders: a box's penumbra is wider than the
 //!   model predicts, most where the light is larger than the box (8 seeded box scenes, bar:
 //!   7 within p95 3%, all within 6%).
@@ -275,6 +288,7 @@ pub(crate) fn soft_params(
             spheres: count as u32,
             cell_angle: 0.0,
             reproject: u32::from(map.gaps),
+            groups: map.triangle_groups(),
         },
         spheres,
         planes,
@@ -296,6 +310,10 @@ pub(crate) struct SoftLight {
     /// grid's build: each of the filter's taps moves to where its line crosses its own
     /// blocker's distance (`soft_filter` in `shaders/pcss.wgsl`); else 0.
     pub reproject: u32,
+    /// The groups of four of the occluders' triangles the exact visible fraction reads
+    /// ([`ShadowMap::triangles`], `soft_exact` in `shaders/pcss.wgsl`); 0: the estimate from
+    /// the shadow map.
+    pub groups: u32,
 }
 
 impl SoftLight {
@@ -936,6 +954,7 @@ fn validate(inputs: &SoftShadowInputs<'_>) -> Result<(u32, bool)> {
     let map = inputs.shadow_map;
     check_depth_layers("shadow_map", map.texture, layers)?;
     map.check_back()?;
+    map.check_triangles()?;
     if map.faces.len() != layers as usize {
         return Err(Error::InvalidTexture {
             field: "shadow_map",
