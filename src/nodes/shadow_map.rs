@@ -101,6 +101,20 @@ pub(crate) struct Pipelines {
 
 impl Pipelines {
     pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
+        let gather_layout = layout(
+            device,
+            "volshadow occluder triangles",
+            wgpu::ShaderStages::COMPUTE,
+            &TRIANGLE_BINDINGS,
+        );
+        let gather = compute_pipeline(
+            device,
+            "volshadow occluder triangles",
+            &[&gather_layout],
+            &module(device, &wgsl_file!("triangles.wgsl"), precision),
+            "gather",
+            &[],
+        );
         let label = "volshadow shadow map";
         let layout = layout(device, label, wgpu::ShaderStages::VERTEX, &BINDINGS);
         let module = module(device, &wgsl_file!("shadow_map.wgsl"), precision);
@@ -121,20 +135,6 @@ impl Pipelines {
                 cull_mode,
             )
         };
-        let gather_layout = crate::gpu::pipeline::layout(
-            device,
-            "volshadow occluder triangles",
-            wgpu::ShaderStages::COMPUTE,
-            &TRIANGLE_BINDINGS,
-        );
-        let gather = compute_pipeline(
-            device,
-            "volshadow occluder triangles",
-            &[&gather_layout],
-            &crate::gpu::pipeline::module(device, &wgsl_file!("triangles.wgsl"), precision),
-            "gather",
-            &[],
-        );
         Self {
             gather_layout,
             gather,
