@@ -588,6 +588,15 @@ fn may_be_hidden(p: vec3<f32>) -> bool {
     return false;
 }
 
+// The turn of `soft_exact`'s directions about the axis, in turns: a caller sets `exact_seed`
+// (a pixel's or a cell's, in [0, 1)), and each call of the invocation turns the directions a
+// further golden fraction of a turn (`exact_calls`). 256 fixed directions cover a sliver of
+// the light (a door ajar seen from beside its shaft) by whole directions, the same ones at
+// every point of a ray that the sliver crosses slowly; turned, their errors average out
+// along the ray (see `soft_exact`).
+var<private> exact_seed: f32 = 0.0;
+var<private> exact_calls: u32 = 0u;
+
 // The directions `soft_exact` tests: 256 points of the unit disc (a golden-angle spiral,
 // equal areas) in 8 rings of 32, a `u32` of bits each, scaled to the light's disc.
 const EXACT_RINGS: u32 = 8u;
@@ -748,8 +757,14 @@ fn soft_exact(p: vec3<f32>, search: f32) -> vec2<f32> {
     let dist = length(to_light);
     let axis = to_light / dist;
     let frame = soft_frame(axis);
-    let e1 = frame[0];
-    let e2 = frame[1];
+    // The directions turned (any turn keeps them a sample of the disc with the same weights).
+    let spin = PI * (2.0 * fract(exact_seed + 0.618034 * f32(exact_calls)) - 1.0);
+    exact_calls += 1u;
+    // In [−π, π), where WGSL bounds sin and cos (2^-11 absolute: a turn that far from a
+    // rotation moves a direction by a thirtieth of the table's offset step).
+    let turn = vec2<f32>(vs_cos(spin), vs_sin(spin));
+    let e1 = frame[0] * turn.x + frame[1] * turn.y;
+    let e2 = frame[1] * turn.x - frame[0] * turn.y;
     let radius = shadow.light.radius;
     let sin_a = min(radius / dist, 1.0);
     let cos_a = vs_sqrt(max(1.0 - sin_a * sin_a, 0.0));

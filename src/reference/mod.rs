@@ -98,6 +98,7 @@ mod metric;
 mod occluder;
 mod phase;
 pub(crate) mod quadrature;
+mod rows;
 pub mod soft;
 mod texture;
 mod visibility;

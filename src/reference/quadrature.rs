@@ -119,6 +119,24 @@ pub(crate) fn integrate(
     rel_tol: f64,
     max_bisections: usize,
 ) -> DVec3 {
+    integrate_to(
+        g,
+        segments,
+        rel_tol,
+        DVec3::splat(f64::MIN_POSITIVE),
+        max_bisections,
+    )
+}
+
+/// [`integrate`], content also where the estimated error of a channel is at most `floor` (an
+/// absolute tolerance, for a total that may be tiny or zero).
+pub(crate) fn integrate_to(
+    g: impl Fn(usize, f64) -> DVec3,
+    segments: &[(usize, f64, f64)],
+    rel_tol: f64,
+    floor: DVec3,
+    max_bisections: usize,
+) -> DVec3 {
     let mut pieces: Vec<(usize, f64, f64, DVec3, DVec3)> = Vec::with_capacity(segments.len());
     for &(map, a, b) in segments {
         if a < b && a.is_finite() && b.is_finite() {
@@ -143,7 +161,7 @@ pub(crate) fn integrate(
         })
         .collect();
     let converged = |total: DVec3, err: DVec3| {
-        (0..3).all(|c| err[c] <= (rel_tol * total[c].abs()).max(f64::MIN_POSITIVE))
+        (0..3).all(|c| err[c] <= (rel_tol * total[c].abs()).max(floor[c]))
     };
     let mut bisections = 0;
     while bisections < max_bisections && !converged(total, total_err) {

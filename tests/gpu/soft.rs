@@ -393,8 +393,8 @@ fn looking_straight_at_a_soft_light() {
 }
 
 /// A torus (a mesh, 48 × 24) under a spot light of radius 0.2 × their distance, looking
-/// across its shaft (hole included) at 64²: the reference samples the disc (16² strata, stated
-/// bound 0.3/16 on the visible fraction) and costs about 2.4 s of CPU per pixel unoptimised,
+/// across its shaft (hole included) at 64²: the reference takes the disc by rows for its
+/// 2 304 triangles and costs seconds of CPU per pixel unoptimised,
 /// so it is computed for every 4th pixel of one row across the shaft (the row bar) and a 4 × 4
 /// grid of pixels (RMSE and p95 over those), not the full frame (32 pixels, about 40 s on two
 /// threads). `torus_spot_penumbra_dense` (ignored: 128 pixels, 160 s) takes the whole row and
