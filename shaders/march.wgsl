@@ -683,9 +683,9 @@ fn march_textbook_directional(ray: PixelRay, r: AirRay, x_end: f32, n: u32) -> T
 
 @compute @workgroup_size(8, 8)
 fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
-    // Neighbouring pixels' exact soft-shadow directions turned apart (interleaved gradient
-    // noise, Jimenez 2014), so that the upsample's filter averages them too.
-    exact_seed = fract(52.982918 * fract(dot(vec2<f32>(gid.xy), vec2<f32>(0.06711056, 0.00583715))));
+    // Neighbouring pixels' exact soft-shadow directions turned apart, so that the upsample's
+    // filter averages them too.
+    exact_seed = exact_seed_at(vec3<f32>(vec2<f32>(gid.xy), 0.0));
     let size = vec2<u32>(view.size.xy);
     if (gid.x >= size.x || gid.y >= size.y) {
         return;

@@ -597,6 +597,12 @@ fn may_be_hidden(p: vec3<f32>) -> bool {
 var<private> exact_seed: f32 = 0.0;
 var<private> exact_calls: u32 = 0u;
 
+// A seed for `exact_seed` from a pixel's or a cell's integer coordinates: interleaved gradient
+// noise (Jimenez 2014), so that neighbours' directions are turned apart.
+fn exact_seed_at(at: vec3<f32>) -> f32 {
+    return fract(52.982918 * fract(dot(at, vec3<f32>(0.06711056, 0.00583715, 0.2360680))));
+}
+
 // The directions `soft_exact` tests: 256 points of the unit disc (a golden-angle spiral,
 // equal areas) in 8 rings of 32, a `u32` of bits each, scaled to the light's disc.
 const EXACT_RINGS: u32 = 8u;

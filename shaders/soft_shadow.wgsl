@@ -214,7 +214,7 @@ fn estimate_listed(
         let t = listed_texel(listed[i]);
         // Neighbouring cells' exact directions turned apart (see `exact_seed` in pcss.wgsl):
         // the march's trilinear lookup averages eight of them.
-        exact_seed = fract(52.982918 * fract(dot(vec3<f32>(t), vec3<f32>(0.06711056, 0.00583715, 0.2360680))));
+        exact_seed = exact_seed_at(vec3<f32>(t));
         let found = soft_search(listed_point(t));
         if (found.z < 0.0) {
             textureStore(rest_out, t, vec4<f32>(found.xy, 0.0, 0.0));

@@ -182,6 +182,18 @@ impl Cuboid {
         self.rotation().inverse() * (p - self.center)
     }
 
+    /// Distance from `p` to the box's surface (from inside or outside).
+    pub(crate) fn surface_distance(&self, p: DVec3) -> f64 {
+        let local = self.local_point(p).abs();
+        let h = self.half_extents.abs();
+        let outside = (local - h).max(DVec3::ZERO);
+        if outside != DVec3::ZERO {
+            outside.length()
+        } else {
+            (h - local).min_element()
+        }
+    }
+
     /// The 8 corners in world space (bit k of the index picks the sign along local axis k).
     pub fn corners(&self) -> [DVec3; 8] {
         let h = self.half_extents.abs();

@@ -31,7 +31,7 @@
 
 use glam::DVec3;
 
-use super::occluder::{Cuboid, Occluder, TriangleMesh};
+use super::occluder::{Occluder, TriangleMesh};
 use super::quadrature::integrate_to;
 
 /// Tolerance of the integral across the rows, relative to the cap's solid angle.
@@ -58,7 +58,7 @@ impl Shape {
                 let rho = s.radius.abs();
                 (p.distance(s.center) - rho > r).then_some(Shape::Ball(s.center, rho))
             }
-            Occluder::Cuboid(c) => (cuboid_distance(c, p) > r).then(|| triangles(&c.to_mesh())),
+            Occluder::Cuboid(c) => (c.surface_distance(p) > r).then(|| triangles(&c.to_mesh())),
             Occluder::Mesh(m) => m
                 .triangle_vertices()
                 .all(|t| triangle_distance(t, p) > r)
@@ -69,23 +69,6 @@ impl Shape {
 
 fn triangles(m: &TriangleMesh) -> Shape {
     Shape::Triangles(m.triangle_vertices().collect())
-}
-
-/// Distance from `p` to the box's surface.
-fn cuboid_distance(c: &Cuboid, p: DVec3) -> f64 {
-    let rotation = if c.rotation.is_finite() && c.rotation.length_squared() > 0.0 {
-        c.rotation.normalize()
-    } else {
-        glam::DQuat::IDENTITY
-    };
-    let local = (rotation.inverse() * (p - c.center)).abs();
-    let h = c.half_extents.abs();
-    let outside = (local - h).max(DVec3::ZERO);
-    if outside != DVec3::ZERO {
-        outside.length()
-    } else {
-        (h - local).min_element()
-    }
 }
 
 /// Distance from `p` to the triangle `[a, b, c]` (the closest point by its Voronoi regions:
