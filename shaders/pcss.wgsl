@@ -589,11 +589,10 @@ fn may_be_hidden(p: vec3<f32>) -> bool {
 }
 
 // The turn of `soft_exact`'s directions about the axis, in turns: a caller sets `exact_seed`
-// (a pixel's or a cell's, in [0, 1)), and each call of the invocation turns the directions a
-// further golden fraction of a turn (`exact_calls`). 256 fixed directions cover a sliver of
-// the light (a door ajar seen from beside its shaft) by whole directions, the same ones at
-// every point of a ray that the sliver crosses slowly; turned, their errors average out
-// along the ray (see `soft_exact`).
+// (a pixel's or a cell's, in [0, 1)), and each turn of the invocation (`exact_calls`) adds a
+// further `EXACT_TURN`. 256 fixed directions cover a sliver of the light (a door ajar seen
+// from beside its shaft) by whole directions, the same ones at every point of a ray that the
+// sliver crosses slowly; turned, their errors average out along the ray (see `soft_exact`).
 var<private> exact_seed: f32 = 0.0;
 var<private> exact_calls: u32 = 0u;
 
@@ -755,41 +754,150 @@ fn exact_triangle(a0: vec3<f32>, b0: vec3<f32>, c0: vec3<f32>, cut: f32, tan_a: 
 // LP_MAX_TGSI_LOOP_ITERATIONS), and the march takes this at many points of a ray, so the
 // directions are words of bits and the four triangles of a group are not a loop.
 //
+// Where the last call found a sliver of the light, more turns of the directions over the
+// groups the first did not cull refine the fraction (`EXACT_FEW`).
+//
 // Returns (fraction, region) as `soft_search` does: the region is the filter width
 // (`soft_width`) of a blocker at the least distance from p, along the axis, of a triangle
 // that hides a direction, or `search` where none or all of the light is hidden.
 fn soft_exact(p: vec3<f32>, search: f32) -> vec2<f32> {
     let to_light = shadow.light.position - p;
     let dist = length(to_light);
-    let axis = to_light / dist;
+    let light = ExactLight(p, to_light / dist, dist, shadow.light.radius);
+    // How many turns: from the fraction the previous call of this invocation found (the
+    // previous step of a ray), not from this one's first turn. Refining only where the first
+    // turn saw a direction would leave a sliver's points that saw none at 0 and average down
+    // those that saw one: darker than the sliver on average.
+    var passes = 1u;
+    if (exact_last > 0.0 && exact_last < f32(EXACT_FEW) / f32(EXACT_SAMPLES)) {
+        let wanted = ceil(f32(EXACT_FEW) / (exact_last * f32(EXACT_SAMPLES)));
+        passes = u32(min(wanted, f32(EXACT_PASSES)));
+    }
+    let first = exact_pass(light, false);
+    let hidden = first.mask;
+    var f = exact_fraction(hidden, light);
+    let listed = exact_listed_count;
+    if (passes > 1u && listed > 0u && listed <= EXACT_LISTED) {
+        // More turns over the groups the first did not cull (the same cone, whatever the
+        // turn), as many as keep the call within one turn over `EXACT_BUDGET` groups.
+        let turns = min(passes, 1u + (EXACT_BUDGET - min(shadow.soft.groups, EXACT_BUDGET)) / listed);
+        var sum = f;
+        for (var k = 1u; k < turns; k++) {
+            sum += exact_fraction(exact_pass(light, true).mask, light);
+        }
+        f = sum / f32(turns);
+    }
+    exact_last = f;
+    let blocked = hidden.lo | hidden.hi;
+    let all_hidden = all((hidden.lo & hidden.hi) == vec4<u32>(0xffffffffu));
+    if (all(blocked == vec4<u32>(0u)) || all_hidden) {
+        return vec2<f32>(f, search);
+    }
+    return vec2<f32>(f, soft_width(dist, clamp(1.0 - min(first.z, dist) / dist, 0.0, 1.0)));
+}
+
+// Where `soft_exact` sees the light from: the point, the unit axis to the light's centre, its
+// distance and the light's radius.
+struct ExactLight {
+    p: vec3<f32>,
+    axis: vec3<f32>,
+    dist: f32,
+    radius: f32,
+}
+
+// Slivers. Where the invocation's last call (the previous refined step of a ray) found less
+// than `EXACT_FEW` directions' worth of the light (1/8 of it), a call takes ceil(EXACT_FEW /
+// that) turns of the directions, at most `EXACT_PASSES`, and averages them: a sliver a few
+// directions wide is counted by whole directions, ±1 of a few at each turn (see
+// docs/METHOD.md, "Gaps narrower than the light"). The turns after the first test only the
+// groups the first did not cull, when they are at most `EXACT_LISTED`, and no more of them
+// than keep a call within `EXACT_BUDGET` groups' iterations, one turn over 512 triangles
+// (`MAX_EXACT_TRIANGLES`: llvmpipe's loop limit, below).
+const EXACT_FEW: u32 = 32u;
+const EXACT_PASSES: u32 = 8u;
+const EXACT_LISTED: u32 = 16u;
+const EXACT_BUDGET: u32 = 128u;
+const EXACT_SAMPLES: u32 = 256u;
+var<private> exact_listed: array<u32, EXACT_LISTED>;
+var<private> exact_listed_count: u32;
+// The visible fraction the invocation's last `soft_exact` found (1 before any).
+var<private> exact_last: f32 = 1.0;
+// The turn between an invocation's calls, in turns: 1/ρ for ρ the plastic number (the first
+// coordinate of Roberts' R2 sequence, 2018). Not the golden fraction: turned by it the
+// golden-angle spiral of the directions falls nearly onto itself, each direction near the
+// angle of the next one in, and a sliver at the disc's edge sees few new angles (the door
+// ajar by 0.23 of the light's diameter, seed 411: p95 1.3–3.1% over four seeds' shifts, 1.1–
+// 1.2% with this).
+const EXACT_TURN: f32 = 0.75487767;
+
+// The visible fraction of the cap from a mask of hidden directions: each ring's solid angle
+// over the cap's (ring k spans tan²θ from tan²α·k/8 to tan²α·(k + 1)/8 of the plane).
+fn exact_fraction(hidden: Mask, light: ExactLight) -> f32 {
+    let sin_a = min(light.radius / light.dist, 1.0);
+    let cos_a = vs_sqrt(max(1.0 - sin_a * sin_a, 0.0));
+    let tan_a = sin_a / max(cos_a, 1.0e-30);
+    let t2 = tan_a * tan_a;
+    let whole = exact_versine(t2);
+    let lit_lo = vec4<f32>(countOneBits(~hidden.lo)) / 32.0;
+    let lit_hi = vec4<f32>(countOneBits(~hidden.hi)) / 32.0;
+    if (!(whole > 0.0)) {
+        // A light so small seen from p that tan²α flushes to 0: the rings weigh alike.
+        return 0.125 * (dot(lit_lo, vec4<f32>(1.0)) + dot(lit_hi, vec4<f32>(1.0)));
+    }
+    let eighth = t2 / f32(EXACT_RINGS);
+    let v = vec4<f32>(exact_versine(eighth), exact_versine(2.0 * eighth), exact_versine(3.0 * eighth), exact_versine(4.0 * eighth));
+    let u = vec4<f32>(exact_versine(5.0 * eighth), exact_versine(6.0 * eighth), exact_versine(7.0 * eighth), whole);
+    let ring_lo = v - vec4<f32>(0.0, v.xyz);
+    let ring_hi = u - vec4<f32>(v.w, u.xyz);
+    return clamp((dot(ring_lo, lit_lo) + dot(ring_hi, lit_hi)) / whole, 0.0, 1.0);
+}
+
+// One turn of `soft_exact`'s directions: the directions the triangles hide, and the least
+// distance along the axis of a triangle that hides one. Over every group (listing those not
+// culled in `exact_listed`, up to `EXACT_LISTED`), or over the listed ones when `listed`.
+fn exact_pass(light: ExactLight, listed: bool) -> Hidden {
+    let p = light.p;
+    let axis = light.axis;
     let frame = soft_frame(axis);
     // The directions turned (any turn keeps them a sample of the disc with the same weights).
-    let spin = PI * (2.0 * fract(exact_seed + 0.618034 * f32(exact_calls)) - 1.0);
+    let spin = PI * (2.0 * fract(exact_seed + EXACT_TURN * f32(exact_calls)) - 1.0);
     exact_calls += 1u;
     // In [−π, π), where WGSL bounds sin and cos (2^-11 absolute: a turn that far from a
     // rotation moves a direction by a thirtieth of the table's offset step).
     let turn = vec2<f32>(vs_cos(spin), vs_sin(spin));
     let e1 = frame[0] * turn.x + frame[1] * turn.y;
     let e2 = frame[1] * turn.x - frame[0] * turn.y;
-    let radius = shadow.light.radius;
-    let sin_a = min(radius / dist, 1.0);
+    let sin_a = min(light.radius / light.dist, 1.0);
     let cos_a = vs_sqrt(max(1.0 - sin_a * sin_a, 0.0));
     let tan_a = sin_a / max(cos_a, 1.0e-30);
     // Where the lines to the light's sphere have all entered it, along the axis: the plane of
     // the circle where the cone of lines from p touches it (d·cos²α). A point of the cone
     // nearer p and outside the sphere lies before the sphere on its line; one beyond lies
     // behind where its line entered the sphere.
-    let cut = dist - radius * sin_a;
+    let cut = light.dist - light.radius * sin_a;
     var hidden = Mask(vec4<u32>(0u), vec4<u32>(0u));
-    var nearest_z = dist;
-    for (var g = 0u; g < shadow.soft.groups; g++) {
-        let bound = soft_triangles[16u * g + 12u];
-        let w = bound.xyz - p;
-        let along = dot(w, axis);
-        let across = length(w - along * axis);
-        // Behind p, beyond the cut, or outside the cone of lines to the light.
-        if (along + bound.w <= 0.0 || along - bound.w >= cut || across * cos_a - along * sin_a > bound.w) {
-            continue;
+    var nearest_z = 3.4e38;
+    let count = select(shadow.soft.groups, exact_listed_count, listed);
+    if (!listed) {
+        exact_listed_count = 0u;
+    }
+    for (var i = 0u; i < count; i++) {
+        var g = i;
+        if (listed) {
+            g = exact_listed[i];
+        } else {
+            let bound = soft_triangles[16u * g + 12u];
+            let w = bound.xyz - p;
+            let along = dot(w, axis);
+            let across = length(w - along * axis);
+            // Behind p, beyond the cut, or outside the cone of lines to the light.
+            if (along + bound.w <= 0.0 || along - bound.w >= cut || across * cos_a - along * sin_a > bound.w) {
+                continue;
+            }
+            if (exact_listed_count < EXACT_LISTED) {
+                exact_listed[exact_listed_count] = g;
+            }
+            exact_listed_count += 1u;
         }
         // The group's 12 corners in the frame, one triangle at a time.
         var h = exact_triangle(exact_corner(g, 0u, p, e1, e2, axis), exact_corner(g, 1u, p, e1, e2, axis), exact_corner(g, 2u, p, e1, e2, axis), cut, tan_a);
@@ -805,28 +913,7 @@ fn soft_exact(p: vec3<f32>, search: f32) -> vec2<f32> {
         hidden = Mask(hidden.lo | h.mask.lo, hidden.hi | h.mask.hi);
         nearest_z = min(nearest_z, h.z);
     }
-    // Each ring's solid angle over the cap's: ring k spans tan²θ from tan²α·k/8 to
-    // tan²α·(k + 1)/8 of the plane.
-    let t2 = tan_a * tan_a;
-    let whole = exact_versine(t2);
-    let lit_lo = vec4<f32>(countOneBits(~hidden.lo)) / 32.0;
-    let lit_hi = vec4<f32>(countOneBits(~hidden.hi)) / 32.0;
-    let eighth = t2 / f32(EXACT_RINGS);
-    let v = vec4<f32>(exact_versine(eighth), exact_versine(2.0 * eighth), exact_versine(3.0 * eighth), exact_versine(4.0 * eighth));
-    let u = vec4<f32>(exact_versine(5.0 * eighth), exact_versine(6.0 * eighth), exact_versine(7.0 * eighth), whole);
-    let ring_lo = v - vec4<f32>(0.0, v.xyz);
-    let ring_hi = u - vec4<f32>(v.w, u.xyz);
-    var f = clamp((dot(ring_lo, lit_lo) + dot(ring_hi, lit_hi)) / whole, 0.0, 1.0);
-    if (!(whole > 0.0)) {
-        // A light so small seen from p that tan²α flushes to 0: the rings weigh alike.
-        f = 0.125 * (dot(lit_lo, vec4<f32>(1.0)) + dot(lit_hi, vec4<f32>(1.0)));
-    }
-    let blocked = hidden.lo | hidden.hi;
-    let all_hidden = all((hidden.lo & hidden.hi) == vec4<u32>(0xffffffffu));
-    if (all(blocked == vec4<u32>(0u)) || all_hidden) {
-        return vec2<f32>(f, search);
-    }
-    return vec2<f32>(f, soft_width(dist, clamp(1.0 - nearest_z / dist, 0.0, 1.0)));
+    return Hidden(hidden, nearest_z);
 }
 
 // Corner k of group g relative to p, in the frame (e1, e2, axis) of `soft_exact`.

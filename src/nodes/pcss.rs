@@ -297,3 +297,20 @@ fn the_exact_directions_and_their_half_planes() {
         "half-plane table off by {worst:.4} (bar {BAR})"
     );
 }
+
+/// `soft_exact`'s loop budget in `shaders/pcss.wgsl` is one turn over the most triangles the
+/// shadow-map node gathers, in groups of four: a larger budget would let a sliver's extra
+/// turns take a call past what `MAX_EXACT_TRIANGLES` was sized for (llvmpipe's loop limit).
+/// And the WGSL's directions and offsets are the table's.
+#[cfg(test)]
+#[test]
+fn the_exact_constants_match_the_wgsl() {
+    crate::nodes::layout::assert_constants(
+        "#import pcss.wgsl",
+        &[
+            ("EXACT_BUDGET", crate::nodes::MAX_EXACT_TRIANGLES / 4),
+            ("EXACT_SAMPLES", EXACT_SAMPLES as u32),
+            ("MASK_OFFSETS", MASK_OFFSETS),
+        ],
+    );
+}
