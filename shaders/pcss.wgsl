@@ -763,7 +763,7 @@ fn exact_triangle(a0: vec3<f32>, b0: vec3<f32>, c0: vec3<f32>, cut: f32, tan_a: 
 fn soft_exact(p: vec3<f32>, search: f32) -> vec2<f32> {
     let to_light = shadow.light.position - p;
     let dist = length(to_light);
-    let light = ExactLight(p, to_light / dist, dist, shadow.light.radius);
+    let light = exact_light(p, to_light / dist, dist);
     // How many turns: from the fraction the previous call of this invocation found (the
     // previous step of a ray), not from this one's first turn. Refining only where the first
     // turn saw a direction would leave a sliver's points that saw none at 0 and average down
@@ -796,13 +796,39 @@ fn soft_exact(p: vec3<f32>, search: f32) -> vec2<f32> {
     return vec2<f32>(f, soft_width(dist, clamp(1.0 - min(first.z, dist) / dist, 0.0, 1.0)));
 }
 
-// Where `soft_exact` sees the light from: the point, the unit axis to the light's centre, its
-// distance and the light's radius.
+// Where `soft_exact` sees the light from, the same at every turn: the point, the unit axis to
+// the light's centre, its distance, the cap's half-angle α (sin, cos, tan), the plane of the
+// cut along the axis, and the rings' solid angles over the cap's (`exact_fraction`).
 struct ExactLight {
     p: vec3<f32>,
     axis: vec3<f32>,
     dist: f32,
-    radius: f32,
+    sin_a: f32,
+    cos_a: f32,
+    tan_a: f32,
+    cut: f32,
+    ring_lo: vec4<f32>,
+    ring_hi: vec4<f32>,
+    whole: f32,
+}
+
+fn exact_light(p: vec3<f32>, axis: vec3<f32>, dist: f32) -> ExactLight {
+    let radius = shadow.light.radius;
+    let sin_a = min(radius / dist, 1.0);
+    let cos_a = vs_sqrt(max(1.0 - sin_a * sin_a, 0.0));
+    let tan_a = sin_a / max(cos_a, 1.0e-30);
+    // Where the lines to the light's sphere have all entered it, along the axis: the plane of
+    // the circle where the cone of lines from p touches it (d·cos²α). A point of the cone
+    // nearer p and outside the sphere lies before the sphere on its line; one beyond lies
+    // behind where its line entered the sphere.
+    let cut = dist - radius * sin_a;
+    // Ring k spans tan²θ from tan²α·k/8 to tan²α·(k + 1)/8 of the plane.
+    let t2 = tan_a * tan_a;
+    let whole = exact_versine(t2);
+    let eighth = t2 / f32(EXACT_RINGS);
+    let v = vec4<f32>(exact_versine(eighth), exact_versine(2.0 * eighth), exact_versine(3.0 * eighth), exact_versine(4.0 * eighth));
+    let u = vec4<f32>(exact_versine(5.0 * eighth), exact_versine(6.0 * eighth), exact_versine(7.0 * eighth), whole);
+    return ExactLight(p, axis, dist, sin_a, cos_a, tan_a, cut, v - vec4<f32>(0.0, v.xyz), u - vec4<f32>(v.w, u.xyz), whole);
 }
 
 // Slivers. Where the invocation's last call (the previous refined step of a ray) found less
@@ -831,25 +857,15 @@ var<private> exact_last: f32 = 1.0;
 const EXACT_TURN: f32 = 0.75487767;
 
 // The visible fraction of the cap from a mask of hidden directions: each ring's solid angle
-// over the cap's (ring k spans tan²θ from tan²α·k/8 to tan²α·(k + 1)/8 of the plane).
+// over the cap's.
 fn exact_fraction(hidden: Mask, light: ExactLight) -> f32 {
-    let sin_a = min(light.radius / light.dist, 1.0);
-    let cos_a = vs_sqrt(max(1.0 - sin_a * sin_a, 0.0));
-    let tan_a = sin_a / max(cos_a, 1.0e-30);
-    let t2 = tan_a * tan_a;
-    let whole = exact_versine(t2);
     let lit_lo = vec4<f32>(countOneBits(~hidden.lo)) / 32.0;
     let lit_hi = vec4<f32>(countOneBits(~hidden.hi)) / 32.0;
-    if (!(whole > 0.0)) {
+    if (!(light.whole > 0.0)) {
         // A light so small seen from p that tan²α flushes to 0: the rings weigh alike.
         return 0.125 * (dot(lit_lo, vec4<f32>(1.0)) + dot(lit_hi, vec4<f32>(1.0)));
     }
-    let eighth = t2 / f32(EXACT_RINGS);
-    let v = vec4<f32>(exact_versine(eighth), exact_versine(2.0 * eighth), exact_versine(3.0 * eighth), exact_versine(4.0 * eighth));
-    let u = vec4<f32>(exact_versine(5.0 * eighth), exact_versine(6.0 * eighth), exact_versine(7.0 * eighth), whole);
-    let ring_lo = v - vec4<f32>(0.0, v.xyz);
-    let ring_hi = u - vec4<f32>(v.w, u.xyz);
-    return clamp((dot(ring_lo, lit_lo) + dot(ring_hi, lit_hi)) / whole, 0.0, 1.0);
+    return clamp((dot(light.ring_lo, lit_lo) + dot(light.ring_hi, lit_hi)) / light.whole, 0.0, 1.0);
 }
 
 // One turn of `soft_exact`'s directions: the directions the triangles hide, and the least
@@ -867,14 +883,10 @@ fn exact_pass(light: ExactLight, listed: bool) -> Hidden {
     let turn = vec2<f32>(vs_cos(spin), vs_sin(spin));
     let e1 = frame[0] * turn.x + frame[1] * turn.y;
     let e2 = frame[1] * turn.x - frame[0] * turn.y;
-    let sin_a = min(light.radius / light.dist, 1.0);
-    let cos_a = vs_sqrt(max(1.0 - sin_a * sin_a, 0.0));
-    let tan_a = sin_a / max(cos_a, 1.0e-30);
-    // Where the lines to the light's sphere have all entered it, along the axis: the plane of
-    // the circle where the cone of lines from p touches it (d·cos²α). A point of the cone
-    // nearer p and outside the sphere lies before the sphere on its line; one beyond lies
-    // behind where its line entered the sphere.
-    let cut = light.dist - light.radius * sin_a;
+    let sin_a = light.sin_a;
+    let cos_a = light.cos_a;
+    let tan_a = light.tan_a;
+    let cut = light.cut;
     var hidden = Mask(vec4<u32>(0u), vec4<u32>(0u));
     var nearest_z = 3.4e38;
     let count = select(shadow.soft.groups, exact_listed_count, listed);
