@@ -7,6 +7,10 @@
 //!                                [--raster-crossings] [--out FILE.json]]
 //! ```
 //!
+//! `benches/scenes/` holds scenes for this bench alone (the tests do not draw them):
+//! `door_ajar.json`, a room lit through a door ajar by a lamp wider than the gap, the exact
+//! soft shadows' costly case (`--scenes benches/scenes/door_ajar.json`).
+//!
 //! Per scene (default: every `scenes/*.json`), after `--warmup` frames (default 5), `--frames`
 //! frames (default 30) are recorded and submitted back to back, as an application's frame loop
 //! would: each frame moves the lights (by a hundred-thousandth of their distance) and turns the

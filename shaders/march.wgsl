@@ -220,10 +220,18 @@ const SHARP_STEP_BITS: u32 = 64u;
 // refined with the per-point estimate, `visibility_soft` (the gap scenes of
 // tests/gpu/soft_grid.rs, seed 400, a slit 0.66 of the light's diameter: p95 10.2% → 1.8%).
 // Where the occluders' triangles are given (`soft_exact` in pcss.wgsl: the grid's cells and
-// the per-point estimate are then exact but for its 256 directions), every step whose grid
-// value lies strictly between 0 and 1 is refined so: the trilinear lookup between exact
-// cells still cuts a narrow shaft's corners (blinds of 7 slats, seed 401: p95 4.33% with the
-// shafts' marks alone, 0.85% with every such step). The
+// the per-point estimate are then exact but for its 256 directions), the marks near a shaft
+// reach 6 cells, not 20, and also cover the cells the trilinear lookup between exact cells
+// cannot be trusted around (`curved` in soft_shadow.wgsl); those steps, and the steps marked
+// for a narrow penumbra or a surface whose grid value lies strictly between 0 and 1, are
+// refined with the per-point estimate. The lookup still cuts a narrow shaft's corners
+// (blinds of 7 slats, seed 401: p95 4.33% with the shafts' marks alone), and the shadow
+// map's hard visibility at the sharp marks is worse than the exact cells (with the curvature
+// marks alone, a square hole, seed 402, 4.63%; the door ajar by 0.23, 411, 62.5%, which the
+// curvature relative to the cells' fraction brings to 1.27%). Refining every step strictly
+// between 0 and 1 (as before) holds the same accuracy and costs more where a light shines
+// through a gap into a room, which then lies in the gap's penumbra (benches/scenes/door_ajar
+// at 256² on lavapipe: 6.96 s a frame, 5.12 s so). The
 // refinement runs after the step loop (no shadow-map lookup in the main loop, which every
 // step would pay for on a SIMD device); marked steps beyond SHARP_STEP_BITS keep the grid's
 // value. The step loop keeps the marked steps as bits, not in an array indexed by a
@@ -268,8 +276,9 @@ fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: TT, t1: TT, n
         weights += w;
         let p = air.eye + x * ray.dir;
         let g = soft_grid(p);
-        // Near a narrow shaft, or (triangles given) anywhere but lit or umbra.
-        let shaft = SOFT_SHAFTS && (g.w > 0.0 || (shadow.soft.groups > 0u && g.x > 0.0 && g.x < 1.0));
+        // Near a narrow shaft (triangles given: or curved), or (triangles given) at a sharp or
+        // surface mark anywhere but lit or umbra.
+        let shaft = SOFT_SHAFTS && (g.w > 0.0 || (shadow.soft.groups > 0u && (g.y > 0.0 || g.z > 0.0) && g.x > 0.0 && g.x < 1.0));
         if ((g.y > 0.0 || g.z > 0.0 || shaft) && i < SHARP_STEP_BITS) {
             let bit = select(vec2<u32>(0u, 1u << (i & 31u)), vec2<u32>(1u << (i & 31u), 0u), i < 32u);
             mask |= bit;
@@ -284,28 +293,29 @@ fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: TT, t1: TT, n
     }
     // The marked steps again, each in as many pieces as make them `steps` to the interval:
     // first those refined through the grid, then those near a narrow shaft with the
-    // per-point estimate (a loop of its own, which a ray without such steps skips whole).
+    // per-point estimate, in one loop (one `refined_step` to compile, not two).
     let pieces = max(1u, (mp.steps + n - 1u) / n);
     mask &= ~shafts;
     let near_shafts = countOneBits(shafts.x) + countOneBits(shafts.y);
-    for (var m = 0u; m < count - near_shafts; m++) {
-        let o = refined_step(ray, r, s0, ds, lowest_step(&mask), pieces, false);
-        lit += o.xyz;
-        plain += o.w;
-    }
-    if (SOFT_SHAFTS) {
-        for (var m = 0u; m < near_shafts; m++) {
-            let o = refined_step(ray, r, s0, ds, lowest_step(&shafts), pieces, true);
-            lit += o.xyz;
-            plain += o.w;
+    var thirds_left = REFINE_THIRDS;
+    for (var m = 0u; m < count; m++) {
+        let shaft = SOFT_SHAFTS && m >= count - near_shafts;
+        var step = 0u;
+        if (shaft) {
+            step = lowest_step(&shafts);
+        } else {
+            step = lowest_step(&mask);
         }
+        let o = refined_step(ray, r, s0, ds, step, pieces, shaft, &thirds_left);
+        lit += o.lit;
+        plain += o.plain;
+        out.steps += o.samples;
     }
     // The midpoint weights normalised to the exact T over the interval: exact where V is
     // constant, and for uniform steps exact too where dT/ds is exponential in s (an optically
     // thick medium), whose midpoint-to-integral ratio is then the same for every step.
     let total = t_between(t0, t1);
     out.t = select(vec3<f32>(plain / f32(n)) * total, total * lit / weights, weights > vec3<f32>(0.0));
-    out.steps += count * pieces;
     return out;
 }
 
@@ -323,38 +333,144 @@ fn lowest_step(bits: ptr<function, vec2<u32>>) -> u32 {
 
 // Step `step` (of width ds from s0) of `march_soft_grid` in `pieces` pieces: V averaged over
 // them (weighted by dT/ds at theirs) stands for the step's V. Returns that V times dT/ds at
-// the step's midpoint, as the step loop took it (to rounding), and V's plain mean. V: near a
-// narrow shaft (`shaft`) the per-point estimate (`soft_exact` where the triangles are given),
-// else (and where the shadow map's estimate takes two layers of blockers) the grid with the
-// hard visibility blended in (`soft_grid_visibility`).
+// the step's midpoint, as the step loop took it (to rounding), V's plain mean, and how many
+// points it sampled. V: near a narrow shaft (`shaft`) the per-point estimate (`soft_exact`
+// where the triangles are given), else (and where the shadow map's estimate takes two layers
+// of blockers) the grid with the hard visibility blended in (`soft_grid_visibility`).
 // Two layers: a lit gap between two occluders' shadows at clearly different distances, where
 // the shadow map hides part of the far occluder behind the near one and the grid's mean of
 // neighbouring estimates is closer (tests/gpu/soft_grid.rs, overlapping penumbrae: p95 4.64%
 // with the per-point estimate there, 2.65% with the grid).
-fn refined_step(ray: PixelRay, r: AirRay, s0: f32, ds: f32, step: u32, pieces: u32, shaft: bool) -> vec4<f32> {
+// A piece whose V differs from a neighbour's by more than REFINE_JUMP (below) is sampled
+// again at its thirds' midpoints (its own midpoint kept as the middle third's): a thin shaft
+// crossed at a slant lies within a piece or two, and one midpoint a piece aliases it, the
+// error changing sign from pixel to pixel (the gap scenes of tests/gpu/soft_grid.rs, a door
+// ajar by 31° seen beside its shaft: p95 7.34% with one midpoint a piece, 2.33% so, near 256
+// steps' 2.21%, with the grid's marks of the time; its frame at 48² on lavapipe 0.29 s →
+// 0.35 s). One loop samples the
+// midpoints and then the thirds of the pieces marked (bits, the first 64 pieces), so that the
+// per-point estimate is compiled once. `thirds_left`: how many more pieces of the marched
+// interval may be split (REFINE_THIRDS in all), which it counts down.
+fn refined_step(
+    ray: PixelRay,
+    r: AirRay,
+    s0: f32,
+    ds: f32,
+    step: u32,
+    pieces: u32,
+    shaft: bool,
+    thirds_left: ptr<function, u32>,
+) -> Refined {
     let dp = ds / f32(pieces);
+    let first = s0 + ds * f32(step) + 0.5 * dp;
     var piece_lit = vec3<f32>(0.0);
     var piece_weights = vec3<f32>(0.0);
     var piece_plain = 0.0;
-    for (var j = 0u; j < pieces; j++) {
-        let mid = s0 + ds * f32(step) + dp * (f32(j) + 0.5);
-        let w = table_integrand(air, mid, r.w, r.gamma, r.sin_half_gamma);
-        let q = air.eye + x_of_s(r, mid) * ray.dir;
-        var v = 0.0;
-        if (shaft) {
-            v = visibility_soft(q);
+    // Bit j: piece j is to be sampled at its thirds.
+    var thirds = vec2<u32>(0u);
+    // The previous midpoint's V and dT/ds, and whether it differed from the one before.
+    var v_prev = 0.0;
+    var w_prev = vec3<f32>(0.0);
+    var jump_prev = false;
+    // Of a piece's two thirds, the second next.
+    var second = false;
+    var i = 0u;
+    for (; ; i++) {
+        var s = first + dp * f32(i);
+        let third = i >= pieces;
+        if (third) {
+            if (all(thirds == vec2<u32>(0u))) {
+                break;
+            }
+            var piece = 0u;
+            if (thirds.x != 0u) {
+                piece = firstTrailingBit(thirds.x);
+            } else {
+                piece = 32u + firstTrailingBit(thirds.y);
+            }
+            s = first + dp * (f32(piece) + select(-1.0, 1.0, second) / 3.0);
+            if (second) {
+                thirds &= ~piece_bit(piece);
+            }
+            second = !second;
         }
-        if (!shaft || soft_two_layers) {
-            v = soft_grid_visibility(q, true);
+        let v = piece_visibility(ray, r, s, shaft);
+        let w = table_integrand(air, s, r.w, r.gamma, r.sin_half_gamma);
+        if (third) {
+            piece_lit += v * w / 3.0;
+            piece_weights += w / 3.0;
+            piece_plain += v / 3.0;
+            continue;
         }
-        piece_lit += v * w;
-        piece_weights += w;
-        piece_plain += v;
+        let jump = i > 0u && abs(v - v_prev) > max(REFINE_JUMP, REFINE_JUMP_OF_V * max(v, v_prev));
+        // Piece i − 1 once both its neighbours are seen, and the last piece with its one.
+        if (i > 0u) {
+            let marked = (jump_prev || jump) && i - 1u < 64u && *thirds_left > 0u;
+            let h = select(1.0, 1.0 / 3.0, marked);
+            piece_lit += v_prev * w_prev * h;
+            piece_weights += w_prev * h;
+            piece_plain += v_prev * h;
+            if (marked) {
+                thirds |= piece_bit(i - 1u);
+                *thirds_left -= 1u;
+            }
+        }
+        if (i + 1u == pieces) {
+            let marked = jump && i < 64u && *thirds_left > 0u;
+            let h = select(1.0, 1.0 / 3.0, marked);
+            piece_lit += v * w * h;
+            piece_weights += w * h;
+            piece_plain += v * h;
+            if (marked) {
+                thirds |= piece_bit(i);
+                *thirds_left -= 1u;
+            }
+        }
+        jump_prev = jump;
+        v_prev = v;
+        w_prev = w;
     }
     let v_step = piece_plain / f32(pieces);
     let w_step = table_integrand(air, s0 + ds * (f32(step) + 0.5), r.w, r.gamma, r.sin_half_gamma);
     let v_mean = select(vec3<f32>(v_step), piece_lit / piece_weights, piece_weights > vec3<f32>(0.0));
-    return vec4<f32>(v_mean * w_step, v_step);
+    return Refined(v_mean * w_step, v_step, i);
+}
+
+// What `refined_step` returns: V·dT/ds for the step, V's plain mean, the points sampled.
+struct Refined {
+    lit: vec3<f32>,
+    plain: f32,
+    samples: u32,
+}
+
+// A piece of `refined_step` is split in thirds where its V and a neighbour's differ by more
+// than an eighth of the light and more than a quarter of the larger. At a sixteenth the door
+// ajar of `refined_step` is unchanged (p95 2.33%) and its frame takes 0.41 s, not 0.35 s.
+const REFINE_JUMP: f32 = 0.125;
+const REFINE_JUMP_OF_V: f32 = 0.25;
+
+// Most pieces of a marched interval split in thirds: 64 more samples at most, each up to
+// EXACT_BUDGET groups' loop iterations in `soft_exact` (pcss.wgsl), which keeps a ray's loops
+// within llvmpipe's limit (see `MAX_EXACT_TRIANGLES` in src/nodes/shadow_map.rs). A thin shaft
+// crossed twice marks about four.
+const REFINE_THIRDS: u32 = 32u;
+
+// Bit `piece` (below 64) of a vec2<u32> (x: below 32).
+fn piece_bit(piece: u32) -> vec2<u32> {
+    return select(vec2<u32>(0u, 1u << (piece & 31u)), vec2<u32>(1u << (piece & 31u), 0u), piece < 32u);
+}
+
+// V at s for `refined_step`.
+fn piece_visibility(ray: PixelRay, r: AirRay, s: f32, shaft: bool) -> f32 {
+    let q = air.eye + x_of_s(r, s) * ray.dir;
+    var v = 0.0;
+    if (shaft) {
+        v = visibility_soft(q);
+    }
+    if (!shaft || soft_two_layers) {
+        v = soft_grid_visibility(q, true);
+    }
+    return v;
 }
 
 // Steps per grid cell a marched interval crosses: the grid's trilinear interpolation is smooth

@@ -80,11 +80,13 @@ pub(crate) const GROUP_BYTES: u64 = 256;
 /// Most triangles (all occluders together) for which the node gathers
 /// [`ShadowMap::triangles`]: each exact visible fraction tests every group of four's bounding
 /// sphere, and the triangles of those in its cone of lines to the light, and the march takes
-/// one at each of up to 64 refined steps (in pieces) of a ray, with at most as many loop
-/// iterations as one turn over 128 groups when it refines a sliver of the light. More, and the
-/// soft shadows take the shadow map's estimate alone. On llvmpipe, which ends every loop of a
-/// shader invocation once its loops together reach 65 535 iterations, 128 groups keep 64 steps
-/// in 4 pieces within half of that.
+/// one at each piece of up to 64 refined steps of a marched interval (and two more in each of
+/// at most 32 pieces split in thirds), with at most as many loop iterations as one turn over
+/// 128 groups when it refines a sliver of the light. More, and the soft shadows take the
+/// shadow map's estimate alone. On llvmpipe, which ends every loop of a shader invocation once
+/// its loops together reach 65 535 iterations, 128 groups keep a ray's two intervals (a spot
+/// light's cone may cut it in two), each at most 128 pieces and 32 of them in thirds, at
+/// 2 × (128 + 64) × 128 = 49 152.
 pub const MAX_EXACT_TRIANGLES: u32 = 512;
 
 /// The node's layout and pipeline, held by the [`Cache`].

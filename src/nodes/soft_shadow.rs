@@ -51,7 +51,8 @@
 //! intersection of three half-planes of it from a precomputed table. A shadow map sees the
 //! occluders from the light's centre alone, and through a gap narrower than the light a point
 //! sees parts of the light past faces the centre does not (`docs/METHOD.md`). The march then
-//! takes the same fraction at every step whose grid value lies strictly between 0 and 1.
+//! takes the same fraction at the steps the marks below single out, and at those marked for a
+//! narrow penumbra or a surface whose grid value lies strictly between 0 and 1.
 //!
 //! Where the shadow map's occluders may leave gaps ([`ShadowMap::gaps`]: more than one
 //! occluder, or one that is not convex), a last pass copies the grid to the output and marks
@@ -64,7 +65,12 @@
 //! own penumbra falls one way only, from lit to umbra, so a scene without gaps has no such
 //! mark and pays only for the copy. A cell just behind a surface (the slice before it saw more
 //! than 0.1 more of the light) is neither a peak nor a shaft's side: the slices behind a ground
-//! under a penumbra are darker, and they are not the side of a gap.
+//! under a penumbra are darker, and they are not the side of a gap. Where the cells are exact
+//! (the triangles given), the marks reach 6 cells from a shaft, not 20, and also cover a cell
+//! whose second difference along a layer's rows or columns or the slices exceeds a tenth of
+//! the largest of the three cells' fractions (at most 0.04): there the trilinear lookup
+//! between exact cells cannot be trusted. A room lit through a door ajar lies wholly in the
+//! gap's penumbra, and far from the gap its shaft is smooth enough for the lookup.
 //!
 //! # Accuracy and limits
 //!
@@ -625,7 +631,7 @@ impl Pipelines {
                 mark: compute_pipeline(
                     device,
                     label,
-                    &[&mark_layout],
+                    &[&mark_layout, &shadow_layout],
                     &module,
                     "mark_shafts",
                     &constants,
