@@ -229,7 +229,7 @@ const SHARP_STEP_BITS: u32 = 64u;
 // map's hard visibility at the sharp marks is worse than the exact cells (with the curvature
 // marks alone, a square hole, seed 402, 4.63%; the door ajar by 0.23, 411, 62.5%, which the
 // curvature relative to the cells' fraction brings to 1.27%). Refining every step strictly
-// between 0 and 1 (as before) holds the same accuracy and costs more where a light shines
+// between 0 and 1 holds the same accuracy and costs more where a light shines
 // through a gap into a room, which then lies in the gap's penumbra (benches/scenes/door_ajar
 // at 256² on lavapipe: 6.96 s a frame, 5.12 s so). The
 // refinement runs after the step loop (no shadow-map lookup in the main loop, which every
@@ -280,7 +280,7 @@ fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: TT, t1: TT, n
         // surface mark anywhere but lit or umbra.
         let shaft = SOFT_SHAFTS && (g.w > 0.0 || (shadow.soft.groups > 0u && (g.y > 0.0 || g.z > 0.0) && g.x > 0.0 && g.x < 1.0));
         if ((g.y > 0.0 || g.z > 0.0 || shaft) && i < SHARP_STEP_BITS) {
-            let bit = select(vec2<u32>(0u, 1u << (i & 31u)), vec2<u32>(1u << (i & 31u), 0u), i < 32u);
+            let bit = step_bit(i);
             mask |= bit;
             if (shaft) {
                 shafts |= bit;
@@ -319,7 +319,12 @@ fn march_soft_grid(ray: PixelRay, r: AirRay, s0: f32, s1: f32, t0: TT, t1: TT, n
     return out;
 }
 
-// The lowest step of `bits` (see `march_soft_grid`), which it clears.
+// Bit `step` (below 64) of a vec2<u32> of steps or pieces (x: below 32).
+fn step_bit(step: u32) -> vec2<u32> {
+    return select(vec2<u32>(0u, 1u << (step & 31u)), vec2<u32>(1u << (step & 31u), 0u), step < 32u);
+}
+
+// The lowest step (or piece) of `bits` (see `march_soft_grid`), which it clears.
 fn lowest_step(bits: ptr<function, vec2<u32>>) -> u32 {
     if ((*bits).x != 0u) {
         let step = firstTrailingBit((*bits).x);
@@ -346,8 +351,8 @@ fn lowest_step(bits: ptr<function, vec2<u32>>) -> u32 {
 // crossed at a slant lies within a piece or two, and one midpoint a piece aliases it, the
 // error changing sign from pixel to pixel (the gap scenes of tests/gpu/soft_grid.rs, a door
 // ajar by 31° seen beside its shaft: p95 7.34% with one midpoint a piece, 2.33% so, near 256
-// steps' 2.21%, with the grid's marks of the time; its frame at 48² on lavapipe 0.29 s →
-// 0.35 s). One loop samples the
+// steps' 2.21%, with every step between lit and umbra refined; its frame at 48² on lavapipe
+// 0.29 s → 0.35 s). One loop samples the
 // midpoints and then the thirds of the pieces marked (bits, the first 64 pieces), so that the
 // per-point estimate is compiled once. `thirds_left`: how many more pieces of the marched
 // interval may be split (REFINE_THIRDS in all), which it counts down.
@@ -374,24 +379,19 @@ fn refined_step(
     var jump_prev = false;
     // Of a piece's two thirds, the second next.
     var second = false;
+    var piece = 0u;
     var i = 0u;
     for (; ; i++) {
         var s = first + dp * f32(i);
         let third = i >= pieces;
         if (third) {
-            if (all(thirds == vec2<u32>(0u))) {
-                break;
-            }
-            var piece = 0u;
-            if (thirds.x != 0u) {
-                piece = firstTrailingBit(thirds.x);
-            } else {
-                piece = 32u + firstTrailingBit(thirds.y);
+            if (!second) {
+                if (all(thirds == vec2<u32>(0u))) {
+                    break;
+                }
+                piece = lowest_step(&thirds);
             }
             s = first + dp * (f32(piece) + select(-1.0, 1.0, second) / 3.0);
-            if (second) {
-                thirds &= ~piece_bit(piece);
-            }
             second = !second;
         }
         let v = piece_visibility(ray, r, s, shaft);
@@ -411,7 +411,7 @@ fn refined_step(
             piece_weights += w_prev * h;
             piece_plain += v_prev * h;
             if (marked) {
-                thirds |= piece_bit(i - 1u);
+                thirds |= step_bit(i - 1u);
                 *thirds_left -= 1u;
             }
         }
@@ -422,7 +422,7 @@ fn refined_step(
             piece_weights += w * h;
             piece_plain += v * h;
             if (marked) {
-                thirds |= piece_bit(i);
+                thirds |= step_bit(i);
                 *thirds_left -= 1u;
             }
         }
@@ -455,10 +455,6 @@ const REFINE_JUMP_OF_V: f32 = 0.25;
 // crossed twice marks about four.
 const REFINE_THIRDS: u32 = 32u;
 
-// Bit `piece` (below 64) of a vec2<u32> (x: below 32).
-fn piece_bit(piece: u32) -> vec2<u32> {
-    return select(vec2<u32>(0u, 1u << (piece & 31u)), vec2<u32>(1u << (piece & 31u), 0u), piece < 32u);
-}
 
 // V at s for `refined_step`.
 fn piece_visibility(ray: PixelRay, r: AirRay, s: f32, shaft: bool) -> f32 {
