@@ -54,13 +54,67 @@ struct SoftScene {
 impl SoftScene {
     /// The occluders as the reference takes them.
     fn reference_occluders(&self) -> Vec<reference::Occluder> {
+        self.occluders_with(|&(c, half, rotation)| {
+            Cuboid::new(c.as_dvec3(), half.as_dvec3(), rotation.as_dquat()).into()
+        })
+    }
+
+    /// The occluders with each box's corners rounded as f32 holds them on their way to the
+    /// GPU: `shapes::cuboid`'s vertices carried to the world by the f32 transform that
+    /// `placed` hands over (one rounding of the several a GPU may make), then taken exactly.
+    /// Spheres and meshes as in `reference_occluders`.
+    fn rounded_occluders(&self) -> Vec<reference::Occluder> {
+        self.occluders_with(|&(c, half, rotation)| {
+            let mesh = shapes::cuboid(Vec3::ZERO, half).unwrap();
+            let transform = glam::Mat4::from_rotation_translation(rotation, c);
+            let corners: Vec<Vec3> = mesh
+                .positions()
+                .iter()
+                .map(|&p| transform.transform_point3(p))
+                .collect();
+            reference::Occluder::Mesh(reference::TriangleMesh::from_indexed(
+                &corners,
+                mesh.indices(),
+                glam::DMat4::IDENTITY,
+            ))
+        })
+    }
+
+    /// The reference's image of the scene at `size`², past `occluders`.
+    fn reference_image(&self, size: u32, occluders: &[reference::Occluder]) -> Vec<DVec3> {
+        let wall = |e: DVec3, d: DVec3| wall_distance(self.wall, e, d);
+        reference::soft::inscatter_image_soft(
+            &self.camera,
+            size,
+            size,
+            wall,
+            &self.medium,
+            &self.light,
+            occluders,
+        )
+    }
+
+    /// How far the reference moves when the boxes' corners are rounded to f32
+    /// (`rounded_occluders`): its image at `size`² against `reference`, the scene's own.
+    fn moved_by_rounding(&self, size: u32, reference: &[DVec3]) -> common::scene::Errors {
+        let rounded: Vec<[f32; 4]> = self
+            .reference_image(size, &self.rounded_occluders())
+            .iter()
+            .map(|v| [v.x as f32, v.y as f32, v.z as f32, 1.0])
+            .collect();
+        errors(&rounded, reference, &self.camera, &self.light, (size, size))
+    }
+
+    /// The scene's spheres and meshes as the reference takes them, and its boxes by `boxes`.
+    fn occluders_with(
+        &self,
+        boxes: impl Fn(&(Vec3, Vec3, Quat)) -> reference::Occluder,
+    ) -> Vec<reference::Occluder> {
         let spheres = self
             .spheres
             .iter()
             .map(|&(c, rho)| Sphere::new(c.as_dvec3(), f64::from(rho)).into());
-        let boxes = self.boxes.iter().map(|&(c, half, rotation)| {
-            Cuboid::new(c.as_dvec3(), half.as_dvec3(), rotation.as_dquat()).into()
-        });
+        let boxes = self.boxes.iter().map(boxes);
         let meshes = self.meshes.iter().map(|m| {
             reference::Occluder::Mesh(reference::TriangleMesh::from_indexed(
                 m.positions(),
@@ -252,7 +306,13 @@ fn random_soft_box_scenes_against_the_reference() {
         .map(|seed| random_box_scene(seed, (-4.0, 0.0)))
         .collect();
     let count = scenes.len();
-    let (worst, hard_worst, within, telling) = check_scenes_sized(
+    let Checked {
+        worst,
+        hard_worst,
+        within,
+        telling,
+        ..
+    } = check_scenes_sized(
         &scenes,
         (RMSE_BAR, BOX_P95_LIMIT),
         BOX_SIZE,
@@ -312,8 +372,7 @@ fn random_soft_scenes_against_the_reference_worst_case() {
     let scenes: Vec<SoftScene> = (0..SEEDS)
         .map(|seed| random_scene(seed, (-4.0, 0.0)))
         .collect();
-    let (worst, _, _, _) =
-        check_scenes_sized(&scenes, (RMSE_BAR, P95_BAR), SIZE, common::WORST_CASE);
+    let worst = check_scenes_sized(&scenes, (RMSE_BAR, P95_BAR), SIZE, common::WORST_CASE).worst;
     eprintln!("worst case: worst p95 {:.2}%", 100.0 * worst);
 }
 
@@ -452,8 +511,11 @@ crate::at_each_precision!(
 /// one process), but two spheres with overlapping penumbrae 3.65%, beyond their bar.
 fn a_ground_that_casts_shadows_at(precision: ShaderPrecision) {
     const GROUND_P95_BAR: f64 = 0.05;
-    let (worst, hard, _, _) =
-        check_scenes_sized(&[ground_scene()], (RMSE_BAR, GROUND_P95_BAR), 32, precision);
+    let Checked {
+        worst,
+        hard_worst: hard,
+        ..
+    } = check_scenes_sized(&[ground_scene()], (RMSE_BAR, GROUND_P95_BAR), 32, precision);
     eprintln!(
         "{precision:?}: ground: p95 {:.2}%, hard {:.2}%",
         100.0 * worst,
@@ -591,31 +653,54 @@ fn check_scenes(scenes: &[SoftScene], bars: (f64, f64)) -> (f64, f64) {
 /// `check_scenes`, also returning how many scenes were within the issue's bars (RMSE_BAR,
 /// P95_BAR), which may be tighter than `bars`.
 fn check_scenes_counted(scenes: &[SoftScene], bars: (f64, f64)) -> (f64, f64, usize) {
-    let (worst, hard_worst, within, _) =
-        check_scenes_sized(scenes, bars, SIZE, ShaderPrecision::Native);
-    (worst, hard_worst, within)
+    let checked = check_scenes_sized(scenes, bars, SIZE, ShaderPrecision::Native);
+    (checked.worst, checked.hard_worst, checked.within)
 }
 
-/// `check_scenes_counted` at `size`² pixels, also returning how many scenes' images with the
-/// shadow ignored are beyond twice the p95 bar (those that can tell a lit penumbra).
+/// What `check_scenes_sized` measured over the scenes it held to the bars.
+struct Checked {
+    /// The worst soft p95, and the worst drawn hard.
+    worst: f64,
+    hard_worst: f64,
+    /// How many were within the issue's bars (RMSE_BAR, P95_BAR), which may be tighter than
+    /// the bars the scenes were held to.
+    within: usize,
+    /// How many scenes' images with the shadow ignored are beyond twice the p95 bar (those
+    /// that can tell a lit penumbra), of every scene.
+    telling: usize,
+    /// How many scenes were beyond the bars but not held to them: their image is not
+    /// determined by their occluders as f32 holds them (`check_scenes_wired`).
+    undetermined: usize,
+}
+
+/// `check_scenes_counted` at `size`² pixels.
 fn check_scenes_sized(
     scenes: &[SoftScene],
     bars: (f64, f64),
     size: u32,
     precision: ShaderPrecision,
-) -> (f64, f64, usize, usize) {
+) -> Checked {
     check_scenes_wired(scenes, bars, size, precision, false)
 }
 
 /// `check_scenes_sized`, with the nodes wired by hand instead of the facade when `by_hand`
 /// (`common::by_hand`: for a light the facade would draw hard).
+///
+/// A scene beyond the bars, finite, is not held to them when its image is not determined by
+/// its occluders as f32 holds them: when the reference of its boxes' corners rounded to f32
+/// (`SoftScene::rounded_occluders`) is itself beyond the same bars against its reference. No
+/// renderer handed f32 geometry can be within a bar that rounding alone exceeds. It is named,
+/// with both figures, and left out of `worst` and `within`. Measured (2026-11-29): the doors
+/// ajar behind thick plates nearly closed, 415 and 423 of the gap generator, move by p95
+/// 35.2% and 204% (RMSE 60.8% and 343%); the other 46 of seeds 400–447 by at most p95 0.003%,
+/// RMSE 0.002% (by hand).
 fn check_scenes_wired(
     scenes: &[SoftScene],
     bars: (f64, f64),
     size: u32,
     precision: ShaderPrecision,
     by_hand: bool,
-) -> (f64, f64, usize, usize) {
+) -> Checked {
     let mut within = 0;
     let mut telling = 0;
     let gpu = common::gpu();
@@ -625,12 +710,10 @@ fn check_scenes_wired(
     let mut worst: f64 = 0.0;
     let mut worst_rmse: f64 = 0.0;
     let mut failures = Vec::new();
+    let mut undetermined = 0;
     for s in scenes {
         let wall = |e: DVec3, d: DVec3| wall_distance(s.wall, e, d);
-        let occ = s.reference_occluders();
-        let reference = reference::soft::inscatter_image_soft(
-            &s.camera, size, size, wall, &s.medium, &s.light, &occ,
-        );
+        let reference = s.reference_image(size, &s.reference_occluders());
         let depths = common::depths_at(&s.camera, size, size, wall);
         let depth = common::depth_texture(&gpu, size, size, &depths);
         let meshes = sphere_meshes(&gpu, &s.spheres);
@@ -683,18 +766,28 @@ fn check_scenes_wired(
         if s.shows_shadow {
             unshadowed_least = unshadowed_least.min(unshadowed.p95);
         }
-        worst = worst.max(e.p95);
-        worst_rmse = worst_rmse.max(e.rmse);
         eprintln!(
             "{}\n  grid: {e}\n  hard: p95 {:.2}%, shadow ignored: p95 {:.2}%",
             s.describe,
             100.0 * hard_errors.p95,
             100.0 * unshadowed.p95
         );
+        let beyond = |e: &common::scene::Errors| !(e.rmse <= bars.0 && e.p95 <= bars.1);
+        if e.non_finite == 0 && beyond(&e) {
+            let moved = s.moved_by_rounding(size, &reference);
+            eprintln!("  its reference with the boxes' corners rounded to f32: {moved}");
+            if beyond(&moved) {
+                eprintln!("  not held to the bars: not determined by its f32 occluders");
+                undetermined += 1;
+                continue;
+            }
+        }
+        worst = worst.max(e.p95);
+        worst_rmse = worst_rmse.max(e.rmse);
         if e.non_finite == 0 && e.rmse <= RMSE_BAR && e.p95 <= P95_BAR {
             within += 1;
         }
-        if e.non_finite > 0 || !(e.rmse <= bars.0 && e.p95 <= bars.1) {
+        if e.non_finite > 0 || beyond(&e) {
             failures.push(format!("{}: {e}", s.describe));
         }
     }
@@ -714,10 +807,10 @@ fn check_scenes_wired(
         ),
         format!(
             "worst p95 {:.2}%, worst RMSE {:.2}%, {within} of {} within p95 {}% and RMSE {}%; \
-             hard worst p95 {:.1}%; ignored p95 ≥ {}",
+             hard worst p95 {:.1}%; ignored p95 ≥ {}{}",
             100.0 * worst,
             100.0 * worst_rmse,
-            scenes.len(),
+            scenes.len() - undetermined,
             100.0 * P95_BAR,
             100.0 * RMSE_BAR,
             100.0 * hard_worst,
@@ -725,6 +818,10 @@ fn check_scenes_wired(
                 format!("{:.1}%", 100.0 * unshadowed_least)
             } else {
                 "– (no shadow in view)".into()
+            },
+            match undetermined {
+                0 => String::new(),
+                n => format!("; {n} not determined by their f32 occluders, not held"),
             }
         ),
         format!(
@@ -744,7 +841,13 @@ fn check_scenes_wired(
         unshadowed_least > 2.0 * P95_BAR,
         "a scene's shadow ignored is within {unshadowed_least} of its reference: it cannot tell"
     );
-    (worst, hard_worst, within, telling)
+    Checked {
+        worst,
+        hard_worst,
+        within,
+        telling,
+        undetermined,
+    }
 }
 
 /// The meshes of a scene's spheres (centre, radius): 64 segments by 32 rings.
@@ -1199,8 +1302,11 @@ fn extreme_soft_lights_stay_finite_and_bounded() {
     // against 1.81%).
     let tiny = across(1e-5, 2.0, "radius 1e-5, a penumbra far below a texel");
     let bars = (RMSE_BAR, P95_BAR);
-    let (worst, hard, _, _) =
-        check_scenes_wired(&[tiny], bars, SIZE, ShaderPrecision::Native, true);
+    let Checked {
+        worst,
+        hard_worst: hard,
+        ..
+    } = check_scenes_wired(&[tiny], bars, SIZE, ShaderPrecision::Native, true);
     eprintln!(
         "radius 1e-5: p95 {:.2}% through the grid, {:.2}% hard",
         100.0 * worst,
@@ -1755,7 +1861,12 @@ const GAP_SIZE: u32 = 12;
 )]
 fn gap_scenes_against_the_reference() {
     let scenes: Vec<SoftScene> = (400..404).map(random_gap_scene).collect();
-    let (worst, hard_worst, within, _) = check_scenes_sized(
+    let Checked {
+        worst,
+        hard_worst,
+        within,
+        ..
+    } = check_scenes_sized(
         &scenes,
         (RMSE_BAR, P95_BAR),
         GAP_SIZE,
@@ -1792,8 +1903,8 @@ fn gap_scenes_against_the_reference() {
 fn a_sliver_of_the_light_past_a_door_ajar() {
     const BAR: f64 = 0.02;
     let scenes = [random_gap_scene(411)];
-    let (worst, _, _, _) =
-        check_scenes_sized(&scenes, (RMSE_BAR, BAR), GAP_SIZE, ShaderPrecision::Native);
+    let worst =
+        check_scenes_sized(&scenes, (RMSE_BAR, BAR), GAP_SIZE, ShaderPrecision::Native).worst;
     eprintln!(
         "door ajar by 0.23: p95 {:.2}% (bar {:.0}%)",
         100.0 * worst,
@@ -1819,12 +1930,13 @@ fn a_sliver_of_the_light_past_a_door_ajar() {
 )]
 fn thin_shafts_crossed_at_a_slant() {
     let scenes = [random_gap_scene(439), random_gap_scene(443)];
-    let (worst, _, _, _) = check_scenes_sized(
+    let worst = check_scenes_sized(
         &scenes,
         (RMSE_BAR, P95_BAR),
         GAP_SIZE,
         ShaderPrecision::Native,
-    );
+    )
+    .worst;
     eprintln!(
         "doors ajar by 31° and 24°, beside their shafts: worst p95 {:.2}% (bar {:.0}%)",
         100.0 * worst,
@@ -1832,35 +1944,84 @@ fn thin_shafts_crossed_at_a_slant() {
     );
 }
 
-/// The whole generator, 16 seeds, held to the issue's bars (p95 3%, RMSE 2%, every scene): a
-/// known limitation, run by hand (about 3 minutes in the tests' build). Measured (lavapipe,
-/// 12², 2026-11-29): 15 of 16 within the bars; the worst of them a door ajar by 0.8 of the
-/// light's diameter (407, p95 2.15%: its thin shaft crossed at a slant, 2.85% with a midpoint
-/// a refined piece and no thirds, see `thin_shafts_crossed_at_a_slant`); the door ajar by
-/// 0.23 (411) at 1.27% (`a_sliver_of_the_light_past_a_door_ajar`). Before slivers took more
-/// turns of the directions and the turn between calls was the plastic fraction, 14 of 16 (411
-/// at 6.43%). With the shadow map's estimate in place of the
-/// occluders' triangles (against the reference's former 16 × 16 directions), 13 of 16 (407
-/// 3.31%, blinds tilted 60° 10.40%, and 411 at 66.51%).
-///
-/// What fails: **a door ajar behind a thick plate under a spot light** (415, drawn black, p95
-/// 100%): its view is lit only by a sliver of 5e-6 of the light, 3e-8 of the view with the
-/// shadow ignored, which no turn of `soft_exact`'s 256 directions meets.
+/// What lets `check_scenes_wired` leave a scene out of its bars, checked where rounding does
+/// not move the answer: blinds of 7 slats (401) and a door ajar by 9.8° (407) of the gap
+/// generator, the reference of their boxes' corners rounded to f32
+/// (`SoftScene::rounded_occluders`) against their reference. Bar: p95 and RMSE 0.1%, a
+/// thirtieth of the issue's p95 bar; f32 moves a corner by 6e-8 of its coordinates, and the
+/// reference integrates to 1e-7 of the light. Measured (2026-11-29): below 0.001% both. A
+/// rounding that placed the boxes wrong (each box's rotation inverted, the broken variant, by
+/// hand) moves 407 by p95 73.7%, RMSE 40.4%: it would excuse scenes the GPU draws wrong.
 #[test]
-#[ignore = "known limitation (a view lit only by a sliver of 5e-6 of the light, drawn black): fails the issue's bars; run by hand"]
+#[cfg_attr(
+    not(feature = "sweeps"),
+    ignore = "an accuracy sweep: --features sweeps"
+)]
+fn rounding_the_corners_to_f32_leaves_a_determined_door() {
+    const BAR: f64 = 0.001;
+    let size = GAP_SIZE;
+    for seed in [401, 407] {
+        let s = random_gap_scene(seed);
+        let reference = s.reference_image(size, &s.reference_occluders());
+        let moved = s.moved_by_rounding(size, &reference);
+        eprintln!("seed {seed}, corners rounded to f32: {moved}");
+        assert!(
+            moved.p95 <= BAR && moved.rmse <= BAR,
+            "seed {seed}: rounding its corners to f32 moves its reference by {moved} (bar {}%)",
+            100.0 * BAR
+        );
+    }
+}
+
+/// The whole generator, 16 seeds, held to the issue's bars (p95 3%, RMSE 2%, every scene that
+/// its f32 occluders determine: `check_scenes_wired`). `GAP_SEEDS=400..448` runs other seeds,
+/// `VOLSHADOW_SEED` one. Measured (lavapipe, 12², 2026-11-29): 15 of 16 within the bars, the
+/// 16th not held (below); the worst of them a door ajar by 0.8 of the light's diameter (407, p95 2.15%: its thin shaft
+/// crossed at a slant, 2.85% with a midpoint a refined piece and no thirds, see
+/// `thin_shafts_crossed_at_a_slant`); the door ajar by 0.23 (411) at 1.27%
+/// (`a_sliver_of_the_light_past_a_door_ajar`). Before slivers took more turns of the
+/// directions and the turn between calls was the plastic fraction, 14 of 16 (411 at 6.43%).
+/// With the shadow map's estimate in place of the occluders' triangles (against the
+/// reference's former 16 × 16 directions), 13 of 16 (407 3.31%, blinds tilted 60° 10.40%, and
+/// 411 at 66.51%).
+///
+/// Not held: **a door ajar behind a thick plate, nearly closed, under a spot light** (415),
+/// drawn black. Its view is lit only by a strip across the light about 1e-5 of its radius
+/// wide, between the door's edge and the frame's (at most 5.9e-6 of the light); 3e-8 of the
+/// view with the shadow ignored. Rounding the boxes' corners to f32 moves its reference by p95
+/// 35.2%, RMSE 60.8%; moving each corner's coordinates by at most one f32 step (8 random
+/// draws, by hand) scales the image's sum by 0.07 to 1.62. Of seeds 400–447 (by hand) the one other such door, 423, moves
+/// by p95 204%; the other 46 are within the bars.
+#[test]
+#[cfg_attr(
+    not(feature = "sweeps"),
+    ignore = "an accuracy sweep: --features sweeps"
+)]
 fn random_gap_scenes_against_the_issues_bars() {
-    let scenes: Vec<SoftScene> = (400..416).map(random_gap_scene).collect();
-    let (worst, hard_worst, within, _) = check_scenes_sized(
+    let seeds: Vec<u64> = match std::env::var("GAP_SEEDS") {
+        Ok(range) => {
+            let (lo, hi) = range
+                .split_once("..")
+                .expect("GAP_SEEDS is a range, like 400..448");
+            (lo.trim().parse().unwrap()..hi.trim().parse().unwrap()).collect()
+        }
+        Err(_) => common::rng::seeds(400..416),
+    };
+    let scenes: Vec<SoftScene> = seeds.into_iter().map(random_gap_scene).collect();
+    let checked = check_scenes_sized(
         &scenes,
         (RMSE_BAR, P95_BAR),
         GAP_SIZE,
         ShaderPrecision::Native,
     );
     eprintln!(
-        "gaps: {within} of {} within, worst p95 {:.2}%, hard worst {:.2}%",
-        scenes.len(),
-        100.0 * worst,
-        100.0 * hard_worst
+        "gaps: {} of {} within ({} not determined by their f32 occluders, not held), worst p95 \
+         {:.2}%, hard worst {:.2}%",
+        checked.within,
+        scenes.len() - checked.undetermined,
+        checked.undetermined,
+        100.0 * checked.worst,
+        100.0 * checked.hard_worst
     );
 }
 
@@ -1884,15 +2045,7 @@ fn a_hole_in_a_turned_plate_per_point() {
     let gpu = common::gpu();
     let cache = Cache::with_precision(&gpu.device, ShaderPrecision::Native);
     let wall = |e: DVec3, d: DVec3| wall_distance(s.wall, e, d);
-    let reference = reference::soft::inscatter_image_soft(
-        &s.camera,
-        size,
-        size,
-        wall,
-        &s.medium,
-        &s.light,
-        &s.reference_occluders(),
-    );
+    let reference = s.reference_image(size, &s.reference_occluders());
     let depths = common::depths_at(&s.camera, size, size, wall);
     let depth = common::depth_texture(&gpu, size, size, &depths);
     let box_meshes = box_meshes(&gpu, &s.boxes);
