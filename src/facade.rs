@@ -194,6 +194,8 @@ pub struct VolumetricShadows {
     seen: std::collections::HashSet<StepShape>,
     /// Whether the last prepared frame has a step of a form not in `seen` before it.
     first_frame: bool,
+    /// The prepared frame's light textures: inputs, so never the output.
+    light_textures: Vec<wgpu::Texture>,
 }
 
 /// What decides the pipeline variant a step records: its pass, its light's kind, whether the
@@ -234,6 +236,7 @@ impl VolumetricShadows {
             unprepared: Some("no frame has been prepared yet"),
             seen: Default::default(),
             first_frame: false,
+            light_textures: Vec::new(),
         })
     }
 
@@ -317,6 +320,11 @@ impl VolumetricShadows {
                 problem: format!("{} lights, at most {MAX_LIGHTS}", frame.lights.len()),
             });
         }
+        self.light_textures = frame
+            .lights
+            .iter()
+            .filter_map(|l| l.texture.cloned())
+            .collect();
         while self.slots.len() < frame.lights.len() {
             self.slots
                 .push(LightSlot::new(device, &self.cache, &self.settings)?);
@@ -472,7 +480,7 @@ impl VolumetricShadows {
     ) -> Result<()> {
         let output = output.into();
         self.check_prepared()?;
-        self.composite.check_output(&output)?;
+        self.check_output(&output)?;
         if let Some(t) = self.timer.as_mut() {
             t.clear();
         }
@@ -511,10 +519,26 @@ impl VolumetricShadows {
                 ),
             });
         }
+        if self.plan.steps[index].pass == Pass::Composite {
+            self.check_output(&output)?;
+        }
         let timer = self.timer.take();
         let result = self.record(encoder, &output, index);
         self.timer = timer;
         result
+    }
+
+    /// The composite's checks of `output`, and that it is none of the frame's light textures
+    /// (which the composite does not read, but the frame does).
+    fn check_output(&self, output: &OutputTarget<'_>) -> Result<()> {
+        self.composite.check_output(output)?;
+        if self.light_textures.contains(output.texture) {
+            return Err(Error::InvalidTexture {
+                field: "output",
+                problem: "must not be one of the frame's light textures".into(),
+            });
+        }
+        Ok(())
     }
 
     fn check_prepared(&self) -> Result<()> {

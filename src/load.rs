@@ -246,9 +246,9 @@ pub(crate) fn folder_of(file: &Path) -> Result<PathBuf> {
 /// canonical folder of `file`): confined to it unless `allow_outside` (see [`resolve`]).
 ///
 /// A path that leads outside is [`Error::PathOutsideFolder`]; one that runs into a loop of
-/// symbolic links inside the folder is a read error, [`Error::FileRead`] ("too many levels
-/// of symbolic links"), as opening it would be: the loop is inside the folder, so saying so
-/// tells nothing about what lies outside.
+/// symbolic links inside the folder, or through a component inside it that is missing or not
+/// a folder, is a read error, [`Error::FileRead`], as opening it would be: all of these are
+/// inside the folder, so saying so tells nothing about what lies outside.
 pub(crate) fn confine(
     folder: &Path,
     named: &Path,
@@ -256,6 +256,10 @@ pub(crate) fn confine(
     file: &str,
     field: &str,
 ) -> Result<PathBuf> {
+    let read_error = |problem: String| Error::FileRead {
+        path: folder.join(named).display().to_string(),
+        problem,
+    };
     match resolve(folder, named, allow_outside) {
         Resolved::Inside(path) => Ok(path),
         Resolved::Outside => Err(Error::PathOutsideFolder {
@@ -263,12 +267,69 @@ pub(crate) fn confine(
             field: field.to_owned(),
             target: named.display().to_string(),
         }),
-        Resolved::LinkLoop => Err(Error::FileRead {
-            path: folder.join(named).display().to_string(),
-            problem: format!(
-                "too many levels of symbolic links (more than {MAX_LINKS}: a loop of links)"
-            ),
-        }),
+        Resolved::LinkLoop => Err(read_error(format!(
+            "too many levels of symbolic links (more than {MAX_LINKS}: a loop of links)"
+        ))),
+        Resolved::Missing(at) => Err(read_error(format!(
+            "no such file or directory: {} does not exist",
+            at.display()
+        ))),
+        Resolved::NotAFolder(at) => Err(read_error(format!(
+            "not a directory: {} is a file, and the path goes on below it",
+            at.display()
+        ))),
+    }
+}
+
+/// Where `named`, a path written in a file whose folder is `folder`, leads under the rule
+/// every loader of this crate applies to the paths inside the files it reads (a scene file's
+/// glTF `path` and light-texture `file`, a glTF buffer's `uri`): resolved one component at a
+/// time as the operating system resolves it (symbolic links followed, `..` leaving the folder
+/// actually reached), and refused as soon as it leaves `folder`.
+///
+/// `named` is read as [`Path::components`] reads it: `.` components and a trailing separator
+/// are dropped (so `tex.png/.` is `tex.png`, where the system would say "not a directory").
+/// The path returned holds no symbolic link and no `..`, and every component but the last
+/// exists: opening it opens the file the walk checked.
+///
+/// # Errors
+///
+/// [`Error::PathOutsideFolder`] for a path that leads outside `folder` (the same whether its
+/// target exists or not: nothing outside `folder` is looked at); [`Error::FileRead`] for a
+/// loop of links, or a component before the last that is missing or not a folder;
+/// [`Error::FileRead`] when `folder` itself cannot be resolved.
+///
+/// ```no_run
+/// use std::path::Path;
+/// let texture = volshadow::load::resolve_inside(Path::new("scenes"), Path::new("tex/a.png"))?;
+/// # Ok::<(), volshadow::Error>(())
+/// ```
+pub fn resolve_inside(folder: &Path, named: &Path) -> Result<PathBuf> {
+    let canonical = folder.canonicalize().map_err(|e| io_error(folder, &e))?;
+    let shown = folder.display().to_string();
+    confine(&canonical, named, false, &shown, "path")
+}
+
+/// The file that writing `path` reaches once its missing folders are created (as a tool that
+/// creates an output's folder and then writes it does): the same walk as
+/// [`resolve_inside`], unconfined, from the working folder (or the root, for an absolute
+/// path), with each missing component taken as the new folder it will be. So
+/// `new/../scene.json` is `./scene.json`, and `new/../link` is where the link `./link`
+/// points.
+///
+/// `None` where nothing can be written at `path`: a component before the last is a file, a
+/// loop of links, or the working folder cannot be resolved.
+pub fn written_path(path: &Path) -> Option<PathBuf> {
+    let root = PathBuf::from(std::path::MAIN_SEPARATOR_STR);
+    let start = if path.has_root() {
+        root.clone()
+    } else {
+        std::env::current_dir().ok()?.canonicalize().ok()?
+    };
+    let steps = parts(path.strip_prefix(&root).unwrap_or(path), &root)?;
+    match walk(&root, start, steps, Missing::Created) {
+        Walk::Found(path) => Some(path),
+        _ => None,
     }
 }
 
@@ -287,6 +348,7 @@ pub(crate) fn read_named(
 }
 
 /// One step of a path being resolved.
+#[derive(Debug, Clone)]
 enum Part {
     Parent,
     Name(std::ffi::OsString),
@@ -317,75 +379,137 @@ const MAX_LINKS: u32 = 40;
 /// Where [`resolve`] found that a path leads.
 #[derive(Debug, PartialEq)]
 pub(crate) enum Resolved {
-    /// Inside the folder (or anywhere, where going outside is allowed): this path.
+    /// Inside the folder (or anywhere, where going outside is allowed): this path, every
+    /// component of which but the last exists.
     Inside(PathBuf),
     /// Outside the folder.
     Outside,
     /// More than [`MAX_LINKS`] symbolic links, every one of them inside the folder: a loop.
     LinkLoop,
+    /// This component, inside the folder, does not exist, and the path goes on below it (so
+    /// nothing the path names can exist either).
+    Missing(PathBuf),
+    /// This component, inside the folder, is not a folder, and the path goes on below it.
+    NotAFolder(PathBuf),
+}
+
+/// What a walk does with a component that does not exist and is not the last.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Missing {
+    /// Stops: a path read through it names nothing.
+    Stops,
+    /// Takes it as a new, empty folder (an output whose folders will be created): the names
+    /// below it do not exist either, and `..` goes back to where it was made.
+    Created,
+}
+
+/// Where [`walk`] ended.
+#[derive(Debug, PartialEq)]
+enum Walk {
+    /// The path reached: no link and no `..` in it; every component exists but the last, and
+    /// with [`Missing::Created`] the new folders it would make.
+    Found(PathBuf),
+    /// Left the root (confined walks only).
+    Outside,
+    /// Too many links.
+    LinkLoop,
+    /// A missing component with more after it ([`Missing::Stops`]).
+    Missing(PathBuf),
+    /// A component that exists and is not a folder, with more after it.
+    NotAFolder(PathBuf),
+}
+
+/// Walks `steps` from `start` (a canonical path under `root`) one component at a time, as the
+/// operating system resolves a path: a symbolic link is replaced by its target's steps (from
+/// `root` for an absolute target, which must lie under it, else from the link's folder), and
+/// `..` leaves the folder reached so far, not the one written. Only paths under `root` are
+/// looked at on disk, so the outcome cannot depend on what lies outside it. `..` at `root` is
+/// [`Walk::Outside`] unless `root` is the file system's root, where it stays (as the system
+/// does).
+fn walk(root: &Path, start: PathBuf, steps: Vec<Part>, missing: Missing) -> Walk {
+    let top = root.parent().is_none();
+    let mut pending = steps;
+    pending.reverse();
+    let mut current = start;
+    // How many trailing components of `current` do not exist (folders yet to be created).
+    let mut created = 0usize;
+    let mut hops = 0;
+    while let Some(part) = pending.pop() {
+        let name = match part {
+            Part::Parent => {
+                if current == root {
+                    if top {
+                        continue;
+                    }
+                    return Walk::Outside;
+                }
+                current.pop();
+                created = created.saturating_sub(1);
+                continue;
+            }
+            Part::Name(name) => name,
+        };
+        current.push(name);
+        if created > 0 {
+            created += 1;
+            continue;
+        }
+        let last = pending.is_empty();
+        match std::fs::symlink_metadata(&current) {
+            Ok(m) if m.file_type().is_symlink() => {
+                hops += 1;
+                if hops > MAX_LINKS {
+                    return Walk::LinkLoop;
+                }
+                let Ok(target) = std::fs::read_link(&current) else {
+                    return Walk::Outside;
+                };
+                current.pop();
+                if target.has_root() {
+                    current = root.to_path_buf();
+                }
+                let Some(steps) = parts(&target, root) else {
+                    return Walk::Outside;
+                };
+                pending.extend(steps.into_iter().rev());
+            }
+            Ok(m) if !m.is_dir() && !last => return Walk::NotAFolder(current),
+            Ok(_) => {}
+            Err(_) if last => {}
+            Err(_) => match missing {
+                Missing::Stops => return Walk::Missing(current),
+                Missing::Created => created = 1,
+            },
+        }
+    }
+    if current.starts_with(root) {
+        Walk::Found(current)
+    } else {
+        Walk::Outside
+    }
 }
 
 /// Resolves `named` (a path written inside a file) against `folder` (that file's canonical
 /// folder).
 ///
-/// With `allow_outside` it is `folder.join(named)`. Otherwise the path is walked one component
-/// at a time from `folder`, following symbolic links and `..`, and is `Outside` as
-/// soon as it leaves the folder (an absolute path, or a link to one, counts as inside only when
-/// it starts with `folder`). Only paths inside the folder are ever looked at on disk, so the
-/// outcome cannot depend on what exists outside it: an outside target is `Outside` whether it
-/// exists or not. A component that does not exist ends the look-ups, and the rest is applied
-/// as written. More than [`MAX_LINKS`] links, each found inside the folder, are `LinkLoop`.
+/// With `allow_outside` it is `folder.join(named)`. Otherwise it is [`walk`]ed from `folder`
+/// and confined to it: `Outside` as soon as it leaves the folder (an absolute path, or a link
+/// to one, counts as inside only when it starts with `folder`), whether the target exists or
+/// not. A component before the last that is missing, or is not a folder, ends it: the
+/// operating system would not reach a file through it (and applying the `..` that follow as
+/// written would reach one it does not: a link beside the missing component, say).
 pub(crate) fn resolve(folder: &Path, named: &Path, allow_outside: bool) -> Resolved {
     if allow_outside {
         return Resolved::Inside(folder.join(named));
     }
-    let Some(mut pending) = parts(named, folder) else {
+    let Some(steps) = parts(named, folder) else {
         return Resolved::Outside;
     };
-    pending.reverse();
-    let mut current = folder.to_path_buf();
-    let mut missing = false;
-    let mut hops = 0;
-    while let Some(part) = pending.pop() {
-        match part {
-            Part::Parent => {
-                if current == folder {
-                    return Resolved::Outside;
-                }
-                current.pop();
-            }
-            Part::Name(name) => {
-                current.push(name);
-                if missing {
-                    continue;
-                }
-                match std::fs::symlink_metadata(&current) {
-                    Ok(m) if m.file_type().is_symlink() => {
-                        hops += 1;
-                        if hops > MAX_LINKS {
-                            return Resolved::LinkLoop;
-                        }
-                        let Ok(target) = std::fs::read_link(&current) else {
-                            return Resolved::Outside;
-                        };
-                        current.pop();
-                        if target.has_root() {
-                            current = folder.to_path_buf();
-                        }
-                        let Some(steps) = parts(&target, folder) else {
-                            return Resolved::Outside;
-                        };
-                        pending.extend(steps.into_iter().rev());
-                    }
-                    Ok(_) => {}
-                    Err(_) => missing = true,
-                }
-            }
-        }
-    }
-    if current.starts_with(folder) {
-        Resolved::Inside(current)
-    } else {
-        Resolved::Outside
+    match walk(folder, folder.to_path_buf(), steps, Missing::Stops) {
+        Walk::Found(path) => Resolved::Inside(path),
+        Walk::Outside => Resolved::Outside,
+        Walk::LinkLoop => Resolved::LinkLoop,
+        Walk::Missing(at) => Resolved::Missing(at),
+        Walk::NotAFolder(at) => Resolved::NotAFolder(at),
     }
 }

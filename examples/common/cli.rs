@@ -38,6 +38,34 @@ pub fn default_output(input: &Path, fallback: &str) -> PathBuf {
     Path::new(OUT_DIR).join(input.file_stem().unwrap_or(fallback.as_ref()))
 }
 
+/// The base path of a run's outputs (`-o`, or the default), each output being it with a
+/// suffix: an extension among `extensions` dropped. A path naming a folder (`sub/`, `.`,
+/// `..`) is an error, not the hidden files `sub/.png` and `sub/.exr`.
+pub fn output_base(out: PathBuf, extensions: &[&str]) -> Result<PathBuf, BoxError> {
+    let text = out.as_os_str().to_string_lossy();
+    let last = text
+        .rsplit(std::path::is_separator)
+        .next()
+        .unwrap_or_default();
+    if matches!(last, "" | "." | "..") || out.file_name().is_none() {
+        return Err(format!(
+            "-o {}: names a folder; give the outputs' path without extension, e.g. {}",
+            out.display(),
+            out.join("scene").display()
+        )
+        .into());
+    }
+    let mut out = out;
+    if out
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| extensions.contains(&e))
+    {
+        out.set_extension("");
+    }
+    Ok(out)
+}
+
 /// A run refused because an output file it would write is one of its input files.
 #[derive(Debug, Clone, PartialEq)]
 pub struct WouldOverwriteInput {
@@ -91,21 +119,18 @@ impl FileId {
         })
     }
 
-    /// The file an output path would write: the file itself (through any link) if it exists,
-    /// else its canonical folder joined with its name; `None` when its folder does not exist
-    /// (it will be created, so no existing file can be written).
+    /// The file an output path would write once its missing folders are created
+    /// ([`volshadow::load::written_path`]: links followed, `..` applied to the folder actually
+    /// reached, so `new/../scene.json` is `scene.json`), with its device and inode where it
+    /// exists; `None` when nothing can be written there (no existing file can be written).
     fn of_output(path: &Path) -> Option<Self> {
-        if path.exists() {
-            return Self::of_existing(path);
-        }
-        let name = path.file_name()?;
-        let parent = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
-        };
-        Some(Self {
-            path: parent.canonicalize().ok()?.join(name),
-            inode: None,
+        let written = volshadow::load::written_path(path)?;
+        Some(match Self::of_existing(&written) {
+            Some(id) => id,
+            None => Self {
+                path: written,
+                inode: None,
+            },
         })
     }
 
@@ -191,7 +216,19 @@ fn named_files(file: &Path) -> Vec<PathBuf> {
 fn json_of(file: &Path) -> Option<serde_json::Value> {
     use std::io::Read;
     const LIMIT: u64 = 64 << 20;
-    let mut reader = std::fs::File::open(file).ok()?;
+    // Decided before opening (a FIFO's open blocks until a writer comes), then opened
+    // non-blocking and checked again, as the crate's loaders do.
+    if !std::fs::metadata(file).ok()?.is_file() {
+        return None;
+    }
+    let mut open = std::fs::OpenOptions::new();
+    open.read(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        open.custom_flags(libc::O_NONBLOCK);
+    }
+    let mut reader = open.open(file).ok()?;
     if !reader.metadata().ok()?.is_file() {
         return None;
     }

@@ -35,7 +35,7 @@ use volshadow::{
     OccluderMesh, PhaseFunction, PointLight, Settings, VolumetricShadows,
 };
 
-use super::cli::{default_output, input_files, refuse_overwrite, usage_line, Parsed};
+use super::cli::{default_output, input_files, output_base, refuse_overwrite, usage_line, Parsed};
 use super::raster::{
     default_ambient, draw_app_frame, surface_shadow_maps, texture_desc, DrawLight, DrawObject,
 };
@@ -93,13 +93,8 @@ impl Options {
             }
         }
         let model: PathBuf = model.ok_or_else(|| format!("no model given\n{USAGE}"))?;
-        let mut out: PathBuf = out.unwrap_or_else(|| default_output(&model, "gltf"));
-        if matches!(
-            out.extension().and_then(|e| e.to_str()),
-            Some("png" | "exr")
-        ) {
-            out.set_extension("");
-        }
+        let out: PathBuf = out.unwrap_or_else(|| default_output(&model, "gltf"));
+        let out = output_base(out, &["png", "exr"])?;
         Ok(Parsed::Run(Options { model, out, size }))
     }
 

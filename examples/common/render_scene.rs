@@ -56,7 +56,7 @@ use volshadow::{
     Settings, Surfaces, VolumetricShadows,
 };
 
-use super::cli::{default_output, input_files, refuse_overwrite, usage_line, Parsed};
+use super::cli::{default_output, input_files, output_base, refuse_overwrite, usage_line, Parsed};
 use super::raster::{
     default_ambient, draw_app_frame, surface_shadow_maps, texture_desc, AppFrame, DrawLight,
     DrawObject,
@@ -404,13 +404,8 @@ impl Options {
             }
         }
         let scene: PathBuf = scene.ok_or_else(|| format!("no scene file given\n{USAGE}"))?;
-        let mut out = out.unwrap_or_else(|| default_output(&scene, "render"));
-        if matches!(
-            out.extension().and_then(|e| e.to_str()),
-            Some("png" | "exr" | "json")
-        ) {
-            out.set_extension("");
-        }
+        let out = out.unwrap_or_else(|| default_output(&scene, "render"));
+        let out = output_base(out, &["png", "exr", "json"])?;
         Ok(Parsed::Run(Options {
             scene,
             out,

@@ -131,9 +131,10 @@ impl HeadlessGpu {
     ///
     /// # Errors
     ///
-    /// [`Error::Readback`] for a format without a fixed texel size for copies (compressed, or a
-    /// depth format whose depth cannot be copied, such as `Depth24Plus`) and when waiting for
-    /// the copy or mapping the buffer fails.
+    /// [`Error::Readback`] for a texture without `COPY_SRC`, a format without a fixed texel
+    /// size for copies (compressed, or a depth format whose depth cannot be copied, such as
+    /// `Depth24Plus`) and when waiting for the copy or mapping the buffer fails; each before
+    /// anything is recorded, so no validation error is left behind.
     pub fn read_texture_bytes(&self, texture: &wgpu::Texture) -> Result<Vec<u8>> {
         self.read_layers(texture, 1)
     }
@@ -153,6 +154,12 @@ impl HeadlessGpu {
 
     /// Mip 0 of the first `layers` layers (or depth slices) of `texture`, tightly packed.
     fn read_layers(&self, texture: &wgpu::Texture, layers: u32) -> Result<Vec<u8>> {
+        if !texture.usage().contains(wgpu::TextureUsages::COPY_SRC) {
+            return Err(Error::Readback(format!(
+                "the texture lacks TextureUsages::COPY_SRC (has {:?}): it cannot be copied out",
+                texture.usage()
+            )));
+        }
         let format = texture.format();
         let aspect = if format.is_depth_stencil_format() {
             wgpu::TextureAspect::DepthOnly
@@ -235,7 +242,18 @@ impl HeadlessGpu {
     }
 
     /// Reads a whole buffer (usage `COPY_SRC`, size a multiple of 4) back.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::Readback`] for a buffer without `COPY_SRC` (before anything is recorded), and
+    /// when waiting for the copy or mapping fails.
     pub fn read_buffer_bytes(&self, source: &wgpu::Buffer) -> Result<Vec<u8>> {
+        if !source.usage().contains(wgpu::BufferUsages::COPY_SRC) {
+            return Err(Error::Readback(format!(
+                "the buffer lacks BufferUsages::COPY_SRC (has {:?}): it cannot be copied out",
+                source.usage()
+            )));
+        }
         let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("volshadow readback"),
             size: source.size(),

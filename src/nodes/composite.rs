@@ -401,9 +401,9 @@ pub struct CompositeNode {
     /// The compute pass's pipelines without and with the surface term (`None`: the format is
     /// not a storage format, and the composite always goes through the rasteriser).
     storing: Option<[Storing; 2]>,
-    pipeline: wgpu::RenderPipeline,
-    /// The pipeline with the surface term.
-    pipeline_surfaces: wgpu::RenderPipeline,
+    /// The render pipelines, one per format written (the node's format, and its sRGB twin
+    /// when an output is in it) and surface term: the cache's, shared.
+    pipelines: Pipelines,
     layout: wgpu::BindGroupLayout,
     uniform: UniformBuffer<CompositeUniform>,
     view: UniformBuffer<ViewUniform>,
@@ -456,8 +456,12 @@ impl CompositeNode {
             device: device.clone(),
             format: output_format,
             storing,
-            pipeline: cache.composite.writing(device, output_format, false),
-            pipeline_surfaces: cache.composite.writing(device, output_format, true),
+            pipelines: {
+                // Built now for the node's format; its sRGB twin's on first use.
+                cache.composite.writing(device, output_format, false);
+                cache.composite.writing(device, output_format, true);
+                cache.composite.clone()
+            },
             layout: cache.composite.layout.clone(),
             uniform: UniformBuffer::new(device, "volshadow composite"),
             view: UniformBuffer::new(device, "volshadow composite view"),
@@ -854,11 +858,13 @@ impl CompositeNode {
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        pass.set_pipeline(if self.surfaces.is_some() {
-            &self.pipeline_surfaces
-        } else {
-            &self.pipeline
-        });
+        // The pipeline for the texture's own format: the view is in it, and a render pass
+        // takes only a pipeline built for its attachment's format (the node's format and its
+        // sRGB twin are both accepted, see `check_output`).
+        let pipeline =
+            self.pipelines
+                .writing(&self.device, target.format(), self.surfaces.is_some());
+        pass.set_pipeline(&pipeline);
         pass.set_bind_group(0, &bound.bind_group, &[]);
         pass.draw(0..3, 0..1);
         Ok(())

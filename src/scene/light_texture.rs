@@ -75,8 +75,9 @@ impl LightTexture {
     ///
     /// # Errors
     ///
-    /// [`Error::InvalidSize`] unless `1 <= size <= MAX_SIZE`, or a non-finite or negative colour
-    /// (as [`LightTexture::new`]).
+    /// [`Error::InvalidSize`] unless `1 <= size <= MAX_SIZE`, [`Error::InvalidSetting`]
+    /// naming `checkerboard.cells` unless `1 <= cells <= size` (as a scene file's checkerboard),
+    /// or a non-finite or negative colour (as [`LightTexture::new`]).
     pub fn checkerboard(size: u32, cells: u32, a: Vec3, b: Vec3) -> Result<Self> {
         if size == 0 || size > Self::MAX_SIZE {
             return Err(Error::InvalidSize {
@@ -87,7 +88,12 @@ impl LightTexture {
                 max: Self::MAX_SIZE,
             });
         }
-        let cells = cells.max(1);
+        if cells == 0 || cells > size {
+            return Err(Error::InvalidSetting {
+                field: "checkerboard.cells",
+                problem: format!("must be in 1..={size} (the texture size), got {cells}"),
+            });
+        }
         let texels = (0..size * size)
             .map(|i| {
                 let (x, y) = (i % size, i / size);
@@ -248,5 +254,29 @@ impl SpotLight {
         let dir = self.direction();
         let up = if dir.y.abs() < 0.9 { Vec3::Y } else { Vec3::X };
         glam::camera::rh::view::look_to_mat4(self.position(), dir, up)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `cells: 0` was made one cell silently (and `cells > size` cells narrower than a texel),
+    /// where a scene file's checkerboard refuses both: now a typed error naming the field.
+    #[test]
+    fn checkerboard_cells_out_of_range_is_an_error() {
+        for (size, cells) in [(8, 0), (8, 9), (1, 2)] {
+            match LightTexture::checkerboard(size, cells, Vec3::ONE, Vec3::ZERO) {
+                Err(Error::InvalidSetting { field, problem }) => {
+                    assert_eq!(field, "checkerboard.cells");
+                    assert!(problem.contains(&format!("got {cells}")), "{problem}");
+                }
+                other => panic!("{size}, {cells}: {other:?}"),
+            }
+        }
+        for (size, cells) in [(8, 1), (8, 8), (1, 1)] {
+            let t = LightTexture::checkerboard(size, cells, Vec3::ONE, Vec3::ZERO).unwrap();
+            assert_eq!((t.width, t.height), (size, size));
+        }
     }
 }

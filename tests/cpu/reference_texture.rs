@@ -587,9 +587,9 @@ fn degenerate_rays_and_textures_give_no_nan() {
 /// each one Gauss–Kronrod panel. Accuracy: the integral over `[0, ds]` against the sum of
 /// the integrals over `[0, c]` and `[c, ds]` (the second from `E + c·v`, attenuated by
 /// `exp(−σt·c)`), which are computed with different panels (1e-9, the brief's target).
-/// Timing: printed, with a generous bound on the slowest.
+/// Timing: printed, not judged.
 #[test]
-fn kink_breakpoints_keep_large_textures_accurate_and_fast() {
+fn kink_breakpoints_keep_large_textures_accurate() {
     let medium = medium();
     let s = test_spot();
     let p = s.position().as_dvec3();
@@ -620,8 +620,8 @@ fn kink_breakpoints_keep_large_textures_accurate_and_fast() {
         assert!(value.is_finite() && value.min_element() > 0.0);
         assert!(err <= 1e-9, "{err:e}");
     }
-    // Generous: the 4096² texture's ray (thousands of panels) took ~40 ms here (the crate's
-    // optimised dev profile); 5 s only catches a breakdown (e.g. breakpoints lost and the
-    // bisection cap reached on every ray).
-    assert!(slowest < 5.0, "{slowest} s");
+    // No wall-clock bound (the times are printed; the 4096² texture's ray, thousands of
+    // panels, takes tens of ms): timings on a shared machine are not test assertions. The
+    // split above judges the quadrature on every texture size.
+    println!("slowest textured ray: {slowest:.3} s");
 }

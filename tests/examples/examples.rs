@@ -476,6 +476,11 @@ fn render_never_overwrites_its_input() {
         format!("{d}/lamp.json"),
         format!("{d}/./lamp"),
         format!("{d}/sub/../lamp"),
+        // Through folders the run would create: `..` goes back from the new folder to the
+        // scene's (the check gave up on a missing folder, and the run wrote the report over
+        // the scene).
+        format!("{d}/newdir/../lamp"),
+        format!("{d}/new/er/../../lamp.json"),
     ];
     if cfg!(unix) {
         // A link to the file, a link to its folder, a second name of the same file.
@@ -532,15 +537,75 @@ fn render_never_overwrites_a_file_the_scene_names() {
     // A valid scene that reads the texture.
     volshadow::scene_file::SceneDescription::load(&scene).unwrap();
     let before = snapshot(dir.path());
-    let out = dir.path().join("glass");
-    let result = render_scene::run(&args(&[
-        scene.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--size",
-        "16x16",
-    ]));
-    assert_refused(result, "glass.png", dir.path(), &before, "-o glass");
+    for out in ["glass", "nd/../glass"] {
+        let out = dir.path().join(out);
+        let result = render_scene::run(&args(&[
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--size",
+            "16x16",
+        ]));
+        assert_refused(
+            result,
+            "glass.png",
+            dir.path(),
+            &before,
+            &out.display().to_string(),
+        );
+    }
+}
+
+/// `-o` naming a folder (`sub/`, `.`, `..`) is an error of the parser, not the hidden files
+/// `sub/.png`, `sub/.exr` and `sub/.json` (for `gltf` too); `-o sub` (a folder's name without
+/// the separator) is the base `sub`, whose outputs are `sub.png` and so on beside it.
+#[test]
+fn output_naming_a_folder_is_refused() {
+    use common_examples::gltf_scene;
+    for out in ["sub/", "out/sub/", ".", "..", "sub/.", "/"] {
+        let line = args(&["scenes/sphere.json", "-o", out]);
+        let e = render_scene::Options::parse(&line).expect_err(out);
+        assert!(e.to_string().contains("names a folder"), "{out}: {e}");
+        let line = args(&["model.glb", "-o", out]);
+        let e = gltf_scene::Options::parse(&line).expect_err(out);
+        assert!(e.to_string().contains("names a folder"), "{out}: {e}");
+    }
+    let line = args(&["scenes/sphere.json", "-o", "sub"]);
+    let Parsed::Run(options) = render_scene::Options::parse(&line).unwrap() else {
+        panic!("not a run")
+    };
+    assert_eq!(options.path(".png"), Path::new("sub.png"));
+}
+
+/// A FIFO as the scene or the model is an error at once, not a run blocked forever on
+/// opening it (the tools looked for the files it names by opening it first).
+#[cfg(unix)]
+#[test]
+fn fifo_input_is_an_error_not_a_hang() {
+    use common_examples::gltf_scene;
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("pipe.json");
+    assert!(std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .expect("mkfifo runs")
+        .success());
+    let out = dir.path().join("o").display().to_string();
+    let (send, receive) = std::sync::mpsc::channel();
+    let (scene, model) = (fifo.display().to_string(), fifo.display().to_string());
+    std::thread::spawn(move || {
+        let render = render_scene::run(&args(&[&scene, "-o", &out])).map_err(|e| e.to_string());
+        let gltf = gltf_scene::run(&args(&[&model, "-o", &out])).map_err(|e| e.to_string());
+        let _ = send.send((render.err(), gltf.err()));
+    });
+    // Hang guard, not a speed bound: both answer from metadata in milliseconds.
+    let (render, gltf) = receive
+        .recv_timeout(std::time::Duration::from_secs(120))
+        .expect("render or gltf blocked on a FIFO input");
+    for (tool, e) in [("render", render), ("gltf", gltf)] {
+        let e = e.unwrap_or_else(|| panic!("{tool} ran on a FIFO"));
+        assert!(e.contains("not a regular file"), "{tool}: {e}");
+    }
 }
 
 /// `--help` and `-h` are a request for the usage, not an error, for every example's parser,
@@ -792,6 +857,8 @@ fn gltf_never_overwrites_its_input() {
         (&glb, format!("{d}/box"), "box.png"),
         (&glb, format!("{d}/./box.png"), "box.png"),
         (&gltf, format!("{d}/tex"), "tex.png"),
+        (&gltf, format!("{d}/nd/../tex"), "tex.png"),
+        (&glb, format!("{d}/nd/../box"), "box.png"),
     ] {
         let result = gltf_scene::run(&args(&[
             model.to_str().unwrap(),

@@ -486,6 +486,203 @@ fn output_formats_the_composite_cannot_write_are_rejected_by_new() {
     }
 }
 
+/// The output may be the settings' format or its sRGB twin (`encode`'s documentation): for
+/// each of the four Rgba8/Bgra8 pairs, either way round, the composite writes the twin with
+/// no validation error (its render pipeline was built for the settings' format while the pass
+/// wrote a view in the texture's own: `Ok`, then "Render pipeline targets are incompatible
+/// with render pass", which invalidated the caller's encoder), and the image matches the
+/// settings' own format read back (the sRGB twin decoded: within 1/255 plus the sRGB curve's
+/// rounding at 8 bits, 2/255 in all).
+#[test]
+fn an_output_in_the_srgb_twin_of_the_settings_format_is_written() {
+    use wgpu::TextureFormat as F;
+    let rig = rig(16);
+    let device = &rig.gpu.device;
+    let medium = medium();
+    let lights = [point(Vec3::new(0.4, 4.5, -0.5))];
+    let decode = |v: u8, srgb: bool| {
+        let c = f32::from(v) / 255.0;
+        if !srgb {
+            c
+        } else if c <= 0.04045 {
+            c / 12.92
+        } else {
+            ((c + 0.055) / 1.055).powf(2.4)
+        }
+    };
+    let read = |target: &wgpu::Texture| -> Vec<f32> {
+        let bytes = rig.gpu.read_texture_bytes(target).unwrap();
+        let bgra = matches!(target.format(), F::Bgra8Unorm | F::Bgra8UnormSrgb);
+        bytes
+            .chunks(4)
+            .flat_map(|p| {
+                let p = if bgra {
+                    [p[2], p[1], p[0], p[3]]
+                } else {
+                    [p[0], p[1], p[2], p[3]]
+                };
+                p.map(|v| decode(v, target.format().is_srgb()))
+            })
+            .collect()
+    };
+    for (settings_format, output_format) in [
+        (F::Rgba8Unorm, F::Rgba8UnormSrgb),
+        (F::Rgba8UnormSrgb, F::Rgba8Unorm),
+        (F::Bgra8Unorm, F::Bgra8UnormSrgb),
+        (F::Bgra8UnormSrgb, F::Bgra8Unorm),
+    ] {
+        let mut vs = VolumetricShadows::new(
+            device,
+            &rig.gpu.queue,
+            &rig.cache,
+            Settings {
+                output_format: settings_format,
+                ..settings()
+            },
+        )
+        .unwrap();
+        let mut images = Vec::new();
+        for format in [settings_format, output_format] {
+            let target = texture(
+                &rig.gpu,
+                format,
+                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                (rig.size, rig.size, 1),
+                1,
+            );
+            let (result, error) = scoped(device, || {
+                vs.prepare(device, &rig.gpu.queue, &frame(&rig, &lights, &medium, &[]))?;
+                let mut encoder = device.create_command_encoder(&Default::default());
+                vs.encode(&mut encoder, &target)?;
+                rig.gpu.submit_and_wait(encoder)
+            });
+            assert!(
+                result.is_ok(),
+                "{settings_format:?} into {format:?}: {result:?}"
+            );
+            assert!(
+                error.is_none(),
+                "{settings_format:?} into {format:?}: {error:?}"
+            );
+            images.push(read(&target));
+        }
+        let diff = images[0]
+            .iter()
+            .zip(&images[1])
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f32::max);
+        let mean = images[1].iter().sum::<f32>() / images[1].len() as f32;
+        println!("{settings_format:?} settings into {output_format:?}: max diff {diff:.4}, mean {mean:.3}");
+        assert!(mean > 0.05, "{output_format:?}: a dark image tests nothing");
+        assert!(
+            diff <= 2.0 / 255.0,
+            "{settings_format:?} into {output_format:?}: {diff}"
+        );
+    }
+}
+
+/// The output may not be a light's own texture (an input of the frame, which the composite
+/// does not read): it was accepted, written over and its mips never rebuilt. Refused by
+/// `encode` and by `encode_step` of the composite, with nothing recorded; another texture of
+/// the same kind is written.
+#[test]
+fn a_lights_texture_as_the_output_is_refused() {
+    let rig = rig(16);
+    let device = &rig.gpu.device;
+    let medium = medium();
+    let usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::RENDER_ATTACHMENT;
+    let make = || {
+        texture(
+            &rig.gpu,
+            wgpu::TextureFormat::Rgba16Float,
+            usage,
+            (16, 16, 1),
+            1,
+        )
+    };
+    let (mask, other) = (make(), make());
+    let lights = [FrameLight {
+        light: SpotLight::new(
+            Vec3::new(0.0, 4.0, 0.0),
+            Vec3::NEG_Y,
+            1.0,
+            Vec3::splat(20.0),
+        )
+        .unwrap()
+        .into(),
+        texture: Some(&mask),
+    }];
+    let settings = Settings {
+        output_format: wgpu::TextureFormat::Rgba16Float,
+        ..settings()
+    };
+    let mut vs = VolumetricShadows::new(device, &rig.gpu.queue, &rig.cache, settings).unwrap();
+    let plan = vs
+        .prepare(device, &rig.gpu.queue, &frame(&rig, &lights, &medium, &[]))
+        .unwrap();
+    let composite = plan
+        .steps
+        .iter()
+        .position(|s| s.pass == volshadow::plan::Pass::Composite)
+        .expect("a composite step");
+    let (results, error) = scoped(device, || {
+        let mut encoder = device.create_command_encoder(&Default::default());
+        let whole = vs.encode(&mut encoder, &mask).err();
+        let step = vs.encode_step(&mut encoder, &mask, composite).err();
+        let fine = vs.encode(&mut encoder, &other);
+        rig.gpu.submit_and_wait(encoder).unwrap();
+        (whole, step, fine)
+    });
+    for result in [results.0, results.1] {
+        match result {
+            Some(Error::InvalidTexture {
+                field: "output",
+                problem,
+            }) => {
+                assert!(problem.contains("light textures"), "{problem}")
+            }
+            other => panic!("expected the output refused, got {other:?}"),
+        }
+    }
+    results.2.unwrap();
+    assert!(error.is_none(), "{error:?}");
+}
+
+/// `read_texture_bytes` (and so `read_rgba32f`) of a texture without `COPY_SRC`, and
+/// `read_buffer_bytes` of a buffer without it, are typed errors with nothing recorded (they
+/// were `Ok` with garbage and a validation error).
+#[test]
+fn reading_back_without_copy_src_is_a_typed_error() {
+    let gpu = common::gpu();
+    let no_copy = texture(
+        &gpu,
+        wgpu::TextureFormat::Rgba32Float,
+        wgpu::TextureUsages::RENDER_ATTACHMENT,
+        (4, 4, 1),
+        1,
+    );
+    let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: 16,
+        usage: wgpu::BufferUsages::UNIFORM,
+        mapped_at_creation: false,
+    });
+    let (results, error) = scoped(&gpu.device, || {
+        [
+            gpu.read_rgba32f(&no_copy).err(),
+            gpu.read_texture_bytes(&no_copy).err(),
+            gpu.read_buffer_bytes(&buffer).err(),
+        ]
+    });
+    for result in results {
+        match result {
+            Some(Error::Readback(problem)) => assert!(problem.contains("COPY_SRC"), "{problem}"),
+            other => panic!("expected a readback error, got {other:?}"),
+        }
+    }
+    assert!(error.is_none(), "{error:?}");
+}
+
 #[test]
 fn a_layered_light_texture_is_a_typed_error() {
     let rig = rig(16);
