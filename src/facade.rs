@@ -286,7 +286,8 @@ impl VolumetricShadows {
     ///   (all must be the colour's size);
     /// * [`Error::InvalidSize`] for a frame larger than the device's texture limits;
     /// * [`Error::NonFinite`], [`Error::SingularMatrix`] or [`Error::InvalidTransform`] for an
-    ///   occluder's transform;
+    ///   occluder's transform, [`Error::InvalidBuffer`] naming `occluder.mesh` for a mesh made
+    ///   on another device;
     /// * [`Error::DeviceLimitExceeded`], naming the buffer and the `wgpu::Limits` field, for
     ///   every buffer beyond the device's limits: the occluders' shadow volumes or transforms,
     ///   the exact method's crossing lists (16 bytes a pixel: 4096² at full resolution is
@@ -319,6 +320,9 @@ impl VolumetricShadows {
                 field: "lights",
                 problem: format!("{} lights, at most {MAX_LIGHTS}", frame.lights.len()),
             });
+        }
+        for o in frame.occluders {
+            o.check_device(device)?;
         }
         self.light_textures = frame
             .lights

@@ -55,7 +55,11 @@ pub struct GltfMesh {
     /// triangle-list indices.
     pub mesh: Mesh,
     /// The node's world transform (object to world): the product of the local transforms
-    /// along its parent chain, root first. Always finite and invertible.
+    /// along its parent chain, root first. Always finite and invertible, with a positive
+    /// determinant: where the node mirrors (a negative determinant, which reverses the
+    /// triangles' winding), [`mesh`](Self::mesh) is the primitive mirrored in x and wound the
+    /// other way, and this the node's transform times that mirror, so the world triangles are
+    /// the node's, facing out.
     pub transform: Mat4,
 }
 
@@ -211,6 +215,21 @@ fn load_bytes(
             })?;
         }
         let name = root.meshes.get(mesh_index).and_then(|m| m.name.clone());
+        if transform.determinant() < 0.0 {
+            // A mirroring node (valid glTF: its triangles' winding reverses). Occluders take
+            // no mirroring transform (their shadow volumes would turn inside out), so the
+            // mesh is mirrored in its own space and wound the other way, and the transform
+            // mirrored back: the same world triangles, facing out.
+            let mirror = Mat4::from_scale(Vec3::new(-1.0, 1.0, 1.0));
+            for mesh in primitives {
+                out.push(GltfMesh {
+                    name: name.clone(),
+                    mesh: mirrored(mesh)?,
+                    transform: transform * mirror,
+                });
+            }
+            continue;
+        }
         out.extend(primitives.iter().map(|mesh| GltfMesh {
             name: name.clone(),
             mesh: mesh.clone(),
@@ -229,6 +248,21 @@ fn load_bytes(
         ));
     }
     Ok(out)
+}
+
+/// `mesh` mirrored in x, each triangle wound the other way (so it still faces out).
+fn mirrored(mesh: &Mesh) -> Result<Mesh> {
+    let positions: Vec<Vec3> = mesh
+        .positions()
+        .iter()
+        .map(|p| Vec3::new(-p.x, p.y, p.z))
+        .collect();
+    let indices: Vec<u32> = mesh
+        .indices()
+        .chunks_exact(3)
+        .flat_map(|t| [t[0], t[2], t[1]])
+        .collect();
+    Mesh::new(&positions, &indices)
 }
 
 /// A problem found while parsing, before the file's name is attached.

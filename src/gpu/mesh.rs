@@ -9,6 +9,11 @@ use crate::scene::{Mesh, MeshSummary};
 /// GPU buffers of one occluder mesh: positions, triangle indices and the edge adjacency built
 /// by [`Mesh::new`]. Upload once, instance any number of times with [`Occluder`].
 ///
+/// The mesh keeps its device: a frame on another device of the same `wgpu::Instance` refuses
+/// it ([`Error::InvalidBuffer`] naming `occluder.mesh`). Devices of two separate instances
+/// number their resources alike and wgpu's public API cannot tell them apart, so a mesh must
+/// not be passed to another instance's device.
+///
 /// Used in the [crate-level example](crate#example).
 pub struct OccluderMesh {
     pub(crate) positions: wgpu::Buffer,
@@ -25,6 +30,8 @@ pub struct OccluderMesh {
     sphere: (Vec3, f32),
     summary: MeshSummary,
     id: u64,
+    /// The device its buffers live on: an occluder is refused on any other.
+    device: wgpu::Device,
 }
 
 /// GPU edge record: the edge v0→v1 in face0's winding, face1 = u32::MAX when none (boundary or
@@ -104,6 +111,7 @@ impl OccluderMesh {
             sphere: (centre, reach),
             summary: mesh.summary(),
             id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
+            device: device.clone(),
         }
     }
 
@@ -174,6 +182,21 @@ pub struct Occluder<'a> {
 }
 
 impl Occluder<'_> {
+    /// Checks that the mesh was made on `device`: wgpu resources of another device resolve,
+    /// on this one, to unrelated resources (or panic inside wgpu), so they are refused, with
+    /// [`Error::InvalidBuffer`] naming `occluder.mesh`, before any is bound.
+    pub(crate) fn check_device(&self, device: &wgpu::Device) -> Result<()> {
+        if self.mesh.device == *device {
+            return Ok(());
+        }
+        Err(Error::InvalidBuffer {
+            field: "occluder.mesh",
+            problem: "made on another wgpu::Device than the one passed to prepare \
+                      (OccluderMesh::new with this device)"
+                .into(),
+        })
+    }
+
     /// Checks the transform as scene files do: finite, affine (last row 0, 0, 0, 1),
     /// invertible, not mirroring (a negative determinant flips the triangles' winding,
     /// which turns the shadow volumes inside out), and with a determinant within f32's range

@@ -661,6 +661,7 @@ impl Node for ExtentsNode {
         check_target_size("extents size", device, width, height)?;
         for o in occluders {
             o.validate()?;
+            o.check_device(device)?;
         }
         let per_pixel = crossings
             .map(|request| crossings_per_pixel(device, &request, (width, height)))

@@ -832,6 +832,7 @@ impl ShadowMapNode {
         } = *inputs;
         for occluder in occluders {
             occluder.validate()?;
+            occluder.check_device(device)?;
         }
         let needed = (occluders.len().max(1) as u64) * SLOT;
         crate::gpu::check_buffer_allocation(device, "occluder transforms", needed)?;

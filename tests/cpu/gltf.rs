@@ -286,6 +286,72 @@ fn data_uri_gltf() {
     assert_cube(&from_file[0]);
 }
 
+/// A node that mirrors (scale -2, 1, 1: valid glTF, its triangles' winding reverses) loads
+/// with a positive determinant, which occluders need (the mirrored transform loaded, then
+/// `prepare` refused it naming neither node nor mesh): the same world triangles as the node
+/// places, wound to face out (positive signed volume, where the node's transform on the
+/// file's mesh gives the negative of the cube's).
+#[test]
+fn a_mirroring_node_loads_as_the_same_triangles_facing_out() {
+    let doc = Doc::cube(&data_uri(&cube_bin(&cube_positions()))).set(
+        "nodes",
+        r#"[{"mesh": 0, "scale": [-2, 1, 1], "translation": [3, 0, 0]}]"#,
+    );
+    let meshes = gltf::load_slice(doc.json().as_bytes()).unwrap();
+    assert_eq!(meshes.len(), 1);
+    let m = &meshes[0];
+    assert!(m.transform.determinant() > 0.0, "{:?}", m.transform);
+    assert!(m.mesh.is_closed());
+    let world = |t: Mat4, mesh: &volshadow::scene::Mesh| -> Vec<[Vec3; 3]> {
+        mesh.indices()
+            .chunks_exact(3)
+            .map(|k| {
+                k.iter()
+                    .map(|&i| t.transform_point3(mesh.positions()[i as usize]))
+            })
+            .map(|mut v| [v.next().unwrap(), v.next().unwrap(), v.next().unwrap()])
+            .collect()
+    };
+    let volume =
+        |tris: &[[Vec3; 3]]| -> f32 { tris.iter().map(|[a, b, c]| a.dot(b.cross(*c)) / 6.0).sum() };
+    let node = Mat4::from_scale_rotation_translation(
+        Vec3::new(-2.0, 1.0, 1.0),
+        volshadow::glam::Quat::IDENTITY,
+        Vec3::new(3.0, 0.0, 0.0),
+    );
+    let placed = world(m.transform, &m.mesh);
+    // The file's cube under the node's transform, each triangle as a sorted set of corners.
+    let file_mesh = gltf::load_slice(
+        Doc::cube(&data_uri(&cube_bin(&cube_positions())))
+            .json()
+            .as_bytes(),
+    )
+    .unwrap()
+    .remove(0)
+    .mesh;
+    let as_written = world(node, &file_mesh);
+    let key = |t: &[Vec3; 3]| {
+        let mut k: Vec<[i32; 3]> = t
+            .iter()
+            .map(|v| (*v * 1000.0).round().as_ivec3().to_array())
+            .collect();
+        k.sort();
+        k
+    };
+    let mut a: Vec<_> = placed.iter().map(key).collect();
+    let mut b: Vec<_> = as_written.iter().map(key).collect();
+    a.sort();
+    b.sort();
+    assert_eq!(a, b, "not the node's triangles");
+    let (out, inverted) = (volume(&placed), volume(&as_written));
+    println!("signed volume: loaded {out}, the node's transform on the file's winding {inverted}");
+    assert!(
+        (out - 16.0).abs() < 1e-3,
+        "{out}: a 2·2·2 cube scaled by 2 in x faces out"
+    );
+    assert!((inverted + 16.0).abs() < 1e-3, "{inverted}");
+}
+
 #[test]
 fn triangle_strip_and_fan() {
     // A tetrahedron as one indexed strip: 0 1 2 3 0 1 gives (0 1 2) (1 3 2) (2 3 0) (3 1 0).

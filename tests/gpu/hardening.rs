@@ -683,6 +683,56 @@ fn reading_back_without_copy_src_is_a_typed_error() {
     assert!(error.is_none(), "{error:?}");
 }
 
+/// An occluder mesh made on another device of the same adapter: `Ok`, with a validation error
+/// (a buffer of another device in a bind group). Refused by `prepare` with a typed error naming
+/// the mesh, nothing recorded; the same mesh made on this device renders. (Devices of two
+/// separate `wgpu::Instance`s number their resources alike, and wgpu's public API cannot tell
+/// them apart: see the crate's limits.)
+#[test]
+fn an_occluder_mesh_from_another_device_is_a_typed_error() {
+    let rig = rig(16);
+    let device = &rig.gpu.device;
+    let (other_device, _other_queue) =
+        pollster::block_on(rig.gpu.adapter.request_device(&Default::default())).unwrap();
+    let medium = medium();
+    let lights = [point(Vec3::new(0.4, 4.5, -0.5))];
+    let sphere = shapes::uv_sphere(Vec3::new(0.0, 1.0, 0.0), 0.4, 16, 8).unwrap();
+    let foreign = OccluderMesh::new(&other_device, &sphere);
+    let own = OccluderMesh::new(device, &sphere);
+    let mut vs = VolumetricShadows::new(device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
+    let (result, error) = scoped(device, || {
+        let occluders = [Occluder {
+            mesh: &foreign,
+            transform: Mat4::IDENTITY,
+        }];
+        vs.prepare(
+            device,
+            &rig.gpu.queue,
+            &frame(&rig, &lights, &medium, &occluders),
+        )
+        .err()
+    });
+    match result {
+        Some(Error::InvalidBuffer { field, problem }) => {
+            assert_eq!(field, "occluder.mesh");
+            assert!(problem.contains("another wgpu::Device"), "{problem}");
+        }
+        other => panic!("expected the mesh refused, got {other:?}"),
+    }
+    assert!(error.is_none(), "{error:?}");
+    let occluders = [Occluder {
+        mesh: &own,
+        transform: Mat4::IDENTITY,
+    }];
+    let target = output(&rig.gpu, rig.size, 1);
+    render(
+        &rig,
+        &mut vs,
+        &frame(&rig, &lights, &medium, &occluders),
+        (&target).into(),
+    );
+}
+
 #[test]
 fn a_layered_light_texture_is_a_typed_error() {
     let rig = rig(16);
