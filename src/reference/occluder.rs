@@ -13,6 +13,12 @@ use glam::{DMat4, DQuat, DVec3, Vec3};
 
 use super::bvh::{Bvh, Triangle};
 
+/// The fraction of a segment to a point light, at the light's end, that visibility ignores: a
+/// surface through the light itself (the light on a vertex, or in a face's plane) touches
+/// every segment there (see [`Occluder::hides`]). 1e-9 is far above f64's rounding of the
+/// segment (1e-16 relative) and far below anything a render resolves.
+pub(crate) const LIGHT_CONTACT: f64 = 1e-9;
+
 /// Where a light is, for visibility: at a point, or infinitely far in the unit direction
 /// `Towards(l)` (a directional light, `l` opposite to its direction of travel).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -95,6 +101,14 @@ impl Sphere {
         let axis = self.center - p;
         let l = axis.length();
         if !(l > r) {
+            // A light on the sphere (or just inside it, where the light's own contact is
+            // ignored, see `Occluder::hides`): it lights the side of its tangent plane, so
+            // visibility changes where the ray crosses that plane. (An extra candidate for a
+            // light deeper inside is harmless.)
+            let vw = v.dot(axis);
+            if l > 0.0 && vw != 0.0 {
+                out.push((p - e).dot(axis) / vw);
+            }
             return;
         }
         let w = axis / l;
@@ -761,9 +775,16 @@ impl Occluder {
     }
 
     /// Whether the occluder hides `light` from `x`.
+    ///
+    /// A point light's own contact with the surface does not hide it: the segment is tested
+    /// up to [`LIGHT_CONTACT`] of its length short of the light, so a light on a sphere's top
+    /// vertex lights the medium above the sphere's horizon, and one in a ground's plane the
+    /// medium on both sides (the whole segment was blocked at the light, and the image black).
+    /// A light inside a closed occluder by more than that fraction of the distance is still
+    /// inside it.
     pub(crate) fn hides(&self, x: DVec3, light: Source) -> bool {
         match light {
-            Source::At(p) => self.segment_blocked(x, p),
+            Source::At(p) => self.segment_blocked(x, p + (x - p) * LIGHT_CONTACT),
             Source::Towards(l) => self.ray_blocked(x, l),
         }
     }
