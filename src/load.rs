@@ -12,7 +12,9 @@
 //!   resolved. A path that leads outside is an [`Error::PathOutsideFolder`] whose message is
 //!   the same whether the target exists or not; the resolution never looks at anything
 //!   outside the folder. [`LoadOptions::allow_outside`] lifts the rule. A loop of symbolic
-//!   links inside the folder (more than 40) is an [`Error::FileRead`], as opening it would be.
+//!   links inside the folder (more than 40), or a component before the last that is missing or
+//!   a file, is an [`Error::FileRead`], as opening it would be. [`resolve_inside`] is the rule,
+//!   public; [`written_path`] is the same walk for a file a tool will write.
 //! * Only regular files are read: a directory, device (`/dev/zero`), FIFO or socket is an
 //!   [`Error::NotRegularFile`], decided from the file's metadata before it is opened (and, on
 //!   Unix, opened non-blocking and checked again, so a FIFO swapped in meanwhile cannot block).

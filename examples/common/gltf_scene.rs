@@ -148,11 +148,23 @@ pub fn render(options: &Options) -> Result<Rendered, BoxError> {
         .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), (lo, hi)| {
             (a.min(lo), b.max(hi))
         });
-    let center = 0.5 * (lo + hi);
-    let r = 0.5 * (hi - lo).length();
-    if !(r.is_finite() && r > 0.0) {
+    // In f64: a model 2e37 wide overflows f32's length (it was called "no extent").
+    let (lo64, hi64) = (lo.as_dvec3(), hi.as_dvec3());
+    let r64 = 0.5 * (hi64 - lo64).length();
+    if r64.is_nan() || r64 <= 0.0 {
         return Err(format!("{}: the meshes have no extent", options.model.display()).into());
     }
+    if r64 > 1e15 {
+        return Err(format!(
+            "{}: the meshes span {:e} units, beyond what the example frames in f32 (1e15); \
+             scale the model",
+            options.model.display(),
+            2.0 * r64
+        )
+        .into());
+    }
+    let center = (0.5 * (lo64 + hi64)).as_vec3();
+    let r = r64 as f32;
     println!(
         "{}: {} mesh(es), {} triangles, bounds {lo} .. {hi}",
         options.model.display(),

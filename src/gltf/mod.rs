@@ -149,7 +149,15 @@ fn load_bytes(
     };
     let json_bytes = glb.as_ref().map_or(bytes, |g| &g.json[..]);
     let bin = glb.as_ref().and_then(|g| g.bin.as_deref());
-    let root = parse_json(json_bytes).map_err(|(kind, problem)| fail(kind, problem))?;
+    let root = parse_json(json_bytes).map_err(|(kind, problem)| match (&glb, kind) {
+        // The binary container was read: what is wrong is its JSON chunk, not the magic.
+        (Some(_), ErrorKind::NotGltf) => fail(
+            ErrorKind::Malformed,
+            "binary glTF whose JSON chunk is not a JSON glTF document (it must start with `{`)"
+                .to_owned(),
+        ),
+        (_, kind) => fail(kind, problem),
+    })?;
 
     let version = root.asset.version.trim();
     if version.split('.').next() != Some("2") {

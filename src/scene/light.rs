@@ -132,8 +132,15 @@ impl SpotLight {
         finite("spot_light.direction", &direction.to_array())?;
         finite("spot_light.cone_angle", &[cone_angle])?;
         non_negative("spot_light.intensity", &intensity.to_array())?;
+        // A finite direction whose length overflows (or underflows) f32 is rescaled first, so
+        // it normalises too: only a zero vector is degenerate.
         let len = direction.length();
-        if !(len.is_finite() && len > 0.0) {
+        let unit = if len.is_finite() && len > 0.0 {
+            direction / len
+        } else {
+            (direction / direction.abs().max_element()).normalize_or_zero()
+        };
+        if unit == Vec3::ZERO || !unit.is_finite() {
             return Err(Error::DegenerateDirection {
                 field: "spot_light.direction",
             });
@@ -151,7 +158,7 @@ impl SpotLight {
         }
         Ok(Self {
             position,
-            direction: direction / len,
+            direction: unit,
             cos_half_angle: (0.5 * cone_angle).cos(),
             cone_angle,
             intensity,
@@ -398,5 +405,40 @@ impl From<&SpotLight> for Light {
 impl From<&Light> for Light {
     fn from(l: &Light) -> Self {
         *l
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A finite direction whose length overflows f32 (`[1e38; 3]`: its length is 1.7e38 · √3,
+    /// beyond f32) or underflows it normalises, for spot and directional lights alike (the
+    /// spot called it "zero length"); only zero is degenerate.
+    #[test]
+    fn huge_and_tiny_finite_directions_normalise() {
+        for d in [
+            Vec3::splat(1e38),
+            Vec3::new(-3e38, 0.0, 3e38),
+            Vec3::splat(1e-40),
+        ] {
+            let spot = SpotLight::new(Vec3::ZERO, d, 1.0, Vec3::ONE).unwrap();
+            let sun = DirectionalLight::new(d, Vec3::ONE).unwrap();
+            let want = (d.as_dvec3() / d.as_dvec3().length()).as_vec3();
+            assert!(
+                spot.direction().abs_diff_eq(want, 1e-6),
+                "{d}: {}",
+                spot.direction()
+            );
+            assert!(
+                sun.direction().abs_diff_eq(want, 1e-6),
+                "{d}: {}",
+                sun.direction()
+            );
+        }
+        assert!(matches!(
+            SpotLight::new(Vec3::ZERO, Vec3::ZERO, 1.0, Vec3::ONE),
+            Err(Error::DegenerateDirection { .. })
+        ));
     }
 }

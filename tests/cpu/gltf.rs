@@ -570,6 +570,19 @@ fn error_not_a_gltf() {
         gltf_kind(gltf::load(&path), &path_str(&path)),
         ErrorKind::NotGltf
     );
+    // A GLB with a valid magic and header whose JSON chunk is not JSON: malformed, and the
+    // message says so (it said "neither binary glTF (no `glTF` magic) nor JSON").
+    let bytes = glb("not json at all", &[]);
+    match gltf::load_slice(&bytes) {
+        Err(Error::Gltf(GltfError::Invalid { kind, problem, .. })) => {
+            assert_eq!(kind, ErrorKind::Malformed, "{problem}");
+            assert!(
+                problem.contains("JSON chunk") && !problem.contains("magic"),
+                "{problem}"
+            );
+        }
+        other => panic!("{other:?}"),
+    }
     // A file that does not exist at all.
     let path = dir.path().join("absent.gltf");
     assert_eq!(
