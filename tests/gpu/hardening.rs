@@ -687,7 +687,7 @@ fn reading_back_without_copy_src_is_a_typed_error() {
 /// (a buffer of another device in a bind group). Refused by `prepare` with a typed error naming
 /// the mesh, nothing recorded; the same mesh made on this device renders. (Devices of two
 /// separate `wgpu::Instance`s number their resources alike, and wgpu's public API cannot tell
-/// them apart: see the crate's limits.)
+/// them apart: see `OccluderMesh`.)
 #[test]
 fn an_occluder_mesh_from_another_device_is_a_typed_error() {
     let rig = rig(16);
