@@ -4,7 +4,7 @@
 //! ```text
 //! cargo bench --bench frame [-- [--size WxH] [--scenes A.json,B.json] [--method METHOD]
 //!                                [--frames N] [--warmup N] [--passes] [--raster-composite]
-//!                                [--raster-crossings] [--out FILE.json]]
+//!                                [--raster-crossings] [--work] [--out FILE.json]]
 //! ```
 //!
 //! `benches/scenes/` holds scenes for this bench alone (the tests do not draw them):
@@ -30,6 +30,14 @@
 //!   goes through the rasteriser instead of a compute pass.
 //! * `--raster-crossings`: the exact method's crossing lists built by the rasteriser
 //!   ([`CrossingsBuild::Raster`](volshadow::nodes::CrossingsBuild)) instead of compute passes.
+//! * `--work`: instead of times, the work of one frame (after the warm-up), which any adapter
+//!   counts alike: render and compute passes recorded ([`volshadow::passes_recorded`]),
+//!   shadow-map texels cleared (the layers each shadow-map step renders) and written (those
+//!   holding an occluder's depth after the frame), and per pixel of each light's march, from
+//!   its work counters ([`VolumetricShadows::set_work_counters`], a pipeline constant the
+//!   frame's own pipelines leave off): crossings stored and visited, shadow-map lookups,
+//!   light-texture samples and march steps, as mean and p99 over the march's pixels
+//!   (texture samples also as the mean over the pixels that take any: the lit ones).
 //!
 //! `--size` defaults to 1920x1080 on a GPU and 256x144 on a CPU adapter; `--method` to each
 //! scene's own (`render`'s syntax: `exact[:SCALE]`, `hybrid:STEPS:SCALE`, `brute:STEPS`,
@@ -47,6 +55,7 @@ use common::report::moved_lights;
 use common::{parse_size, with_aspect, BoxError};
 use lexopt::prelude::*;
 use volshadow::glam::Mat4;
+use volshadow::plan::Pass;
 use volshadow::scene_file::{Method, SceneDescription};
 use volshadow::{Cache, Camera, FrameLight, HeadlessGpu, Settings, VolumetricShadows};
 
@@ -59,12 +68,13 @@ struct Options {
     passes: bool,
     raster_composite: bool,
     raster_crossings: bool,
+    work: bool,
     out: PathBuf,
 }
 
 const USAGE: &str = "usage: cargo bench --bench frame [-- [--size WxH] [--scenes A.json,B.json] \
 [--method METHOD] [--frames N] [--warmup N] [--passes] [--raster-composite] \
-[--raster-crossings] [--out FILE.json]]";
+[--raster-crossings] [--work] [--out FILE.json]]";
 
 fn parse() -> Result<Options, BoxError> {
     let mut o = Options {
@@ -76,6 +86,7 @@ fn parse() -> Result<Options, BoxError> {
         passes: false,
         raster_composite: false,
         raster_crossings: false,
+        work: false,
         out: PathBuf::from("target/bench-frame.json"),
     };
     let mut parser = lexopt::Parser::from_env();
@@ -96,6 +107,7 @@ fn parse() -> Result<Options, BoxError> {
             Long("passes") => o.passes = true,
             Long("raster-composite") => o.raster_composite = true,
             Long("raster-crossings") => o.raster_crossings = true,
+            Long("work") => o.work = true,
             Long("out") => o.out = parser.value()?.into(),
             // `cargo bench` passes `--bench` to every bench binary.
             Long("bench") => {}
@@ -131,6 +143,127 @@ struct Row {
     frame_ms: [f64; 3],
     wall_ms: f64,
     passes: Vec<(String, f64)>,
+    work: Option<Work>,
+}
+
+/// One frame's work (`--work`).
+struct Work {
+    render_passes: u64,
+    compute_passes: u64,
+    /// Shadow-map texels cleared and written, over every light's map.
+    map_cleared: u64,
+    map_written: u64,
+    /// Per light with a march.
+    lights: Vec<LightWork>,
+}
+
+/// Mean and p99 of a per-pixel count.
+#[derive(Clone, Copy)]
+struct Spread {
+    mean: f64,
+    p99: f64,
+}
+
+impl Spread {
+    fn of(v: &[u32]) -> Self {
+        if v.is_empty() {
+            return Spread {
+                mean: 0.0,
+                p99: 0.0,
+            };
+        }
+        let mut sorted = v.to_vec();
+        sorted.sort_unstable();
+        Spread {
+            mean: v.iter().map(|&x| f64::from(x)).sum::<f64>() / v.len() as f64,
+            p99: f64::from(sorted[((sorted.len() - 1) as f64 * 0.99).round() as usize]),
+        }
+    }
+
+    fn json(self) -> serde_json::Value {
+        serde_json::json!({ "mean": self.mean, "p99": self.p99 })
+    }
+}
+
+struct LightWork {
+    light: usize,
+    pixels: usize,
+    stored: Spread,
+    visited: Spread,
+    lookups: Spread,
+    samples: Spread,
+    /// Texture samples per pixel over the pixels with any.
+    samples_lit: f64,
+    steps: Spread,
+}
+
+/// Records and runs one frame with the marches' work counters on, and counts its work.
+fn count_work(
+    gpu: &HeadlessGpu,
+    vs: &mut VolumetricShadows,
+    frame: &volshadow::Frame<'_>,
+    output: &wgpu::Texture,
+) -> Result<Work, BoxError> {
+    vs.set_work_counters(true);
+    vs.prepare(&gpu.device, &gpu.queue, frame)?;
+    let mut work = Work {
+        render_passes: 0,
+        compute_passes: 0,
+        map_cleared: 0,
+        map_written: 0,
+        lights: Vec::new(),
+    };
+    // Step by step, so that each shadow map's render passes (one per layer it clears and
+    // draws) are its own.
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    let steps: Vec<(Pass, Option<usize>)> =
+        vs.plan().steps.iter().map(|s| (s.pass, s.light)).collect();
+    for (index, (pass, light)) in steps.into_iter().enumerate() {
+        let before = volshadow::passes_recorded();
+        vs.encode_step(&mut encoder, output, index)?;
+        let passes = volshadow::passes_recorded() - before;
+        work.render_passes += passes.render;
+        work.compute_passes += passes.compute;
+        if let (Pass::ShadowMap, Some(map)) = (pass, light.and_then(|l| vs.shadow_map(l))) {
+            let t = map.texture;
+            work.map_cleared += passes.render * u64::from(t.width()) * u64::from(t.height());
+        }
+    }
+    gpu.submit_and_wait(encoder)?;
+    for light in 0..frame.lights.len() {
+        if let Some(map) = vs.shadow_map(light) {
+            let depths: Vec<f32> =
+                bytemuck::pod_collect_to_vec(&gpu.read_all_layers_bytes(map.texture)?);
+            // Cleared to 0 (reversed Z: at infinity); an occluder's depth is above it.
+            work.map_written += depths.iter().filter(|&&d| d > 0.0).count() as u64;
+        }
+        let ran = vs.plan().runs(Pass::March, Some(light));
+        let (Some(stats), Some(steps), true) = (vs.march_stats(light), vs.step_counts(light), ran)
+        else {
+            continue;
+        };
+        let counters = volshadow::nodes::MarchWork::from_bytes(&gpu.read_buffer_bytes(stats)?)
+            .ok_or("the march wrote no work counters")?;
+        let steps: Vec<u32> = bytemuck::pod_collect_to_vec(&gpu.read_texture_bytes(steps)?);
+        let lit: Vec<u32> = counters
+            .texture_samples
+            .iter()
+            .copied()
+            .filter(|&n| n > 0)
+            .collect();
+        work.lights.push(LightWork {
+            light,
+            pixels: steps.len(),
+            stored: Spread::of(&counters.crossings_stored),
+            visited: Spread::of(&counters.crossings_visited),
+            lookups: Spread::of(&counters.lookups),
+            samples: Spread::of(&counters.texture_samples),
+            samples_lit: Spread::of(&lit).mean,
+            steps: Spread::of(&steps),
+        });
+    }
+    vs.set_work_counters(false);
+    Ok(work)
 }
 
 fn bench_scene(gpu: &HeadlessGpu, o: &Options, path: &PathBuf) -> Result<Row, BoxError> {
@@ -205,6 +338,20 @@ fn bench_scene(gpu: &HeadlessGpu, o: &Options, path: &PathBuf) -> Result<Row, Bo
     };
     for k in 0..o.warmup.max(2) {
         run(&mut vs, k, true)?;
+    }
+    if o.work {
+        let work = count_work(gpu, &mut vs, &frame_of(o.warmup.max(2)), &output)?;
+        return Ok(Row {
+            // The file's stem: a table column (the names can be long).
+            scene: path
+                .file_stem()
+                .map_or_else(|| scene.name.clone(), |s| s.to_string_lossy().into_owned()),
+            method: method.describe(),
+            frame_ms: [f64::NAN; 3],
+            wall_ms: f64::NAN,
+            passes: Vec::new(),
+            work: Some(work),
+        });
     }
 
     // GPU time per frame.
@@ -313,6 +460,7 @@ fn bench_scene(gpu: &HeadlessGpu, o: &Options, path: &PathBuf) -> Result<Row, Bo
         frame_ms: frame,
         wall_ms,
         passes,
+        work: None,
     })
 }
 
@@ -346,8 +494,56 @@ fn run() -> Result<(), BoxError> {
         }
     );
     let mut rows = Vec::new();
+    if o.work {
+        println!(
+            "work of one frame; per pixel of each light's march: mean/p99 (texture samples: \
+             mean/p99, and mean over the pixels with any)"
+        );
+        println!(
+            "{:<14} {:>6} {:>9} {:>11} {:>11} {:>5} {:>13} {:>13} {:>13} {:>19} {:>13}",
+            "scene",
+            "passes",
+            "r/c",
+            "map cleared",
+            "map written",
+            "light",
+            "crossings",
+            "visited",
+            "lookups",
+            "texture samples",
+            "steps"
+        );
+    }
     for path in &o.scenes {
         let row = bench_scene(&gpu, &o, path)?;
+        if let Some(w) = &row.work {
+            let pair = |s: Spread| format!("{:.2}/{:.0}", s.mean, s.p99);
+            let head = format!(
+                "{:<14} {:>6} {:>9} {:>11} {:>11}",
+                row.scene,
+                w.render_passes + w.compute_passes,
+                format!("{}/{}", w.render_passes, w.compute_passes),
+                w.map_cleared,
+                w.map_written
+            );
+            if w.lights.is_empty() {
+                println!("{head}");
+            }
+            for (i, l) in w.lights.iter().enumerate() {
+                println!(
+                    "{:<59} {:>5} {:>13} {:>13} {:>13} {:>19} {:>13}",
+                    if i == 0 { head.as_str() } else { "" },
+                    l.light,
+                    pair(l.stored),
+                    pair(l.visited),
+                    pair(l.lookups),
+                    format!("{} ({:.1})", pair(l.samples), l.samples_lit),
+                    pair(l.steps)
+                );
+            }
+            rows.push(row);
+            continue;
+        }
         println!(
             "{:<14} {:<44} frame {:>9.3} ms (p10 {:.3}, p90 {:.3}), wall {:>9.3} ms/frame",
             row.scene, row.method, row.frame_ms[0], row.frame_ms[1], row.frame_ms[2], row.wall_ms
@@ -371,6 +567,22 @@ fn run() -> Result<(), BoxError> {
             "frame_ms": { "median": r.frame_ms[0], "p10": r.frame_ms[1], "p90": r.frame_ms[2] },
             "wall_ms_per_frame": r.wall_ms,
             "passes_ms": r.passes.iter().map(|(n, ms)| serde_json::json!({ "pass": n, "median": ms })).collect::<Vec<_>>(),
+            "work": r.work.as_ref().map(|w| serde_json::json!({
+                "render_passes": w.render_passes,
+                "compute_passes": w.compute_passes,
+                "shadow_map_texels_cleared": w.map_cleared,
+                "shadow_map_texels_written": w.map_written,
+                "lights": w.lights.iter().map(|l| serde_json::json!({
+                    "light": l.light,
+                    "pixels": l.pixels,
+                    "crossings_stored": l.stored.json(),
+                    "crossings_visited": l.visited.json(),
+                    "shadow_map_lookups": l.lookups.json(),
+                    "texture_samples": l.samples.json(),
+                    "texture_samples_per_lit_pixel": l.samples_lit,
+                    "march_steps": l.steps.json(),
+                })).collect::<Vec<_>>(),
+            })),
         })).collect::<Vec<_>>(),
     });
     if let Some(dir) = o.out.parent().filter(|d| !d.as_os_str().is_empty()) {

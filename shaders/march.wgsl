@@ -31,6 +31,20 @@ override BISECTIONS: u32 = 0u;     // bisection steps per lit/shadow transition
 override SOFT: bool = false;       // the light has a radius: fractional visibility (soft shadows)
 override SOFT_GRID: bool = false;  // SOFT: visibility read from the soft-shadow grid (`soft_volume`)
 override SOFT_SHAFTS: bool = false; // SOFT_GRID: the grid's cells are marked near narrow shafts (w)
+// Work counters for benches and tests (`MarchNode::set_work_counters`): each pixel's shadow-map
+// lookups, light-texture samples, crossing-list entries read and entries stored, written to
+// `stats[4 + 4p ..]`. Off in every pipeline a frame uses, which compiles them out.
+override COUNT_WORK: bool = false;
+
+// The pixel's work so far (COUNT_WORK): shadow-map visibility queries, light-texture samples,
+// crossing-list entries read.
+var<private> work: vec3<u32>;
+
+fn count_lookup() {
+    if (COUNT_WORK) {
+        work.x += 1u;
+    }
+}
 
 // Most transitions a marched interval records before it evaluates T at them (more just take
 // another round of the step loop).
@@ -81,7 +95,8 @@ struct SoftGrid {
 @group(0) @binding(13) var<storage, read> crossings: array<f32>;
 // Overflowed pixels, pixels with more crossings than half the list holds, most crossings
 // among those, unused.
-@group(0) @binding(14) var<storage, read_write> stats: array<atomic<u32>, 4>;
+// Four counters of the whole pass (`MarchStats`), then with COUNT_WORK four per pixel.
+@group(0) @binding(14) var<storage, read_write> stats: array<atomic<u32>>;
 // A light with a radius: the visible fraction of its disc on a light-space grid (read through
 // `light_sampler`, trilinear, clamped to the edges).
 @group(0) @binding(15) var soft_volume: texture_3d<f32>;
@@ -107,8 +122,10 @@ fn vis_at(ray: PixelRay, r: AirRay, s: f32) -> f32 {
         if (SOFT_GRID) {
             return soft_grid_visibility(p, false);
         }
+        count_lookup();
         return visibility_soft(p);
     }
+    count_lookup();
     return visibility(air.eye + x_of_s(r, s) * ray.dir);
 }
 
@@ -155,6 +172,7 @@ fn soft_grid_of(m: MapPoint, dist: f32, near_side: bool) -> vec4<f32> {
 // Whether a point, where it falls in the map, lies in front of the occluder surface the map
 // holds in its direction (or outside the map): as `visibility`'s test, at its own texel.
 fn in_front_of_surface(m: MapPoint) -> bool {
+    count_lookup();
     let t = map_texel_of(m);
     return !t.inside || !(textureLoad(shadow_map, t.texel, i32(t.face), 0) * (1.0 - shadow.depth_bias) > t.depth);
 }
@@ -179,6 +197,7 @@ fn soft_grid_visibility(p: vec3<f32>, sharp: bool) -> f32 {
     if (!(blend > 0.0 || g.z > 0.0)) {
         return g.x;
     }
+    count_lookup();
     let hard = visibility_of(m);
     var base = g.x;
     if (g.z > 0.0) {
@@ -461,6 +480,7 @@ fn piece_visibility(ray: PixelRay, r: AirRay, s: f32, shaft: bool) -> f32 {
     let q = air.eye + x_of_s(r, s) * ray.dir;
     var v = 0.0;
     if (shaft) {
+        count_lookup();
         v = visibility_soft(q);
     }
     if (!shaft || soft_two_layers) {
@@ -591,12 +611,30 @@ struct Marched {
 // The textured spot's I0 multiplier at a world point, read at the mip level whose texel
 // matches `step_angle` (the angle a march step subtends at the light; Wyman and Ramsey 2008, §3.3).
 fn light_texture(p: vec3<f32>, step_angle: f32) -> vec3<f32> {
+    if (COUNT_WORK) {
+        work.y += 1u;
+    }
     let v = (mp.tex_frame * vec4<f32>(p, 1.0)).xyz;
     let k = 1.0 / (max(-v.z, 1.0e-30) * mp.tan_half_angle);
     let uv = vec2<f32>(0.5 + 0.5 * v.x * k, 0.5 - 0.5 * v.y * k);
     let texel_angle = 2.0 * mp.tan_half_angle / mp.tex_width;
     let lod = clamp(vs_log2(max(step_angle / texel_angle, 1.0)), 0.0, mp.tex_mips - 1.0);
     return textureSampleLevel(light_tex, light_sampler, uv, lod).xyz;
+}
+
+// Steps for a textured spot's march over [a, b]: as many as the texels of the light's texture
+// the piece's image can cross, at most `texture_steps`. The piece subtends (b − a)·w at the
+// light (s is the angle there over w), and a texel subtends at least 2 tan(h) / (W (1 + tan²h))
+// (at the cone's edge, h its half angle); steps uniform in s are uniform in that angle, so each
+// spans at most one texel, and a piece that crosses three texels takes three steps.
+fn texture_steps_for(r: AirRay, a: f32, b: f32) -> u32 {
+    let t = mp.tan_half_angle;
+    let texel = 2.0 * t / (mp.tex_width * (1.0 + t * t));
+    let texels = (b - a) * r.w / max(texel, 1.0e-30);
+    if (!(texels < f32(mp.texture_steps))) {
+        return mp.texture_steps;
+    }
+    return max(1u, u32(ceil(texels)));
 }
 
 // The texture weight of the step [a, b]: the mean of two samples at its Gauss–Legendre
@@ -769,6 +807,7 @@ fn march_textbook(ray: PixelRay, r: AirRay, x_end: f32, n: u32) -> Textbook {
                 f *= light_texture(p, dx / d);
             }
             out.open += f;
+            count_lookup();
             out.lit += f * visibility(p);
         }
     }
@@ -788,9 +827,20 @@ fn march_textbook_directional(ray: PixelRay, r: AirRay, x_end: f32, n: u32) -> T
         let x = (f32(k) + 0.5) * dx;
         let f = r.prefactor * vs_exp3(-air.sigma_t * x) * dx;
         out.open += f;
+        count_lookup();
         out.lit += f * visibility(air.eye + x * ray.dir);
     }
     return out;
+}
+
+// Pixel `p`'s work counters (COUNT_WORK; see `work`), after the pass's four.
+fn store_work(p: u32, stored: u32) {
+    if (COUNT_WORK) {
+        atomicStore(&stats[4u + 4u * p], work.x);
+        atomicStore(&stats[5u + 4u * p], work.y);
+        atomicStore(&stats[6u + 4u * p], work.z);
+        atomicStore(&stats[7u + 4u * p], stored);
+    }
 }
 
 @compute @workgroup_size(8, 8)
@@ -821,6 +871,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         textureStore(inscatter_out, gid.xy, vec4<f32>(value, ray.distance));
         textureStore(steps_out, gid.xy, vec4<u32>(mp.steps, 0u, 0u, 0u));
+        store_work(gid.y * size.x + gid.x, 0u);
         return;
     }
 
@@ -834,6 +885,8 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
     var list_base = 0u;
     // Volumes around the eye, counted back from the far end; < 0: not known (open meshes).
     var around_eye = -1;
+    // The crossings the pixel's list stored (COUNT_WORK).
+    var stored = 0u;
     // Soft shadows with the occluders' bounds: outside their penumbra cones no occluder hides
     // any of the light (and the grid holds 1), so the pieces outside `soft_extents` take
     // visibility 1 without a lookup.
@@ -868,6 +921,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
         let p = gid.y * size.x + gid.x;
         let head = heads[4u * p];
         let count = head & 0x7fffffffu;
+        stored = min(count, mp.list_entries);
         let k = mp.list_entries;
         // Statistics for sizing the lists, kept off the common path: one counter for every
         // pixel would serialise the pass on its atomics.
@@ -891,6 +945,9 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
             for (var i = 0u; i < count; i++) {
                 net += select(-1, 1, crossings[list_base + i] < 0.0);
             }
+            if (COUNT_WORK) {
+                work.z += count;
+            }
             if ((head & 0x80000000u) == 0u) {
                 // Volumes around the eye: those around the far end, less those entered before.
                 around_eye = -net;
@@ -911,7 +968,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
             // No occluders: all of it is lit. (MODE_ANALYTIC lets the compiler drop the shadow
             // code from the analytic pipeline.)
             if (TEXTURED) {
-                let all = march_textured(ray, r, u0, u1, mp.texture_steps);
+                let all = march_textured(ray, r, u0, u1, texture_steps_for(r, u0, u1));
                 total += all.t;
                 steps += all.steps;
             } else {
@@ -934,6 +991,9 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
                 var next_z = FAR;
                 var next_i = -1;
                 var next_e = 0;
+                if (COUNT_WORK) {
+                    work.z += n_cross;
+                }
                 for (var i = 0u; i < n_cross; i++) {
                     let c = crossings[list_base + i];
                     let z = abs(c);
@@ -969,8 +1029,8 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
                     v = select(0.0, 1.0, around == 0);
                 }
                 if (TEXTURED) {
-                    // The texture still needs steps; this piece gets its share of the budget.
-                    let n = max(1u, u32(ceil(f32(mp.texture_steps) * (b - a) / max(u1 - u0, 1.0e-30))));
+                    // The texture still needs steps: one per texel the piece crosses.
+                    let n = texture_steps_for(r, a, b);
                     if (v > 0.0) {
                         let m = march_textured(ray, r, a, b, n);
                         total += v * m.t;
@@ -1000,7 +1060,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
             if (TEXTURED) {
                 if (v > 0.0) {
-                    let all = march_textured(ray, r, u0, u1, mp.texture_steps);
+                    let all = march_textured(ray, r, u0, u1, texture_steps_for(r, u0, u1));
                     total += v * all.t;
                     steps += all.steps;
                 }
@@ -1024,7 +1084,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
         if (TEXTURED) {
             // The hybrid gives the texture its own resolution inside the extents too; brute
             // force marches everything with its `steps`, texture included.
-            let n = select(mp.steps, max(mp.steps, mp.texture_steps), MODE != MODE_BRUTE_FORCE);
+            let n = select(mp.steps, max(mp.steps, texture_steps_for(r, m0, m1)), MODE != MODE_BRUTE_FORCE);
             inside = march_shadowed_textured(ray, r, m0, m1, n);
         } else {
             if (SOFT && SOFT_GRID) {
@@ -1051,12 +1111,12 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         if (TEXTURED) {
             if (v_before > 0.0) {
-                let before = march_textured(ray, r, u0, m0, mp.texture_steps);
+                let before = march_textured(ray, r, u0, m0, texture_steps_for(r, u0, m0));
                 total += v_before * before.t;
                 steps += before.steps;
             }
             if (v_after > 0.0) {
-                let after = march_textured(ray, r, m1, u1, mp.texture_steps);
+                let after = march_textured(ray, r, m1, u1, texture_steps_for(r, m1, u1));
                 total += v_after * after.t;
                 steps += after.steps;
             }
@@ -1074,5 +1134,6 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     textureStore(inscatter_out, gid.xy, vec4<f32>(value, ray.distance));
     textureStore(steps_out, gid.xy, vec4<u32>(steps, 0u, 0u, 0u));
+    store_work(gid.y * size.x + gid.x, stored);
 }
 

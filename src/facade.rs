@@ -196,6 +196,8 @@ pub struct VolumetricShadows {
     first_frame: bool,
     /// The prepared frame's light textures: inputs, so never the output.
     light_textures: Vec<wgpu::Texture>,
+    /// The marches count their work ([`set_work_counters`](Self::set_work_counters)).
+    work: bool,
 }
 
 /// What decides the pipeline variant a step records: its pass, its light's kind, whether the
@@ -237,6 +239,7 @@ impl VolumetricShadows {
             seen: Default::default(),
             first_frame: false,
             light_textures: Vec::new(),
+            work: false,
         })
     }
 
@@ -330,8 +333,9 @@ impl VolumetricShadows {
             .filter_map(|l| l.texture.cloned())
             .collect();
         while self.slots.len() < frame.lights.len() {
-            self.slots
-                .push(LightSlot::new(device, &self.cache, &self.settings)?);
+            let mut slot = LightSlot::new(device, &self.cache, &self.settings)?;
+            slot.march.set_work_counters(self.work);
+            self.slots.push(slot);
         }
         // The plan first (no GPU work), then exactly the planned steps.
         let mut plan = plan::plan_frame(frame, &self.settings)?;
@@ -690,6 +694,17 @@ impl VolumetricShadows {
             .present(Pass::ShadowMap, Some(light))
             .then(|| self.slots.get(light)?.shadow.shadow_map())
             .flatten()
+    }
+
+    /// Turns every light's per-pixel march work counters on or off (default off; see
+    /// [`MarchNode::set_work_counters`](crate::nodes::MarchNode::set_work_counters)), from the
+    /// next `prepare`: for benches and tests. [`march_stats`](Self::march_stats) then holds
+    /// them.
+    pub fn set_work_counters(&mut self, on: bool) {
+        self.work = on;
+        for slot in &mut self.slots {
+            slot.march.set_work_counters(on);
+        }
     }
 
     /// March steps per pixel of a light's last march (`R32Uint`, at the march's resolution).

@@ -294,6 +294,7 @@ pub use error::{Error, Result, SceneFileError};
 pub use facade::VolumetricShadows;
 pub use frame::{Frame, FrameLight, Surfaces};
 pub use gpu::headless::{tone_map, HeadlessGpu};
+pub use gpu::{passes_recorded, PassCount};
 pub use gpu::{ErrorSign, ShaderPrecision};
 pub use gpu::{Occluder, OccluderMesh};
 pub use load::{Limit, LoadOptions};

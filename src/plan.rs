@@ -10,6 +10,7 @@ use std::fmt;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::Occluder;
+use crate::nodes::shadow_map::cube_faces_touched;
 use crate::nodes::{MarchMethod, MarchMode, Scale, ShadowForms, ShadowMapNode, UpsampleFilter};
 use crate::scene::Light;
 use crate::settings::Settings;
@@ -237,6 +238,9 @@ struct LightFacts {
     occluders: Vec<usize>,
     /// A light with a radius whose penumbrae are narrower than a shadow-map texel, drawn hard.
     penumbra_below_texel: bool,
+    /// A point light's cube faces that its occluders' bounding spheres reach (+X, −X, +Y, −Y,
+    /// +Z, −Z): the shadow map draws only those; the others stay clear and read lit.
+    faces: Option<[bool; 6]>,
 }
 
 /// What the planner knows about the frame.
@@ -291,6 +295,16 @@ fn gather(frame: &Frame<'_>, settings: &Settings) -> Result<FrameFacts> {
             }
         }
         let nearest = nearest_occluder(&fl.light, kept.iter().map(|&j| &frame.occluders[j]));
+        let faces = match fl.light {
+            Light::Point(p) => {
+                let spheres: Vec<_> = kept
+                    .iter()
+                    .map(|&j| frame.occluders[j].world_sphere())
+                    .collect();
+                Some(cube_faces_touched(p.position(), &spheres))
+            }
+            _ => None,
+        };
         let penumbra_below_texel =
             ShadowMapNode::penumbra_below_texel(&fl.light, nearest, settings.shadow_map.resolution);
         lights.push(LightFacts {
@@ -302,6 +316,7 @@ fn gather(frame: &Frame<'_>, settings: &Settings) -> Result<FrameFacts> {
             textured: fl.texture.is_some(),
             occluders: kept,
             penumbra_below_texel,
+            faces,
         });
     }
     Ok(FrameFacts {
@@ -423,7 +438,23 @@ fn plan(facts: &FrameFacts) -> Plan {
             }
             Some(f) => {
                 let count = l.occluders.len();
-                run(Pass::ShadowMap, light, format!("{count} occluder(s)"));
+                let detail = match l.faces {
+                    Some(faces) => {
+                        const NAMES: [&str; 6] = ["+X", "-X", "+Y", "-Y", "+Z", "-Z"];
+                        let drawn: Vec<&str> = NAMES
+                            .iter()
+                            .zip(faces)
+                            .filter_map(|(n, f)| f.then_some(*n))
+                            .collect();
+                        format!(
+                            "{count} occluder(s), cube faces {} ({} without occluders not drawn)",
+                            drawn.join(" "),
+                            6 - drawn.len()
+                        )
+                    }
+                    None => format!("{count} occluder(s)"),
+                };
+                run(Pass::ShadowMap, light, detail);
                 let at = scale.divisor();
                 if f.extents && f.crossings {
                     let per_pixel = facts.crossings;
@@ -601,6 +632,7 @@ mod tests {
                             textured: false,
                             occluders,
                             penumbra_below_texel,
+                            faces: None,
                         }],
                         method,
                         steps: 64,

@@ -4,12 +4,14 @@
 
 pub mod headless;
 mod mesh;
+pub(crate) mod passes;
 pub(crate) mod pipeline;
 pub(crate) mod precision;
 mod timer;
 pub(crate) mod wgsl;
 
 pub use mesh::{Occluder, OccluderMesh};
+pub use passes::{passes_recorded, PassCount};
 pub use precision::{ErrorSign, ShaderPrecision};
 pub use timer::{GpuTimer, PassTime};
 

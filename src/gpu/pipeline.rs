@@ -249,10 +249,13 @@ pub(crate) fn dispatch(
     dispatches: &[Dispatch<'_>],
 ) {
     let timestamp_writes = timer.and_then(|t| t.compute_pass(pass));
-    let mut compute = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-        label: Some(label),
-        timestamp_writes,
-    });
+    let mut compute = crate::gpu::passes::begin_compute(
+        encoder,
+        &wgpu::ComputePassDescriptor {
+            label: Some(label),
+            timestamp_writes,
+        },
+    );
     for &(pipeline, bind_groups, groups) in dispatches {
         compute.set_pipeline(pipeline);
         for (index, bind_group) in (0u32..).zip(bind_groups) {

@@ -821,10 +821,13 @@ impl CompositeNode {
                 [wgpu::BindingResource::TextureView(&view)],
             );
             let (width, height) = output.size().unwrap_or((1, 1));
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("volshadow composite"),
-                timestamp_writes: timer.and_then(|t| t.compute_pass(Pass::Composite)),
-            });
+            let mut pass = crate::gpu::passes::begin_compute(
+                encoder,
+                &wgpu::ComputePassDescriptor {
+                    label: Some("volshadow composite"),
+                    timestamp_writes: timer.and_then(|t| t.compute_pass(Pass::Composite)),
+                },
+            );
             self.dispatch_lattice(&mut pass, bound);
             pass.set_pipeline(&storing.pipeline);
             pass.set_bind_group(0, &bound.bind_group, &[]);
@@ -834,30 +837,36 @@ impl CompositeNode {
         }
         let mut timer = timer;
         if bound.lattice.is_some() {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("volshadow spot lattice"),
-                timestamp_writes: timer
-                    .as_deref_mut()
-                    .and_then(|t| t.compute_pass(Pass::Composite)),
-            });
+            let mut pass = crate::gpu::passes::begin_compute(
+                encoder,
+                &wgpu::ComputePassDescriptor {
+                    label: Some("volshadow spot lattice"),
+                    timestamp_writes: timer
+                        .as_deref_mut()
+                        .and_then(|t| t.compute_pass(Pass::Composite)),
+                },
+            );
             self.dispatch_lattice(&mut pass, bound);
         }
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("volshadow composite"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &view,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: None,
-            timestamp_writes: timer.and_then(|t| t.render_pass(Pass::Composite)),
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+        let mut pass = crate::gpu::passes::begin_render(
+            encoder,
+            &wgpu::RenderPassDescriptor {
+                label: Some("volshadow composite"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: timer.and_then(|t| t.render_pass(Pass::Composite)),
+                occlusion_query_set: None,
+                multiview_mask: None,
+            },
+        );
         // The pipeline for the texture's own format: the view is in it, and a render pass
         // takes only a pipeline built for its attachment's format (the node's format and its
         // sRGB twin are both accepted, see `check_output`).

@@ -891,12 +891,15 @@ impl Encode for ExtentsNode {
             });
         };
         {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("volshadow extrude reset"),
-                timestamp_writes: timer
-                    .as_deref_mut()
-                    .and_then(|t| t.compute_pass(Pass::Extents)),
-            });
+            let mut pass = crate::gpu::passes::begin_compute(
+                encoder,
+                &wgpu::ComputePassDescriptor {
+                    label: Some("volshadow extrude reset"),
+                    timestamp_writes: timer
+                        .as_deref_mut()
+                        .and_then(|t| t.compute_pass(Pass::Extents)),
+                },
+            );
             if let Some(first) = self.jobs.first() {
                 pass.set_pipeline(&self.pipelines.reset);
                 pass.set_bind_group(0, &first.bind_group, &[]);
@@ -904,12 +907,15 @@ impl Encode for ExtentsNode {
             }
         }
         if !self.jobs.is_empty() {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("volshadow extrude"),
-                timestamp_writes: timer
-                    .as_deref_mut()
-                    .and_then(|t| t.compute_pass(Pass::Extents)),
-            });
+            let mut pass = crate::gpu::passes::begin_compute(
+                encoder,
+                &wgpu::ComputePassDescriptor {
+                    label: Some("volshadow extrude"),
+                    timestamp_writes: timer
+                        .as_deref_mut()
+                        .and_then(|t| t.compute_pass(Pass::Extents)),
+                },
+            );
             pass.set_pipeline(&self.pipelines.extrude);
             for job in &self.jobs {
                 pass.set_bind_group(0, &job.bind_group, &[]);
@@ -930,12 +936,15 @@ impl Encode for ExtentsNode {
                     return Ok(());
                 }
                 encoder.clear_buffer(&bins.tiles, 0, None);
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("volshadow crossings"),
-                    timestamp_writes: timer
-                        .as_deref_mut()
-                        .and_then(|t| t.compute_pass(Pass::Extents)),
-                });
+                let mut pass = crate::gpu::passes::begin_compute(
+                    encoder,
+                    &wgpu::ComputePassDescriptor {
+                        label: Some("volshadow crossings"),
+                        timestamp_writes: timer
+                            .as_deref_mut()
+                            .and_then(|t| t.compute_pass(Pass::Extents)),
+                    },
+                );
                 let [setup, count, scan, fill, build] = &self.pipelines.bin;
                 let groups = bins.face_capacity.div_ceil(64);
                 let gx = groups.min(65535);
@@ -959,21 +968,24 @@ impl Encode for ExtentsNode {
             let timestamp_writes = timer
                 .as_deref_mut()
                 .and_then(|t| t.render_pass(Pass::Extents));
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("volshadow extents crossings"),
-                color_attachments: &[],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(0.0),
-                        store: wgpu::StoreOp::Discard,
+            let mut pass = crate::gpu::passes::begin_render(
+                encoder,
+                &wgpu::RenderPassDescriptor {
+                    label: Some("volshadow extents crossings"),
+                    color_attachments: &[],
+                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                        view: &view,
+                        depth_ops: Some(wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(0.0),
+                            store: wgpu::StoreOp::Discard,
+                        }),
+                        stencil_ops: None,
                     }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+                    timestamp_writes,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                },
+            );
             if !self.jobs.is_empty() {
                 pass.set_pipeline(&self.pipelines.crossings);
                 pass.set_bind_group(0, &lists.bind_group, &[]);
@@ -991,21 +1003,24 @@ impl Encode for ExtentsNode {
             let timestamp_writes = timer
                 .as_deref_mut()
                 .and_then(|t| t.render_pass(Pass::Extents));
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("volshadow extents"),
-                color_attachments: &[],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(clear),
-                        store: wgpu::StoreOp::Store,
+            let mut pass = crate::gpu::passes::begin_render(
+                encoder,
+                &wgpu::RenderPassDescriptor {
+                    label: Some("volshadow extents"),
+                    color_attachments: &[],
+                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                        view: &view,
+                        depth_ops: Some(wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(clear),
+                            store: wgpu::StoreOp::Store,
+                        }),
+                        stencil_ops: None,
                     }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+                    timestamp_writes,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                },
+            );
             if !self.jobs.is_empty() {
                 pass.set_pipeline(pipeline);
                 pass.set_bind_group(0, &self.raster_bind_group, &[]);

@@ -201,22 +201,25 @@ impl Encode for LightTextureNode {
             let timestamp_writes = timer
                 .as_deref_mut()
                 .and_then(|t| t.render_pass(Pass::LightTexture));
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("volshadow light texture level"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: target,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+            let mut pass = crate::gpu::passes::begin_render(
+                encoder,
+                &wgpu::RenderPassDescriptor {
+                    label: Some("volshadow light texture level"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: target,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })],
+                    depth_stencil_attachment: None,
+                    timestamp_writes,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                },
+            );
             pass.set_pipeline(&self.pipelines.levels[usize::from(level > 0)]);
             pass.set_bind_group(0, bind_group, &[]);
             pass.draw(0..3, 0..1);

@@ -186,6 +186,9 @@ struct Variant {
     soft_grid: bool,
     /// `soft_grid` with its cells marked near narrow shafts ([`SoftShadow::shafts`]).
     shafts: bool,
+    /// Per-pixel work counters ([`MarchNode::set_work_counters`]); never in a frame's own
+    /// pipelines.
+    work: bool,
 }
 
 impl Variant {
@@ -211,6 +214,7 @@ impl Variant {
             soft: soft && !matches!(mode, MarchMode::Analytic | MarchMode::Textbook),
             soft_grid: soft && grid && mode == MarchMode::Hybrid,
             shafts: soft && grid && shafts && mode == MarchMode::Hybrid,
+            work: false,
         }
     }
 }
@@ -308,6 +312,7 @@ impl Pipelines {
                 ("SOFT_GRID", flag(v.soft_grid)),
                 ("SOFT_SHAFTS", flag(v.shafts)),
                 ("SOFT_EXACT", flag(v.soft_grid)),
+                ("COUNT_WORK", flag(v.work)),
             ];
             let label = "volshadow march";
             compute_pipeline(
@@ -372,9 +377,12 @@ pub struct MarchSettings {
     pub bisections: u32,
     /// Resolution of the march relative to `scene_depth` (full, ½, ¼). Default full.
     pub scale: Scale,
-    /// Textured spot lights: steps before and after the shadow-volume extents (inside the
-    /// cone), and for the hybrid at least as many between them (the texture's detail needs
-    /// them whether or not a shadow is there); 1 ..= 4096. Default 32.
+    /// Textured spot lights: the most steps a piece of a ray takes for the texture's sake
+    /// (1 ..= 4096; default 32). A piece takes one step per texel of the light's texture its
+    /// image can cross (the angle it subtends at the light over the smallest texel's), up to
+    /// this many: before and after the shadow-volume extents, between the exact method's
+    /// crossings, and for the hybrid at least as many between the extents (the texture's detail
+    /// needs them whether or not a shadow is there).
     pub texture_steps: u32,
     /// Exact method: shadow-volume crossings recorded per pixel
     /// (1 ..= [`MAX_CROSSINGS_PER_PIXEL`](crate::nodes::MAX_CROSSINGS_PER_PIXEL)). Default
@@ -614,7 +622,10 @@ pub struct MarchNode {
     dummy_depth: wgpu::Texture,
     dummy_buffer: wgpu::Buffer,
     dummy_volume: wgpu::Texture,
+    /// The pass's four counters ([`MarchStats`]), then with work counters four per pixel.
     stats: wgpu::Buffer,
+    /// Per-pixel work counters on ([`MarchNode::set_work_counters`]).
+    work: bool,
     outputs: Option<[wgpu::Texture; 2]>,
     bound: Option<Bound>,
 }
@@ -679,14 +690,8 @@ impl MarchNode {
                 wgpu::TextureFormat::Rgba16Float,
                 sampled,
             ),
-            stats: device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("volshadow march stats"),
-                size: 16,
-                usage: wgpu::BufferUsages::STORAGE
-                    | wgpu::BufferUsages::COPY_DST
-                    | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            }),
+            stats: stats_buffer(device, 16),
+            work: false,
             outputs: None,
             bound: None,
         })
@@ -714,7 +719,9 @@ impl MarchNode {
     }
 
     /// What the last recorded march met: four `u32` ([`MarchStats::from_bytes`] decodes them),
-    /// cleared and written by every `encode` (`STORAGE | COPY_SRC`, 16 bytes).
+    /// cleared and written by every `encode` (`STORAGE | COPY_SRC`, 16 bytes; with work
+    /// counters on, followed by four `u32` per pixel: see
+    /// [`set_work_counters`](Self::set_work_counters)).
     pub fn stats_buffer(&self) -> &wgpu::Buffer {
         &self.stats
     }
@@ -723,6 +730,66 @@ impl MarchNode {
     pub fn step_counts(&self) -> Option<&wgpu::Texture> {
         self.outputs.as_ref().map(|o| &o[1])
     }
+
+    /// Turns per-pixel work counters on or off (default off), from the next `prepare`: for
+    /// benches and tests that count what a frame does on any adapter. With them on, the march
+    /// runs a pipeline built with the shader's `COUNT_WORK` constant (the pipelines of a frame
+    /// without them do not contain the counting code) and [`stats_buffer`](Self::stats_buffer)
+    /// holds, after its four pass counters, four `u32` per pixel of the march (row-major at its
+    /// resolution): shadow-map visibility queries, light-texture samples, crossing-list
+    /// entries read and crossing-list entries stored. [`MarchWork::from_bytes`] decodes them.
+    pub fn set_work_counters(&mut self, on: bool) {
+        self.work = on;
+    }
+}
+
+/// A march's per-pixel work counters (see [`MarchNode::set_work_counters`]), one entry per
+/// pixel in row-major order.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct MarchWork {
+    /// Shadow-map visibility queries (each one filtered lookup, whatever its taps).
+    pub lookups: Vec<u32>,
+    /// Light-texture samples (a textured spot).
+    pub texture_samples: Vec<u32>,
+    /// Crossing-list entries read (the exact method walks its list once per interval).
+    pub crossings_visited: Vec<u32>,
+    /// Crossing-list entries stored for the pixel (in front of its surface, at most the
+    /// list's length).
+    pub crossings_stored: Vec<u32>,
+}
+
+impl MarchWork {
+    /// Decodes the bytes of a [`MarchNode::stats_buffer`] written with work counters on
+    /// (`u32` in the platform's byte order); `None` when they hold no counters.
+    pub fn from_bytes(bytes: &[u8]) -> Option<Self> {
+        let words: Vec<u32> = bytes
+            .chunks_exact(4)
+            .map(|c| u32::from_ne_bytes([c[0], c[1], c[2], c[3]]))
+            .collect();
+        let pixels = words.get(4..)?;
+        if pixels.is_empty() {
+            return None;
+        }
+        let column = |k: usize| pixels.chunks_exact(4).map(|p| p[k]).collect();
+        Some(Self {
+            lookups: column(0),
+            texture_samples: column(1),
+            crossings_visited: column(2),
+            crossings_stored: column(3),
+        })
+    }
+}
+
+/// A march's stats buffer of `size` bytes.
+fn stats_buffer(device: &wgpu::Device, size: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("volshadow march stats"),
+        size,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_DST
+            | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    })
 }
 
 impl Node for MarchNode {
@@ -748,20 +815,30 @@ impl Node for MarchNode {
         let (width, height) = self.validate(device, inputs)?;
         let grid = soft_grid(inputs)?;
         self.allocate(device, width, height);
+        let stats_size = if self.work {
+            16 + 16 * u64::from(width) * u64::from(height)
+        } else {
+            16
+        };
+        if self.stats.size() != stats_size {
+            self.stats = stats_buffer(device, stats_size);
+            self.bound = None;
+        }
         self.bind(device, inputs, grid, (width, height));
         self.upload(queue, inputs, grid, (width, height));
         let (mode, soft) = (inputs.mode, inputs.light.radius() > 0.0);
-        self.pipeline = Some(self.pipelines.variant(
-            device,
-            Variant::new(
+        let variant = Variant {
+            work: self.work,
+            ..Variant::new(
                 mode,
                 LightUniform::kind_of(inputs.light),
                 inputs.light_texture.is_some(),
                 soft,
                 (grid.is_some(), grid.is_some_and(|g| g.shafts)),
                 self.settings.bisections,
-            ),
-        ));
+            )
+        };
+        self.pipeline = Some(self.pipelines.variant(device, variant));
         Ok(true)
     }
 }

@@ -89,8 +89,8 @@ pub use extents::{
 pub use iss_table::{IssPhase, IssTableNode, IssTableSize, ISS_TAU_RANGE};
 pub use light_texture::LightTextureNode;
 pub use march::{
-    MarchInputs, MarchMethod, MarchMode, MarchNode, MarchSettings, MarchStats, ShadowForms,
-    Shadows, DEFAULT_CROSSINGS,
+    MarchInputs, MarchMethod, MarchMode, MarchNode, MarchSettings, MarchStats, MarchWork,
+    ShadowForms, Shadows, DEFAULT_CROSSINGS,
 };
 pub use shadow_map::{
     ShadowMap, ShadowMapInputs, ShadowMapNode, ShadowMapSettings, ShadowParams, CASCADE_RANGE,

@@ -410,9 +410,15 @@ pub struct ShadowMapNode {
     pending: bool,
     /// Counts the renders `prepare` has planned (see [`ShadowMap::generation`]).
     generation: u64,
-    /// A directional light's cascades: per layer, the occluders (indices into `draws`) that
-    /// can shadow its region. `None`: every occluder in every layer.
+    /// Per layer, the occluders (indices into `draws`) drawn there: a directional light's
+    /// cascades, those that can shadow its region; a point light's cube faces, those whose
+    /// bounding sphere reaches the face ([`cube_faces_touched`]). `None`: every occluder in
+    /// every layer.
     layer_draws: Option<Vec<Vec<u32>>>,
+    /// Per layer of `texture`, whether it holds depth drawn since it was last cleared: a layer
+    /// with nothing to draw that is already clear (a new texture reads as cleared: zero, at
+    /// infinity) is neither cleared nor drawn again, and its lookups read lit.
+    dirty: Vec<bool>,
     /// See [`ShadowMap::occluder_distance`].
     occluder_distance: f32,
     /// Whether the occluders may leave gaps (see [`ShadowMap::gaps`]).
@@ -449,7 +455,24 @@ fn cube_faces(position: Vec3, near: f32) -> [Mat4; 6] {
 /// `(centre, radius)` may reach, conservatively: a face's pyramid is four half-spaces through
 /// the light (`±x_a ≥ |x_b|` for the face's axis `a` and each other axis `b`), and a sphere
 /// inside it reaches into each of them. The back layer of a face none reaches is not drawn.
-fn cube_faces_touched(position: Vec3, spheres: &[Vec4]) -> [bool; 6] {
+/// Per cube face of a point light at `position`, the spheres (indices) that reach it
+/// ([`cube_faces_touched`] of each): what its layer draws.
+pub(crate) fn cube_face_draws(position: Vec3, spheres: &[Vec4]) -> Vec<Vec<u32>> {
+    let mut faces = vec![Vec::new(); 6];
+    for (i, sphere) in (0u32..).zip(spheres) {
+        for (face, reached) in cube_faces_touched(position, std::slice::from_ref(sphere))
+            .into_iter()
+            .enumerate()
+        {
+            if reached {
+                faces[face].push(i);
+            }
+        }
+    }
+    faces
+}
+
+pub(crate) fn cube_faces_touched(position: Vec3, spheres: &[Vec4]) -> [bool; 6] {
     let mut touched = [false; 6];
     for sphere in spheres {
         let c = sphere.truncate() - position;
@@ -673,6 +696,7 @@ impl ShadowMapNode {
             pending: false,
             generation: 0,
             layer_draws: None,
+            dirty: Vec::new(),
             occluder_distance: 0.0,
             gaps: true,
             triangles: None,
@@ -881,7 +905,8 @@ impl ShadowMapNode {
                 dimension: wgpu::TextureDimension::D2,
                 format: wgpu::TextureFormat::Depth32Float,
                 usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                    | wgpu::TextureUsages::TEXTURE_BINDING,
+                    | wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::COPY_SRC,
                 view_formats: &[],
             })
         };
@@ -894,6 +919,8 @@ impl ShadowMapNode {
         if recreate {
             self.texture = Some(map("volshadow shadow map"));
             self.back = wants_back.then(|| map("volshadow shadow map back faces"));
+            // wgpu zero-initialises a texture before its first use: every layer reads clear.
+            self.dirty = vec![false; layers as usize];
         }
         if self
             .instance_buffer
@@ -983,11 +1010,15 @@ impl ShadowMapNode {
         // it past a small occluder next to the light). When the light is inside an occluder's
         // bounds the distance is 0; then a floor of about one f32 step of the light's
         // coordinates (nothing nearer can be placed) keeps the projection finite.
+        self.bounds = occluders.iter().map(|o| o.world_sphere()).collect();
         if let Some((faces, drawn)) = directional {
             self.faces = faces;
             self.layer_draws = Some(drawn);
         } else {
-            self.layer_draws = None;
+            self.layer_draws = match light {
+                Light::Point(point) => Some(cube_face_draws(point.position(), &self.bounds)),
+                _ => None,
+            };
             let p = light.position().unwrap_or_default();
             let along_axis = (0.9 * Self::corner_cosine(light, self.occluder_distance)).min(0.5);
             let mut near = f32::INFINITY;
@@ -1002,7 +1033,6 @@ impl ShadowMapNode {
             };
             self.faces = Self::face_matrices(light, near, self.occluder_distance);
         }
-        self.bounds = occluders.iter().map(|o| o.world_sphere()).collect();
         self.gaps = occluders.len() > 1 || occluders.iter().any(|o| !o.mesh.is_convex());
         self.back_layers = match light {
             Light::Point(point) => cube_faces_touched(point.position(), &self.bounds).to_vec(),
@@ -1214,6 +1244,21 @@ impl Encode for ShadowMapNode {
                 {
                     continue;
                 }
+                let drawn = self
+                    .layer_draws
+                    .as_ref()
+                    .and_then(|l| l.get(layer as usize));
+                let draws = drawn.map_or(self.draws.len(), Vec::len);
+                if !back {
+                    // A layer with nothing to draw that is already clear stays as it is.
+                    let dirty = self.dirty.get_mut(layer as usize);
+                    if draws == 0 && dirty.as_deref() == Some(&false) {
+                        continue;
+                    }
+                    if let Some(d) = dirty {
+                        *d = draws > 0;
+                    }
+                }
                 let view = target.create_view(&wgpu::TextureViewDescriptor {
                     label: Some("volshadow shadow face"),
                     dimension: Some(wgpu::TextureViewDimension::D2),
@@ -1224,25 +1269,24 @@ impl Encode for ShadowMapNode {
                 let timestamp_writes = timer
                     .as_deref_mut()
                     .and_then(|t| t.render_pass(Pass::ShadowMap));
-                let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                    label: Some("volshadow shadow map"),
-                    color_attachments: &[],
-                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                        view: &view,
-                        depth_ops: Some(wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(0.0),
-                            store: wgpu::StoreOp::Store,
+                let mut pass = crate::gpu::passes::begin_render(
+                    encoder,
+                    &wgpu::RenderPassDescriptor {
+                        label: Some("volshadow shadow map"),
+                        color_attachments: &[],
+                        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                            view: &view,
+                            depth_ops: Some(wgpu::Operations {
+                                load: wgpu::LoadOp::Clear(0.0),
+                                store: wgpu::StoreOp::Store,
+                            }),
+                            stencil_ops: None,
                         }),
-                        stencil_ops: None,
-                    }),
-                    timestamp_writes,
-                    occlusion_query_set: None,
-                    multiview_mask: None,
-                });
-                let drawn = self
-                    .layer_draws
-                    .as_ref()
-                    .and_then(|l| l.get(layer as usize));
+                        timestamp_writes,
+                        occlusion_query_set: None,
+                        multiview_mask: None,
+                    },
+                );
                 let mut all = 0..self.draws.len() as u32;
                 let mut listed = drawn.map(|l| l.iter().copied());
                 let indices: &mut dyn Iterator<Item = u32> = match listed.as_mut() {

@@ -1154,10 +1154,13 @@ impl Encode for SoftShadowNode {
             (extent(0), extent(1), self.layers)
         };
         let timestamp_writes = timer.and_then(|t| t.compute_pass(Pass::SoftShadow));
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("volshadow soft shadow"),
-            timestamp_writes,
-        });
+        let mut pass = crate::gpu::passes::begin_compute(
+            encoder,
+            &wgpu::ComputePassDescriptor {
+                label: Some("volshadow soft shadow"),
+                timestamp_writes,
+            },
+        );
         let dispatch = |pass: &mut wgpu::ComputePass<'_>, (x, y, z): (u32, u32, u32)| {
             if x > 0 && y > 0 {
                 pass.dispatch_workgroups(x, y, z);

@@ -473,10 +473,13 @@ impl Encode for UpsampleNode {
             });
         };
         let timestamp_writes = timer.and_then(|t| t.compute_pass(Pass::Upsample));
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("volshadow upsample"),
-            timestamp_writes,
-        });
+        let mut pass = crate::gpu::passes::begin_compute(
+            encoder,
+            &wgpu::ComputePassDescriptor {
+                label: Some("volshadow upsample"),
+                timestamp_writes,
+            },
+        );
         let (w, h) = self.size;
         if let [horizontal, vertical] = groups.as_slice() {
             pass.set_pipeline(horizontal_pipeline);

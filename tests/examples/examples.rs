@@ -166,129 +166,166 @@ fn judge_visible(stem: &str, what: &str, against: &str, fraction: f64, failures:
     }
 }
 
+/// One scene of [`render_every_scene_and_match_the_reference`]: its failures.
+fn check_scene(scene: &Path, dir: &Path, size: &str) -> Vec<String> {
+    let mut failures = Vec::new();
+    let size = size.to_owned();
+    let stem = scene.file_stem().unwrap().to_string_lossy().into_owned();
+    let scene_arg = scene.to_str().unwrap();
+    let start = Instant::now();
+    let out = dir.join(&stem);
+    let gpu = render_scene::run(&args(&[
+        scene_arg,
+        "-o",
+        out.to_str().unwrap(),
+        "--size",
+        &size,
+    ]))
+    .unwrap_or_else(|e| panic!("{stem}: {e}"));
+    let gpu_time = start.elapsed().as_secs_f64();
+    let gpu_inscatter = check_outputs(&gpu);
+    let method = gpu.report["method"].as_str().unwrap().to_owned();
+
+    // The same scene without occluder shadows (`--method analytic` passes no occluders;
+    // the app's frame is the same), tone-mapped with the shadowed render's exposure.
+    let exposure = gpu.report["exposure"].as_f64().unwrap().to_string();
+    let out = dir.join(format!("{stem}.unshadowed"));
+    let unshadowed = render_scene::run(&args(&[
+        scene_arg,
+        "-o",
+        out.to_str().unwrap(),
+        "--size",
+        &size,
+        "--method",
+        "analytic",
+        "--exposure",
+        &exposure,
+    ]))
+    .unwrap_or_else(|e| panic!("{stem} unshadowed: {e}"));
+    let visible = visible_fraction(&gpu.files[1], &unshadowed.files[1]);
+    judge_visible(
+        &stem,
+        "shadows",
+        "the unshadowed render",
+        visible,
+        &mut failures,
+    );
+
+    // A light with a radius: its penumbrae must show too. The same scene with every
+    // radius 0 (hard shadows), tone-mapped with the soft render's exposure, must differ by
+    // the same measure.
+    let mut hard_scene: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(scene).unwrap()).unwrap();
+    let mut soft = false;
+    for light in hard_scene["lights"].as_array_mut().into_iter().flatten() {
+        if light
+            .get("radius")
+            .and_then(|r| r.as_f64())
+            .is_some_and(|r| r > 0.0)
+        {
+            light["radius"] = serde_json::json!(0.0);
+            soft = true;
+        }
+    }
+    if soft {
+        let hard_file = dir.join(format!("{stem}.hard-scene.json"));
+        std::fs::write(&hard_file, hard_scene.to_string()).unwrap();
+        let out = dir.join(format!("{stem}.hard"));
+        let hard = render_scene::run(&args(&[
+            hard_file.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--size",
+            &size,
+            "--exposure",
+            &exposure,
+        ]))
+        .unwrap_or_else(|e| panic!("{stem} hard: {e}"));
+        let penumbra = visible_fraction(&gpu.files[1], &hard.files[1]);
+        judge_visible(
+            &stem,
+            "penumbrae",
+            "the scene drawn hard",
+            penumbra,
+            &mut failures,
+        );
+    }
+
+    let start = Instant::now();
+    let out = dir.join(format!("{stem}.reference"));
+    let reference = render_scene::run(&args(&[
+        scene_arg,
+        "-o",
+        out.to_str().unwrap(),
+        "--size",
+        &size,
+        "--method",
+        "reference",
+    ]))
+    .unwrap_or_else(|e| panic!("{stem} reference: {e}"));
+    let reference_time = start.elapsed().as_secs_f64();
+    let reference_inscatter = check_outputs(&reference);
+
+    let with_lights = relative_rmse(&gpu_inscatter, &reference_inscatter, &[]);
+    // As in every GPU test: without the pixels that hold a light, where the GPU clamps the
+    // singular 1/h by the pixel footprint on purpose while the reference integrates the one
+    // ray through the pixel centre (README, "Accuracy"). Both are printed.
+    let rmse = relative_rmse(&gpu_inscatter, &reference_inscatter, &light_pixels(scene));
+    println!(
+        "{stem:<14} {method:<36} in-scatter RMSE {:.2}% of the reference mean \
+         without the lights' own pixels ({:.2}% with them); GPU run {gpu_time:.1} s, \
+         reference run {reference_time:.1} s",
+        100.0 * rmse,
+        100.0 * with_lights
+    );
+    metric::accuracy(
+        &format!("{stem}: `render` ({method}) against `--method reference`"),
+        format!("RMSE {:.2}%", 100.0 * rmse),
+        format!("RMSE {}%", 100.0 * MAX_RMSE),
+    );
+    if rmse.is_nan() || rmse > MAX_RMSE {
+        failures.push(format!("{stem}: RMSE {rmse:.4} > {MAX_RMSE}"));
+    }
+    failures
+}
+
+/// Every standard scene through `render`, against its reference. The scenes run on as many
+/// threads as the machine has (each render compiles its own pipelines, on one thread).
 #[test]
 fn render_every_scene_and_match_the_reference() {
     let dir = tempfile::tempdir().unwrap();
     let size = format!("{SIZE}x{SIZE}");
-    let mut failures = Vec::new();
-    for scene in scene_files() {
-        let stem = scene.file_stem().unwrap().to_string_lossy().into_owned();
-        let scene_arg = scene.to_str().unwrap();
-        let start = Instant::now();
-        let out = dir.path().join(&stem);
-        let gpu = render_scene::run(&args(&[
-            scene_arg,
-            "-o",
-            out.to_str().unwrap(),
-            "--size",
-            &size,
-        ]))
-        .unwrap_or_else(|e| panic!("{stem}: {e}"));
-        let gpu_time = start.elapsed().as_secs_f64();
-        let gpu_inscatter = check_outputs(&gpu);
-        let method = gpu.report["method"].as_str().unwrap().to_owned();
-
-        // The same scene without occluder shadows (`--method analytic` passes no occluders;
-        // the app's frame is the same), tone-mapped with the shadowed render's exposure.
-        let exposure = gpu.report["exposure"].as_f64().unwrap().to_string();
-        let out = dir.path().join(format!("{stem}.unshadowed"));
-        let unshadowed = render_scene::run(&args(&[
-            scene_arg,
-            "-o",
-            out.to_str().unwrap(),
-            "--size",
-            &size,
-            "--method",
-            "analytic",
-            "--exposure",
-            &exposure,
-        ]))
-        .unwrap_or_else(|e| panic!("{stem} unshadowed: {e}"));
-        let visible = visible_fraction(&gpu.files[1], &unshadowed.files[1]);
-        judge_visible(
-            &stem,
-            "shadows",
-            "the unshadowed render",
-            visible,
-            &mut failures,
-        );
-
-        // A light with a radius: its penumbrae must show too. The same scene with every
-        // radius 0 (hard shadows), tone-mapped with the soft render's exposure, must differ by
-        // the same measure.
-        let mut hard_scene: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&scene).unwrap()).unwrap();
-        let mut soft = false;
-        for light in hard_scene["lights"].as_array_mut().into_iter().flatten() {
-            if light
-                .get("radius")
-                .and_then(|r| r.as_f64())
-                .is_some_and(|r| r > 0.0)
-            {
-                light["radius"] = serde_json::json!(0.0);
-                soft = true;
-            }
-        }
-        if soft {
-            let hard_file = dir.path().join(format!("{stem}.hard-scene.json"));
-            std::fs::write(&hard_file, hard_scene.to_string()).unwrap();
-            let out = dir.path().join(format!("{stem}.hard"));
-            let hard = render_scene::run(&args(&[
-                hard_file.to_str().unwrap(),
-                "-o",
-                out.to_str().unwrap(),
-                "--size",
-                &size,
-                "--exposure",
-                &exposure,
-            ]))
-            .unwrap_or_else(|e| panic!("{stem} hard: {e}"));
-            let penumbra = visible_fraction(&gpu.files[1], &hard.files[1]);
-            judge_visible(
-                &stem,
-                "penumbrae",
-                "the scene drawn hard",
-                penumbra,
-                &mut failures,
-            );
-        }
-
-        let start = Instant::now();
-        let out = dir.path().join(format!("{stem}.reference"));
-        let reference = render_scene::run(&args(&[
-            scene_arg,
-            "-o",
-            out.to_str().unwrap(),
-            "--size",
-            &size,
-            "--method",
-            "reference",
-        ]))
-        .unwrap_or_else(|e| panic!("{stem} reference: {e}"));
-        let reference_time = start.elapsed().as_secs_f64();
-        let reference_inscatter = check_outputs(&reference);
-
-        let with_lights = relative_rmse(&gpu_inscatter, &reference_inscatter, &[]);
-        // As in every GPU test: without the pixels that hold a light, where the GPU clamps the
-        // singular 1/h by the pixel footprint on purpose while the reference integrates the one
-        // ray through the pixel centre (README, "Accuracy"). Both are printed.
-        let rmse = relative_rmse(&gpu_inscatter, &reference_inscatter, &light_pixels(&scene));
-        println!(
-            "{stem:<14} {method:<36} in-scatter RMSE {:.2}% of the reference mean \
-             without the lights' own pixels ({:.2}% with them); GPU run {gpu_time:.1} s, \
-             reference run {reference_time:.1} s",
-            100.0 * rmse,
-            100.0 * with_lights
-        );
-        metric::accuracy(
-            &format!("{stem}: `render` ({method}) against `--method reference`"),
-            format!("RMSE {:.2}%", 100.0 * rmse),
-            format!("RMSE {}%", 100.0 * MAX_RMSE),
-        );
-        if rmse.is_nan() || rmse > MAX_RMSE {
-            failures.push(format!("{stem}: RMSE {rmse:.4} > {MAX_RMSE}"));
-        }
-    }
+    let scenes = scene_files();
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    // Named as this test, which the metric lines name (`metric::this_test`).
+    let name = std::thread::current().name().map(str::to_owned);
+    let failures: Vec<String> = std::thread::scope(|s| {
+        let workers: Vec<_> = (0..threads.min(scenes.len()))
+            .map(|_| {
+                let mut builder = std::thread::Builder::new();
+                if let Some(name) = &name {
+                    builder = builder.name(name.clone());
+                }
+                builder
+                    .spawn_scoped(s, || {
+                        let mut failures = Vec::new();
+                        loop {
+                            let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                            let Some(scene) = scenes.get(i) else {
+                                return failures;
+                            };
+                            failures.extend(check_scene(scene, dir.path(), &size));
+                        }
+                    })
+                    .unwrap()
+            })
+            .collect();
+        workers
+            .into_iter()
+            .flat_map(|w| w.join().unwrap())
+            .collect()
+    });
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 

@@ -93,14 +93,14 @@ struct Rendered {
     plan: volshadow::Plan,
 }
 
-fn render(
-    rig: &Rig,
-    vs: &mut VolumetricShadows,
-    lights: &[FrameLight],
-    medium: &Medium,
-    occluders: &[Occluder],
-) -> Rendered {
-    let frame = Frame {
+/// The rig's frame of these lights, medium and occluders.
+fn frame_of<'a>(
+    rig: &'a Rig,
+    lights: &'a [FrameLight<'a>],
+    medium: &'a Medium,
+    occluders: &'a [Occluder<'a>],
+) -> Frame<'a> {
+    Frame {
         camera: &rig.camera,
         lights,
         medium,
@@ -108,7 +108,17 @@ fn render(
         scene_color: &rig.color,
         scene_depth: &rig.depth,
         surfaces: None,
-    };
+    }
+}
+
+fn render(
+    rig: &Rig,
+    vs: &mut VolumetricShadows,
+    lights: &[FrameLight],
+    medium: &Medium,
+    occluders: &[Occluder],
+) -> Rendered {
+    let frame = frame_of(rig, lights, medium, occluders);
     let plan = vs
         .prepare(&rig.gpu.device, &rig.gpu.queue, &frame)
         .unwrap()
@@ -482,15 +492,8 @@ fn too_many_lights_and_bad_settings_are_errors() {
     let mut vs =
         VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
     let lights = vec![FrameLight::from(light()); 5];
-    let frame = Frame {
-        camera: &rig.camera,
-        lights: &lights,
-        medium: &medium(),
-        occluders: &[],
-        scene_color: &rig.color,
-        scene_depth: &rig.depth,
-        surfaces: None,
-    };
+    let medium = medium();
+    let frame = frame_of(&rig, &lights, &medium, &[]);
     assert!(matches!(
         vs.prepare(&rig.gpu.device, &rig.gpu.queue, &frame),
         Err(volshadow::Error::InvalidSetting {
@@ -511,6 +514,27 @@ fn sphere_mesh(rig: &Rig) -> OccluderMesh {
         &rig.gpu.device,
         &shapes::uv_sphere(Vec3::new(0.0, 2.0, -0.3), 0.5, 16, 8).unwrap(),
     )
+}
+
+/// The textured spot's apex, cone angle and texture width of [`checkered_spot`].
+const SPOT_AT: Vec3 = Vec3::new(0.3, 3.5, -0.5);
+const SPOT_CONE_DEGREES: f32 = 70.0;
+const SPOT_TEXELS: u32 = 32;
+
+/// A spot pointing down over the sphere of [`sphere_mesh`], and its checkerboard texture.
+fn checkered_spot(rig: &Rig) -> (Light, wgpu::Texture) {
+    let spot = SpotLight::new(
+        SPOT_AT,
+        Vec3::NEG_Y,
+        SPOT_CONE_DEGREES.to_radians(),
+        Vec3::splat(30.0),
+    )
+    .unwrap()
+    .into();
+    let texture = LightTexture::checkerboard(SPOT_TEXELS, 4, Vec3::ONE, Vec3::splat(0.2))
+        .unwrap()
+        .upload(&rig.gpu.device, &rig.gpu.queue);
+    (spot, texture)
 }
 
 #[test]
@@ -574,15 +598,7 @@ fn passes_recorded_one_by_one_give_the_same_image_and_invalidate_rebuilds_everyt
         VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
     let whole = render(&rig, &mut vs, &lights, &medium, &occluders);
     vs.invalidate();
-    let frame = Frame {
-        camera: &rig.camera,
-        lights: &lights,
-        medium: &medium,
-        occluders: &occluders,
-        scene_color: &rig.color,
-        scene_depth: &rig.depth,
-        surfaces: None,
-    };
+    let frame = frame_of(&rig, &lights, &medium, &occluders);
     let plan = vs
         .prepare(&rig.gpu.device, &rig.gpu.queue, &frame)
         .unwrap()
@@ -716,22 +732,12 @@ fn error_target_picks_from_the_measured_table_with_headroom() {
 #[test]
 fn under_an_error_target_a_textured_spot_scatters_at_full_resolution() {
     let rig = rig();
-    let spot: Light = SpotLight::new(
-        Vec3::new(0.3, 3.5, -0.5),
-        Vec3::NEG_Y,
-        70f32.to_radians(),
-        Vec3::splat(30.0),
-    )
-    .unwrap()
-    .into();
+    let (spot, texture) = checkered_spot(&rig);
     let sphere = sphere_mesh(&rig);
     let occluders = [Occluder {
         mesh: &sphere,
         transform: Mat4::IDENTITY,
     }];
-    let texture = LightTexture::checkerboard(32, 4, Vec3::ONE, Vec3::splat(0.2))
-        .unwrap()
-        .upload(&rig.gpu.device, &rig.gpu.queue);
     let reduced = Settings {
         march: volshadow::nodes::MarchSettings {
             scale: volshadow::nodes::Scale::Half,
@@ -1047,4 +1053,254 @@ fn two_soft_lights_in_one_frame_each_against_the_reference() {
             "light {i} hard is within the bar: {hard}"
         );
     }
+}
+
+/// The work counters (`--work` of `benches/frame.rs`): turning them on changes no pixel, and
+/// what they count is what the frame did. Each crossing-list count is the list's own, read from
+/// the extents' heads; a counter that never counted, or counted another pixel's list, fails.
+#[test]
+fn work_counters_change_no_pixel_and_count_the_frames_lists() {
+    let rig = rig();
+    let mut vs =
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
+    let sphere = OccluderMesh::new(
+        &rig.gpu.device,
+        &shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.5, 16, 8).unwrap(),
+    );
+    let occluders = [Occluder {
+        mesh: &sphere,
+        transform: Mat4::IDENTITY,
+    }];
+    let lights: [FrameLight; 1] = [light().into()];
+    let before = volshadow::passes_recorded();
+    let plain = render(&rig, &mut vs, &lights, &medium(), &occluders);
+    let recorded = volshadow::passes_recorded() - before;
+    println!("{}\npasses recorded: {recorded:?}", plain.plan);
+    // Every planned step records at least one pass, the shadow map a render pass.
+    assert!(plain.plan.runs(Pass::ShadowMap, Some(0)));
+    assert!(recorded.render >= 1, "{recorded:?}");
+    assert!(
+        recorded.render + recorded.compute >= plain.plan.steps.len() as u64,
+        "{recorded:?} for {} steps",
+        plain.plan.steps.len()
+    );
+
+    vs.set_work_counters(true);
+    let counted = render(&rig, &mut vs, &lights, &medium(), &occluders);
+    let same = plain
+        .image
+        .iter()
+        .zip(&counted.image)
+        .filter(|(a, b)| a != b)
+        .count();
+    assert_eq!(same, 0, "pixels that differ with the work counters on");
+
+    let bytes = rig
+        .gpu
+        .read_buffer_bytes(vs.march_stats(0).unwrap())
+        .unwrap();
+    let work = volshadow::nodes::MarchWork::from_bytes(&bytes).unwrap();
+    let pixels = (SIZE * SIZE) as usize;
+    assert_eq!(work.lookups.len(), pixels);
+    let crossings = vs.extents(0).unwrap().crossings.unwrap();
+    let heads: Vec<u32> =
+        bytemuck::pod_collect_to_vec(&rig.gpu.read_buffer_bytes(crossings.heads).unwrap());
+    let mut with_crossings = 0;
+    for p in 0..pixels {
+        let count = heads[4 * p] & 0x7fff_ffff;
+        let stored = count.min(crossings.per_pixel);
+        assert_eq!(work.crossings_stored[p], stored, "pixel {p}");
+        if count > crossings.per_pixel {
+            continue; // overflowed: marched as the hybrid does, its list unread
+        }
+        // The exact method reads its list once to count the volumes around the eye, and once
+        // more for each interval it takes.
+        assert!(work.crossings_visited[p] >= 2 * stored, "pixel {p}");
+        if stored > 0 {
+            with_crossings += 1;
+            // One shadow-map visibility query per interval today.
+            assert!(work.lookups[p] >= 1, "pixel {p}");
+        }
+        assert_eq!(
+            work.texture_samples[p], 0,
+            "pixel {p}: the light is not textured"
+        );
+    }
+    println!(
+        "{with_crossings} of {pixels} pixels cross the sphere's shadow volume; lookups {} in all",
+        work.lookups.iter().map(|&n| u64::from(n)).sum::<u64>()
+    );
+    assert!(
+        with_crossings > pixels / 20,
+        "the sphere's shadow crosses the view"
+    );
+
+    // Off again: the stats buffer holds only the pass's four counters.
+    vs.set_work_counters(false);
+    render(&rig, &mut vs, &lights, &medium(), &occluders);
+    let bytes = rig
+        .gpu
+        .read_buffer_bytes(vs.march_stats(0).unwrap())
+        .unwrap();
+    assert_eq!(bytes.len(), 16);
+    assert!(volshadow::nodes::MarchWork::from_bytes(&bytes).is_none());
+}
+
+/// Render passes each step of the prepared frame records, recorded step by step and submitted.
+fn passes_per_step(rig: &Rig, vs: &mut VolumetricShadows) -> Vec<(Pass, volshadow::PassCount)> {
+    let mut encoder = rig.gpu.device.create_command_encoder(&Default::default());
+    let steps: Vec<Pass> = vs.plan().steps.iter().map(|s| s.pass).collect();
+    let counts = steps
+        .into_iter()
+        .enumerate()
+        .map(|(index, pass)| {
+            let before = volshadow::passes_recorded();
+            vs.encode_step(&mut encoder, &rig.output, index).unwrap();
+            (pass, volshadow::passes_recorded() - before)
+        })
+        .collect();
+    rig.gpu.submit_and_wait(encoder).unwrap();
+    counts
+}
+
+/// A point light's cube faces that no occluder's bounding sphere reaches are neither cleared
+/// nor drawn, and read lit: one sphere below the light draws one face of six. When the sphere
+/// moves to another face, the face it left is cleared once (a map that skipped it would keep
+/// its shadow: the frame then differs from the same frame on a new facade, which this checks),
+/// and an unchanged frame draws nothing.
+#[test]
+fn a_point_lights_cube_faces_without_occluders_are_neither_cleared_nor_drawn() {
+    let rig = rig();
+    let mesh =
+        |c: Vec3| OccluderMesh::new(&rig.gpu.device, &shapes::uv_sphere(c, 0.5, 16, 8).unwrap());
+    // Light (0.4, 4.5, −0.5): this sphere is 14° off −Y and 11° wide (−Y alone); the other
+    // 17° off +X and 17° wide (+X alone).
+    let below = mesh(Vec3::new(0.0, 2.0, 0.0));
+    let beside = mesh(Vec3::new(2.0, 4.0, -0.5));
+    let lights: [FrameLight; 1] = [light().into()];
+    let frame = |vs: &mut VolumetricShadows, m: &OccluderMesh| {
+        let occluders = [Occluder {
+            mesh: m,
+            transform: Mat4::IDENTITY,
+        }];
+        let medium = medium();
+        let f = frame_of(&rig, &lights, &medium, &occluders);
+        let plan = vs
+            .prepare(&rig.gpu.device, &rig.gpu.queue, &f)
+            .unwrap()
+            .clone();
+        let passes = passes_per_step(&rig, vs);
+        let map: u64 = passes
+            .iter()
+            .filter(|(p, _)| *p == Pass::ShadowMap)
+            .map(|(_, c)| c.render)
+            .sum();
+        (plan, map, rig.gpu.read_rgba32f(&rig.output).unwrap())
+    };
+    let mut vs =
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
+    let (plan, first, _) = frame(&mut vs, &below);
+    let detail = &plan
+        .steps
+        .iter()
+        .find(|s| s.pass == Pass::ShadowMap)
+        .unwrap()
+        .detail;
+    println!("{detail}");
+    assert!(detail.contains("cube faces -Y (5 without"), "{detail}");
+    assert_eq!(
+        first, 1,
+        "render passes of the shadow map: the one face drawn"
+    );
+
+    let (plan, moved, image) = frame(&mut vs, &beside);
+    let detail = &plan
+        .steps
+        .iter()
+        .find(|s| s.pass == Pass::ShadowMap)
+        .unwrap()
+        .detail;
+    assert!(detail.contains("cube faces +X (5 without"), "{detail}");
+    let mut fresh =
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
+    let (_, drawn, expected) = frame(&mut fresh, &beside);
+    assert_eq!(drawn, 1);
+    let diff = max_rel(&image, &expected);
+    println!("after the move against a new facade: max relative difference {diff:.1e}");
+    assert!(
+        diff < 1e-4,
+        "the face the sphere left still shadows: {diff}"
+    );
+    assert_eq!(
+        moved, 2,
+        "the face the sphere left cleared once, the face it reached drawn"
+    );
+
+    let (_, again, _) = frame(&mut vs, &beside);
+    assert_eq!(again, 0, "an unchanged frame redraws no face");
+    let (_, back, _) = frame(&mut vs, &below);
+    assert_eq!(back, 2);
+}
+
+/// A textured spot's march takes one step per texel of its texture that a piece of a ray can
+/// cross, not a share of `texture_steps` per piece: with `texture_steps` 256 and a texture
+/// 32 texels across ([`checkered_spot`]), every pixel's texture samples (two per step) stay within twice the texels
+/// its whole ray sweeps at the light (the angle between the eye and the ray's end seen from the
+/// light, over the smallest texel's angle) plus one step per piece, where the share of 256
+/// took about 512 on every lit pixel. The image stays the reference's (`textured_spot.rs`,
+/// `exact::f_textured_spot_eye_in_its_occluders_shadow`).
+#[test]
+fn a_textured_spots_steps_follow_the_texels_its_rays_cross() {
+    let rig = rig();
+    let (spot, texture) = checkered_spot(&rig);
+    let sphere = sphere_mesh(&rig);
+    let occluders = [Occluder {
+        mesh: &sphere,
+        transform: Mat4::IDENTITY,
+    }];
+    let s = Settings {
+        march: volshadow::nodes::MarchSettings {
+            texture_steps: 256,
+            ..settings().march
+        },
+        ..settings()
+    };
+    let mut vs = VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, s).unwrap();
+    vs.set_work_counters(true);
+    let light = FrameLight {
+        light: spot,
+        texture: Some(&texture),
+    };
+    render(&rig, &mut vs, &[light], &medium(), &occluders);
+    let bytes = rig
+        .gpu
+        .read_buffer_bytes(vs.march_stats(0).unwrap())
+        .unwrap();
+    let work = volshadow::nodes::MarchWork::from_bytes(&bytes).unwrap();
+    let t = (0.5 * f64::from(SPOT_CONE_DEGREES)).to_radians().tan();
+    let texel = 2.0 * t / (f64::from(SPOT_TEXELS) * (1.0 + t * t));
+    let light_at = SPOT_AT.as_dvec3();
+    let (mut lit, mut samples, mut worst) = (0u64, 0u64, 0.0f64);
+    for p in 0..(SIZE * SIZE) as usize {
+        let (o, d) = common::pixel_ray(&rig.camera, SIZE, SIZE, p as u32 % SIZE, p as u32 / SIZE);
+        let end = o + ground(o, d).min(1e6) * d;
+        let swept = (o - light_at).angle_between(end - light_at);
+        // f32's rounding of the step count's inputs: a texel more.
+        let bound = 2 * ((swept / texel).ceil() as u32 + 1 + work.crossings_stored[p] + 2);
+        let n = work.texture_samples[p];
+        assert!(n <= bound, "pixel {p}: {n} texture samples, bound {bound}");
+        if n > 0 {
+            lit += 1;
+            samples += u64::from(n);
+            worst = worst.max(f64::from(n) / f64::from(bound));
+        }
+    }
+    let mean = samples as f64 / lit.max(1) as f64;
+    println!("{lit} lit pixels: {mean:.1} texture samples each (at most {worst:.2} of the bound)");
+    assert!(lit > (SIZE * SIZE / 10) as u64, "the cone lights the view");
+    common::metric::performance(
+        "a textured spot, 32 texels across, texture_steps 256: texture samples per lit pixel",
+        format!("{mean:.1}"),
+        "≤ 2 (texels swept + pieces) per pixel",
+    );
 }
