@@ -5,6 +5,8 @@
 //!
 //! `LAYERS` is the order, bottom up, that `docs/GUIDE.md`'s "Layout" describes. A module not in
 //! it, an upward edge, or a cycle fails with the file and line of each offending path.
+//!
+//! Also read from the source: every pass begins through `gpu::passes`, which counts it.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
@@ -350,4 +352,47 @@ fn the_check_finds_upward_uses_and_cycles() {
         .collect();
     assert_eq!(cycle(&clean), None);
     assert!(violations(&clean, &modules, LAYERS).is_empty());
+}
+
+/// The places in `files` (path, text) that begin a pass on the encoder directly, outside
+/// `gpu/passes.rs` and comments.
+fn uncounted_passes(files: &[(String, String)]) -> Vec<String> {
+    let mut found = Vec::new();
+    for (path, text) in files {
+        if path.ends_with("gpu/passes.rs") {
+            continue;
+        }
+        for (i, line) in strip_comments(text).lines().enumerate() {
+            if line.contains(".begin_render_pass(") || line.contains(".begin_compute_pass(") {
+                found.push(format!("{path}:{}", i + 1));
+            }
+        }
+    }
+    found
+}
+
+/// Every pass the crate records begins through `gpu::passes` (`begin_render`,
+/// `begin_compute`), so that `passes_recorded` and the bench's `--work` counts are complete; a
+/// direct `encoder.begin_render_pass(…)` is found with its file and line.
+#[test]
+fn every_pass_begins_through_the_counter() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut paths = Vec::new();
+    rust_files(&src, &mut paths);
+    let files: Vec<(String, String)> = paths
+        .iter()
+        .map(|p| (p.display().to_string(), std::fs::read_to_string(p).unwrap()))
+        .collect();
+    assert!(files.len() > 20, "read {} files of src/", files.len());
+    let found = uncounted_passes(&files);
+    assert!(
+        found.is_empty(),
+        "passes begun outside gpu::passes: {found:?}"
+    );
+    // A direct call is found; one in a comment is not.
+    let planted = [(
+        "src/nodes/x.rs".to_string(),
+        "// encoder.begin_render_pass(&d)\nlet p = encoder.begin_compute_pass(&d);\n".to_string(),
+    )];
+    assert_eq!(uncounted_passes(&planted), ["src/nodes/x.rs:2"]);
 }
