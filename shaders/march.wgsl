@@ -1020,13 +1020,16 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
                         t_b = table_tt(table, air, r, b);
                     }
                 }
-                // The shadow map says which side of the faces the interval is on. Where it
-                // cannot tell (its filtered value is fractional: the interval runs within a
-                // texel of a face, as grazing rays do), the number of volumes around the
-                // interval decides, when it is known.
-                var v = vis_at(ray, r, 0.5 * (a + b));
-                if (v > 0.0 && v < 1.0 && around_eye >= 0 && around >= 0) {
+                // The number of volumes around the interval decides whether it is lit, when
+                // it is known (closed meshes: counted from the far end, as z-fail shadow
+                // volumes count, so a face cut by the near plane does not matter). Otherwise
+                // (a face of an open or non-manifold mesh crossed the pixel) the shadow map
+                // says which side of the faces the interval is on.
+                var v = 0.0;
+                if (around_eye >= 0 && around >= 0) {
                     v = select(0.0, 1.0, around == 0);
+                } else {
+                    v = vis_at(ray, r, 0.5 * (a + b));
                 }
                 if (TEXTURED) {
                     // The texture still needs steps: one per texel the piece crosses.
