@@ -19,8 +19,9 @@
 //! the three textures: for every pixel, the view depth at which its centre ray crosses each
 //! volume face in front of the scene surface (a bounded list), the nearest and farthest of them,
 //! and the net number of volumes entered behind the surface. Between two consecutive crossings
-//! nothing can change visibility, so the march integrates each interval in closed form and
-//! samples the shadow map only to learn on which side it is. Depths are where the pixel's ray
+//! nothing can change visibility, so the march integrates each interval in closed form, lit
+//! where no volume is around it (the net count behind the surface makes that count known; a
+//! pixel crossed by an open mesh's face samples the shadow map instead). Depths are where the pixel's ray
 //! meets the face's plane, to f32's precision. Two builds write the same lists
 //! ([`CrossingsBuild`]):
 //!

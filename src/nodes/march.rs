@@ -333,10 +333,11 @@ impl Pipelines {
 pub enum MarchMethod {
     /// Every shadow-volume face the ray crosses in front of the surface is recorded (up to
     /// [`MarchSettings::crossings`] per pixel); between consecutive crossings visibility is
-    /// constant, so each interval is integrated in closed form (`T(s₁) − T(s₀)`) times the
-    /// visibility sampled once inside it (Biri, Arquès & Michelin 2006: exact integration
-    /// between sorted shadow planes). Boundaries come from geometry; the shadow map only says
-    /// which side is lit. A pixel whose list overflows is marched, as the hybrid does, between
+    /// constant, so each interval is integrated in closed form (`T(s₁) − T(s₀)`) times its
+    /// visibility (Biri, Arquès & Michelin 2006: exact integration between sorted shadow
+    /// planes). Boundaries come from geometry, and so does visibility: an interval is lit where
+    /// no closed volume is around it (counted from the far end); the shadow map decides only
+    /// where a face of an open or non-manifold mesh crosses the pixel. A pixel whose list overflows is marched, as the hybrid does, between
     /// its nearest and farthest crossing. The default.
     #[default]
     Exact,
