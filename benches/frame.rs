@@ -32,8 +32,9 @@
 //!   ([`CrossingsBuild::Raster`](volshadow::nodes::CrossingsBuild)) instead of compute passes.
 //! * `--work`: instead of times, the work of one frame (after the warm-up), which any adapter
 //!   counts alike: render and compute passes recorded ([`volshadow::passes_recorded`]),
-//!   shadow-map texels cleared (the layers each shadow-map step renders) and written (those
-//!   holding an occluder's depth after the frame), and per pixel of each light's march, from
+//!   shadow-map texels cleared (the layers each shadow-map step renders; for a map drawn on
+//!   demand, only in a frame whose gate opened) and written (those holding an occluder's
+//!   depth after the frame), and per pixel of each light's march, from
 //!   its work counters ([`VolumetricShadows::set_work_counters`], a pipeline constant the
 //!   frame's own pipelines leave off): crossings stored and visited, shadow-map lookups,
 //!   light-texture samples and march steps, as mean and p99 over the march's pixels
@@ -218,20 +219,34 @@ fn count_work(
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
     let steps: Vec<(Pass, Option<usize>)> =
         vs.plan().steps.iter().map(|s| (s.pass, s.light)).collect();
+    // Per light, the render passes of its shadow-map step.
+    let mut map_passes = vec![0u64; frame.lights.len()];
     for (index, (pass, light)) in steps.into_iter().enumerate() {
         let before = volshadow::passes_recorded();
         vs.encode_step(&mut encoder, output, index)?;
         let passes = volshadow::passes_recorded() - before;
         work.render_passes += passes.render;
         work.compute_passes += passes.compute;
-        if let (Pass::ShadowMap, Some(map)) = (pass, light.and_then(|l| vs.shadow_map(l))) {
-            let t = map.texture;
-            work.map_cleared += passes.render * u64::from(t.width()) * u64::from(t.height());
+        if let (Pass::ShadowMap, Some(l)) = (pass, light) {
+            map_passes[l] += passes.render;
         }
     }
     gpu.submit_and_wait(encoder)?;
-    for light in 0..frame.lights.len() {
-        if let Some(map) = vs.shadow_map(light) {
+    for (light, &passes) in map_passes.iter().enumerate() {
+        // A map drawn whenever it changes clears each layer it renders; one drawn on demand
+        // touches its layers only in a frame whose gate opened (its passes load the layer and
+        // draw from zeroed arguments otherwise).
+        let map = match (vs.shadow_map(light), vs.shadow_map_on_demand(light)) {
+            (Some(map), _) => Some(map),
+            (None, Some((map, gate))) => {
+                let state: Vec<u32> = bytemuck::pod_collect_to_vec(&gpu.read_buffer_bytes(gate)?);
+                (state.get(1) == Some(&1)).then_some(map)
+            }
+            (None, None) => None,
+        };
+        if let Some(map) = map {
+            let t = map.texture;
+            work.map_cleared += passes * u64::from(t.width()) * u64::from(t.height());
             let depths: Vec<f32> =
                 bytemuck::pod_collect_to_vec(&gpu.read_all_layers_bytes(map.texture)?);
             // Cleared to 0 (reversed Z: at infinity); an occluder's depth is above it.

@@ -74,10 +74,22 @@ impl LightSlot {
                 None => false,
             },
             Pass::ShadowMap => {
+                // On demand, the crossing lists prepared by the extents step before it.
+                let fallback = step
+                    .planned
+                    .map_on_demand
+                    .then(|| self.extents.extents()?.crossings)
+                    .flatten();
+                if step.planned.map_on_demand && fallback.is_none() {
+                    return Err(Error::NotPrepared {
+                        reason: "the plan draws a shadow map on demand without crossing lists",
+                    });
+                }
                 let inputs = ShadowMapInputs {
                     light,
                     occluders,
                     camera,
+                    fallback,
                 };
                 self.shadow.prepare(device, queue, &inputs)?
             }
@@ -685,15 +697,32 @@ impl VolumetricShadows {
         self.slots.get(light)?.inscatter(&self.plan, light)
     }
 
-    /// The shadow map of `light` rendered by the last frame that planned one (`None` when
-    /// none was, e.g. for a light without occluders), for shadowing surfaces with
-    /// [`SHADOW_WGSL`](crate::SHADOW_WGSL): record the frame's shadow-map steps
-    /// ([`encode_step`](Self::encode_step)) before the surfaces that sample it.
+    /// The shadow map of `light` rendered by the last frame that planned one, for shadowing
+    /// surfaces with [`SHADOW_WGSL`](crate::SHADOW_WGSL): record the frame's shadow-map steps
+    /// ([`encode_step`](Self::encode_step)) before the surfaces that sample it. `None` when
+    /// none was (a light without occluders), and when the map was drawn only on demand
+    /// ([`LightPlan::map_on_demand`](crate::plan::LightPlan::map_on_demand)): set
+    /// [`ShadowMapSettings::surfaces`](crate::nodes::ShadowMapSettings::surfaces) to keep
+    /// every map whole.
     pub fn shadow_map(&self, light: usize) -> Option<crate::nodes::ShadowMap<'_>> {
-        self.plan
-            .present(Pass::ShadowMap, Some(light))
+        let on_demand = self.plan.lights.get(light)?.map_on_demand;
+        (self.plan.present(Pass::ShadowMap, Some(light)) && !on_demand)
             .then(|| self.slots.get(light)?.shadow.shadow_map())
             .flatten()
+    }
+
+    /// For benches and tests: a shadow map drawn on demand
+    /// ([`LightPlan::map_on_demand`](crate::plan::LightPlan::map_on_demand)), whose texels are
+    /// valid only where the march reads them, and two `u32` of its gate: whether it was drawn
+    /// since its inputs last changed, and whether the last recorded frame drew it
+    /// ([`ShadowMapNode::gate_state`](crate::nodes::ShadowMapNode::gate_state)). `None` for a
+    /// map drawn whenever it changes.
+    pub fn shadow_map_on_demand(
+        &self,
+        light: usize,
+    ) -> Option<(crate::nodes::ShadowMap<'_>, &wgpu::Buffer)> {
+        let shadow = &self.slots.get(light)?.shadow;
+        Some((shadow.shadow_map()?, shadow.gate_state()?))
     }
 
     /// Turns every light's per-pixel march work counters on or off (default off; see

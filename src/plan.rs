@@ -152,6 +152,13 @@ pub struct LightPlan {
     /// The shadow inputs its march reads (`None`: unshadowed), which the shadow-map, extents
     /// and soft-shadow steps make: the extents' crossing lists among them.
     pub shadows: Option<ShadowForms>,
+    /// Its shadow map is drawn only in a frame where a pixel's crossings cannot be counted
+    /// (a list that overflowed, an open mesh's face), decided on the GPU
+    /// ([`ShadowMapInputs::fallback`](crate::nodes::ShadowMapInputs::fallback)): the exact
+    /// method for a light without a radius, unless
+    /// [`ShadowMapSettings::surfaces`](crate::nodes::ShadowMapSettings::surfaces) keeps the
+    /// maps whole. Its extents step runs before its shadow map.
+    pub map_on_demand: bool,
 }
 
 impl Plan {
@@ -258,6 +265,9 @@ struct FrameFacts {
     error_target: Option<f32>,
     /// Surface normals and albedo were given (the indirect single scattering term).
     surfaces: bool,
+    /// Every shadow map is kept whole for the caller's surfaces
+    /// ([`ShadowMapSettings::surfaces`](crate::nodes::ShadowMapSettings::surfaces)).
+    surface_maps: bool,
 }
 
 /// Plans `frame` under `settings`: gathers the facts (culling, lights drawn hard) and decides
@@ -330,6 +340,7 @@ fn gather(frame: &Frame<'_>, settings: &Settings) -> Result<FrameFacts> {
         culled,
         error_target: settings.error_target,
         surfaces: frame.surfaces.is_some(),
+        surface_maps: settings.shadow_map.surfaces,
     })
 }
 
@@ -400,6 +411,7 @@ fn plan(facts: &FrameFacts) -> Plan {
             scale,
             march: MarchMode::choose(facts.method, soft, None),
             shadows: None,
+            map_on_demand: false,
         };
         if !facts.scatters {
             lights.push(light_plan);
@@ -438,7 +450,7 @@ fn plan(facts: &FrameFacts) -> Plan {
             }
             Some(f) => {
                 let count = l.occluders.len();
-                let detail = match l.faces {
+                let faces = match l.faces {
                     Some(faces) => {
                         const NAMES: [&str; 6] = ["+X", "-X", "+Y", "-Y", "+Z", "-Z"];
                         let drawn: Vec<&str> = NAMES
@@ -447,15 +459,18 @@ fn plan(facts: &FrameFacts) -> Plan {
                             .filter_map(|(n, f)| f.then_some(*n))
                             .collect();
                         format!(
-                            "{count} occluder(s), cube faces {} ({} without occluders not drawn)",
+                            ", cube faces {} ({} without occluders not drawn)",
                             drawn.join(" "),
                             6 - drawn.len()
                         )
                     }
-                    None => format!("{count} occluder(s)"),
+                    None => String::new(),
                 };
-                run(Pass::ShadowMap, light, detail);
+                // The crossings decide every pixel they can count: the map only the rest.
+                let on_demand = f.extents && f.crossings && !soft && !facts.surface_maps;
+                light_plan.map_on_demand = on_demand;
                 let at = scale.divisor();
+                // Extents first: a map drawn on demand reads the crossing lists.
                 if f.extents && f.crossings {
                     let per_pixel = facts.crossings;
                     let detail = format!("crossing lists of {per_pixel} per pixel, at 1/{at}");
@@ -467,6 +482,17 @@ fn plan(facts: &FrameFacts) -> Plan {
                 } else {
                     skip(Pass::Extents, light, Reason::BruteForce);
                 }
+                let demand = if on_demand {
+                    "; drawn only in a frame where a pixel's crossings cannot be counted \
+                     (a full list, an open mesh), decided on the GPU"
+                } else {
+                    ""
+                };
+                run(
+                    Pass::ShadowMap,
+                    light,
+                    format!("{count} occluder(s){faces}{demand}"),
+                );
                 if f.soft_grid {
                     let detail = "visible fraction of the light's disc on a light-space grid";
                     run(Pass::SoftShadow, light, detail.into());
@@ -642,6 +668,7 @@ mod tests {
                         culled: Vec::new(),
                         error_target: None,
                         surfaces: false,
+                        surface_maps: false,
                     };
                     let plan = plan(&facts);
                     let LightPlan { march, .. } = plan.lights[0];

@@ -71,6 +71,7 @@ pub fn surface_shadow_maps(
             light,
             occluders,
             camera,
+            fallback: None,
         };
         node.prepare(&gpu.device, &gpu.queue, &inputs)?;
         node.encode(&mut encoder, None)?;

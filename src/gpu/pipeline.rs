@@ -386,6 +386,7 @@ mod tests {
             wgsl_file!("march.wgsl"),
             wgsl_file!("soft_shadow.wgsl"),
             wgsl_file!("shadow_map.wgsl"),
+            wgsl_file!("shadow_gate.wgsl"),
             wgsl_file!("triangles.wgsl"),
             wgsl_file!("upsample.wgsl"),
             wgsl_file!("shadow.wgsl"),

@@ -303,6 +303,8 @@ pub struct Crossings<'a> {
     pub list: &'a wgpu::Buffer,
     /// Entries per pixel.
     pub per_pixel: u32,
+    /// The lists' width and height in pixels (the pass size).
+    pub size: (u32, u32),
 }
 
 /// What the extents are computed for.
@@ -461,6 +463,7 @@ impl ExtentsNode {
                 heads: &lists.heads,
                 list: &lists.list,
                 per_pixel: lists.per_pixel,
+                size: lists.size,
             })
         } else {
             None

@@ -34,6 +34,7 @@ pub(crate) mod light;
 pub(crate) mod light_texture;
 pub(crate) mod march;
 pub(crate) mod pcss;
+pub(crate) mod shadow_gate;
 pub(crate) mod shadow_map;
 pub(crate) mod soft_shadow;
 pub(crate) mod uniforms;

@@ -53,7 +53,8 @@ use crate::gpu::pipeline::{
 use crate::gpu::wgsl::wgsl_file;
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{GpuTimer, Occluder};
-use crate::nodes::Cache;
+use crate::nodes::shadow_gate::{arguments, Gate, GatePipelines};
+use crate::nodes::{Cache, Crossings};
 use crate::nodes::{Encode, Node};
 use crate::pass::Pass;
 use crate::scene::{Camera, DirectionalLight, Light};
@@ -100,6 +101,10 @@ pub(crate) struct Pipelines {
     /// The occluders' triangles in world space (`shaders/triangles.wgsl`).
     gather_layout: wgpu::BindGroupLayout,
     gather: wgpu::ComputePipeline,
+    /// A gated map's clear: depth 0 over the layer, drawn indirectly (`vs_clear`).
+    clear: wgpu::RenderPipeline,
+    /// The gate's scan of the crossing lists ([`shadow_gate`](crate::nodes::shadow_gate)).
+    gate: GatePipelines,
 }
 
 impl Pipelines {
@@ -138,9 +143,22 @@ impl Pipelines {
                 cull_mode,
             )
         };
+        let clear = depth_pipeline(
+            device,
+            "volshadow shadow map clear",
+            &layout,
+            &module,
+            "vs_clear",
+            None,
+            &[],
+            Some(wgpu::CompareFunction::Always),
+            None,
+        );
         Self {
             gather_layout,
             gather,
+            clear,
+            gate: GatePipelines::new(device, precision),
             depth: pipeline(None),
             // Counter-clockwise is front (wgpu's default), as the crate's meshes wind faces
             // seen from outside.
@@ -160,6 +178,14 @@ pub struct ShadowMapInputs<'a> {
     /// The view: a directional light's map is fitted to what it sees (point and spot lights do
     /// not read it).
     pub camera: &'a Camera,
+    /// `Some`: the map is read only where these crossing lists (of this frame, recorded
+    /// before the map) cannot be counted: a list that overflowed, or a face of an open or
+    /// non-manifold mesh (bit 31 of a pixel's count). The map is then drawn only in a frame
+    /// with such a pixel, decided on the GPU, and not again until its inputs change; in any
+    /// other frame it is left as it was and its texels are not all valid, so it must not be
+    /// read elsewhere (the exact method's march, for a light without a radius, reads it only
+    /// there). `None`: drawn whenever its inputs change.
+    pub fallback: Option<Crossings<'a>>,
 }
 
 /// Shadow-map settings.
@@ -172,6 +198,12 @@ pub struct ShadowMapSettings {
     /// `(1 + bias)`-ish times the occluder's (exactly: depth ≥ stored · (1 − bias)). It is
     /// relative so it works at any scene scale. Default 2e-3; must be in [0, 0.5).
     pub depth_bias: f32,
+    /// Keep every light's map whole, for shadowing the caller's surfaces with
+    /// [`SHADOW_WGSL`](crate::SHADOW_WGSL) ([`VolumetricShadows::shadow_map`](crate::VolumetricShadows::shadow_map)).
+    /// Default `false`: under the exact method a light without a radius draws its map only in
+    /// a frame where a pixel's crossings cannot be counted (see
+    /// [`LightPlan::map_on_demand`](crate::plan::LightPlan::map_on_demand)), usually none.
+    pub surfaces: bool,
 }
 
 impl ShadowMapSettings {
@@ -191,10 +223,12 @@ impl Default for ShadowMapSettings {
 }
 
 impl ShadowMapSettings {
-    /// The default: 1024² texels a layer, depth bias 2e-3.
+    /// The default: 1024² texels a layer, depth bias 2e-3, maps drawn only where the march
+    /// reads them.
     pub const DEFAULT: ShadowMapSettings = ShadowMapSettings {
         resolution: 1024,
         depth_bias: 2e-3,
+        surfaces: false,
     };
 }
 
@@ -426,6 +460,9 @@ pub struct ShadowMapNode {
     /// See [`ShadowMap::triangles`], and per occluder its gather's bind group and workgroups.
     triangles: Option<wgpu::Buffer>,
     gathers: Vec<(wgpu::BindGroup, u32)>,
+    /// The gate of a map drawn only where the crossings cannot be counted
+    /// ([`ShadowMapInputs::fallback`]); `None` while the map is drawn whenever it changes.
+    gate: Option<Gate>,
 }
 
 struct Draw {
@@ -701,6 +738,7 @@ impl ShadowMapNode {
             gaps: true,
             triangles: None,
             gathers: Vec::new(),
+            gate: None,
         })
     }
 
@@ -868,18 +906,61 @@ impl ShadowMapNode {
             }
             _ => None,
         };
-        let key = Self::key(light, occluders, directional.as_ref());
-        if !recreate && key == self.key {
+        let mut key = Self::key(light, occluders, directional.as_ref());
+        // Switching between a gated map and one drawn whenever it changes re-renders it.
+        key.push(u32::from(inputs.fallback.is_some()));
+        let changed = recreate || key != self.key;
+        if changed {
+            self.key = key;
+            self.place(light, occluders, directional);
+            self.upload(queue, occluders);
+            self.gather_triangles(device, light, occluders);
+            self.pending = true;
+            self.generation += 1;
+        }
+        let Some(crossings) = inputs.fallback else {
+            self.gate = None;
             // Still pending when an earlier prepare's render was never encoded.
             return Ok(self.pending);
+        };
+        let gate = self
+            .gate
+            .get_or_insert_with(|| Gate::new(device, &self.pipelines.gate));
+        if changed {
+            // The layers a gated frame records: those with draws, and those that may hold an
+            // earlier frame's depth (cleared when the gate opens). Which the GPU drew is not
+            // known here, so a layer once drawn stays in the list.
+            let mut layers = Vec::new();
+            for layer in 0..self.faces.len() {
+                let drawn: Vec<(u32, u32)> = match self.layer_draws.as_ref() {
+                    Some(l) => l.get(layer).map_or(&[][..], Vec::as_slice).to_vec(),
+                    None => (0..self.draws.len() as u32).collect(),
+                }
+                .into_iter()
+                .map(|i| (i, self.draws[i as usize].index_count))
+                .collect();
+                let dirty = self.dirty.get_mut(layer);
+                let was = dirty.as_deref().copied().unwrap_or(true);
+                if drawn.is_empty() && !was {
+                    continue;
+                }
+                if let Some(d) = dirty {
+                    *d = true;
+                }
+                layers.push((layer as u32, drawn));
+            }
+            gate.set_arguments(device, queue, arguments(&layers));
         }
-        self.key = key;
-        self.place(light, occluders, directional);
-        self.upload(queue, occluders);
-        self.gather_triangles(device, light, occluders);
-        self.pending = true;
-        self.generation += 1;
+        gate.bind(device, queue, &crossings);
+        // The scan runs every frame: only the GPU knows whether this one needs the map.
         Ok(true)
+    }
+
+    /// For benches and tests: a gated map's two `u32` (whether it was drawn since its inputs
+    /// last changed, and whether the last recorded frame drew it), `None` for a map drawn
+    /// whenever it changes ([`ShadowMapInputs::fallback`]).
+    pub fn gate_state(&self) -> Option<&wgpu::Buffer> {
+        Some(self.gate.as_ref()?.state())
     }
 
     /// (Re)creates the map (and its back faces' layer for a light with a radius) when its
@@ -1193,6 +1274,70 @@ impl ShadowMapNode {
     }
 }
 
+impl ShadowMapNode {
+    /// Records a gated map ([`ShadowMapInputs::fallback`]): the gate's scan, then each listed
+    /// layer's render pass, which loads the layer and draws its clear and its occluders from
+    /// the gate's arguments (zero, drawing nothing, unless the gate opened).
+    fn encode_gated(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        mut timer: Option<&mut GpuTimer>,
+    ) -> Result<()> {
+        let (Some(texture), Some(bind_group), Some(gate)) =
+            (&self.texture, &self.bind_group, self.gate.as_mut())
+        else {
+            return Ok(());
+        };
+        gate.encode(encoder, timer.as_deref_mut());
+        let Some(live) = gate.live() else {
+            return Ok(());
+        };
+        for layer in &gate.layers {
+            let view = texture.create_view(&wgpu::TextureViewDescriptor {
+                label: Some("volshadow shadow face"),
+                dimension: Some(wgpu::TextureViewDimension::D2),
+                base_array_layer: layer.layer,
+                array_layer_count: Some(1),
+                ..Default::default()
+            });
+            let timestamp_writes = timer
+                .as_deref_mut()
+                .and_then(|t| t.render_pass(Pass::ShadowMap));
+            let mut pass = crate::gpu::passes::begin_render(
+                encoder,
+                &wgpu::RenderPassDescriptor {
+                    label: Some("volshadow shadow map (gated)"),
+                    color_attachments: &[],
+                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                        view: &view,
+                        depth_ops: Some(wgpu::Operations {
+                            load: wgpu::LoadOp::Load,
+                            store: wgpu::StoreOp::Store,
+                        }),
+                        stencil_ops: None,
+                    }),
+                    timestamp_writes,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                },
+            );
+            let face = layer.layer * SLOT as u32;
+            pass.set_pipeline(&self.pipelines.clear);
+            pass.set_bind_group(0, bind_group, &[face, 0]);
+            pass.draw_indirect(live, layer.clear);
+            pass.set_pipeline(&self.pipelines.depth);
+            for &(i, at) in &layer.draws {
+                let draw = &self.draws[i as usize];
+                pass.set_bind_group(0, bind_group, &[face, i * SLOT as u32]);
+                pass.set_vertex_buffer(0, draw.positions.slice(..));
+                pass.set_index_buffer(draw.indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed_indirect(live, at);
+            }
+        }
+        Ok(())
+    }
+}
+
 impl Node for ShadowMapNode {
     type Inputs<'a> = ShadowMapInputs<'a>;
 
@@ -1225,7 +1370,11 @@ impl Encode for ShadowMapNode {
         encoder: &mut wgpu::CommandEncoder,
         mut timer: Option<&mut GpuTimer>,
     ) -> Result<()> {
-        if !std::mem::take(&mut self.pending) {
+        let pending = std::mem::take(&mut self.pending);
+        if self.gate.is_some() {
+            return self.encode_gated(encoder, timer);
+        }
+        if !pending {
             return Ok(());
         }
         let (Some(texture), Some(bind_group)) = (&self.texture, &self.bind_group) else {

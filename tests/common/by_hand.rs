@@ -50,6 +50,7 @@ pub fn frame(
         light,
         occluders,
         camera,
+        fallback: None,
     };
     shadow.prepare(device, queue, &inputs).unwrap();
     let crossings = (settings.method == MarchMethod::Exact).then_some(CrossingsRequest {

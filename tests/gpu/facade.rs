@@ -364,6 +364,8 @@ fn full_resolution_needs_no_upsample() {
     assert!(err < HALF_VS_FULL, "{err}");
 }
 
+/// With the maps kept whole (a map drawn on demand is checked by
+/// `a_shadow_map_on_demand_is_drawn_only_where_the_crossings_cannot_count`).
 #[test]
 fn unchanged_frame_rebuilds_neither_table_nor_shadow_map_and_gives_the_same_image() {
     let rig = rig();
@@ -376,7 +378,7 @@ fn unchanged_frame_rebuilds_neither_table_nor_shadow_map_and_gives_the_same_imag
         transform: Mat4::IDENTITY,
     }];
     let mut vs =
-        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, whole_maps()).unwrap();
     let first = render(&rig, &mut vs, &[light().into()], &medium(), &occluders);
     assert!(
         first.passes.iter().any(|p| p == "shadow map")
@@ -1171,7 +1173,8 @@ fn passes_per_step(rig: &Rig, vs: &mut VolumetricShadows) -> Vec<(Pass, volshado
 /// nor drawn, and read lit: one sphere below the light draws one face of six. When the sphere
 /// moves to another face, the face it left is cleared once (a map that skipped it would keep
 /// its shadow: the frame then differs from the same frame on a new facade, which this checks),
-/// and an unchanged frame draws nothing.
+/// and an unchanged frame draws nothing. The maps are kept whole, as for an app that shades its
+/// surfaces with them (a map drawn on demand: the next test).
 #[test]
 fn a_point_lights_cube_faces_without_occluders_are_neither_cleared_nor_drawn() {
     let rig = rig();
@@ -1202,7 +1205,7 @@ fn a_point_lights_cube_faces_without_occluders_are_neither_cleared_nor_drawn() {
         (plan, map, rig.gpu.read_rgba32f(&rig.output).unwrap())
     };
     let mut vs =
-        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, whole_maps()).unwrap();
     let (plan, first, _) = frame(&mut vs, &below);
     let detail = &plan
         .steps
@@ -1226,7 +1229,7 @@ fn a_point_lights_cube_faces_without_occluders_are_neither_cleared_nor_drawn() {
         .detail;
     assert!(detail.contains("cube faces +X (5 without"), "{detail}");
     let mut fresh =
-        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, whole_maps()).unwrap();
     let (_, drawn, expected) = frame(&mut fresh, &beside);
     assert_eq!(drawn, 1);
     let diff = max_rel(&image, &expected);
@@ -1306,5 +1309,143 @@ fn a_textured_spots_steps_follow_the_texels_its_rays_cross() {
         "a textured spot, 32 texels across, texture_steps 256: texture samples per lit pixel",
         format!("{mean:.1}"),
         "≤ 2 (texels swept + pieces) per pixel",
+    );
+}
+
+/// Settings keeping every shadow map whole (for the caller's surfaces), as the tests of the
+/// maps' own reuse and faces ask.
+fn whole_maps() -> Settings {
+    let mut s = settings();
+    s.shadow_map.surfaces = true;
+    s
+}
+
+/// One frame through `vs`: the image, the light's shadow-map texels holding depth, and whether
+/// its gate drew the map this frame (`None`: a map drawn whenever it changes).
+fn on_demand_frame(
+    rig: &Rig,
+    vs: &mut VolumetricShadows,
+    occluders: &[Occluder],
+) -> (Vec<[f32; 4]>, usize, Option<bool>) {
+    let r = render(rig, vs, &[light().into()], &medium(), occluders);
+    let (texture, drawn) = match (vs.shadow_map(0), vs.shadow_map_on_demand(0)) {
+        (Some(map), _) => (map.texture, None),
+        (None, Some((map, gate))) => {
+            let state: Vec<u32> =
+                bytemuck::pod_collect_to_vec(&rig.gpu.read_buffer_bytes(gate).unwrap());
+            (map.texture, Some(state[1] == 1))
+        }
+        (None, None) => panic!("no shadow map:\n{}", r.plan),
+    };
+    let depths: Vec<f32> =
+        bytemuck::pod_collect_to_vec(&rig.gpu.read_all_layers_bytes(texture).unwrap());
+    (r.image, depths.iter().filter(|&&d| d > 0.0).count(), drawn)
+}
+
+/// Under the exact method a light without a radius draws its shadow map only in a frame where
+/// a pixel's crossings cannot be counted, and then gives the image of a map drawn whole (the
+/// same bits: the march reads the map only at those pixels):
+/// * a closed sphere with room in every list: the plan says the map is on demand, the gate
+///   stays shut, no texel of the map holds depth, and the image is the whole map's;
+/// * lists of one entry, which the sphere's two crossings overflow: the gate opens and the image
+///   is the whole map's; the same frame again draws nothing and keeps that image (a gate that
+///   opens every frame fails here); the sphere moved draws again (a gate that forgets to reset
+///   when the map's inputs change keeps the old shadow and fails);
+/// * an open mesh (a plane), whose pixels cannot be counted, with room in every list: drawn.
+///
+/// A gate that never opens leaves the overflowing pixels lit (the second frame's image
+/// differs).
+#[test]
+fn a_shadow_map_on_demand_is_drawn_only_where_the_crossings_cannot_count() {
+    let rig = rig();
+    let sphere =
+        |c: Vec3| OccluderMesh::new(&rig.gpu.device, &shapes::uv_sphere(c, 0.5, 16, 8).unwrap());
+    let (here, there) = (
+        sphere(Vec3::new(0.0, 2.0, -0.3)),
+        sphere(Vec3::new(0.4, 2.2, 0.0)),
+    );
+    let at = |m| {
+        [Occluder {
+            mesh: m,
+            transform: Mat4::IDENTITY,
+        }]
+    };
+    let short_lists = |mut s: Settings| {
+        s.march.crossings = 1;
+        s
+    };
+    let new = |s| VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, s).unwrap();
+    let whole = |s, o: &[Occluder]| on_demand_frame(&rig, &mut new(s), o).0;
+
+    // Room in every list: nothing drawn.
+    let mut vs = new(settings());
+    let (image, written, drawn) = on_demand_frame(&rig, &mut vs, &at(&here));
+    let step = vs
+        .plan()
+        .steps
+        .iter()
+        .find(|s| s.pass == Pass::ShadowMap)
+        .unwrap();
+    println!("{}", step.detail);
+    assert!(vs.plan().lights[0].map_on_demand && step.detail.contains("drawn only in a frame"));
+    println!("lists of 16, closed sphere: drawn {drawn:?}, texels with depth {written}");
+    assert_eq!(
+        drawn,
+        Some(false),
+        "the gate opened with every list countable"
+    );
+    assert_eq!(written, 0, "texels of a map not drawn hold depth");
+    assert!(
+        image == whole(whole_maps(), &at(&here)),
+        "the image is not the whole map's"
+    );
+
+    // Lists of one: every pixel the sphere's volume crosses overflows.
+    let mut vs = new(short_lists(settings()));
+    let expected = whole(short_lists(whole_maps()), &at(&here));
+    let (image, written, drawn) = on_demand_frame(&rig, &mut vs, &at(&here));
+    println!("lists of 1: drawn {drawn:?}, texels with depth {written}, max relative difference from the whole map {:.1e}", max_rel(&image, &expected));
+    assert!(
+        image == expected,
+        "overflowing lists: the image is not the whole map's"
+    );
+    assert_eq!(drawn, Some(true), "overflowing lists did not open the gate");
+    assert!(written > 0);
+    let (again, _, drawn) = on_demand_frame(&rig, &mut vs, &at(&here));
+    assert_eq!(drawn, Some(false), "an unchanged frame drew the map again");
+    assert!(again == expected, "the map drawn last frame was not kept");
+    let expected = whole(short_lists(whole_maps()), &at(&there));
+    let (moved, _, drawn) = on_demand_frame(&rig, &mut vs, &at(&there));
+    println!(
+        "sphere moved: drawn {drawn:?}, max relative difference from the whole map {:.1e}",
+        max_rel(&moved, &expected)
+    );
+    assert!(
+        moved == expected,
+        "the moved sphere's image is not the whole map's"
+    );
+    assert_eq!(
+        drawn,
+        Some(true),
+        "the sphere moved and the map was not drawn again"
+    );
+
+    // An open mesh: its pixels look the map up whatever the lists' room.
+    let roof = OccluderMesh::new(
+        &rig.gpu.device,
+        &shapes::plane(Vec3::new(0.0, 2.5, -0.3), glam::Vec2::splat(0.6)).unwrap(),
+    );
+    let mut vs = new(settings());
+    let (image, written, drawn) = on_demand_frame(&rig, &mut vs, &at(&roof));
+    println!("open plane: drawn {drawn:?}, texels with depth {written}");
+    assert_eq!(
+        drawn,
+        Some(true),
+        "an open mesh's pixels did not open the gate"
+    );
+    assert!(written > 0);
+    assert!(
+        image == whole(whole_maps(), &at(&roof)),
+        "open mesh: not the whole map's image"
     );
 }

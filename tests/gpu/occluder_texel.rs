@@ -64,6 +64,7 @@ fn occluder_transform_validated_as_scene_files_do() {
             light: &light,
             occluders: &occluders,
             camera: &common::unread_camera(),
+            fallback: None,
         };
         let got = node.prepare(&gpu.device, &gpu.queue, &inputs);
         assert!(
@@ -94,6 +95,7 @@ fn occluder_transform_validated_as_scene_files_do() {
         light: &light,
         occluders: &occluders,
         camera: &common::unread_camera(),
+        fallback: None,
     };
     node.prepare(&gpu.device, &gpu.queue, &inputs)
         .expect("a proper transform passes");

@@ -921,6 +921,7 @@ fn the_grid_is_rebuilt_only_when_the_shadow_map_changes() {
             light: &light,
             occluders: &occluders,
             camera: &common::unread_camera(),
+            fallback: None,
         };
         let rendered = shadow.prepare(&gpu.device, &gpu.queue, &inputs).unwrap();
         let rebuilt = soft
@@ -986,6 +987,7 @@ fn the_grid_rejects_what_it_cannot_use() {
                 light: &point,
                 occluders: &occluders,
                 camera: &common::unread_camera(),
+                fallback: None,
             },
         )
         .unwrap();
@@ -1384,6 +1386,7 @@ fn grid_cells_against_the_reference_visible_fraction() {
             light: &s.light,
             occluders: &occluders,
             camera: &common::unread_camera(),
+            fallback: None,
         };
         shadow.prepare(&gpu.device, &gpu.queue, &inputs).unwrap();
         let map = shadow.shadow_map().unwrap();
@@ -1537,6 +1540,7 @@ fn the_grid_built_where_the_cones_reach_is_the_whole_build() {
             light: &s.light,
             occluders: &occluders,
             camera: &common::unread_camera(),
+            fallback: None,
         };
         shadow.prepare(&gpu.device, &gpu.queue, &inputs).unwrap();
         let map = shadow.shadow_map().unwrap();
@@ -2123,6 +2127,7 @@ fn gap_grid_cells_against_the_reference_visible_fraction() {
             light: &s.light,
             occluders: &occluders,
             camera: &common::unread_camera(),
+            fallback: None,
         };
         shadow.prepare(&gpu.device, &gpu.queue, &inputs).unwrap();
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
@@ -2273,6 +2278,7 @@ fn the_triangles_are_gathered_where_the_soft_shadows_take_them() {
             light,
             occluders,
             camera: &common::unread_camera(),
+            fallback: None,
         };
         node.prepare(&gpu.device, &gpu.queue, &inputs).unwrap();
         let mut encoder = gpu.device.create_command_encoder(&Default::default());

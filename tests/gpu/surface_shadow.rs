@@ -47,6 +47,7 @@ fn visibility(
         light,
         occluders: &occluders,
         camera: &camera,
+        fallback: None,
     };
     node.prepare(device, &gpu.queue, &inputs).unwrap();
     let mut encoder = device.create_command_encoder(&Default::default());
