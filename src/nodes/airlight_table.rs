@@ -45,6 +45,7 @@ use crate::gpu::pipeline::{bind_group, compute_pipeline, dispatch, layout, modul
 use crate::gpu::wgsl::wgsl_file;
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{check_buffer_size, texture_2d, GpuTimer, UniformBuffer};
+use crate::nodes::cache::CachedPipelines;
 use crate::nodes::uniforms::AirlightUniform;
 use crate::nodes::Cache;
 use crate::nodes::{Encode, Node};
@@ -158,6 +159,12 @@ pub(crate) struct Pipelines {
     row_sum: RowSum,
 }
 
+impl CachedPipelines for Pipelines {
+    fn build(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
+        Self::new(device, precision)
+    }
+}
+
 impl Pipelines {
     pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
         Self::with_row_sum(device, precision, RowSum::for_device(device))
@@ -238,7 +245,7 @@ impl AirlightTableNode {
     /// `(along_ray + 11) × across_rays` of them) do not fit one storage buffer binding on
     /// `device` (128 MiB by default, which holds 4096 × 2042).
     pub fn new(device: &wgpu::Device, cache: &Cache, size: TableSize) -> Result<Self> {
-        Self::with_pipelines(device, cache.table.clone(), size)
+        Self::with_pipelines(device, cache.get::<Pipelines>(), size)
     }
 
     pub(crate) fn with_pipelines(

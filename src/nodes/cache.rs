@@ -1,32 +1,40 @@
-//! The shared, long-lived GPU objects: one handle holding each node's layouts and pipelines,
-//! which the nodes define in their own files (as glyphon's `Cache`). One `Cache` serves any
-//! number of nodes and views on the same device.
+//! The shared, long-lived GPU objects: each node's layouts and pipelines, which the nodes
+//! define in their own files (as glyphon's `Cache`), built once for the cache's device and
+//! precision by the first node that asks for them and found by their type, so that this file
+//! names no node. One `Cache` serves any number of nodes and views on the same device.
 
-use crate::error::Result;
+use std::any::{Any, TypeId};
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+
 use crate::gpu::ShaderPrecision;
-use crate::nodes::{self, CompositeNode, MarchSettings, Scale};
 
-/// Every node's layouts and pipelines on one device. Cloning is cheap (handles).
+/// A node's layouts and pipelines, as the [`Cache`] holds them: built once per cache and
+/// shared by its clones (cloning is cheap: handles). A node's pipeline variants built on first
+/// use (the march's method and light kind, the composite's output format) live behind the
+/// same handles.
+pub(crate) trait CachedPipelines: Clone + Send + Sync + 'static {
+    /// Compiles the node's shaders and builds what does not depend on a frame.
+    fn build(device: &wgpu::Device, precision: ShaderPrecision) -> Self;
+}
+
+/// Every node's layouts and pipelines on one device, each built when a node first needs it
+/// (or before the first frame by [`warm_up`](Self::warm_up)). Cloning is cheap (handles); the
+/// clones share what any of them builds.
 ///
 /// Used in the [crate-level example](crate#example).
 #[derive(Clone)]
 pub struct Cache {
-    pub(crate) light_texture: nodes::light_texture::Pipelines,
-    pub(crate) shadow_map: nodes::shadow_map::Pipelines,
-    pub(crate) extents: nodes::extents::Pipelines,
-    pub(crate) table: nodes::airlight_table::Pipelines,
-    pub(crate) march: nodes::march::Pipelines,
-    pub(crate) upsample: nodes::upsample::Pipelines,
-    pub(crate) composite: nodes::composite::Pipelines,
-    pub(crate) iss_table: nodes::iss_table::Pipelines,
-    pub(crate) soft_shadow: nodes::soft_shadow::Pipelines,
+    device: wgpu::Device,
     precision: ShaderPrecision,
+    built: Arc<Mutex<HashMap<TypeId, Box<dyn Any + Send + Sync>>>>,
 }
 
 impl Cache {
-    /// Compiles the shaders and builds the layouts and the pipelines that do not depend on a
-    /// frame; pipeline variants (the march's method and light kind, the composite's output
-    /// format) are built on first use.
+    /// A cache for `device`'s nodes. It compiles nothing yet: each node's shaders and
+    /// pipelines are built by the first node that needs them, or all of them, with the
+    /// variants a frame can use, by [`warm_up`](Self::warm_up)
+    /// ([`Settings::warm_up`](crate::Settings::warm_up) through the facade).
     ///
     /// Used in the [crate-level example](crate#example).
     pub fn new(device: &wgpu::Device) -> Self {
@@ -39,16 +47,9 @@ impl Cache {
     /// images.
     pub fn with_precision(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
         Self {
-            light_texture: nodes::light_texture::Pipelines::new(device, precision),
-            shadow_map: nodes::shadow_map::Pipelines::new(device, precision),
-            extents: nodes::extents::Pipelines::new(device, precision),
-            table: nodes::airlight_table::Pipelines::new(device, precision),
-            march: nodes::march::Pipelines::new(device, precision),
-            upsample: nodes::upsample::Pipelines::new(device, precision),
-            composite: nodes::composite::Pipelines::new(device, precision),
-            iss_table: nodes::iss_table::Pipelines::new(device, precision),
-            soft_shadow: nodes::soft_shadow::Pipelines::new(device, precision),
+            device: device.clone(),
             precision,
+            built: Arc::default(),
         }
     }
 
@@ -57,42 +58,16 @@ impl Cache {
         self.precision
     }
 
-    /// Builds, before the first frame, every pipeline that frames with `march` settings and
-    /// output `format` can use for lights of the kinds in `lights`: the march's variants (each
-    /// method's shadowed and unshadowed forms, with and without a soft light's grid), the
-    /// upsample's for a reduced resolution, and the composite's for `format`. Without it each
-    /// variant is built by the first frame that needs it, inside the node's `prepare`: a pause
-    /// of up to seconds on that frame. The pipelines are shared by every clone of the cache;
-    /// warming twice builds nothing new. Through the facade,
-    /// [`Settings::warm_up`](crate::Settings::warm_up) calls this with its settings.
-    ///
-    /// Drivers that compile a pipeline only when it first runs (Mesa's lavapipe) still spend
-    /// that time in the first frame's submission;
-    /// [`VolumetricShadows::is_first_frame`](crate::VolumetricShadows::is_first_frame) marks
-    /// such frames.
-    ///
-    /// # Errors
-    ///
-    /// [`MarchSettings`]' range checks and [`CompositeNode::new`]'s
-    /// ([`Error::InvalidSetting`](crate::Error::InvalidSetting) naming the field), building
-    /// nothing.
-    pub fn warm_up(
-        &self,
-        device: &wgpu::Device,
-        march: &MarchSettings,
-        format: wgpu::TextureFormat,
-        lights: &[LightKind],
-    ) -> Result<()> {
-        march.validate()?;
-        // The node builds both composite paths (render and compute) for the format.
-        CompositeNode::new(device, self, format)?;
-        for &kind in lights {
-            self.march.warm_up(device, march, kind);
-            if march.scale != Scale::Full {
-                self.upsample.warm_up(device, kind);
-            }
-        }
-        Ok(())
+    /// The pipelines of type `P`, built for this cache's device on first use.
+    pub(crate) fn get<P: CachedPipelines>(&self) -> P {
+        let mut built = self.built.lock().unwrap_or_else(|e| e.into_inner());
+        let entry = built
+            .entry(TypeId::of::<P>())
+            .or_insert_with(|| Box::new(P::build(&self.device, self.precision)));
+        entry
+            .downcast_ref::<P>()
+            .expect("each type's entry holds that type")
+            .clone()
     }
 }
 

@@ -40,6 +40,7 @@ use crate::gpu::{
     check_depth_texture, check_float_texture, check_size, depth_view, texture_2d, GpuTimer,
     UniformBuffer,
 };
+use crate::nodes::cache::CachedPipelines;
 use crate::nodes::uniforms::{CompositeUniform, SurfacesUniform, ViewUniform};
 use crate::nodes::Cache;
 use crate::nodes::{IssPhase, IssTableNode};
@@ -119,6 +120,12 @@ fn storage_format_name(device: &wgpu::Device, format: wgpu::TextureFormat) -> Op
 
 /// The composite's WGSL: the surface term's functions (`ISS_WGSL`'s), then the composite.
 const SOURCE: Wgsl<'static> = wgsl_file!("composite.wgsl");
+
+impl CachedPipelines for Pipelines {
+    fn build(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
+        Self::new(device, precision)
+    }
+}
 
 impl Pipelines {
     pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
@@ -447,22 +454,19 @@ impl CompositeNode {
         output_format: wgpu::TextureFormat,
     ) -> Result<Self> {
         check_output_format(device, output_format)?;
-        let storing = cache
-            .composite
+        let pipelines = cache.get::<Pipelines>();
+        let storing = pipelines
             .storing(device, output_format, false)
-            .zip(cache.composite.storing(device, output_format, true))
+            .zip(pipelines.storing(device, output_format, true))
             .map(|(plain, surfaces)| [plain, surfaces]);
+        // Built now for the node's format; its sRGB twin's on first use.
+        pipelines.writing(device, output_format, false);
+        pipelines.writing(device, output_format, true);
         Ok(Self {
             device: device.clone(),
             format: output_format,
             storing,
-            pipelines: {
-                // Built now for the node's format; its sRGB twin's on first use.
-                cache.composite.writing(device, output_format, false);
-                cache.composite.writing(device, output_format, true);
-                cache.composite.clone()
-            },
-            layout: cache.composite.layout.clone(),
+            layout: pipelines.layout.clone(),
             uniform: UniformBuffer::new(device, "volshadow composite"),
             view: UniformBuffer::new(device, "volshadow composite view"),
             placeholder: texture_2d(
@@ -479,7 +483,8 @@ impl CompositeNode {
             surf_value: SurfacesUniform::zeroed(),
             spots: false,
             spot_lattice: Self::DEFAULT_SPOT_LATTICE,
-            lattice: cache.composite.lattice(device),
+            lattice: pipelines.lattice(device),
+            pipelines,
             lattice_texture: None,
         })
     }

@@ -52,6 +52,7 @@ use crate::gpu::{
     check_depth_texture, check_target_size, depth_view, wgsl_size, GpuTimer, Occluder,
     UniformBuffer,
 };
+use crate::nodes::cache::CachedPipelines;
 use crate::nodes::light::LightUniform;
 use crate::nodes::uniforms::ViewUniform;
 use crate::nodes::Cache;
@@ -117,6 +118,12 @@ pub(crate) struct Pipelines {
     bin_layout: wgpu::BindGroupLayout,
     /// The compute build: setup, count, scan, fill, build.
     bin: [wgpu::ComputePipeline; 5],
+}
+
+impl CachedPipelines for Pipelines {
+    fn build(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
+        Self::new(device, precision)
+    }
 }
 
 impl Pipelines {
@@ -432,11 +439,11 @@ impl ExtentsNode {
         let raster_bind_group = bind_group(
             device,
             "volshadow extents raster",
-            &cache.extents.raster_layout,
+            &cache.get::<Pipelines>().raster_layout,
             [view_buffer.as_entire_binding()],
         );
         Ok(Self {
-            pipelines: cache.extents.clone(),
+            pipelines: cache.get::<Pipelines>(),
             view_buffer,
             raster_bind_group,
             extrude_buffer: None,

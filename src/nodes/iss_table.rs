@@ -55,6 +55,7 @@ use crate::gpu::pipeline::{bind_group, compute_pipeline, dispatch, layout, modul
 use crate::gpu::wgsl::wgsl_file;
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{texture_2d, GpuTimer, UniformBuffer};
+use crate::nodes::cache::CachedPipelines;
 use crate::nodes::uniforms::AirlightUniform;
 use crate::nodes::Cache;
 use crate::nodes::{Encode, Node};
@@ -147,6 +148,12 @@ pub(crate) struct Pipelines {
     build: wgpu::ComputePipeline,
 }
 
+impl CachedPipelines for Pipelines {
+    fn build(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
+        Self::new(device, precision)
+    }
+}
+
 impl Pipelines {
     pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
         let label = "volshadow ISS table";
@@ -181,15 +188,15 @@ impl IssTableNode {
         size.validate()?;
         let uniform = UniformBuffer::new(device, "volshadow ISS table uniform");
         let (texture, view, bind_group) =
-            Self::resources(device, &cache.iss_table.layout, &uniform, size);
+            Self::resources(device, &cache.get::<Pipelines>().layout, &uniform, size);
         Ok(Self {
             size,
             texture,
             view,
             uniform,
             bind_group,
-            layout: cache.iss_table.layout.clone(),
-            pipeline: cache.iss_table.build.clone(),
+            layout: cache.get::<Pipelines>().layout.clone(),
+            pipeline: cache.get::<Pipelines>().build.clone(),
             pending: false,
         })
     }

@@ -15,6 +15,7 @@ use crate::gpu::pipeline::{bind_group, fullscreen_pipeline, layout, module, Bind
 use crate::gpu::wgsl::wgsl_file;
 use crate::gpu::GpuTimer;
 use crate::gpu::ShaderPrecision;
+use crate::nodes::cache::CachedPipelines;
 use crate::nodes::Cache;
 use crate::nodes::{Encode, Node};
 use crate::pass::Pass;
@@ -30,6 +31,12 @@ const BINDINGS: [Binding; 2] = [
 pub(crate) struct Pipelines {
     layout: wgpu::BindGroupLayout,
     levels: [wgpu::RenderPipeline; 2],
+}
+
+impl CachedPipelines for Pipelines {
+    fn build(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
+        Self::new(device, precision)
+    }
 }
 
 impl Pipelines {
@@ -59,7 +66,7 @@ impl LightTextureNode {
     /// Creates the node.
     pub fn new(device: &wgpu::Device, cache: &Cache) -> Result<Self> {
         Ok(Self {
-            pipelines: cache.light_texture.clone(),
+            pipelines: cache.get::<Pipelines>(),
             sampler: device.create_sampler(&wgpu::SamplerDescriptor {
                 label: Some("volshadow light texture"),
                 mag_filter: wgpu::FilterMode::Linear,

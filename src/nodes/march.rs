@@ -49,11 +49,12 @@ use crate::gpu::{
     check_depth_layers, check_depth_texture, check_size, check_target_size, depth_view, texture_2d,
     texture_3d, GpuTimer, UniformBuffer,
 };
+use crate::nodes::cache::CachedPipelines;
 use crate::nodes::extents::{CrossingsBuild, Extents};
 use crate::nodes::light::{light_constant, LightUniform};
-use crate::nodes::pcss::{shadow_layout, ShadowBinding, ShadowUniform};
+use crate::nodes::pcss::{cell_angle, shadow_layout, ShadowBinding, ShadowUniform};
 use crate::nodes::shadow_map::ShadowMap;
-use crate::nodes::soft_shadow::{cell_angle, SoftShadow};
+use crate::nodes::soft_shadow::SoftShadow;
 use crate::nodes::uniforms::{AirlightUniform, ViewUniform};
 use crate::nodes::Cache;
 use crate::nodes::{AirlightTableNode, Scale};
@@ -232,6 +233,12 @@ pub(crate) struct Pipelines {
 
 /// The march's WGSL (it imports the shared shadow-map visibility, `pcss.wgsl`).
 const SOURCE: Wgsl<'static> = wgsl_file!("march.wgsl");
+
+impl CachedPipelines for Pipelines {
+    fn build(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
+        Self::new(device, precision)
+    }
+}
 
 impl Pipelines {
     pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
@@ -651,12 +658,16 @@ impl MarchNode {
         let sampled = wgpu::TextureUsages::TEXTURE_BINDING;
         Ok(Self {
             settings,
-            pipelines: cache.march.clone(),
+            pipelines: cache.get::<Pipelines>(),
             pipeline: None,
             airlight: UniformBuffer::new(device, "volshadow march airlight"),
             view: UniformBuffer::new(device, "volshadow march view"),
             params: UniformBuffer::new(device, "volshadow march params"),
-            shadow: ShadowBinding::new(device, &cache.march.shadow_layout, "volshadow march light"),
+            shadow: ShadowBinding::new(
+                device,
+                &cache.get::<Pipelines>().shadow_layout,
+                "volshadow march light",
+            ),
             linear: device.create_sampler(&wgpu::SamplerDescriptor {
                 label: Some("volshadow light texture"),
                 mag_filter: wgpu::FilterMode::Linear,

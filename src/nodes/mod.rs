@@ -39,6 +39,7 @@ pub(crate) mod shadow_map;
 pub(crate) mod soft_shadow;
 pub(crate) mod uniforms;
 pub(crate) mod upsample;
+mod warm_up;
 
 use crate::error::Result;
 use crate::gpu::GpuTimer;

@@ -53,6 +53,7 @@ use crate::gpu::pipeline::{
 use crate::gpu::wgsl::wgsl_file;
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{GpuTimer, Occluder};
+use crate::nodes::cache::CachedPipelines;
 use crate::nodes::shadow_gate::{arguments, Gate, GatePipelines};
 use crate::nodes::{Cache, Crossings};
 use crate::nodes::{Encode, Node};
@@ -105,6 +106,12 @@ pub(crate) struct Pipelines {
     clear: wgpu::RenderPipeline,
     /// The gate's scan of the crossing lists ([`shadow_gate`](crate::nodes::shadow_gate)).
     gate: GatePipelines,
+}
+
+impl CachedPipelines for Pipelines {
+    fn build(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
+        Self::new(device, precision)
+    }
 }
 
 impl Pipelines {
@@ -713,7 +720,7 @@ impl ShadowMapNode {
         }
         Ok(Self {
             settings,
-            pipelines: cache.shadow_map.clone(),
+            pipelines: cache.get::<Pipelines>(),
             texture: None,
             back: None,
             faces: Vec::new(),

@@ -141,8 +141,10 @@ use crate::gpu::pipeline::{bind_group, compute_pipeline, layout, module, Binding
 use crate::gpu::wgsl::{wgsl_file, Wgsl};
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{check_depth_layers, texture_3d, GpuTimer, UniformBuffer};
+use crate::nodes::cache::CachedPipelines;
 use crate::nodes::light::{light_constant, LIGHT_POINT, LIGHT_SPOT};
-use crate::nodes::pcss::{shadow_layout, ShadowBinding, ShadowUniform};
+use crate::nodes::pcss::{cell_angle, shadow_layout, ShadowBinding, ShadowUniform};
+use crate::nodes::pcss::{SoftLight, MAX_SOFT_SPHERES};
 use crate::nodes::shadow_map::ShadowMap;
 use crate::nodes::Cache;
 use crate::nodes::{Encode, Node};
@@ -231,112 +233,6 @@ const REST_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Float;
 /// The three lists' dispatches, each in its own slot of the dispatch buffer (a storage
 /// binding's offset is a multiple of 256 bytes on every device).
 const LIST_SLOT: u64 = 256;
-
-/// Most occluder bounding spheres the soft shadow tests a point against; more are merged into
-/// one sphere around them all.
-pub(crate) const MAX_SOFT_SPHERES: usize = 8;
-
-/// The soft shadow's constants: `[radius, least distance from the light to an occluder (its
-/// bounding box, or sphere; at least the radius), number of spheres, 0]`, the spheres (see [`ShadowMap::bounds`])
-/// and their planes ([`ShadowMap::planes`]; zero, none, for spheres merged into one).
-pub(crate) fn soft_params(
-    light: &Light,
-    map: &ShadowMap<'_>,
-) -> (
-    SoftLight,
-    [[f32; 4]; MAX_SOFT_SPHERES],
-    [[f32; 4]; MAX_SOFT_SPHERES],
-) {
-    let bounds = map.bounds;
-    let mut spheres = [[0.0; 4]; MAX_SOFT_SPHERES];
-    let mut planes = [[0.0; 4]; MAX_SOFT_SPHERES];
-    let p = light.position().unwrap_or_default();
-    // The grid's slices start at the occluders' bounding boxes (where known), not at their
-    // tighter spheres: on the seeded spot scenes of the tests, slices from the spheres left
-    // the views lit by a deep penumbra worse (p95 up to 8.1% against 7.5%).
-    let nearest = if map.occluder_distance > 0.0 {
-        map.occluder_distance
-    } else {
-        bounds
-            .iter()
-            .map(|b| (b.truncate().distance(p) - b.w).max(0.0))
-            .fold(f32::INFINITY, f32::min)
-    };
-    let count = if bounds.len() <= MAX_SOFT_SPHERES {
-        for (slot, b) in spheres.iter_mut().zip(bounds) {
-            *slot = b.to_array();
-        }
-        for (slot, plane) in planes.iter_mut().zip(map.planes) {
-            *slot = plane.to_array();
-        }
-        bounds.len()
-    } else {
-        let lo = bounds
-            .iter()
-            .fold(glam::Vec3::INFINITY, |a, b| a.min(b.truncate() - b.w));
-        let hi = bounds
-            .iter()
-            .fold(glam::Vec3::NEG_INFINITY, |a, b| a.max(b.truncate() + b.w));
-        let c = 0.5 * (lo + hi);
-        let r = bounds
-            .iter()
-            .map(|b| b.truncate().distance(c) + b.w)
-            .fold(0.0, f32::max);
-        spheres[0] = c.extend(r).to_array();
-        1
-    };
-    // At least the light's radius: a point inside the light's sphere sees all of it (the
-    // model's convention), and the grid's slices and the blocker search, which reach from
-    // `nearest` out, would otherwise spread over a light with an occluder's bounds around it.
-    let nearest = if nearest.is_finite() { nearest } else { 0.0 }.max(light.radius());
-    (
-        SoftLight {
-            nearest,
-            spheres: count as u32,
-            cell_angle: 0.0,
-            reproject: u32::from(map.gaps),
-            groups: map.triangle_groups(),
-        },
-        spheres,
-        planes,
-    )
-}
-
-/// WGSL `SoftLight` (`shaders/pcss.wgsl`): a light with a radius as the soft estimate reads it,
-/// in the march's and the grid's parameters.
-#[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::Pod, bytemuck::Zeroable)]
-pub(crate) struct SoftLight {
-    /// The least distance from the light of any occluder's bounds (at least the radius).
-    pub nearest: f32,
-    /// Bounding spheres (and planes) given beside it.
-    pub spheres: u32,
-    /// The grid's cells: the angle (radians) one subtends at a layer's centre; 0 in the march.
-    pub cell_angle: f32,
-    /// 1 where the shadow map's occluders may leave gaps ([`ShadowMap::gaps`]), outside the
-    /// grid's build: each of the filter's taps moves to where its line crosses its own
-    /// blocker's distance (`soft_filter` in `shaders/pcss.wgsl`); else 0.
-    pub reproject: u32,
-    /// The groups of four of the occluders' triangles the exact visible fraction reads
-    /// ([`ShadowMap::triangles`], `soft_exact` in `shaders/pcss.wgsl`); 0: the estimate from
-    /// the shadow map.
-    pub groups: u32,
-}
-
-impl SoftLight {
-    /// The grid's least distance from a light of `radius`, as the shaders take it
-    /// (`soft_estimate`).
-    pub fn near(&self, radius: f32) -> f32 {
-        self.nearest.max(1.0e-3 * radius)
-    }
-}
-
-/// The angle (radians) a grid cell subtends at the centre of a layer of `directions` cells
-/// whose `clip_from_world` is `face`.
-pub(crate) fn cell_angle(face: &glam::Mat4, directions: u32) -> f32 {
-    let scale = face.row(0).truncate().length();
-    2.0 * (1.0 / scale).atan() / directions as f32
-}
 
 /// Per layer, a rectangle of blocks of 2 × 2 directions (indexed by their anchor, the
 /// direction at even indices), `[x0, y0, x1, y1]` from `(x0, y0)` to `(x1, y1)` exclusive;
@@ -595,6 +491,12 @@ pub(crate) struct Pipelines {
     spot: Build,
 }
 
+impl CachedPipelines for Pipelines {
+    fn build(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
+        Self::new(device, precision)
+    }
+}
+
 impl Pipelines {
     pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
         let label = "volshadow soft shadow";
@@ -840,11 +742,11 @@ impl SoftShadowNode {
         size.validate()?;
         Ok(Self {
             size,
-            pipelines: cache.soft_shadow.clone(),
+            pipelines: cache.get::<Pipelines>(),
             uniform: UniformBuffer::new(device, "volshadow soft shadow params"),
             shadow: ShadowBinding::new(
                 device,
-                &cache.soft_shadow.shadow_layout,
+                &cache.get::<Pipelines>().shadow_layout,
                 "volshadow soft shadow light",
             ),
             texture: None,

@@ -67,7 +67,7 @@ impl AirlightUniform {
         light: &Light,
         medium: &Medium,
         pixel_angular_radius: f32,
-        table: super::TableSize,
+        table: crate::nodes::TableSize,
     ) -> Self {
         let (light_pos, d) = match light {
             // A directional light: its direction of travel, and the length of the ray

@@ -116,6 +116,7 @@ use crate::gpu::pipeline::{bind_group, cached, compute_pipeline, layout, module,
 use crate::gpu::wgsl::wgsl_file;
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{check_depth_texture, check_float_texture, GpuTimer, UniformBuffer};
+use crate::nodes::cache::CachedPipelines;
 use crate::nodes::light::{light_constant, LightUniform};
 use crate::nodes::uniforms::ViewUniform;
 use crate::nodes::Cache;
@@ -147,6 +148,12 @@ pub(crate) struct Pipelines {
     module: wgpu::ShaderModule,
     /// Keyed by the `LIGHT` constant ([`LightUniform::kind`]).
     lights: Arc<Mutex<HashMap<u32, EntryPoints>>>,
+}
+
+impl CachedPipelines for Pipelines {
+    fn build(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
+        Self::new(device, precision)
+    }
 }
 
 impl Pipelines {
@@ -250,7 +257,7 @@ impl UpsampleNode {
         filter.validate()?;
         Ok(Self {
             filter,
-            pipelines: cache.upsample.clone(),
+            pipelines: cache.get::<Pipelines>(),
             entry_points: None,
             uniform: UniformBuffer::new(device, "volshadow upsample"),
             view: UniformBuffer::new(device, "volshadow upsample view"),

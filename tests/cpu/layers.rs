@@ -6,6 +6,8 @@
 //! `LAYERS` is the order, bottom up, that `docs/GUIDE.md`'s "Layout" describes. A module not in
 //! it, an upward edge, or a cycle fails with the file and line of each offending path.
 //!
+//! Inside `src/nodes/` the modules form no circle either (`modules_inside_nodes_form_no_circle`).
+//!
 //! Also read from the source: every pass begins through `gpu::passes`, which counts it.
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -84,6 +86,17 @@ fn root_reexports(lib: &str) -> BTreeMap<String, String> {
 /// Every module a file's text names through `crate::`, with its line: `crate::x` and the
 /// first names of a `crate::{x, y::z}` group, re-exports resolved through `reexports`.
 fn uses(text: &str, reexports: &BTreeMap<String, String>) -> Vec<(String, usize)> {
+    uses_after(text, "crate::", reexports)
+}
+
+/// Every name a file's text names after `prefix` (`crate::`, `crate::nodes::`, …), as
+/// [`uses`] does; a prefix right after an identifier or `::` is part of a longer path and
+/// skipped.
+fn uses_after(
+    text: &str,
+    prefix: &str,
+    reexports: &BTreeMap<String, String>,
+) -> Vec<(String, usize)> {
     let text = strip_comments(text);
     let ident = |s: &str| -> String {
         s.chars()
@@ -92,15 +105,15 @@ fn uses(text: &str, reexports: &BTreeMap<String, String>) -> Vec<(String, usize)
     };
     let resolve = |name: String| reexports.get(&name).cloned().unwrap_or(name);
     let mut found = Vec::new();
-    for (at, _) in text.match_indices("crate::") {
+    for (at, _) in text.match_indices(prefix) {
         if at > 0 {
             let before = text.as_bytes()[at - 1];
-            if before.is_ascii_alphanumeric() || before == b'_' {
-                continue; // `volshadow_crate::` or similar
+            if before.is_ascii_alphanumeric() || before == b'_' || before == b':' {
+                continue; // `volshadow_crate::`, `crate::nodes::` for `nodes::`, or similar
             }
         }
         let line = text[..at].matches('\n').count() + 1;
-        let rest = &text[at + "crate::".len()..];
+        let rest = &text[at + prefix.len()..];
         if let Some(group) = rest.strip_prefix('{') {
             let group = &group[..group.find('}').unwrap_or(group.len())];
             // Only the first segment of each comma-separated path.
@@ -352,6 +365,119 @@ fn the_check_finds_upward_uses_and_cycles() {
         .collect();
     assert_eq!(cycle(&clean), None);
     assert!(violations(&clean, &modules, LAYERS).is_empty());
+}
+
+/// Every use of one module inside `src/nodes/` by another, from `(path, text)` pairs relative
+/// to `src` (only the `nodes/*.rs` files count; `nodes/mod.rs` declares and re-exports, as
+/// `lib.rs` does above): `crate::nodes::x`, `nodes::x` and `super::x` paths, a name
+/// re-exported by `mod_rs` counting as the module it comes from.
+fn node_edges(files: &[(String, String)], mod_rs: &str, modules: &BTreeSet<String>) -> Vec<Edge> {
+    let reexports = root_reexports(mod_rs);
+    let mut out = Vec::new();
+    for (path, text) in files {
+        let Some(from) = path
+            .strip_prefix("nodes/")
+            .and_then(|f| f.strip_suffix(".rs"))
+            .filter(|f| *f != "mod" && !f.contains('/'))
+        else {
+            continue;
+        };
+        for prefix in ["crate::nodes::", "nodes::", "super::"] {
+            for (to, line) in uses_after(text, prefix, &reexports) {
+                if to != from && modules.contains(&to) {
+                    out.push(Edge {
+                        from: from.to_string(),
+                        to,
+                        site: format!("{path}:{line}"),
+                    });
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The modules inside `src/nodes/` use each other without a circle (a shared group, such as
+/// `pcss`, is imported by the nodes and imports none of them; the `Cache` finds each node's
+/// pipelines by type and names none). Also: a made-up circle through a re-export and a
+/// `super::` path is found.
+#[test]
+fn modules_inside_nodes_form_no_circle() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let dir = src.join("nodes");
+    let mut files = Vec::new();
+    let mut modules = BTreeSet::new();
+    for entry in std::fs::read_dir(&dir).expect("read src/nodes") {
+        let path = entry.expect("entry").path();
+        let name = path.file_stem().unwrap().to_string_lossy().to_string();
+        if path.extension().is_some_and(|e| e == "rs") {
+            let text = std::fs::read_to_string(&path).expect("read source");
+            files.push((format!("nodes/{name}.rs"), text));
+            if name != "mod" {
+                modules.insert(name);
+            }
+        }
+    }
+    let mod_rs = std::fs::read_to_string(dir.join("mod.rs")).expect("read nodes/mod.rs");
+    let edges = node_edges(&files, &mod_rs, &modules);
+    let mut summary: BTreeMap<(String, String), usize> = BTreeMap::new();
+    for e in &edges {
+        *summary.entry((e.from.clone(), e.to.clone())).or_default() += 1;
+    }
+    println!("{} modules inside nodes/:", modules.len());
+    for ((from, to), n) in &summary {
+        println!("  {from} -> {to} ({n} paths)");
+    }
+    // The scan must see the folder's own edges: the march reads the shadow map and the shared
+    // shadow group, and every node the cache.
+    for (from, to) in [
+        ("march", "shadow_map"),
+        ("march", "pcss"),
+        ("shadow_map", "cache"),
+    ] {
+        assert!(
+            summary.contains_key(&(from.to_string(), to.to_string())),
+            "the scan lost the edge {from} -> {to}"
+        );
+    }
+    if let Some(c) = cycle(&edges) {
+        let sites: Vec<String> = c
+            .windows(2)
+            .flat_map(|w| {
+                edges
+                    .iter()
+                    .filter(move |e| e.from == w[0] && e.to == w[1])
+                    .map(|e| format!("  {} -> {} at src/{}", e.from, e.to, e.site))
+            })
+            .collect();
+        panic!(
+            "a circle inside nodes/: {}\n{}",
+            c.join(" -> "),
+            sites.join("\n")
+        );
+    }
+
+    // Planted: `a` names `b` through `crate::nodes::`, `b` names `a`'s re-exported type
+    // through `super::`; `c` names `a` in a comment only.
+    let planted = [
+        ("nodes/a.rs", "use crate::nodes::b::Helper;"),
+        ("nodes/b.rs", "fn f(n: &super::ANode) {}"),
+        (
+            "nodes/c.rs",
+            "// crate::nodes::a::ANode\nuse crate::nodes::{self};",
+        ),
+    ];
+    let planted: Vec<(String, String)> = planted
+        .iter()
+        .map(|(p, t)| (p.to_string(), t.to_string()))
+        .collect();
+    let names: BTreeSet<String> = ["a", "b", "c"].iter().map(|s| s.to_string()).collect();
+    let found = node_edges(&planted, "pub use a::{ANode, AInputs};", &names);
+    assert_eq!(found.len(), 2, "{found:?}");
+    assert_eq!(
+        cycle(&found),
+        Some(vec!["a".to_string(), "b".to_string(), "a".to_string()])
+    );
 }
 
 /// The places in `files` (path, text) that begin a pass on the encoder directly, outside
