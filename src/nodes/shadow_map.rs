@@ -1281,6 +1281,41 @@ impl ShadowMapNode {
     }
 }
 
+/// A depth-only render pass over one layer of `target`, loading it as `load` says.
+fn layer_pass<'e>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    target: &wgpu::Texture,
+    layer: u32,
+    load: wgpu::LoadOp<f32>,
+    timer: Option<&mut GpuTimer>,
+) -> wgpu::RenderPass<'e> {
+    let view = target.create_view(&wgpu::TextureViewDescriptor {
+        label: Some("volshadow shadow face"),
+        dimension: Some(wgpu::TextureViewDimension::D2),
+        base_array_layer: layer,
+        array_layer_count: Some(1),
+        ..Default::default()
+    });
+    crate::gpu::passes::begin_render(
+        encoder,
+        &wgpu::RenderPassDescriptor {
+            label: Some("volshadow shadow map"),
+            color_attachments: &[],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &view,
+                depth_ops: Some(wgpu::Operations {
+                    load,
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: timer.and_then(|t| t.render_pass(Pass::ShadowMap)),
+            occlusion_query_set: None,
+            multiview_mask: None,
+        },
+    )
+}
+
 impl ShadowMapNode {
     /// Records a gated map ([`ShadowMapInputs::fallback`]): the gate's scan, then each listed
     /// layer's render pass, which loads the layer and draws its clear and its occluders from
@@ -1300,34 +1335,8 @@ impl ShadowMapNode {
             return Ok(());
         };
         for layer in &gate.layers {
-            let view = texture.create_view(&wgpu::TextureViewDescriptor {
-                label: Some("volshadow shadow face"),
-                dimension: Some(wgpu::TextureViewDimension::D2),
-                base_array_layer: layer.layer,
-                array_layer_count: Some(1),
-                ..Default::default()
-            });
-            let timestamp_writes = timer
-                .as_deref_mut()
-                .and_then(|t| t.render_pass(Pass::ShadowMap));
-            let mut pass = crate::gpu::passes::begin_render(
-                encoder,
-                &wgpu::RenderPassDescriptor {
-                    label: Some("volshadow shadow map (gated)"),
-                    color_attachments: &[],
-                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                        view: &view,
-                        depth_ops: Some(wgpu::Operations {
-                            load: wgpu::LoadOp::Load,
-                            store: wgpu::StoreOp::Store,
-                        }),
-                        stencil_ops: None,
-                    }),
-                    timestamp_writes,
-                    occlusion_query_set: None,
-                    multiview_mask: None,
-                },
-            );
+            let timer = timer.as_deref_mut();
+            let mut pass = layer_pass(encoder, texture, layer.layer, wgpu::LoadOp::Load, timer);
             let face = layer.layer * SLOT as u32;
             pass.set_pipeline(&self.pipelines.clear);
             pass.set_bind_group(0, bind_group, &[face, 0]);
@@ -1415,34 +1424,8 @@ impl Encode for ShadowMapNode {
                         *d = draws > 0;
                     }
                 }
-                let view = target.create_view(&wgpu::TextureViewDescriptor {
-                    label: Some("volshadow shadow face"),
-                    dimension: Some(wgpu::TextureViewDimension::D2),
-                    base_array_layer: layer,
-                    array_layer_count: Some(1),
-                    ..Default::default()
-                });
-                let timestamp_writes = timer
-                    .as_deref_mut()
-                    .and_then(|t| t.render_pass(Pass::ShadowMap));
-                let mut pass = crate::gpu::passes::begin_render(
-                    encoder,
-                    &wgpu::RenderPassDescriptor {
-                        label: Some("volshadow shadow map"),
-                        color_attachments: &[],
-                        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                            view: &view,
-                            depth_ops: Some(wgpu::Operations {
-                                load: wgpu::LoadOp::Clear(0.0),
-                                store: wgpu::StoreOp::Store,
-                            }),
-                            stencil_ops: None,
-                        }),
-                        timestamp_writes,
-                        occlusion_query_set: None,
-                        multiview_mask: None,
-                    },
-                );
+                let timer = timer.as_deref_mut();
+                let mut pass = layer_pass(encoder, target, layer, wgpu::LoadOp::Clear(0.0), timer);
                 let mut all = 0..self.draws.len() as u32;
                 let mut listed = drawn.map(|l| l.iter().copied());
                 let indices: &mut dyn Iterator<Item = u32> = match listed.as_mut() {
