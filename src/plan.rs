@@ -467,7 +467,7 @@ fn plan(facts: &FrameFacts) -> Plan {
                     None => String::new(),
                 };
                 // The crossings decide every pixel they can count: the map only the rest.
-                let on_demand = f.extents && f.crossings && !soft && !facts.surface_maps;
+                let on_demand = f.extents && f.crossings && !facts.surface_maps;
                 light_plan.map_on_demand = on_demand;
                 let at = scale.divisor();
                 // Extents first: a map drawn on demand reads the crossing lists.
