@@ -229,7 +229,7 @@ pub fn render(options: &Options) -> Result<Rendered, BoxError> {
         texture: None,
         shadow: maps[0].as_ref().and_then(|m| m.shadow_map()),
     }];
-    let ambient = default_ambient(&camera, &draw_lights, &medium);
+    let ambient = default_ambient(&camera, &draw_lights, &objects, &medium);
     let app = draw_app_frame(
         &gpu,
         &camera,

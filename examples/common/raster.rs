@@ -139,15 +139,44 @@ struct ShadowUniform {
 }
 
 /// A small ambient radiance per unit albedo for a scene: 3% of what a white surface facing
-/// each light at the eye's distance from it would reflect, so it scales with the scene.
-pub fn default_ambient(camera: &Camera, lights: &[DrawLight], medium: &Medium) -> Vec3 {
+/// each light at the eye's distance from it would reflect, so it scales with the scene. The
+/// distance is at least a tenth of the half-diagonal of the objects' bounds: a light at (or
+/// next to) the eye would otherwise light the surfaces by its 1/d² there (2e11 with the light
+/// at the eye).
+pub fn default_ambient(
+    camera: &Camera,
+    lights: &[DrawLight],
+    objects: &[DrawObject],
+    medium: &Medium,
+) -> Vec3 {
+    let (lo, hi) = objects
+        .iter()
+        .flat_map(|o| {
+            let (a, b) = o.mesh.bounds();
+            (0..8).map(move |k| {
+                let corner = Vec3::new(
+                    if k & 1 == 0 { a.x } else { b.x },
+                    if k & 2 == 0 { a.y } else { b.y },
+                    if k & 4 == 0 { a.z } else { b.z },
+                );
+                o.transform.transform_point3(corner)
+            })
+        })
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p), hi.max(p))
+        });
+    let floor = if objects.is_empty() {
+        0.0
+    } else {
+        0.1 * 0.5 * (hi - lo).length()
+    };
     lights
         .iter()
         .map(|l| {
             let Some(p) = l.light.position() else {
                 return l.light.intensity(); // a directional light's irradiance
             };
-            let d = p.distance(camera.eye()).max(1e-6);
+            let d = p.distance(camera.eye()).max(floor).max(1e-6);
             l.light.intensity() * (-medium.sigma_t() * d).exp() / (d * d)
         })
         .sum::<Vec3>()

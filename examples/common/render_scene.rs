@@ -510,7 +510,7 @@ impl<'a> GpuScene<'a> {
                 albedo: o.albedo,
             })
             .collect();
-        let ambient = default_ambient(camera, &draw_lights, &scene.medium);
+        let ambient = default_ambient(camera, &draw_lights, &objects, &scene.medium);
         let app = draw_app_frame(
             gpu,
             camera,

@@ -23,6 +23,17 @@ pub struct Camera {
 }
 
 impl Camera {
+    /// The largest aspect ratio (width over height of the view, or its inverse) a camera may
+    /// have: a target of 8192 × 1 square pixels, WebGPU's default `max_texture_dimension_2d`
+    /// along one side. Beyond it no target can show the view, and the ray directions lose
+    /// their spread in f32 (an aspect of 1e30 made every pixel the same).
+    pub const MAX_ASPECT: f32 = 8192.0;
+
+    /// The farthest near plane (distance from the eye along the view axis, in world units) a
+    /// camera may have: 1e9, the far bound of scene files. Nothing nearer than it is drawn, so
+    /// a scene within the supported range (coordinates up to 1e6) would be empty.
+    pub const MAX_NEAR: f64 = 1e9;
+
     /// Validates and stores the matrices: `view` maps world to view space (right-handed, e.g.
     /// `glam::camera::rh::view::look_at_mat4`), `projection` view to clip space (any
     /// perspective: standard or reversed Z, finite or infinite far, e.g.
@@ -33,7 +44,10 @@ impl Camera {
     ///
     /// [`Error::NonFinite`] for a non-finite entry (or an inverse view-projection that
     /// overflows), [`Error::SingularMatrix`] for a singular view or projection matrix,
-    /// [`Error::NotPerspective`] for a projection that is not perspective.
+    /// [`Error::NotPerspective`] for a projection that is not perspective,
+    /// [`Error::InvalidSetting`] naming `camera.projection` for an aspect ratio outside
+    /// [1/[`MAX_ASPECT`](Self::MAX_ASPECT), [`MAX_ASPECT`](Self::MAX_ASPECT)] or a near plane
+    /// farther than [`MAX_NEAR`](Self::MAX_NEAR).
     pub fn new(view: Mat4, projection: Mat4) -> Result<Self> {
         finite("camera.view", &view.to_cols_array())?;
         finite("camera.projection", &projection.to_cols_array())?;
@@ -59,6 +73,19 @@ impl Camera {
         let scale = w_row.z.abs();
         if scale == 0.0 || w_row.x != 0.0 || w_row.y != 0.0 || w_row.w.abs() > 1e-6 * scale {
             return Err(Error::NotPerspective);
+        }
+        // The aspect ratio, the x scale against the y scale (cot(fov_y/2) / aspect and
+        // cot(fov_y/2) for a symmetric perspective).
+        let aspect = (projection.y_axis.y / projection.x_axis.x).abs();
+        if !(1.0 / Self::MAX_ASPECT..=Self::MAX_ASPECT).contains(&aspect) {
+            return Err(Error::InvalidSetting {
+                field: "camera.projection",
+                problem: format!(
+                    "its aspect ratio {aspect:.3e} is outside [1/{0}, {0}], the widest a \
+                     target within WebGPU's texture limits has with square pixels",
+                    Self::MAX_ASPECT
+                ),
+            });
         }
         let far_depth = far_end_depth(projection)?;
         let world_from_clip = (projection * view).inverse();
@@ -123,9 +150,100 @@ fn far_end_depth(projection: Mat4) -> Result<f32> {
             len / p.w.abs()
         }
     };
+    // The near end's distance, measured without the test above for points at infinity: a
+    // near plane beyond 1e12 would read as infinitely far, and so as no perspective.
+    let near = [0.0, 1.0]
+        .map(|z| {
+            let p: DVec4 = DMat4::mul_vec4(&inverse, DVec4::new(0.0, 0.0, z, 1.0));
+            p.truncate().length() / p.w.abs()
+        })
+        .into_iter()
+        .fold(f64::INFINITY, f64::min);
+    if near.is_finite() && near > Camera::MAX_NEAR {
+        return Err(Error::InvalidSetting {
+            field: "camera.projection",
+            problem: format!(
+                "its near plane is {near:.3e} from the eye, beyond {:e}",
+                Camera::MAX_NEAR
+            ),
+        });
+    }
     let (d0, d1) = (distance(0.0), distance(1.0));
     if d0 == d1 || d0.is_nan() || d1.is_nan() {
         return Err(Error::NotPerspective);
     }
     Ok(if d1 > d0 { 1.0 } else { 0.0 })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::camera::rh::proj::directx;
+
+    fn view() -> Mat4 {
+        glam::camera::rh::view::look_at_mat4(Vec3::new(0.0, 1.0, 5.0), Vec3::ZERO, Vec3::Y)
+    }
+
+    fn problem(r: Result<Camera>) -> String {
+        match r {
+            Err(Error::InvalidSetting { field, problem }) => format!("{field}: {problem}"),
+            other => panic!("expected InvalidSetting, got {other:?}"),
+        }
+    }
+
+    /// Census item 9: an aspect of 1e30 was accepted and drew a flat image. Bound
+    /// `MAX_ASPECT` (8192, a 8192 × 1 target): at it the camera is accepted, beyond it (either
+    /// way round) the error names the projection and the bound.
+    #[test]
+    fn an_aspect_beyond_any_target_is_an_error() {
+        for aspect in [1.0, Camera::MAX_ASPECT, 1.0 / Camera::MAX_ASPECT] {
+            let p = directx::perspective(0.8, aspect, 0.1, 100.0);
+            assert!(Camera::new(view(), p).is_ok(), "aspect {aspect}");
+        }
+        for aspect in [
+            1e30,
+            1.01 * Camera::MAX_ASPECT,
+            1e-30,
+            0.99 / Camera::MAX_ASPECT,
+        ] {
+            let p = directx::perspective(0.8, aspect, 0.1, 100.0);
+            let text = problem(Camera::new(view(), p));
+            assert!(
+                text.starts_with("camera.projection: its aspect ratio") && text.contains("8192"),
+                "aspect {aspect}: {text}"
+            );
+        }
+    }
+
+    /// Census item 9: a near plane of 1e30 read "not a perspective projection". It is a
+    /// perspective, with its near plane beyond `MAX_NEAR`: the error says so, for standard and
+    /// reversed, finite and infinite projections; 1e8 is accepted.
+    #[test]
+    fn a_near_plane_beyond_the_scene_range_is_named() {
+        // Finite forms only where near · far fits in f32 (beyond it the matrix itself
+        // overflows, a `NonFinite` error).
+        let projections = |near: f32| {
+            let mut p = vec![
+                directx::perspective_infinite(0.8, 1.5, near),
+                directx::perspective_infinite_reverse(0.8, 1.5, near),
+            ];
+            if near < 1e18 {
+                p.push(directx::perspective(0.8, 1.5, near, near * 10.0));
+                p.push(directx::perspective(0.8, 1.5, near * 10.0, near));
+            }
+            p
+        };
+        for p in projections(1e8) {
+            assert!(Camera::new(view(), p).is_ok(), "near 1e8: {p}");
+        }
+        for near in [1e30, 1e13, 2e9] {
+            for p in projections(near) {
+                let text = problem(Camera::new(view(), p));
+                assert!(
+                    text.contains("near plane") && text.contains("beyond 1e9"),
+                    "near {near}: {text}"
+                );
+            }
+        }
+    }
 }

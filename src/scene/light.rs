@@ -4,6 +4,27 @@ use glam::Vec3;
 
 use crate::error::{finite, non_negative, Error, Result};
 
+/// A light's intensity (or a sun's irradiance): finite, non-negative, non-zero in some channel
+/// and at most [`Light::MAX_INTENSITY`] in each.
+fn emission(field: &'static str, v: Vec3) -> Result<()> {
+    non_negative(field, &v.to_array())?;
+    if v.max_element() <= 0.0 {
+        return Err(Error::ZeroIntensity { field });
+    }
+    if v.max_element() > Light::MAX_INTENSITY {
+        return Err(Error::InvalidSetting {
+            field,
+            problem: format!(
+                "{} is above Light::MAX_INTENSITY = {:e} (f32's largest over 16): the passes' \
+                 f32 products would overflow; scale the scene's lights and exposure down",
+                v.max_element(),
+                Light::MAX_INTENSITY
+            ),
+        });
+    }
+    Ok(())
+}
+
 /// An isotropic point light: radiant intensity `intensity` (RGB, per steradian) at `position`.
 ///
 /// # Radius (soft shadows)
@@ -34,15 +55,11 @@ impl PointLight {
     /// # Errors
     ///
     /// [`Error::NonFinite`] for a non-finite position or intensity, [`Error::Negative`] for a negative
-    /// intensity channel, [`Error::ZeroIntensity`] when every channel is zero.
+    /// intensity channel, [`Error::ZeroIntensity`] when every channel is zero,
+    /// [`Error::InvalidSetting`] for a channel above [`Light::MAX_INTENSITY`].
     pub fn new(position: Vec3, intensity: Vec3) -> Result<Self> {
         finite("point_light.position", &position.to_array())?;
-        non_negative("point_light.intensity", &intensity.to_array())?;
-        if intensity.max_element() <= 0.0 {
-            return Err(Error::ZeroIntensity {
-                field: "point_light.intensity",
-            });
-        }
+        emission("point_light.intensity", intensity)?;
         Ok(Self {
             position,
             intensity,
@@ -126,12 +143,12 @@ impl SpotLight {
     /// [`Error::NonFinite`] (position, direction, cone angle or intensity), [`Error::Negative`]
     /// (intensity), [`Error::DegenerateDirection`] for a zero-length direction,
     /// [`Error::ConeAngleOutOfRange`] for an angle outside (0, `MAX_CONE_ANGLE`],
-    /// [`Error::ZeroIntensity`] when every channel is zero.
+    /// [`Error::ZeroIntensity`] when every channel is zero, [`Error::InvalidSetting`] for a
+    /// channel above [`Light::MAX_INTENSITY`].
     pub fn new(position: Vec3, direction: Vec3, cone_angle: f32, intensity: Vec3) -> Result<Self> {
         finite("spot_light.position", &position.to_array())?;
         finite("spot_light.direction", &direction.to_array())?;
         finite("spot_light.cone_angle", &[cone_angle])?;
-        non_negative("spot_light.intensity", &intensity.to_array())?;
         // A finite direction whose length overflows (or underflows) f32 is rescaled first, so
         // it normalises too: only a zero vector is degenerate.
         let len = direction.length();
@@ -151,11 +168,7 @@ impl SpotLight {
                 max: Self::MAX_CONE_ANGLE,
             });
         }
-        if intensity.max_element() <= 0.0 {
-            return Err(Error::ZeroIntensity {
-                field: "spot_light.intensity",
-            });
-        }
+        emission("spot_light.intensity", intensity)?;
         Ok(Self {
             position,
             direction: unit,
@@ -233,10 +246,10 @@ impl DirectionalLight {
     ///
     /// [`Error::NonFinite`] (direction or irradiance), [`Error::Negative`] (irradiance),
     /// [`Error::DegenerateDirection`] for a direction that cannot be normalised,
-    /// [`Error::ZeroIntensity`] when every channel of the irradiance is zero.
+    /// [`Error::ZeroIntensity`] when every channel of the irradiance is zero,
+    /// [`Error::InvalidSetting`] for a channel above [`Light::MAX_INTENSITY`].
     pub fn new(direction: Vec3, irradiance: Vec3) -> Result<Self> {
         finite("directional_light.direction", &direction.to_array())?;
-        non_negative("directional_light.irradiance", &irradiance.to_array())?;
         // Rescaled first, so that tiny or huge finite vectors normalise too.
         let largest = direction.abs().max_element();
         let direction = (direction / largest).normalize_or_zero();
@@ -245,11 +258,7 @@ impl DirectionalLight {
                 field: "directional_light.direction",
             });
         }
-        if irradiance.max_element() <= 0.0 {
-            return Err(Error::ZeroIntensity {
-                field: "directional_light.irradiance",
-            });
-        }
+        emission("directional_light.irradiance", irradiance)?;
         Ok(Self {
             direction,
             irradiance,
@@ -344,6 +353,17 @@ pub enum Light {
 }
 
 impl Light {
+    /// The largest intensity (a directional light's irradiance) in any channel: f32's largest
+    /// value over 16, about 2.1e37. The passes multiply a light's intensity by the medium's
+    /// coefficients, the phase function and distances in f32 and clamp the result at 1e30, so
+    /// that no infinity reaches an output; an intensity near f32's largest value (3.4e38)
+    /// overflows in those products before the clamp (1e38 drew every pixel at the clamp).
+    /// Below this bound the stiff cases fit: a medium of optical depth 100 dims a light by
+    /// e^−100 ≈ 4e-44, below f32's normal range, unless the light is that much brighter.
+    /// A light bright enough that its in-scatter passes 1e30 still draws the clamp there:
+    /// radiance is linear in the lights, so scale such a scene's lights (and exposure) down.
+    pub const MAX_INTENSITY: f32 = f32::MAX / 16.0;
+
     /// World-space position (`None` for a directional light, which is at infinity).
     pub fn position(&self) -> Option<Vec3> {
         match self {
@@ -411,6 +431,47 @@ impl From<&Light> for Light {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Census item 9: an intensity of 1e38 was accepted and every pixel drew the 1e30 clamp.
+    /// Each kind of light accepts `MAX_INTENSITY` (2.1e37; the stiff tests' lights reach 1e37)
+    /// and refuses 1e38 and the next f32 above the bound, naming its field and the bound.
+    #[test]
+    fn an_intensity_beyond_the_f32_range_is_an_error() {
+        let at = |v: f32| Vec3::new(0.5, v, 1.0);
+        let kinds = |v: f32| {
+            [
+                (
+                    "point_light.intensity",
+                    PointLight::new(Vec3::ZERO, at(v)).map(|_| ()),
+                ),
+                (
+                    "spot_light.intensity",
+                    SpotLight::new(Vec3::ZERO, Vec3::NEG_Y, 1.0, at(v)).map(|_| ()),
+                ),
+                (
+                    "directional_light.irradiance",
+                    DirectionalLight::new(Vec3::NEG_Y, at(v)).map(|_| ()),
+                ),
+            ]
+        };
+        for v in [1.0, 1e37, Light::MAX_INTENSITY] {
+            for (field, r) in kinds(v) {
+                assert!(r.is_ok(), "{field} {v:e}: {r:?}");
+            }
+        }
+        let above = f32::from_bits(Light::MAX_INTENSITY.to_bits() + 1);
+        for v in [1e38, above, f32::MAX] {
+            for (field, r) in kinds(v) {
+                match r {
+                    Err(Error::InvalidSetting { field: f, problem }) => {
+                        assert_eq!(f, field);
+                        assert!(problem.contains("MAX_INTENSITY"), "{problem}");
+                    }
+                    other => panic!("{field} {v:e}: {other:?}"),
+                }
+            }
+        }
+    }
 
     /// A finite direction whose length overflows f32 (`[1e38; 3]`: its length is 1.7e38 · √3,
     /// beyond f32) or underflows it normalises, for spot and directional lights alike (the

@@ -1358,3 +1358,69 @@ fn gltf_mesh_report_says_open_and_non_manifold() {
         );
     }
 }
+
+/// Census item 9: with the light at the eye, the tools' ambient (3% of what a white surface
+/// facing the light reflects at the eye's distance from it) divided by that distance squared,
+/// floored at 1e-6: 2e11 times the light's intensity over π. The distance is now at least a
+/// tenth of the objects' bounds' half-diagonal. Checked: the light at the eye gives that
+/// floor's ambient (a bound the old rule misses by 11 orders of magnitude), and a light
+/// farther from the eye than the floor keeps the old rule's value exactly (the standard
+/// scenes' surfaces are unchanged).
+#[test]
+fn a_light_at_the_eye_does_not_flood_the_surfaces_with_ambient() {
+    use common_examples::raster::{default_ambient, DrawLight, DrawObject};
+    use volshadow::glam::{Mat4, Vec2, Vec3};
+    use volshadow::scene::shapes;
+    let eye = Vec3::new(0.0, 1.6, 6.0);
+    let camera = volshadow::Camera::new(
+        volshadow::glam::camera::rh::view::look_at_mat4(eye, Vec3::ZERO, Vec3::Y),
+        volshadow::glam::camera::rh::proj::directx::perspective(0.8, 1.0, 0.1, 100.0),
+    )
+    .unwrap();
+    let medium = volshadow::Medium::new(
+        Vec3::splat(0.05),
+        Vec3::splat(0.005),
+        volshadow::PhaseFunction::Isotropic,
+    )
+    .unwrap();
+    let ground = shapes::plane(Vec3::ZERO, Vec2::splat(20.0)).unwrap();
+    let objects = [DrawObject {
+        mesh: &ground,
+        transform: Mat4::IDENTITY,
+        albedo: Vec3::splat(0.8),
+    }];
+    let intensity = 20.0f32;
+    let ambient_with_light_at = |p: Vec3| {
+        let light = volshadow::PointLight::new(p, Vec3::splat(intensity)).unwrap();
+        let lights = [DrawLight {
+            light: light.into(),
+            texture: None,
+            shadow: None,
+        }];
+        default_ambient(&camera, &lights, &objects, &medium).x
+    };
+    let sigma_t = 0.055f32;
+    let rule = |d: f32| intensity * (-sigma_t * d).exp() / (d * d) * 0.03 / std::f32::consts::PI;
+    // The ground's bounds: 40 × 0 × 40, half-diagonal 28.3; a tenth of it is the floor.
+    let floor = 0.1 * 0.5 * (2.0f32 * 40.0 * 40.0).sqrt();
+    let at_eye = ambient_with_light_at(eye);
+    println!(
+        "light at the eye: ambient {at_eye:.3e} (floor {floor:.2}: {:.3e}; the old rule {:.3e})",
+        rule(floor),
+        rule(1e-6)
+    );
+    assert!(
+        (at_eye - rule(floor)).abs() <= 1e-5 * rule(floor),
+        "{at_eye} against {}",
+        rule(floor)
+    );
+    let far = eye + Vec3::new(0.0, 2.0, -8.0); // 8.2 from the eye, beyond the floor
+    let d = far.distance(eye);
+    assert!(d > floor);
+    let value = ambient_with_light_at(far);
+    assert!(
+        (value - rule(d)).abs() <= 1e-5 * rule(d),
+        "{value} against {}",
+        rule(d)
+    );
+}
