@@ -1,5 +1,6 @@
-//! From Bevy's main world to volshadow's scene: occluder meshes once per asset, lights,
-//! occluders' transforms and cameras' media every frame.
+//! From Bevy's main world to the render world: occluder meshes converted once per asset (in
+//! the main world, where the asset is), and per entity, by Bevy's component extraction, each
+//! camera's medium, each light and each occluder's mesh and transform.
 
 use std::collections::{HashMap, HashSet};
 use std::sync::Arc;
@@ -9,12 +10,16 @@ use bevy::camera::visibility::InheritedVisibility;
 use bevy::camera::{Camera, Exposure};
 use bevy::ecs::message::MessageReader;
 use bevy::ecs::prelude::*;
+use bevy::ecs::query::QueryItem;
 use bevy::light::{DirectionalLight, PointLight, SpotLight};
 use bevy::mesh::{Mesh, Mesh3d, PrimitiveTopology};
-use bevy::render::Extract;
+use bevy::render::extract_component::ExtractComponent;
+use bevy::render::sync_component::SyncComponent;
+use bevy::render::RenderApp;
 use bevy::transform::components::GlobalTransform;
 use volshadow::glam;
 
+use crate::render::ViewVolshadow;
 use crate::{exposure_of, VolshadowLight, VolshadowMedium, VolshadowOccluder};
 
 /// A mesh asset as volshadow's mesh, or why it cannot occlude.
@@ -129,6 +134,33 @@ impl SourceLight {
         emitted == glam::Vec3::ZERO
     }
 
+    /// How much this light can add to a view from `eye` through a medium of scattering `σs`
+    /// and extinction `σt` (per unit, the channels' means), to rank lights when more light
+    /// the medium than volshadow takes: the brightest unshadowed single scattering along a
+    /// ray from the eye, phase function and cone left out.
+    ///
+    /// * Point and spot lights of intensity `I` at distance `d`: a ray passing the light at
+    ///   distance `d` gathers `σs·I·∫ds/(d² + s²) = σs·I·π/(2d)`, and the light's extinction
+    ///   to the eye, `e^(−σt·d)`, scales it. (The ray straight at the light gathers more, but
+    ///   in that one pixel; `π/(2d)` is what the rays around it see.)
+    /// * Directional lights of irradiance `E`: an infinite ray gathers `σs·E/σt`.
+    ///
+    /// The light's colour counts by the sum of its channels.
+    pub(crate) fn contribution(&self, eye: glam::Vec3, sigma_s: f32, sigma_t: f32) -> f32 {
+        let sum = |v: glam::Vec3| v.element_sum();
+        match *self {
+            SourceLight::Point { position, flux, .. }
+            | SourceLight::Spot { position, flux, .. } => {
+                let d = position.distance(eye).max(f32::MIN_POSITIVE);
+                let intensity = sum(flux) / (4.0 * std::f32::consts::PI);
+                sigma_s * intensity * std::f32::consts::FRAC_PI_2 / d * (-sigma_t * d).exp()
+            }
+            SourceLight::Directional { illuminance, .. } => {
+                sigma_s * sum(illuminance) / sigma_t.max(f32::MIN_POSITIVE)
+            }
+        }
+    }
+
     /// volshadow's light for a camera whose shading multiplies light by `exposure`.
     pub(crate) fn to_volshadow(self, exposure: f32) -> volshadow::Result<volshadow::Light> {
         let per_steradian = exposure / (4.0 * std::f32::consts::PI);
@@ -162,71 +194,65 @@ impl SourceLight {
     }
 }
 
-/// One camera's medium and exposure.
-#[derive(Clone, Debug)]
-pub(crate) struct SourceCamera {
+/// A camera's medium and exposure on its render-world view.
+#[derive(Component, Clone, Debug)]
+pub struct ExtractedVolshadowView {
     pub(crate) medium: VolshadowMedium,
     pub(crate) exposure: f32,
     /// Whether it renders into part of its target only (not supported).
     pub(crate) viewport: bool,
 }
 
-/// The frame's scene as the render world sees it.
-#[derive(Resource, Default)]
-pub(crate) struct ExtractedScene {
-    pub(crate) cameras: HashMap<Entity, SourceCamera>,
-    pub(crate) lights: Vec<SourceLight>,
-    pub(crate) occluders: Vec<(AssetId<Mesh>, glam::Mat4)>,
-    pub(crate) sources: OccluderSources,
+/// A camera's volshadow state lives on its render-world view: its extracted medium and its
+/// [`ViewVolshadow`] (the facade and resolved depth), both dropped with the medium or the view.
+impl SyncComponent<RenderApp> for VolshadowMedium {
+    type Target = (ExtractedVolshadowView, ViewVolshadow);
 }
 
-fn vec3(v: bevy::math::Vec3) -> glam::Vec3 {
-    glam::Vec3::from_array(v.to_array())
+impl ExtractComponent<RenderApp> for VolshadowMedium {
+    type QueryData = (
+        &'static VolshadowMedium,
+        &'static Camera,
+        Option<&'static Exposure>,
+    );
+    type QueryFilter = ();
+    type Out = ExtractedVolshadowView;
+
+    fn extract_component(
+        (medium, camera, exposure): QueryItem<'_, '_, Self::QueryData>,
+    ) -> Option<Self::Out> {
+        Some(ExtractedVolshadowView {
+            medium: medium.clone(),
+            exposure: exposure_of(exposure),
+            viewport: camera.viewport.is_some(),
+        })
+    }
 }
 
-fn linear(color: bevy::color::Color) -> glam::Vec3 {
-    let c = color.to_linear();
-    glam::Vec3::new(c.red, c.green, c.blue)
+/// A light with [`VolshadowLight`] on its render-world entity, as Bevy describes it.
+#[derive(Component, Clone, Copy, Debug)]
+pub struct ExtractedVolshadowLight(pub(crate) SourceLight);
+
+impl SyncComponent<RenderApp> for VolshadowLight {
+    type Target = ExtractedVolshadowLight;
 }
 
-type LightQuery<'w, 's> = Query<
-    'w,
-    's,
-    (
+impl ExtractComponent<RenderApp> for VolshadowLight {
+    type QueryData = (
         &'static VolshadowLight,
         &'static GlobalTransform,
         Option<&'static PointLight>,
         Option<&'static SpotLight>,
         Option<&'static DirectionalLight>,
-    ),
->;
+    );
+    type QueryFilter = ();
+    type Out = ExtractedVolshadowLight;
 
-/// Copies this frame's cameras, lights, occluders and meshes into the render world.
-#[allow(clippy::type_complexity)]
-pub(crate) fn extract_scene(
-    cameras: Extract<Query<(Entity, &Camera, &VolshadowMedium, Option<&Exposure>)>>,
-    lights: Extract<LightQuery>,
-    occluders: Extract<
-        Query<(&Mesh3d, &GlobalTransform, Option<&InheritedVisibility>), With<VolshadowOccluder>>,
-    >,
-    sources: Extract<Res<OccluderSources>>,
-    mut scene: ResMut<ExtractedScene>,
-) {
-    scene.cameras.clear();
-    for (entity, camera, medium, exposure) in &cameras {
-        if camera.is_active {
-            scene.cameras.insert(
-                entity,
-                SourceCamera {
-                    medium: medium.clone(),
-                    exposure: exposure_of(exposure),
-                    viewport: camera.viewport.is_some(),
-                },
-            );
-        }
-    }
-    scene.lights.clear();
-    for (marker, transform, point, spot, directional) in &lights {
+    /// `None` (no light in the render world) for an entity that is none of Bevy's three
+    /// lights, and for a light that emits nothing (volshadow refuses a zero intensity).
+    fn extract_component(
+        (marker, transform, point, spot, directional): QueryItem<'_, '_, Self::QueryData>,
+    ) -> Option<Self::Out> {
         let position = vec3(transform.translation());
         let direction = vec3(transform.forward().into());
         let light = if let Some(p) = point {
@@ -249,24 +275,52 @@ pub(crate) fn extract_scene(
                 illuminance: linear(d.color) * d.illuminance,
             }
         } else {
-            continue;
+            return None;
         };
-        if light.is_dark() {
-            continue; // a light turned off adds nothing (volshadow refuses a zero intensity)
-        }
-        scene.lights.push(light);
+        (!light.is_dark()).then_some(ExtractedVolshadowLight(light))
     }
-    scene.occluders.clear();
-    for (mesh, transform, visibility) in &occluders {
+}
+
+/// An occluder on its render-world entity: its mesh asset and its world transform.
+#[derive(Component, Clone, Copy, Debug)]
+pub struct ExtractedOccluder {
+    pub(crate) mesh: AssetId<Mesh>,
+    pub(crate) transform: glam::Mat4,
+}
+
+impl SyncComponent<RenderApp> for VolshadowOccluder {
+    type Target = ExtractedOccluder;
+}
+
+impl ExtractComponent<RenderApp> for VolshadowOccluder {
+    type QueryData = (
+        &'static Mesh3d,
+        &'static GlobalTransform,
+        Option<&'static InheritedVisibility>,
+    );
+    type QueryFilter = ();
+    type Out = ExtractedOccluder;
+
+    /// `None` for a hidden occluder: it neither draws nor occludes.
+    fn extract_component(
+        (mesh, transform, visibility): QueryItem<'_, '_, Self::QueryData>,
+    ) -> Option<Self::Out> {
         if visibility.is_some_and(|v| !v.get()) {
-            continue; // hidden: it neither draws nor occludes
+            return None;
         }
         let m = transform.to_matrix().to_cols_array();
-        scene
-            .occluders
-            .push((mesh.id(), glam::Mat4::from_cols_array(&m)));
+        Some(ExtractedOccluder {
+            mesh: mesh.id(),
+            transform: glam::Mat4::from_cols_array(&m),
+        })
     }
-    if sources.is_changed() {
-        scene.sources = sources.clone();
-    }
+}
+
+fn vec3(v: bevy::math::Vec3) -> glam::Vec3 {
+    glam::Vec3::from_array(v.to_array())
+}
+
+fn linear(color: bevy::color::Color) -> glam::Vec3 {
+    let c = color.to_linear();
+    glam::Vec3::new(c.red, c.green, c.blue)
 }

@@ -48,16 +48,31 @@
 //!   visibility off) does not occlude. A mesh that cannot be an occluder (not a triangle list,
 //!   no positions) is left out with a logged error naming it.
 //! * **Lights** with [`VolshadowLight`] (a `PointLight`, `SpotLight` or `DirectionalLight`) are
-//!   converted to volshadow's radiometric lights (see [Light units](#light-units)); at most
-//!   [`volshadow::nodes::MAX_LIGHTS`] per frame, the first ones in query order. A light that
-//!   emits nothing (zero intensity) is skipped.
-//! * **Cameras** with [`VolshadowMedium`] get one [`volshadow::VolumetricShadows`] each. A
-//!   system in Bevy's `Core3d` schedule, after the main pass and before the post-processing,
-//!   records it into Bevy's command encoder: it reads the view's HDR colour and depth and
-//!   writes the next HDR target
+//!   converted to volshadow's radiometric lights (see [Light units](#light-units)). A light
+//!   that emits nothing (zero intensity) is skipped. When more than
+//!   [`volshadow::nodes::MAX_LIGHTS`] light the medium, each camera takes the ones that add
+//!   most to its view: ranked by the brightest unshadowed single scattering a ray from the
+//!   camera gathers from each, `σs·I·π/(2d)·e^(−σt·d)` for a point or spot light of intensity
+//!   `I` at distance `d`, `σs·E/σt` for a directional light of irradiance `E`. Its plan names
+//!   the lights left out.
+//! * **Cameras** with [`VolshadowMedium`] get one [`volshadow::VolumetricShadows`] each, held
+//!   with its resolved depth in a [`ViewVolshadow`] on the camera's render-world view and
+//!   dropped with it. Bevy's component extraction brings the camera's medium, each light and
+//!   each occluder into the render world. In `RenderSystems::Prepare`, after the view's depth
+//!   texture exists, the plugin builds the view's settings (again only when its quality or
+//!   target format changes), picks its lights, builds the pipelines they need and prepares the
+//!   frame (validation and uploads). A system in Bevy's `Core3d` schedule, after the main pass
+//!   and before the post-processing, then only records: the depth resolve and the passes,
+//!   reading the view's HDR colour and depth and writing the next HDR target
 //!   ([`ViewTarget::post_process_write`](bevy::render::view::ViewTarget::post_process_write)).
 //!   A camera must render its whole target: one with a viewport is reported as an error and
-//!   left without fog.
+//!   left without fog. [`VolshadowSystems`] names these steps, to order other systems
+//!   around them.
+//! * **Pipelines** are shared by every camera in one volshadow [`volshadow::Cache`], made
+//!   when Bevy creates the render device (`RenderStartup`). A view's first frame builds the
+//!   pipelines it uses in `Prepare`, so recording never compiles; the rest of what its
+//!   settings and its lights' kinds can use (other methods and variants) is then built on
+//!   Bevy's async compute pool, so a later change of plan does not compile on its frame.
 //!
 //! # Depth and MSAA
 //!
@@ -101,14 +116,18 @@ use std::sync::{Arc, Mutex};
 use bevy::app::{App, Plugin, PostUpdate};
 use bevy::asset::AssetEventSystems;
 use bevy::camera::{Camera3d, Exposure, Hdr};
+use bevy::core_pipeline::core_3d::prepare_core_3d_depth_textures;
 use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
 use bevy::ecs::prelude::*;
+use bevy::render::extract_component::ExtractComponentPlugin;
 use bevy::render::render_resource::TextureUsages;
-use bevy::render::{ExtractSchedule, Render, RenderApp, RenderSystems};
+use bevy::render::{ExtractSchedule, Render, RenderApp, RenderStartup, RenderSystems};
 use bevy::transform::TransformSystems;
 
-pub use extract::OccluderSources;
-pub use render::VolshadowViews;
+pub use extract::{
+    ExtractedOccluder, ExtractedVolshadowLight, ExtractedVolshadowView, OccluderSources,
+};
+pub use render::ViewVolshadow;
 pub use volshadow;
 
 /// The medium a camera sees, and how volshadow renders it. Put it on a `Camera3d` entity; it
@@ -173,7 +192,10 @@ pub struct VolshadowLight {
 #[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct VolshadowOccluder;
 
-/// Per camera, the last frame's plan or error, shared by the main and render apps.
+/// Per camera, the last frame's plan or error, shared by the main and render apps. A map
+/// shared between the two worlds, as Bevy's own render diagnostics are: the render world
+/// cannot write a main-world component. The render world drops the report of a camera that
+/// no longer has a view.
 #[derive(Resource, Clone, Default)]
 pub struct VolshadowDiagnostics(Arc<Mutex<HashMap<Entity, ViewReport>>>);
 
@@ -211,6 +233,23 @@ impl VolshadowDiagnostics {
     }
 }
 
+/// The plugin's systems, to order other systems around them.
+#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum VolshadowSystems {
+    /// Main world, `PostUpdate`, after the asset events: occluder meshes converted (welded,
+    /// their edges found) when new or changed.
+    TrackMeshes,
+    /// Render world, `Render`, in `RenderSystems::PrepareAssets`: the converted meshes
+    /// uploaded.
+    PrepareMeshes,
+    /// Render world, `Render`, in `RenderSystems::Prepare` after the views' depth textures:
+    /// each camera's settings, lights, pipelines and frame prepared.
+    PrepareViews,
+    /// Render world, `Core3d`, after the main pass and before the post-processing: each
+    /// camera's passes recorded.
+    Record,
+}
+
 /// Adds volshadow's volumetric shadows to cameras with [`VolshadowMedium`].
 pub struct VolshadowPlugin;
 
@@ -219,11 +258,18 @@ impl Plugin for VolshadowPlugin {
         let diagnostics = VolshadowDiagnostics::default();
         app.insert_resource(diagnostics.clone())
             .init_resource::<OccluderSources>()
+            .add_plugins((
+                ExtractComponentPlugin::<VolshadowMedium>::default(),
+                ExtractComponentPlugin::<VolshadowLight>::default(),
+                ExtractComponentPlugin::<VolshadowOccluder>::default(),
+            ))
             .add_systems(
                 PostUpdate,
                 (
                     // After the asset events, so that a changed mesh is used the same frame.
-                    extract::track_occluder_meshes.after(AssetEventSystems),
+                    extract::track_occluder_meshes
+                        .after(AssetEventSystems)
+                        .in_set(VolshadowSystems::TrackMeshes),
                     configure_cameras.after(TransformSystems::Propagate),
                 ),
             );
@@ -232,18 +278,28 @@ impl Plugin for VolshadowPlugin {
         };
         render_app
             .insert_resource(diagnostics)
-            .init_resource::<extract::ExtractedScene>()
-            .init_resource::<VolshadowViews>()
-            .add_systems(ExtractSchedule, extract::extract_scene)
+            .init_resource::<render::OccluderMeshes>()
+            .add_systems(RenderStartup, render::init_pipelines)
+            .add_systems(ExtractSchedule, render::extract_occluder_meshes)
             .add_systems(
                 Render,
-                render::prepare_occluder_meshes.in_set(RenderSystems::Prepare),
+                (
+                    render::prepare_occluder_meshes
+                        .in_set(RenderSystems::PrepareAssets)
+                        .in_set(VolshadowSystems::PrepareMeshes),
+                    render::prepare_views
+                        .in_set(RenderSystems::Prepare)
+                        .after(prepare_core_3d_depth_textures)
+                        .after(VolshadowSystems::PrepareMeshes)
+                        .in_set(VolshadowSystems::PrepareViews),
+                ),
             )
             .add_systems(
                 Core3d,
-                render::volshadow_view
+                render::record_view
                     .after(Core3dSystems::MainPass)
-                    .before(Core3dSystems::EarlyPostProcess),
+                    .before(Core3dSystems::EarlyPostProcess)
+                    .in_set(VolshadowSystems::Record),
             );
     }
 }

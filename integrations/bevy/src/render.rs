@@ -1,7 +1,9 @@
-//! The render world: occluder meshes on the GPU, one `VolumetricShadows` per camera, and the
-//! `Core3d` system that records it into Bevy's encoder.
+//! The render world: the shared pipelines (made at `RenderStartup`), the occluder meshes on the
+//! GPU (like Bevy's render assets), one [`ViewVolshadow`] on each camera's render-world view,
+//! prepared in `RenderSystems::Prepare`, and the `Core3d` system that only records.
 
 use std::collections::HashMap;
+use std::sync::Arc;
 
 use bevy::asset::AssetId;
 use bevy::ecs::prelude::*;
@@ -9,64 +11,156 @@ use bevy::mesh::Mesh;
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::sync_world::MainEntity;
 use bevy::render::view::{ExtractedView, ViewDepthStencilTexture, ViewTarget};
+use bevy::render::Extract;
+use volshadow::nodes::{LightKind, MAX_LIGHTS};
 use volshadow::{glam, wgpu, AdapterKind, Cache, OccluderMesh, Settings, VolumetricShadows};
 
-use crate::extract::ExtractedScene;
-use crate::resolve::DepthResolve;
+use crate::extract::{
+    ExtractedOccluder, ExtractedVolshadowLight, ExtractedVolshadowView, OccluderSources,
+};
+use crate::resolve::{DepthResolve, ResolvedDepth};
 use crate::{ViewReport, VolshadowDiagnostics, VolshadowQuality};
 
-/// The render world's volshadow state: the shared pipelines, the occluder meshes on the GPU,
-/// and one [`VolumetricShadows`] per camera.
+/// The pipelines every view shares: volshadow's [`Cache`] and the depth resolve, made at
+/// `RenderStartup`, and which settings and light kinds have been warmed.
+#[derive(Resource)]
+pub(crate) struct VolshadowPipelines {
+    cache: Cache,
+    resolve: DepthResolve,
+    /// The settings and light kinds whose remaining pipelines are being (or have been) built
+    /// in the background.
+    warmed: Vec<(Settings, LightKind)>,
+}
+
+/// Makes [`VolshadowPipelines`] when the render device is created (and again if it is
+/// re-created).
+pub(crate) fn init_pipelines(mut commands: Commands, device: Res<RenderDevice>) {
+    let device = device.wgpu_device();
+    commands.insert_resource(VolshadowPipelines {
+        cache: Cache::new(device),
+        resolve: DepthResolve::new(device),
+        warmed: Vec::new(),
+    });
+}
+
+impl VolshadowPipelines {
+    /// Builds, on Bevy's async compute pool, every pipeline that frames with `settings` can
+    /// use for lights of `kinds` ([`Settings::warm_up`]), unless started already. The frame
+    /// that first needs them has built what it uses in `prepare` (a view's first frame
+    /// compiles only its own passes, in `Prepare`, never while recording); this builds the
+    /// rest (the other methods' and variants' pipelines), so that a later change of plan (an
+    /// occluder appearing, a light growing a radius) does not compile on its frame. The
+    /// cache is shared and locked, so a frame that needs a pipeline being built waits for it.
+    fn warm_up_rest(
+        &mut self,
+        device: &wgpu::Device,
+        settings: Settings,
+        kinds: impl Iterator<Item = LightKind>,
+    ) {
+        let new: Vec<LightKind> = kinds
+            .filter(|k| !self.warmed.contains(&(settings, *k)))
+            .collect();
+        if new.is_empty() {
+            return;
+        }
+        self.warmed.extend(new.iter().map(|k| (settings, *k)));
+        let (device, cache) = (device.clone(), self.cache.clone());
+        bevy::tasks::AsyncComputeTaskPool::get()
+            .spawn(async move {
+                if let Err(e) = settings.warm_up(&device, &cache, &new) {
+                    bevy::log::error!("volshadow: warming pipelines: {e}");
+                }
+            })
+            .detach();
+    }
+}
+
+/// The occluder meshes on the GPU, per mesh asset, as Bevy's `RenderAssets` keeps a render
+/// asset per asset id: each uploaded once per conversion (its generation) in
+/// `RenderSystems::PrepareAssets`.
 #[derive(Resource, Default)]
-pub struct VolshadowViews {
-    cache: Option<Cache>,
-    meshes: HashMap<AssetId<Mesh>, (u64, OccluderMesh)>,
-    views: HashMap<Entity, ViewState>,
-    resolve: Option<DepthResolve>,
+pub(crate) struct OccluderMeshes {
+    uploaded: HashMap<AssetId<Mesh>, (u64, OccluderMesh)>,
+    /// Converted meshes that the last extraction found new, to upload.
+    pending: Vec<(AssetId<Mesh>, u64, Arc<volshadow::scene::Mesh>)>,
 }
 
-struct ViewState {
-    facade: VolumetricShadows,
-    /// The resolved depth (with MSAA), kept while the view's size stays.
-    depth: Option<wgpu::Texture>,
-}
-
-impl VolshadowViews {
-    /// The in-scatter that `light` added in `camera`'s last frame (a main-world entity;
-    /// full resolution, `Rgba32Float`), for debugging and tests.
-    pub fn inscatter(&self, camera: Entity, light: usize) -> Option<&wgpu::Texture> {
-        self.views.get(&camera)?.facade.inscatter(light)
+/// Brings the render world's meshes up to the main world's conversions when those changed:
+/// drops the meshes no longer converted (or converted again) and queues the new ones.
+pub(crate) fn extract_occluder_meshes(
+    sources: Extract<Res<OccluderSources>>,
+    mut meshes: ResMut<OccluderMeshes>,
+) {
+    if !sources.is_changed() {
+        return;
     }
-
-    /// The facade of `camera` (a main-world entity), for its plan and debug outputs.
-    pub fn facade(&self, camera: Entity) -> Option<&VolumetricShadows> {
-        Some(&self.views.get(&camera)?.facade)
-    }
+    let meshes = &mut *meshes;
+    meshes.uploaded.retain(
+        |id, (generation, _)| matches!(sources.meshes.get(id), Some((g, _)) if g == generation),
+    );
+    meshes.pending = sources
+        .meshes
+        .iter()
+        .filter(|(id, (g, _))| meshes.uploaded.get(*id).is_none_or(|(u, _)| u != g))
+        .filter_map(|(id, (g, mesh))| Some((*id, *g, mesh.as_ref().ok()?.clone())))
+        .collect();
 }
 
-/// Uploads the occluder meshes that are new or changed, and drops the ones no longer used and
-/// the cameras that are gone.
+/// Uploads the meshes the extraction queued.
 pub(crate) fn prepare_occluder_meshes(
-    scene: Res<ExtractedScene>,
     device: Res<RenderDevice>,
-    diagnostics: Res<VolshadowDiagnostics>,
-    mut state: ResMut<VolshadowViews>,
+    mut meshes: ResMut<OccluderMeshes>,
 ) {
     let device = device.wgpu_device();
-    let state = &mut *state;
-    state.meshes.retain(|id, (generation, _)| {
-        let source = scene.sources.meshes.get(id);
-        source.is_some_and(|(g, _)| g == generation)
-    });
-    for (id, (generation, mesh)) in &scene.sources.meshes {
-        if let (false, Ok(mesh)) = (state.meshes.contains_key(id), mesh) {
-            state
-                .meshes
-                .insert(*id, (*generation, OccluderMesh::new(device, mesh)));
-        }
+    for (id, generation, mesh) in std::mem::take(&mut meshes.pending) {
+        let uploaded = OccluderMesh::new(device, &mesh);
+        meshes.uploaded.insert(id, (generation, uploaded));
     }
-    state.views.retain(|e, _| scene.cameras.contains_key(e));
-    diagnostics.retain(|e| scene.cameras.contains_key(&e));
+}
+
+/// One camera's volumetric shadows, on its render-world view: the facade (its GPU resources
+/// and this frame's plan), the resolved depth with MSAA, and what this frame recorded.
+/// Removed with the camera's [`VolshadowMedium`](crate::VolshadowMedium) or its view.
+#[derive(Component)]
+pub struct ViewVolshadow {
+    facade: VolumetricShadows,
+    /// The quality the facade's settings were made from (with the output format in them).
+    quality: VolshadowQuality,
+    depth: Option<ResolvedDepth>,
+    /// This frame's preparation, when it succeeded: what the recording needs.
+    prepared: Option<Prepared>,
+}
+
+/// What a successful `prepare` leaves for the recording.
+struct Prepared {
+    /// The view's main texture the facade read as the scene's colour: the recording writes
+    /// only while it is still the main texture (no pass before it swapped them).
+    scene_color: wgpu::Texture,
+    /// Whether the depth is resolved from MSAA first.
+    resolve: bool,
+}
+
+impl ViewVolshadow {
+    /// The facade, for its plan and debug outputs.
+    pub fn facade(&self) -> &VolumetricShadows {
+        &self.facade
+    }
+
+    /// The in-scatter that the frame's light `light` added (full resolution, `Rgba32Float`),
+    /// for debugging and tests.
+    pub fn inscatter(&self, light: usize) -> Option<&wgpu::Texture> {
+        self.facade.inscatter(light)
+    }
+
+    /// The state of `camera` (a main-world entity) in `render_world` (the render sub-app's
+    /// world), if it has one.
+    pub fn of(render_world: &World, camera: Entity) -> Option<&ViewVolshadow> {
+        let mut views = render_world.try_query::<(&MainEntity, &ViewVolshadow)>()?;
+        views
+            .iter(render_world)
+            .find(|(main, _)| main.id() == camera)
+            .map(|(_, view)| view)
+    }
 }
 
 fn settings_for(quality: VolshadowQuality, kind: AdapterKind) -> volshadow::Result<Settings> {
@@ -77,83 +171,150 @@ fn settings_for(quality: VolshadowQuality, kind: AdapterKind) -> volshadow::Resu
     }
 }
 
-/// Records one camera's volumetric shadows after Bevy's main pass.
-pub(crate) fn volshadow_view(
-    view: ViewQuery<(
-        &MainEntity,
-        &ViewTarget,
-        &ViewDepthStencilTexture,
-        &ExtractedView,
-    )>,
-    scene: Res<ExtractedScene>,
+/// The views with a medium, and their state once they have one.
+type Views<'w, 's> = Query<
+    'w,
+    's,
+    (
+        Entity,
+        &'static MainEntity,
+        &'static ExtractedView,
+        &'static ExtractedVolshadowView,
+        &'static ViewTarget,
+        &'static ViewDepthStencilTexture,
+        Option<&'static mut ViewVolshadow>,
+    ),
+>;
+
+/// The render world's lights, and the occluders with their GPU meshes, for the views.
+type Lights<'w, 's> = Query<'w, 's, (&'static MainEntity, &'static ExtractedVolshadowLight)>;
+
+/// Prepares every camera's volumetric shadows for this frame, after the view's depth texture
+/// exists: settings (again only when the camera's quality or target format changed), the
+/// lights that matter most to it, the MSAA depth's target, and [`VolumetricShadows::prepare`]
+/// (validation, uploads, and the pipelines this frame uses, built on first use), then the
+/// rest of its pipelines warmed in the background. The report goes to
+/// [`VolshadowDiagnostics`].
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn prepare_views(
+    mut commands: Commands,
     device: Res<RenderDevice>,
     queue: Res<RenderQueue>,
+    mut pipelines: ResMut<VolshadowPipelines>,
+    meshes: Res<OccluderMeshes>,
+    lights: Lights,
+    occluders: Query<&ExtractedOccluder>,
     diagnostics: Res<VolshadowDiagnostics>,
-    mut state: ResMut<VolshadowViews>,
-    mut ctx: RenderContext,
+    mut views: Views,
 ) {
-    let (main_entity, target, depth, extracted) = view.into_inner();
-    let camera_entity = main_entity.id();
-    let Some(camera) = scene.cameras.get(&camera_entity) else {
-        return; // a camera without VolshadowMedium
-    };
-    let device = device.wgpu_device().clone();
+    let device = device.wgpu_device();
     let queue: &wgpu::Queue = &queue;
-    let report = record(
-        &device,
-        queue,
-        &scene,
-        camera_entity,
-        camera,
-        target,
-        depth,
-        extracted,
-        &mut state,
-        &mut ctx,
-    );
-    diagnostics.set(
-        camera_entity,
-        match report {
-            Ok(plan) => ViewReport::Planned(plan),
-            Err(why) => ViewReport::Failed(why),
-        },
-    );
+    let occluders: Vec<volshadow::Occluder> = occluders
+        .iter()
+        .filter_map(|o| {
+            Some(volshadow::Occluder {
+                mesh: &meshes.uploaded.get(&o.mesh)?.1,
+                transform: o.transform,
+            })
+        })
+        .collect();
+    // Reports of cameras without a view this frame (despawned, medium removed, inactive) go.
+    diagnostics.retain(|camera| views.iter().any(|(_, main, ..)| main.id() == camera));
+    for (entity, main, extracted, camera, target, depth, state) in &mut views {
+        let mut new_state = None;
+        let report = match state {
+            Some(mut state) => prepare_view(
+                device,
+                queue,
+                &mut pipelines,
+                &lights,
+                &occluders,
+                (extracted, camera, target, depth),
+                &mut state,
+            ),
+            None => match new_view(device, queue, &mut pipelines, camera, target) {
+                Ok(mut state) => {
+                    let report = prepare_view(
+                        device,
+                        queue,
+                        &mut pipelines,
+                        &lights,
+                        &occluders,
+                        (extracted, camera, target, depth),
+                        &mut state,
+                    );
+                    new_state = Some(state);
+                    report
+                }
+                Err(why) => Err(why),
+            },
+        };
+        if let Some(state) = new_state {
+            commands.entity(entity).insert(state);
+        }
+        diagnostics.set(
+            main.id(),
+            match report {
+                Ok(plan) => ViewReport::Planned(plan),
+                Err(why) => ViewReport::Failed(why),
+            },
+        );
+    }
 }
 
-#[allow(clippy::too_many_arguments)]
-fn record(
+fn text(e: volshadow::Error) -> String {
+    e.to_string()
+}
+
+/// A new view's state: its settings and facade.
+fn new_view(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
-    scene: &ExtractedScene,
-    camera_entity: Entity,
-    camera: &crate::extract::SourceCamera,
+    pipelines: &mut VolshadowPipelines,
+    camera: &ExtractedVolshadowView,
     target: &ViewTarget,
-    depth: &ViewDepthStencilTexture,
-    extracted: &ExtractedView,
-    state: &mut VolshadowViews,
-    ctx: &mut RenderContext,
+) -> Result<ViewVolshadow, String> {
+    let quality = camera.medium.quality;
+    let settings = Settings {
+        output_format: target.main_texture_format(),
+        ..settings_for(quality, AdapterKind::of(device)).map_err(text)?
+    };
+    Ok(ViewVolshadow {
+        facade: VolumetricShadows::new(device, queue, &pipelines.cache, settings).map_err(text)?,
+        quality,
+        depth: None,
+        prepared: None,
+    })
+}
+
+/// Prepares one view; its plan's text, or why nothing will be drawn.
+fn prepare_view(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    pipelines: &mut VolshadowPipelines,
+    lights: &Lights,
+    occluders: &[volshadow::Occluder],
+    (extracted, camera, target, depth): (
+        &ExtractedView,
+        &ExtractedVolshadowView,
+        &ViewTarget,
+        &ViewDepthStencilTexture,
+    ),
+    state: &mut ViewVolshadow,
 ) -> Result<String, String> {
-    let text = |e: volshadow::Error| e.to_string();
+    state.prepared = None;
     if camera.viewport {
         return Err("the camera has a viewport: volshadow_bevy draws whole targets only".into());
     }
-    let state = &mut *state;
-    let cache = state.cache.get_or_insert_with(|| Cache::new(device));
-    let kind = AdapterKind::of(device);
     let medium = &camera.medium;
-    let settings = Settings {
-        output_format: target.main_texture_format(),
-        ..settings_for(medium.quality, kind).map_err(text)?
-    };
-    let view_state = match state.views.entry(camera_entity) {
-        std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
-        std::collections::hash_map::Entry::Vacant(e) => e.insert(ViewState {
-            facade: VolumetricShadows::new(device, queue, cache, settings).map_err(text)?,
-            depth: None,
-        }),
-    };
-    if view_state.facade.settings() != settings {
-        view_state.facade.set_settings(settings).map_err(text)?;
+    let format = target.main_texture_format();
+    if state.quality != medium.quality || state.facade.settings().output_format != format {
+        let settings = Settings {
+            output_format: format,
+            ..settings_for(medium.quality, AdapterKind::of(device)).map_err(text)?
+        };
+        state.facade.set_settings(settings).map_err(text)?;
+        state.quality = medium.quality;
     }
 
     let world_from_view = extracted.world_from_view.to_matrix().to_cols_array();
@@ -162,65 +323,127 @@ fn record(
     let vs_camera = volshadow::Camera::new(view_matrix, projection).map_err(text)?;
     let vs_medium =
         volshadow::Medium::new(medium.scattering, medium.absorption, medium.phase).map_err(text)?;
-    let max = volshadow::nodes::MAX_LIGHTS;
-    let lights = scene
-        .lights
+
+    // The lights that matter most to this view (see `SourceLight::contribution`), at most
+    // volshadow's limit, strongest first; ties keep the entities' order.
+    let eye = view_matrix.inverse().w_axis.truncate();
+    let sigma_s = medium.scattering.element_sum() / 3.0;
+    let sigma_t = sigma_s + medium.absorption.element_sum() / 3.0;
+    let mut ranked: Vec<(f32, Entity, &ExtractedVolshadowLight)> = lights
         .iter()
-        .take(max)
-        .map(|l| l.to_volshadow(camera.exposure).map(Into::into))
+        .map(|(main, l)| (l.0.contribution(eye, sigma_s, sigma_t), main.id(), l))
+        .collect();
+    ranked.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+    let left_out: Vec<String> = ranked
+        .iter()
+        .skip(MAX_LIGHTS)
+        .map(|(_, e, _)| e.to_string())
+        .collect();
+    let frame_lights = ranked
+        .iter()
+        .take(MAX_LIGHTS)
+        .map(|(_, _, l)| l.0.to_volshadow(camera.exposure).map(Into::into))
         .collect::<volshadow::Result<Vec<volshadow::FrameLight>>>()
         .map_err(text)?;
-    let occluders: Vec<volshadow::Occluder> = scene
-        .occluders
-        .iter()
-        .filter_map(|(id, transform)| {
-            Some(volshadow::Occluder {
-                mesh: &state.meshes.get(id)?.1,
-                transform: *transform,
-            })
-        })
-        .collect();
 
     // Single-sampled depth: Bevy's own when it has one sample, resolved otherwise.
     let depth_texture: &wgpu::Texture = depth.texture();
-    let scene_depth = if depth_texture.sample_count() > 1 {
-        let resolve = state
+    let resolve = depth_texture.sample_count() > 1;
+    let scene_depth = if resolve {
+        pipelines
             .resolve
-            .get_or_insert_with(|| DepthResolve::new(device));
-        let resolved = resolve.target(device, &mut view_state.depth, depth_texture);
-        resolve.encode(device, ctx.command_encoder(), depth_texture, &resolved);
-        resolved
+            .prepare(device, &mut state.depth, depth_texture)
     } else {
-        view_state.depth = None;
+        state.depth = None;
         depth_texture.clone()
     };
     let scene_color: &wgpu::Texture = target.main_texture();
-    let plan = view_state
+    let plan = state
         .facade
         .prepare(
             device,
             queue,
             &volshadow::Frame {
                 camera: &vs_camera,
-                lights: &lights,
+                lights: &frame_lights,
                 medium: &vs_medium,
-                occluders: &occluders,
+                occluders,
                 scene_color,
                 scene_depth: &scene_depth,
                 surfaces: None,
             },
         )
-        .map_err(text)?;
-    let plan = plan.to_string();
-    let output: &wgpu::Texture = target.post_process_write().destination_texture;
-    view_state
-        .facade
-        .encode(ctx.command_encoder(), output)
-        .map_err(text)?;
-    let skipped = scene.lights.len().saturating_sub(max);
-    Ok(if skipped > 0 {
-        format!("{plan}\n({skipped} lights beyond the first {max} left out)")
-    } else {
+        .map_err(text)?
+        .to_string();
+    pipelines.warm_up_rest(
+        device,
+        state.facade.settings(),
+        frame_lights.iter().map(|l| l.kind()),
+    );
+    state.prepared = Some(Prepared {
+        scene_color: scene_color.clone(),
+        resolve,
+    });
+    Ok(if left_out.is_empty() {
         plan
+    } else {
+        format!(
+            "{plan}\n({} lights beyond the {MAX_LIGHTS} that add most to this view left out: {})",
+            left_out.len(),
+            left_out.join(", ")
+        )
     })
+}
+
+/// Records one camera's volumetric shadows after Bevy's main pass: the MSAA depth resolve and
+/// [`VolumetricShadows::encode`] into the view's next post-process target. Everything else
+/// was decided in `prepare_views`.
+pub(crate) fn record_view(
+    view: ViewQuery<(
+        &MainEntity,
+        &ViewTarget,
+        &ViewDepthStencilTexture,
+        &mut ViewVolshadow,
+    )>,
+    pipelines: Res<VolshadowPipelines>,
+    diagnostics: Res<VolshadowDiagnostics>,
+    mut ctx: RenderContext,
+) {
+    let (main, target, depth, mut state) = view.into_inner();
+    let state = &mut *state;
+    let Some(prepared) = state.prepared.take() else {
+        return; // not prepared this frame: its report says why
+    };
+    let current: &wgpu::Texture = target.main_texture();
+    if *current != prepared.scene_color {
+        diagnostics.set(
+            main.id(),
+            ViewReport::Failed(
+                "a pass before volshadow's swapped the view's main texture after it was \
+                 prepared; nothing drawn"
+                    .into(),
+            ),
+        );
+        return;
+    }
+    if prepared.resolve {
+        match (&state.depth, depth.texture().sample_count() > 1) {
+            (Some(resolved), true) => pipelines.resolve.encode(ctx.command_encoder(), resolved),
+            _ => return,
+        }
+    }
+    let write = target.post_process_write();
+    let (source, destination): (&wgpu::Texture, &wgpu::Texture) =
+        (write.source_texture, write.destination_texture);
+    let encoder = ctx.command_encoder();
+    if let Err(e) = state.facade.encode(encoder, destination) {
+        // Recording nothing (encode checks before it records): the next target gets the
+        // scene as it is, so the swap Bevy made shows the frame without fog, not a stale one.
+        encoder.copy_texture_to_texture(
+            source.as_image_copy(),
+            destination.as_image_copy(),
+            source.size(),
+        );
+        diagnostics.set(main.id(), ViewReport::Failed(e.to_string()));
+    }
 }

@@ -100,42 +100,27 @@ impl DepthResolve {
         Self { pipeline, layout }
     }
 
-    /// The single-sampled texture for `source`, reused from `kept` while the size matches.
-    pub(crate) fn target(
+    /// The single-sampled target for `source` and the bind group that reads it: `kept` while
+    /// it was made for this source texture, else a new one (kept in `kept`).
+    pub(crate) fn prepare(
         &self,
         device: &wgpu::Device,
-        kept: &mut Option<wgpu::Texture>,
+        kept: &mut Option<ResolvedDepth>,
         source: &wgpu::Texture,
     ) -> wgpu::Texture {
-        let size = source.size();
-        match kept {
-            Some(t) if t.size() == size => t.clone(),
-            _ => {
-                let t = device.create_texture(&wgpu::TextureDescriptor {
-                    label: Some("volshadow_bevy resolved depth"),
-                    size,
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format: FORMAT,
-                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                        | wgpu::TextureUsages::TEXTURE_BINDING,
-                    view_formats: &[],
-                });
-                *kept = Some(t.clone());
-                t
-            }
+        if let Some(r) = kept.as_ref().filter(|r| r.source == *source) {
+            return r.target.clone();
         }
-    }
-
-    /// Records the resolve of `source` into `target`.
-    pub(crate) fn encode(
-        &self,
-        device: &wgpu::Device,
-        encoder: &mut wgpu::CommandEncoder,
-        source: &wgpu::Texture,
-        target: &wgpu::Texture,
-    ) {
+        let target = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("volshadow_bevy resolved depth"),
+            size: source.size(),
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
         let source_view = source.create_view(&wgpu::TextureViewDescriptor {
             aspect: wgpu::TextureAspect::DepthOnly,
             ..Default::default()
@@ -148,11 +133,23 @@ impl DepthResolve {
                 resource: wgpu::BindingResource::TextureView(&source_view),
             }],
         });
+        let resolved = ResolvedDepth {
+            source: source.clone(),
+            target_view: target.create_view(&Default::default()),
+            target: target.clone(),
+            bind_group,
+        };
+        *kept = Some(resolved);
+        target
+    }
+
+    /// Records the resolve that [`prepare`](Self::prepare) set up.
+    pub(crate) fn encode(&self, encoder: &mut wgpu::CommandEncoder, resolved: &ResolvedDepth) {
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("volshadow_bevy depth resolve"),
             color_attachments: &[],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &target.create_view(&Default::default()),
+                view: &resolved.target_view,
                 depth_ops: Some(wgpu::Operations {
                     load: wgpu::LoadOp::Clear(0.0),
                     store: wgpu::StoreOp::Store,
@@ -164,7 +161,17 @@ impl DepthResolve {
             multiview_mask: None,
         });
         pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, &bind_group, &[]);
+        pass.set_bind_group(0, &resolved.bind_group, &[]);
         pass.draw(0..3, 0..1);
     }
+}
+
+/// A view's resolved depth: the single-sampled target and the bind group reading the
+/// multisampled source it was made for (Bevy reuses a view's depth texture while its size
+/// stays, so both are kept across frames).
+pub(crate) struct ResolvedDepth {
+    source: wgpu::Texture,
+    target: wgpu::Texture,
+    target_view: wgpu::TextureView,
+    bind_group: wgpu::BindGroup,
 }

@@ -25,8 +25,8 @@ use volshadow::glam::camera::rh;
 use volshadow::glam::{DMat4, DVec3};
 use volshadow::reference::{self, ImageError, TriangleMesh};
 use volshadow_bevy::{
-    ViewReport, VolshadowDiagnostics, VolshadowLight, VolshadowMedium, VolshadowOccluder,
-    VolshadowQuality, VolshadowViews,
+    ViewReport, ViewVolshadow, VolshadowDiagnostics, VolshadowLight, VolshadowMedium,
+    VolshadowOccluder, VolshadowQuality,
 };
 
 const W: u32 = 96;
@@ -163,9 +163,8 @@ fn settle(app: &mut App, extra: usize) {
 
 fn inscatter(app: &App, camera: Entity) -> Vec<[f32; 4]> {
     let gpu = volshadow_bevy::headless::gpu(app);
-    let views = app.sub_app(RenderApp).world().resource::<VolshadowViews>();
-    let texture = views
-        .inscatter(camera, 0)
+    let texture = ViewVolshadow::of(app.sub_app(RenderApp).world(), camera)
+        .and_then(|view| view.inscatter(0))
         .expect("the camera's in-scatter after a frame");
     gpu.read_rgba(texture).unwrap()
 }
@@ -450,7 +449,7 @@ fn cameras_lights_occluders_and_sizes_change_at_run_time() {
         .collect();
     let plan = frame_is_valid(&mut app, camera, (W, H), "six lights");
     assert!(
-        plan.contains("2 lights beyond the first 4 left out"),
+        plan.contains("2 lights beyond the 4 that add most to this view left out"),
         "{plan}"
     );
     for e in extra {
@@ -494,4 +493,73 @@ fn cameras_lights_occluders_and_sizes_change_at_run_time() {
     frame_is_valid(&mut app, camera, (64, 48), "target resized");
     app.world_mut().despawn(occluder);
     frame_is_valid(&mut app, camera, (64, 48), "last occluder removed");
+}
+
+/// The part of a plan that names the lights left out (after "left out: "), if any.
+fn left_out(plan: &str) -> Option<&str> {
+    Some(plan.split_once("left out: ")?.1.trim_end_matches(')'))
+}
+
+/// Five equal point lights, two beside each of two cameras 40 m apart and one between them:
+/// each camera keeps the four that add most to its own view and leaves out the farthest from
+/// it, so the two views leave out different lights, and each plan names its own. Broken
+/// variant, checked: one choice for every view in entity order leaves out the same light in
+/// both views (camera A left out the A side's first light, 8.7 m away, and failed).
+#[test]
+fn each_view_takes_the_lights_that_add_most_to_it() {
+    let mut app = headless_app();
+    let target_a = target_image(&mut app, 48, 32);
+    let target_b = target_image(&mut app, 48, 32);
+    let world = app.world_mut();
+    let camera = |world: &mut World, x: f32, order: isize, target: Handle<Image>| {
+        world
+            .spawn((
+                Camera3d::default(),
+                Camera {
+                    order,
+                    ..Default::default()
+                },
+                RenderTarget::Image(ImageRenderTarget::from(target)),
+                Transform::from_xyz(x, 1.6, 6.0).looking_at(Vec3::new(x, 1.2, 0.0), Vec3::Y),
+                medium(),
+            ))
+            .id()
+    };
+    let a = camera(world, 0.0, 0, target_a);
+    let b = camera(world, 40.0, 1, target_b);
+    let lights: Vec<Entity> = [
+        (0.0, -2.5),  // A1: 8.7 m from camera A, 40.9 from B
+        (1.0, -2.0),  // A2: 8.3 and 39.8
+        (20.0, -2.0), // between them: 21.6 from both
+        (40.0, -2.5), // B1: 40.9 and 8.7
+        (41.0, -2.0), // B2: 41.8 and 8.3
+    ]
+    .iter()
+    .map(|&(x, z)| {
+        world
+            .spawn((
+                PointLight {
+                    intensity: LUMENS,
+                    ..Default::default()
+                },
+                Transform::from_xyz(x, 3.5, z),
+                VolshadowLight::default(),
+            ))
+            .id()
+    })
+    .collect();
+    settle(&mut app, 1);
+    for (camera, expected, what) in [(a, lights[4], "camera A"), (b, lights[0], "camera B")] {
+        let plan = match report(&app, camera) {
+            Some(ViewReport::Planned(plan)) => plan,
+            other => panic!("{what}: {other:?}"),
+        };
+        println!("{what}: left out {:?}", left_out(&plan));
+        assert_eq!(
+            left_out(&plan),
+            Some(expected.to_string().as_str()),
+            "{what} should leave out only the light farthest from it ({expected}): {plan}"
+        );
+    }
+    assert_eq!(RENDER_ERRORS.load(Ordering::SeqCst), 0);
 }

@@ -7,7 +7,8 @@
 //! `out/bevy_volshadow.png` and `out/bevy_fog.png`; `-- --size 480x270` sets the size,
 //! `-- --mode volshadow` (or `bevy`) renders one of them. `-- --table --size 160x90` prints the
 //! side-by-side table instead: each renderer's in-scatter (black surfaces, no tone mapping)
-//! against volshadow's f64 reference, and its time per frame.
+//! against volshadow's f64 reference, and its time per frame. `-- --first-frames` times the
+//! first frames of a new app, with and without volshadow (the cold start).
 
 use bevy::app::App;
 use bevy::asset::{Assets, Handle};
@@ -240,6 +241,15 @@ pub struct Rendered {
 impl Rendered {
     /// Builds the app and renders four frames (pipelines compile synchronously).
     pub fn new(mode: Mode, look: Look, msaa: Msaa, width: u32, height: u32) -> Self {
+        let mut rendered = Self::unrendered(mode, look, msaa, width, height);
+        for _ in 0..4 {
+            rendered.frame();
+        }
+        rendered
+    }
+
+    /// Builds the app and spawns the scene without rendering a frame.
+    pub fn unrendered(mode: Mode, look: Look, msaa: Msaa, width: u32, height: u32) -> Self {
         let mut app = app(mode);
         let format = match look {
             Look::Picture => TextureFormat::Rgba8UnormSrgb,
@@ -250,11 +260,7 @@ impl Rendered {
         let target = app.world_mut().resource_mut::<Assets<Image>>().add(image);
         let image_target = RenderTarget::Image(ImageRenderTarget::from(target.clone()));
         spawn(app.world_mut(), mode, look, msaa, image_target);
-        let mut rendered = Self { app, target };
-        for _ in 0..4 {
-            rendered.frame();
-        }
-        rendered
+        Self { app, target }
     }
 
     fn gpu(&self) -> HeadlessGpu {
@@ -423,6 +429,51 @@ fn table(width: u32, height: u32, frames: u32) {
     }
 }
 
+/// Prints the time of each of the first frames of a new app, with and without volshadow, and
+/// the median of later ones: what a cold start costs (pipelines compile synchronously in these
+/// headless apps, Bevy's own as well as volshadow's).
+fn first_frames(width: u32, height: u32) {
+    const FIRST: usize = 4;
+    const LATER: usize = 20;
+    let adapter = {
+        let r = Rendered::unrendered(Mode::Plain, Look::Picture, Msaa::Off, 8, 8);
+        r.gpu().adapter_summary()
+    };
+    println!("{width}x{height}, Bevy's default 4× MSAA, {adapter}");
+    println!(
+        "| app | frame 1 ms | frame 2 | frame 3 | frame 4 | later frame (median of frames {}–{}) |",
+        FIRST + LATER + 1,
+        FIRST + 2 * LATER
+    );
+    println!("|---|---|---|---|---|---|");
+    for mode in [Mode::Plain, Mode::Volshadow] {
+        let mut rendered =
+            Rendered::unrendered(mode, Look::Picture, Msaa::default(), width, height);
+        let mut time = || {
+            let start = std::time::Instant::now();
+            rendered.frame();
+            start.elapsed().as_secs_f64() * 1e3
+        };
+        let first: Vec<f64> = (0..FIRST).map(|_| time()).collect();
+        // Frames 5 to 24 unmeasured: what warms in the background has finished by then.
+        (0..LATER).for_each(|_| {
+            time();
+        });
+        let mut later: Vec<f64> = (0..LATER).map(|_| time()).collect();
+        later.sort_by(f64::total_cmp);
+        let name = match mode {
+            Mode::Plain => "the scene without a medium",
+            _ => "volshadow (plugin defaults)",
+        };
+        let cells: Vec<String> = first.iter().map(|ms| format!("{ms:.0}")).collect();
+        println!(
+            "| {name} | {} | {:.1} |",
+            cells.join(" | "),
+            later[LATER / 2]
+        );
+    }
+}
+
 fn bytemuck_f32(bytes: &[u8]) -> Vec<f32> {
     bytes
         .chunks_exact(4)
@@ -450,6 +501,10 @@ fn main() {
         Some("bevy") => vec![Mode::BevyFog],
         _ => vec![Mode::Volshadow, Mode::BevyFog],
     };
+    if args.iter().any(|a| a == "--first-frames") {
+        first_frames(width, height);
+        return;
+    }
     if args.iter().any(|a| a == "--table") {
         let frames = value("--frames").and_then(|f| f.parse().ok()).unwrap_or(20);
         table(width, height, frames);
