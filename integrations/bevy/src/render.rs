@@ -221,35 +221,27 @@ pub(crate) fn prepare_views(
     // Reports of cameras without a view this frame (despawned, medium removed, inactive) go.
     diagnostics.retain(|camera| views.iter().any(|(_, main, ..)| main.id() == camera));
     for (entity, main, extracted, camera, target, depth, state) in &mut views {
-        let mut new_state = None;
-        let report = match state {
-            Some(mut state) => prepare_view(
-                device,
-                queue,
-                &mut pipelines,
-                &lights,
-                &occluders,
-                (extracted, camera, target, depth),
-                &mut state,
-            ),
+        let mut created = None;
+        let state: &mut ViewVolshadow = match state {
+            Some(state) => state.into_inner(),
             None => match new_view(device, queue, &mut pipelines, camera, target) {
-                Ok(mut state) => {
-                    let report = prepare_view(
-                        device,
-                        queue,
-                        &mut pipelines,
-                        &lights,
-                        &occluders,
-                        (extracted, camera, target, depth),
-                        &mut state,
-                    );
-                    new_state = Some(state);
-                    report
+                Ok(state) => created.insert(state),
+                Err(why) => {
+                    diagnostics.set(main.id(), ViewReport::Failed(why));
+                    continue;
                 }
-                Err(why) => Err(why),
             },
         };
-        if let Some(state) = new_state {
+        let report = prepare_view(
+            device,
+            queue,
+            &mut pipelines,
+            &lights,
+            &occluders,
+            (extracted, camera, target, depth),
+            state,
+        );
+        if let Some(state) = created {
             commands.entity(entity).insert(state);
         }
         diagnostics.set(
