@@ -5,7 +5,8 @@
 //! with a smaller table and shadow map, quarter-resolution bilinear).
 //!
 //! It first renders one frame in every size and settings (as a game compiles its pipelines
-//! while loading), then every `--report-every` frames it prints the resident set size (`VmRSS`), the median frame
+//! while loading), then every `--report-every` frames it prints the resident set size (`VmRSS`),
+//! the bytes its device has allocated (wgpu's allocator report), the median frame
 //! time of the block, the NaN/Inf count of the output and of each light's in-scatter (read
 //! back at the block's last frame) and the wgpu validation errors so far (an uncaptured-error
 //! handler counts them). See [`USAGE`] for the rules it judges and how (`soak --help`).
@@ -48,7 +49,8 @@ type BoxError = Box<dyn std::error::Error>;
 pub const USAGE: &str = "\
 soak: the volshadow facade for many frames with everything animated (camera, a point light, a
 textured spot light, three moving spheres, a breathing medium), resized and switched between
-four settings as it runs; prints RSS, frame time, NaN/Inf and validation errors per block.
+four settings as it runs; prints RSS, device memory, frame time, NaN/Inf and validation errors
+per block.
 
 usage: cargo run --release --example soak -- [OPTIONS]
 
@@ -68,7 +70,11 @@ rules (exit status 1 when one fails):
   errors       any error returned, NaN/Inf read back, or wgpu validation error: fail.
   RSS          the last block's RSS against the first block after the warm-up with the same
                size and settings (textures live in host memory on a CPU adapter, so
-               configurations differ): fail above +5%.
+               configurations differ): fail above +5%. The whole process's: anything else it
+               runs at the same time counts too.
+  device memory  the same comparison of the bytes the soak's own device has allocated
+               (wgpu's allocator report): fail above +5%. Not judged on a backend without
+               the report. Nothing else in the process moves it.
   frame time   judged against an interleaved probe, so that the machine's load cancels: a
                second facade renders one fixed frame after every N-th soak frame, and each
                block's frame time is its median over the probe's median in the same block.
@@ -254,6 +260,38 @@ impl std::fmt::Display for Verdict {
     }
 }
 
+/// The device-memory rule on `blocks` (see [`USAGE`]): the RSS rule's pair of blocks, by
+/// the bytes the soak's device has allocated.
+pub fn judge_device_memory(options: &Options, blocks: &[Block]) -> Verdict {
+    let ends: Vec<u32> = blocks.iter().map(|b| b.frames).collect();
+    match pairs(options, &ends, Rule::Rss).first().copied() {
+        None => Verdict::NotJudged(format!(
+            "no two blocks of the same size and settings after frame {}",
+            options.warmup
+        )),
+        Some((_, j)) if blocks[j].device_bytes == 0 => {
+            Verdict::NotJudged("the backend gives no allocator report".into())
+        }
+        Some((i, j)) => {
+            let growth = blocks[i].device_bytes as f64 / blocks[j].device_bytes as f64 - 1.0;
+            let what = format!(
+                "{:+.2}% from frame {} to {} ({:.1} MB to {:.1} MB; same size and settings; \
+                 bound +5%)",
+                100.0 * growth,
+                blocks[j].frames,
+                blocks[i].frames,
+                blocks[j].device_bytes as f64 / 1e6,
+                blocks[i].device_bytes as f64 / 1e6
+            );
+            if growth > 0.05 {
+                Verdict::Failed(what)
+            } else {
+                Verdict::Passed(what)
+            }
+        }
+    }
+}
+
 /// The verdicts of the RSS and frame-time rules on `blocks` (see [`USAGE`]).
 pub fn judge(options: &Options, blocks: &[Block]) -> (Verdict, Verdict) {
     let ends: Vec<u32> = blocks.iter().map(|b| b.frames).collect();
@@ -353,6 +391,9 @@ pub struct Block {
     pub config: (usize, usize),
     /// Resident set size at the end of the block, bytes.
     pub rss: u64,
+    /// Bytes the soak's device has allocated at the end of the block (wgpu's allocator
+    /// report; 0 where the backend gives none).
+    pub device_bytes: u64,
     /// Median frame time in the block, ms.
     pub median_ms: f64,
     /// Median time of the block's probe frames (the same fixed frame every time, by a second
@@ -381,6 +422,8 @@ pub struct Summary {
     pub validation_errors: usize,
     /// The RSS rule (see [`USAGE`]).
     pub rss: Verdict,
+    /// The device-memory rule (see [`USAGE`]).
+    pub device_memory: Verdict,
     /// The frame-time rule (see [`USAGE`]).
     pub frame_time: Verdict,
     /// Whether the wall-clock budget ran out.
@@ -390,8 +433,23 @@ pub struct Summary {
 }
 
 impl Summary {
-    /// Problems that make the soak fail (empty: passed).
+    /// Problems that make the soak fail (empty: passed): [`device_failures`](Self::device_failures),
+    /// the process's RSS and the time budget.
     pub fn failures(&self) -> Vec<String> {
+        let mut f = self.device_failures();
+        // RSS flat within 5% after the warm-up.
+        if let Verdict::Failed(what) = &self.rss {
+            f.push(format!("RSS {what}"));
+        }
+        if self.over_budget {
+            f.push(format!("over the time budget ({:.0} s)", self.seconds));
+        }
+        f
+    }
+
+    /// What the soak's own device did wrong, whatever else the process runs meanwhile (empty:
+    /// nothing): validation errors, non-finite values read back, device memory growing.
+    pub fn device_failures(&self) -> Vec<String> {
         let mut f = Vec::new();
         if self.validation_errors > 0 {
             f.push(format!("{} wgpu validation errors", self.validation_errors));
@@ -400,12 +458,8 @@ impl Summary {
         if nans > 0 {
             f.push(format!("{nans} non-finite values read back"));
         }
-        // RSS flat within 5% after the warm-up.
-        if let Verdict::Failed(what) = &self.rss {
-            f.push(format!("RSS {what}"));
-        }
-        if self.over_budget {
-            f.push(format!("over the time budget ({:.0} s)", self.seconds));
+        if let Verdict::Failed(what) = &self.device_memory {
+            f.push(format!("device memory {what}"));
         }
         f
     }
@@ -799,6 +853,10 @@ pub fn run(gpu: &HeadlessGpu, options: &Options) -> Result<Summary, BoxError> {
                 frames: done,
                 config: (size_index, settings_index),
                 rss: rss_bytes(),
+                device_bytes: gpu
+                    .device
+                    .generate_allocator_report()
+                    .map_or(0, |r| r.total_allocated_bytes),
                 median_ms: median(&mut times),
                 probe_ms: median(&mut probe_times),
                 nans,
@@ -807,10 +865,12 @@ pub fn run(gpu: &HeadlessGpu, options: &Options) -> Result<Summary, BoxError> {
             times.clear();
             probe_times.clear();
             println!(
-                "frame {:5}  RSS {:7.1} MB  frame {:7.2} ms (median)  probe {:7.2} ms  \
-                 size {}x{}  settings {}  new plans {}  NaN/Inf {}  validation errors {}",
+                "frame {:5}  RSS {:7.1} MB  device {:7.1} MB  frame {:7.2} ms (median)  \
+                 probe {:7.2} ms  size {}x{}  settings {}  new plans {}  NaN/Inf {}  \
+                 validation errors {}",
                 block.frames,
                 block.rss as f64 / 1e6,
+                block.device_bytes as f64 / 1e6,
                 block.median_ms,
                 block.probe_ms,
                 size.0,
@@ -843,10 +903,12 @@ pub fn run(gpu: &HeadlessGpu, options: &Options) -> Result<Summary, BoxError> {
     }
 
     let (rss, frame_time) = judge(options, &blocks);
+    let device_memory = judge_device_memory(options, &blocks);
     let summary = Summary {
         blocks,
         validation_errors: errors.load(Ordering::Relaxed),
         rss,
+        device_memory,
         frame_time,
         over_budget,
         seconds: start.elapsed().as_secs_f64(),
@@ -857,6 +919,10 @@ pub fn run(gpu: &HeadlessGpu, options: &Options) -> Result<Summary, BoxError> {
         summary.validation_errors
     );
     println!("RSS after frame {}: {}", options.warmup, summary.rss);
+    println!(
+        "device memory after frame {}: {}",
+        options.warmup, summary.device_memory
+    );
     println!(
         "frame time (each block's median over its interleaved probe's), after frame {}: {}",
         options.warmup, summary.frame_time
