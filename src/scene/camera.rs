@@ -141,24 +141,14 @@ impl Camera {
 /// (a point at infinity, w = 0, counts as farthest).
 fn far_end_depth(projection: Mat4) -> Result<f32> {
     let inverse = projection.as_dmat4().inverse();
-    let distance = |z: f64| -> f64 {
+    // Each end's unprojected point: its distance from the eye and its |w|.
+    let [(l0, w0), (l1, w1)] = [0.0, 1.0].map(|z| {
         let p: DVec4 = DMat4::mul_vec4(&inverse, DVec4::new(0.0, 0.0, z, 1.0));
-        let len = p.truncate().length();
-        if p.w.abs() <= 1e-12 * len {
-            f64::INFINITY
-        } else {
-            len / p.w.abs()
-        }
-    };
-    // The near end's distance, measured without the test above for points at infinity: a
+        (p.truncate().length(), p.w.abs())
+    });
+    // The near end's distance, measured without the test below for points at infinity: a
     // near plane beyond 1e12 would read as infinitely far, and so as no perspective.
-    let near = [0.0, 1.0]
-        .map(|z| {
-            let p: DVec4 = DMat4::mul_vec4(&inverse, DVec4::new(0.0, 0.0, z, 1.0));
-            p.truncate().length() / p.w.abs()
-        })
-        .into_iter()
-        .fold(f64::INFINITY, f64::min);
+    let near = (l0 / w0).min(l1 / w1);
     if near.is_finite() && near > Camera::MAX_NEAR {
         return Err(Error::InvalidSetting {
             field: "camera.projection",
@@ -168,7 +158,14 @@ fn far_end_depth(projection: Mat4) -> Result<f32> {
             ),
         });
     }
-    let (d0, d1) = (distance(0.0), distance(1.0));
+    let distance = |len: f64, w: f64| {
+        if w <= 1e-12 * len {
+            f64::INFINITY
+        } else {
+            len / w
+        }
+    };
+    let (d0, d1) = (distance(l0, w0), distance(l1, w1));
     if d0 == d1 || d0.is_nan() || d1.is_nan() {
         return Err(Error::NotPerspective);
     }
