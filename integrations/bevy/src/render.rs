@@ -163,12 +163,23 @@ impl ViewVolshadow {
     }
 }
 
-fn settings_for(quality: VolshadowQuality, kind: AdapterKind) -> volshadow::Result<Settings> {
-    match quality {
+/// The settings of a view of `quality` whose target has `format`, on `device`'s adapter.
+fn settings_for(
+    quality: VolshadowQuality,
+    format: wgpu::TextureFormat,
+    device: &wgpu::Device,
+) -> Result<Settings, String> {
+    let kind = AdapterKind::of(device);
+    let settings = match quality {
         VolshadowQuality::Adapter => Ok(Settings::for_adapter(kind)),
         VolshadowQuality::ErrorTarget(p95) => Settings::for_error_target(p95, kind),
         VolshadowQuality::Custom(settings) => Ok(settings),
     }
+    .map_err(text)?;
+    Ok(Settings {
+        output_format: format,
+        ..settings
+    })
 }
 
 /// The views with a medium, and their state once they have one.
@@ -186,7 +197,7 @@ type Views<'w, 's> = Query<
     ),
 >;
 
-/// The render world's lights, and the occluders with their GPU meshes, for the views.
+/// The render world's lights, with their main-world entities.
 type Lights<'w, 's> = Query<'w, 's, (&'static MainEntity, &'static ExtractedVolshadowLight)>;
 
 /// Prepares every camera's volumetric shadows for this frame, after the view's depth texture
@@ -267,10 +278,7 @@ fn new_view(
     target: &ViewTarget,
 ) -> Result<ViewVolshadow, String> {
     let quality = camera.medium.quality;
-    let settings = Settings {
-        output_format: target.main_texture_format(),
-        ..settings_for(quality, AdapterKind::of(device)).map_err(text)?
-    };
+    let settings = settings_for(quality, target.main_texture_format(), device)?;
     Ok(ViewVolshadow {
         facade: VolumetricShadows::new(device, queue, &pipelines.cache, settings).map_err(text)?,
         quality,
@@ -301,10 +309,7 @@ fn prepare_view(
     let medium = &camera.medium;
     let format = target.main_texture_format();
     if state.quality != medium.quality || state.facade.settings().output_format != format {
-        let settings = Settings {
-            output_format: format,
-            ..settings_for(medium.quality, AdapterKind::of(device)).map_err(text)?
-        };
+        let settings = settings_for(medium.quality, format, device)?;
         state.facade.set_settings(settings).map_err(text)?;
         state.quality = medium.quality;
     }
