@@ -5,7 +5,9 @@
 
 use crate::error::{Error, Result};
 
-/// A device and queue on the adapter chosen from the environment.
+/// A device and queue on the adapter chosen from the environment. Cloning is cheap (wgpu's
+/// handles): the clones share the device.
+#[derive(Clone)]
 pub struct HeadlessGpu {
     /// The instance the adapter came from.
     pub instance: wgpu::Instance,

@@ -24,15 +24,61 @@ pub fn unread_camera() -> Camera {
     .expect("a valid camera")
 }
 
-/// The test device. A missing adapter fails the test with the installation hint.
+/// The test binary's one device, shared by its tests (each gets a clone of the handles). A
+/// missing adapter fails the test with the installation hint.
+///
+/// Pipelines are most of the suite's cost on lavapipe, which compiles each one with LLVM (71% of
+/// four sampled GPU tests' time under `perf`, 88% of the warm-up test's), so the tests share one
+/// device and, per shader precision, one [`Cache`] ([`cache`], [`cache_with`]): a node's
+/// pipelines compile once per binary instead of once per test. Nothing else is shared: wgpu's
+/// error scopes are per thread, so a test's scope sees only its own errors. A test that counts
+/// what its device builds or holds makes its own device with `HeadlessGpu::new` (`warm_up.rs`).
 pub fn gpu() -> HeadlessGpu {
-    match HeadlessGpu::new() {
+    match shared() {
         Ok(gpu) => {
             metric::adapter(&gpu.adapter_summary());
-            gpu
+            gpu.clone()
         }
         Err(e) => panic!("GPU tests need a wgpu adapter (lavapipe works): {e}"),
     }
+}
+
+/// The binary's device, made by the first test that asks.
+fn shared() -> &'static Result<HeadlessGpu, String> {
+    static SHARED: std::sync::OnceLock<Result<HeadlessGpu, String>> = std::sync::OnceLock::new();
+    SHARED.get_or_init(|| HeadlessGpu::new().map_err(|e| e.to_string()))
+}
+
+/// A cache for `gpu` at native precision; see [`cache_with`].
+pub fn cache(gpu: &HeadlessGpu) -> Cache {
+    cache_with(gpu, volshadow::ShaderPrecision::Native)
+}
+
+/// A cache for `gpu`'s device at `precision`: for the binary's shared device ([`gpu`]) the one
+/// shared cache of that precision (a clone, so pipelines built by any test serve the rest); for
+/// any other device a new one. The instance is compared too: wgpu compares devices by their id
+/// alone, and a device of another instance (`gpu_timed`) can have the same id (with the device
+/// alone, 25 tests on such devices got the shared cache's layouts and wgpu-core panicked on
+/// "non-existent resource").
+pub fn cache_with(gpu: &HeadlessGpu, precision: volshadow::ShaderPrecision) -> Cache {
+    static CACHES: std::sync::Mutex<Vec<(usize, Cache)>> = std::sync::Mutex::new(Vec::new());
+    let device = &gpu.device;
+    let Some(which) = [shared(), shared_timed()].iter().position(|s| {
+        s.as_ref()
+            .is_ok_and(|s| s.instance == gpu.instance && s.device == *device)
+    }) else {
+        return Cache::with_precision(device, precision);
+    };
+    let mut caches = CACHES.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((_, cache)) = caches
+        .iter()
+        .find(|(w, c)| *w == which && c.precision() == precision)
+    {
+        return cache.clone();
+    }
+    let cache = Cache::with_precision(device, precision);
+    caches.push((which, cache.clone()));
+    cache
 }
 
 /// WGSL's worst case for the shaders' transcendental built-ins, each result moved by the largest
@@ -388,15 +434,25 @@ pub fn max_abs_rel(a: f64, b: f64) -> f64 {
     (a - b).abs() / b.abs().max(f64::MIN_POSITIVE)
 }
 
-/// A device with timestamp queries when the adapter has them (lavapipe does).
+/// A device with timestamp queries when the adapter has them (lavapipe does), shared by the
+/// binary's tests as [`gpu`] is, with its own caches.
 pub fn gpu_timed() -> HeadlessGpu {
-    match HeadlessGpu::with_optional_features(wgpu::Features::TIMESTAMP_QUERY) {
+    match shared_timed() {
         Ok(gpu) => {
             metric::adapter(&gpu.adapter_summary());
-            gpu
+            gpu.clone()
         }
         Err(e) => panic!("GPU tests need a wgpu adapter (lavapipe works): {e}"),
     }
+}
+
+/// The binary's timed device, made by the first test that asks.
+fn shared_timed() -> &'static Result<HeadlessGpu, String> {
+    static SHARED: std::sync::OnceLock<Result<HeadlessGpu, String>> = std::sync::OnceLock::new();
+    SHARED.get_or_init(|| {
+        HeadlessGpu::with_optional_features(wgpu::Features::TIMESTAMP_QUERY)
+            .map_err(|e| e.to_string())
+    })
 }
 
 /// What a shadowed frame produced.

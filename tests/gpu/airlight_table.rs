@@ -119,7 +119,7 @@ crate::at_each_precision!(
 
 fn table_matches_reference_at(precision: ShaderPrecision) {
     let gpu = common::gpu();
-    let cache = Cache::with_precision(&gpu.device, precision);
+    let cache = common::cache_with(&gpu, precision);
     let phases = [
         PhaseFunction::Isotropic,
         PhaseFunction::HenyeyGreenstein { g: 0.9 },
@@ -231,7 +231,7 @@ fn frame_scene() -> (volshadow::Camera, PointLight) {
 #[test]
 fn table_size_minimum_is_where_the_frame_error_stays_within_a_fifth_of_a_percent() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let (camera, light) = frame_scene();
     let media = [
         Medium::new(

@@ -168,7 +168,7 @@ fn ball_over(far: Mesh) -> (MeshScene, Camera, Light) {
 #[test]
 fn far_occluders_keep_a_small_shadow() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let cases = [
         (
             "20 x 1 x 20 slab 1,000 below",
@@ -229,7 +229,7 @@ fn far_occluders_keep_a_small_shadow() {
 #[test]
 fn small_occluders_over_terrain_at_every_scale() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let seeds: Vec<u64> = match std::env::var("CASCADES_SEEDS") {
         Ok(s) => s.split(',').map(|v| v.trim().parse().unwrap()).collect(),
         Err(_) => (1..=12).collect(),
@@ -339,7 +339,7 @@ fn field_over_two_kilometres_at_the_defaults() {
     use volshadow::{Frame, FrameLight, Occluder, OccluderMesh, Settings, VolumetricShadows};
     const REDUCED_RMSE: f64 = 0.03;
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let mut rng = Rng::new(0x5eed_f1e1d);
     let mut occluders = Vec::new();
     for k in 0..60 {

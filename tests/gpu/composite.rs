@@ -164,7 +164,7 @@ fn composite(
 #[test]
 fn compute_and_fragment_composites_write_the_same_values() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let storage = wgpu::TextureUsages::STORAGE_BINDING;
     let render = wgpu::TextureUsages::RENDER_ATTACHMENT;
     for (seed, format) in [
@@ -230,7 +230,7 @@ fn compute_and_fragment_composites_write_the_same_values() {
 #[test]
 fn a_storage_only_target_is_written_and_a_target_with_neither_usage_is_refused() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let inputs = inputs(&gpu, 3);
     let (stored, image) = composite(
         &gpu,

@@ -13,7 +13,7 @@ use glam::{DMat4, DVec3, Mat4, Quat, Vec3};
 use volshadow::gpu::{Occluder, OccluderMesh};
 use volshadow::nodes::{CrossingsBuild, CrossingsRequest, ExtentsInputs, ExtentsNode};
 use volshadow::scene::shapes;
-use volshadow::{Cache, Light, PointLight};
+use volshadow::{Light, PointLight};
 
 const SIZE: u32 = 96;
 const PER_PIXEL: u32 = 8;
@@ -59,7 +59,7 @@ fn raster_built_crossing_depths_are_where_each_pixel_ray_meets_its_face() {
 
 fn depths_of_build(build: CrossingsBuild) {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let mut node = ExtentsNode::new(&gpu.device, &cache).unwrap();
     let (mut judged, mut over, mut worst) = (0usize, 0usize, 0.0f64);
     for seed in 0..12u64 {
@@ -210,7 +210,7 @@ fn lists_of(
 #[test]
 fn compute_and_raster_builds_write_the_same_lists() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let mut node = ExtentsNode::new(&gpu.device, &cache).unwrap();
     let (w, h) = (80u32, 64u32);
     let mut worst = 0.0f64;

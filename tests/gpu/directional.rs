@@ -108,7 +108,7 @@ fn naive_f32(sigma_t: f32, x: f32) -> f32 {
 #[test]
 fn closed_form_matches_reference_on_unshadowed_rays() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let camera = camera(Vec3::new(0.0, 2.0, 8.0), Vec3::new(0.0, 1.0, 0.0), 70.0);
     let light = sun();
     // Half the image sees the floor (surface pixels out to the horizon), half the sky.
@@ -246,7 +246,7 @@ fn exact() -> MarchSettings {
 #[test]
 fn window_scene_exact_mode_matches_reference() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let (scene, sun, dust) = window_room();
     let camera = window_camera(Vec3::ZERO);
     let light = Light::from(sun);
@@ -336,7 +336,7 @@ fn away_from_edges(image: &[[f32; 4]], size: u32) -> Vec<usize> {
 #[test]
 fn moving_camera_does_not_make_shafts_shimmer() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let (scene, sun, dust) = window_room();
     // A shadow distance that covers the room in view: texels of about 2 cm.
     let sun = sun.with_shadow_distance(SHIMMER_DISTANCE).unwrap();
@@ -461,7 +461,7 @@ fn facade_mixes_point_and_directional_lights() {
     use volshadow::{Frame, FrameLight, Occluder, OccluderMesh, PointLight, Settings};
     const SIZE: u32 = 48;
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let camera = camera(Vec3::new(0.0, 1.5, 6.0), Vec3::new(0.0, 1.0, 0.0), 60.0);
     let mut rays = Vec::new();
     let depths: Vec<f32> = (0..SIZE * SIZE)

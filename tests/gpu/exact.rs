@@ -152,7 +152,7 @@ fn assert_bars(name: &str, exact: &Errors, hybrid: &Errors, hybrid_rmse: Option<
 #[test]
 fn a_camera_in_the_shade_of_a_wide_roof() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     // A porch: a wide roof on two pillars. The pillars' shadow volumes lie inside the roof's,
     // so rays from the eye enter a pillar's volume (a front face) before they leave the roof's:
     // the piece before that face is in the roof's shadow, not lit.
@@ -179,7 +179,7 @@ fn a_camera_in_the_shade_of_a_wide_roof() {
 #[test]
 fn b_eye_inside_two_overlapping_volumes() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     // The eye is in the shadows of two stacked boards; most rays leave one and stay in the
     // other. A third board's volume starts beside the eye, so many rays enter it (a front
     // face) before leaving the first two.
@@ -215,7 +215,7 @@ fn b_eye_inside_two_overlapping_volumes() {
 #[test]
 fn c_thick_fog_light_behind_eye_in_shadow_near_the_edge() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let mut scene = MeshScene {
         ground: Some(0.0),
         ..Default::default()
@@ -288,7 +288,7 @@ fn blind(slats: u32) -> MeshScene {
 #[test]
 fn d_blind_of_slats_exact_and_overflowing() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let scene = blind(12);
     let light = point_light(Vec3::new(0.2, 4.5, -3.0));
     let camera = look_at(Vec3::new(0.4, 1.3, 3.5), Vec3::new(0.0, 1.9, -1.0), 60.0);
@@ -340,7 +340,7 @@ fn d_blind_of_slats_exact_and_overflowing() {
 #[test]
 fn e_volume_cut_by_the_near_plane() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     // A camera with a far near plane (1.2) right next to the shaft: the caller's projection
     // clips the volume's front. The occluder is not in the caller's depth.
     let mut scene = MeshScene {
@@ -379,7 +379,7 @@ fn e_volume_cut_by_the_near_plane() {
 #[test]
 fn h_eye_on_a_shadow_volume_face() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let mut scene = MeshScene {
         ground: Some(0.0),
         ..Default::default()
@@ -421,7 +421,7 @@ fn h_eye_on_a_shadow_volume_face() {
 #[test]
 fn i_rays_through_shared_edges_and_a_vertex() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let r = 1.5;
     let c = Vec3::new(0.0, 2.0, 0.0);
     let positions: Vec<Vec3> = [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z]
@@ -516,7 +516,7 @@ fn i_rays_through_shared_edges_and_a_vertex() {
 #[test]
 fn f_textured_spot_eye_in_its_occluders_shadow() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let spot = SpotLight::new(
         Vec3::new(0.3, 4.0, -0.2),
         Vec3::new(-0.1, -1.0, 0.05),
@@ -752,7 +752,7 @@ crate::at_each_precision!(
 /// allows.
 fn random_scenes_at(precision: ShaderPrecision) {
     let gpu = common::gpu();
-    let cache = Cache::with_precision(&gpu.device, precision);
+    let cache = common::cache_with(&gpu, precision);
     let mut results = Vec::new();
     for seed in rng::seeds(0..200) {
         let s = random_scene(seed);
@@ -834,7 +834,7 @@ fn random_scenes_at(precision: ShaderPrecision) {
 fn reduced_resolution_with_the_upsample_filters() {
     use volshadow::nodes::{Scale, UpsampleFilter};
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let mut scene = MeshScene {
         ground: Some(0.0),
         ..Default::default()
@@ -889,7 +889,7 @@ fn reduced_resolution_with_the_upsample_filters() {
 #[test]
 fn intersecting_occluders_with_a_low_light() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let mut scene = MeshScene {
         ground: Some(0.0),
         ..Default::default()
@@ -953,7 +953,7 @@ fn brightest(reference: &[glam::DVec3]) -> f64 {
 fn thick_fog_spot_scenes_at(precision: ShaderPrecision) {
     const BRIGHTER: f32 = 1e15;
     let gpu = common::gpu();
-    let cache = Cache::with_precision(&gpu.device, precision);
+    let cache = common::cache_with(&gpu, precision);
     let regime = |brighter| Regime {
         log_tau: (1.0, 2.0),
         spot: true,

@@ -38,7 +38,7 @@ fn ground(o: DVec3, d: DVec3) -> f64 {
 /// A ground plane seen from above it, a constant scene colour of 0.5.
 fn rig() -> Rig {
     let gpu = common::gpu_timed();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let camera = common::look_at(
         Vec3::new(0.0, 1.5, 5.0),
         Vec3::new(0.0, 1.0, 0.0),

@@ -117,7 +117,7 @@ crate::at_each_precision!(
 
 fn ground_plane_with_sky_and_light_in_view_at(precision: ShaderPrecision) {
     let gpu = common::gpu();
-    let cache = Cache::with_precision(&gpu.device, precision);
+    let cache = common::cache_with(&gpu, precision);
     let camera = camera();
     let light = PointLight::new(Vec3::new(0.6, 2.2, -1.0), Vec3::new(40.0, 36.0, 30.0)).unwrap();
     for phase in [
@@ -164,7 +164,7 @@ crate::at_each_precision!(
 
 fn light_behind_the_camera_at(precision: ShaderPrecision) {
     let gpu = common::gpu();
-    let cache = Cache::with_precision(&gpu.device, precision);
+    let cache = common::cache_with(&gpu, precision);
     let camera = camera();
     let light = PointLight::new(Vec3::new(-0.5, 2.5, 9.0), Vec3::splat(50.0)).unwrap();
     let medium = Medium::new(
@@ -199,7 +199,7 @@ crate::at_each_precision!(
 
 fn absorption_three_times_scattering_at(precision: ShaderPrecision) {
     let gpu = common::gpu();
-    let cache = Cache::with_precision(&gpu.device, precision);
+    let cache = common::cache_with(&gpu, precision);
     let camera = camera();
     let light = PointLight::new(Vec3::new(0.6, 2.2, -1.0), Vec3::splat(40.0)).unwrap();
     let sigma_s = Vec3::splat(0.08);
@@ -258,7 +258,7 @@ crate::at_each_precision!(
 /// DESIGN §5, seen through a reversed-Z infinite projection, with the light in view and behind.
 fn stiff_optical_depths_random_distances_at(precision: ShaderPrecision) {
     let gpu = common::gpu();
-    let cache = Cache::with_precision(&gpu.device, precision);
+    let cache = common::cache_with(&gpu, precision);
     let eye = Vec3::new(1.0, 2.0, 3.0);
     let camera = Camera::new(
         glam::camera::rh::view::look_to_mat4(eye, Vec3::new(0.2, -0.1, -1.0), Vec3::Y),

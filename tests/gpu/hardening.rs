@@ -36,7 +36,7 @@ fn output(gpu: &HeadlessGpu, size: u32, mips: u32) -> wgpu::Texture {
 
 /// A ground plane at y = 0 seen from above, scene colour 0.5, `size`².
 fn rig_on(gpu: HeadlessGpu, size: u32) -> Rig {
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let camera = common::look_at(
         Vec3::new(0.0, 1.5, 5.0),
         Vec3::new(0.0, 1.0, 0.0),
@@ -430,7 +430,7 @@ fn output_size_is_checked_at_the_written_mip_level() {
 #[test]
 fn output_formats_the_composite_cannot_write_are_rejected_by_new() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     use wgpu::TextureFormat as F;
     for format in [
         F::Rgba8Uint,

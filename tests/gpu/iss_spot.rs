@@ -295,7 +295,7 @@ fn reference_spot_term_against_brute_force() {
 /// tells the two apart).
 fn issue_spot_scene(precision: ShaderPrecision) {
     let gpu = common::gpu();
-    let cache = Cache::with_precision(&gpu.device, precision);
+    let cache = common::cache_with(&gpu, precision);
     let medium = issue_medium();
     let spot = issue_spot();
     let edge = (30f64).to_radians().tan();
@@ -395,7 +395,7 @@ crate::at_each_precision!(
 #[test]
 fn lattice_against_every_pixel() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let medium = issue_medium();
     let spot = issue_spot();
     // `VOLSHADOW_LATTICE_SIZE=WxH` measures another size (the share interpolated grows with it).
@@ -600,7 +600,7 @@ fn spot_scene(seed: u64) -> SpotScene {
 /// Prints the failing seed.
 fn seeded_spot_scenes(precision: ShaderPrecision) {
     let gpu = common::gpu();
-    let cache = Cache::with_precision(&gpu.device, precision);
+    let cache = common::cache_with(&gpu, precision);
     let size = 8;
     let mut worst = (0.0f64, 0u64);
     let mut failures = Vec::new();
@@ -685,7 +685,7 @@ crate::at_each_precision!(
 #[ignore = "slow in the debug test build (the f64 reference at the stiff cases): cargo test --release --features gltf,image --test gpu iss_spot:: -- --ignored"]
 fn stiff_spot_cases() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let wall = |eye: DVec3, dir: DVec3| {
         let t = (-2.0 - eye.z) / dir.z;
         (t > 0.0).then(|| (eye + dir * t, DVec3::Z, 0.7))
@@ -833,7 +833,7 @@ fn composite_cost() {
         })
         .unwrap_or(if cpu { (256, 144) } else { (1920, 1080) });
     eprintln!("adapter: {}", gpu.adapter_summary());
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let medium = issue_medium();
     let spot = issue_spot();
     let point = volshadow::PointLight::new(spot.position(), spot.intensity()).unwrap();

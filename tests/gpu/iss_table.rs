@@ -81,7 +81,7 @@ crate::at_each_precision!(
 /// allows.
 fn entries_match_the_reference_at(precision: ShaderPrecision) {
     let gpu = common::gpu();
-    let cache = Cache::with_precision(&gpu.device, precision);
+    let cache = common::cache_with(&gpu, precision);
     let size = IssTableSize { tau: 33, alpha: 65 };
     let (nu, nv) = (size.tau as usize, size.alpha as usize);
     let mut failures = Vec::new();
@@ -148,7 +148,7 @@ fn entries_match_the_reference_at(precision: ShaderPrecision) {
 #[test]
 fn default_table_interpolates_within_1e_3() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let size = IssTableSize::default();
     let (nu, nv) = (size.tau as usize, size.alpha as usize);
     let mut failures = Vec::new();
@@ -348,7 +348,7 @@ fn frame_error(
 #[test]
 fn frame_of_ground_and_wall_matches_the_reference() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let medium = Medium::new(
         Vec3::splat(0.3),
         Vec3::splat(0.05),
@@ -413,7 +413,7 @@ fn frame_of_ground_and_wall_matches_the_reference() {
 #[test]
 fn stiff_cases_match_the_reference() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let wall = |eye: DVec3, dir: DVec3| {
         let t = (-2.0 - eye.z) / dir.z;
         (t > 0.0).then(|| (eye + dir * t, DVec3::Z, 0.7))
@@ -502,7 +502,7 @@ fn planner_runs_the_table_only_with_surfaces_and_scattering() {
     use volshadow::plan::{Pass, Reason};
     use volshadow::{Frame, Settings, Surfaces, VolumetricShadows};
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let size = 16;
     let camera = common::look_at(
         Vec3::new(0.0, 0.0, 1.0),
@@ -602,7 +602,7 @@ fn planner_runs_the_table_only_with_surfaces_and_scattering() {
 fn bad_surface_textures_are_typed_errors() {
     use volshadow::{Error, Frame, Settings, Surfaces, VolumetricShadows};
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let camera = common::look_at(
         Vec3::new(0.0, 0.0, 1.0),
         Vec3::new(0.0, 0.0, -2.0),

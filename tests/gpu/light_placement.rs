@@ -9,7 +9,7 @@ use common::scene::{MeshScene, Shot};
 use glam::Vec3;
 use volshadow::nodes::{MarchMethod, MarchSettings};
 use volshadow::scene::shapes;
-use volshadow::{Cache, Light, Medium, PhaseFunction, PointLight, ShaderPrecision, SpotLight};
+use volshadow::{Light, Medium, PhaseFunction, PointLight, ShaderPrecision, SpotLight};
 
 /// The exact method's bound everywhere else (tests/gpu/exact.rs): p95 and RMSE ≤ 0.5%.
 const EXACT_P95: f64 = 0.005;
@@ -44,7 +44,7 @@ fn haze_over_ground() -> (Medium, MeshScene) {
 #[test]
 fn a_wide_spot_cone_keeps_an_occluder_near_its_edge_in_the_shadow_map() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let (medium, mut scene) = haze_over_ground();
     // Seen from the light, 84° off the cone's axis and 0.3 units below the light: along the
     // axis its nearest point is 0.4 units *behind* the light's plane, its farthest 1.0 ahead.
@@ -108,7 +108,7 @@ crate::at_each_precision!(
 /// must meet its usual bar.
 fn a_light_a_millionth_above_a_sphere_at(precision: ShaderPrecision) {
     let gpu = common::gpu();
-    let cache = Cache::with_precision(&gpu.device, precision);
+    let cache = common::cache_with(&gpu, precision);
     let (medium, mut scene) = haze_over_ground();
     scene.add(shapes::uv_sphere(Vec3::new(0.0, 1.0, 0.0), 1.0, 48, 24).unwrap());
     let camera = common::look_at(EYE, TARGET, 60.0, 1.0);
@@ -164,7 +164,7 @@ fn a_light_a_millionth_above_a_sphere_at(precision: ShaderPrecision) {
 #[test]
 fn a_175_degree_view_clamps_the_glow_by_each_pixel_footprint() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let (medium, mut scene) = haze_over_ground();
     scene.add(shapes::uv_sphere(Vec3::new(2.0, 1.5, 3.0), 0.5, 48, 24).unwrap());
     let camera = common::look_at(EYE, TARGET, 175.0, 1.0);
@@ -212,7 +212,7 @@ crate::at_each_precision!(
 ///    shadow (leaving it out fails the bar).
 fn the_widest_spot_cone_at(precision: ShaderPrecision) {
     let gpu = common::gpu();
-    let cache = Cache::with_precision(&gpu.device, precision);
+    let cache = common::cache_with(&gpu, precision);
     let (medium, mut scene) = haze_over_ground();
     let exact = exact();
     let widest = SpotLight::MAX_CONE_ANGLE;

@@ -10,7 +10,7 @@ use glam::{Mat4, Vec3, Vec4};
 use volshadow::nodes::{ShadowMapInputs, ShadowMapNode, ShadowMapSettings};
 use volshadow::scene::{shapes, LightTexture};
 use volshadow::scene_file::SceneDescription;
-use volshadow::{Cache, Error, Light, Occluder, OccluderMesh, PointLight};
+use volshadow::{Error, Light, Occluder, OccluderMesh, PointLight};
 
 /// A scene file with one box placed by `matrix` (column-major).
 fn scene_with_matrix(m: Mat4) -> String {
@@ -31,7 +31,7 @@ fn scene_with_matrix(m: Mat4) -> String {
 #[test]
 fn occluder_transform_validated_as_scene_files_do() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let mut node = ShadowMapNode::new(&gpu.device, &cache, ShadowMapSettings::default()).unwrap();
     let mesh = OccluderMesh::new(&gpu.device, &shapes::cuboid(Vec3::ZERO, Vec3::ONE).unwrap());
     let light = Light::Point(PointLight::new(Vec3::new(0.0, 5.0, 0.0), Vec3::ONE).unwrap());

@@ -267,7 +267,7 @@ fn brute(steps: u32) -> MarchSettings {
 #[test]
 fn sphere_above_plane_hybrid_and_brute_force() {
     let gpu = common::gpu_timed();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let camera = look_at(Vec3::new(0.0, 1.2, 5.0), Vec3::new(0.0, 0.9, 0.0));
     let light = point_light(Vec3::new(0.4, 4.2, -0.3));
     let scene = sphere_scene();
@@ -349,7 +349,7 @@ fn sphere_above_plane_hybrid_and_brute_force() {
 #[test]
 fn hybrid_is_cheaper_and_at_least_as_accurate_as_brute_force_at_equal_steps() {
     let gpu = common::gpu_timed();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let camera = look_at(Vec3::new(0.0, 1.2, 5.0), Vec3::new(0.0, 0.9, 0.0));
     let light = point_light(Vec3::new(0.4, 4.2, -0.3));
     let scene = sphere_scene();
@@ -410,7 +410,7 @@ fn bisection_locates_shadow_edges_between_steps() {
     // on lavapipe: RMSE 0.57% without, 0.14% with): we ask for at least a third less,
     // and for the steps the bisections executed to be counted.
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let camera = look_at(Vec3::new(0.0, 1.2, 5.0), Vec3::new(0.0, 0.9, 0.0));
     let light = point_light(Vec3::new(0.4, 4.2, -0.3));
     let scene = sphere_scene();
@@ -458,7 +458,7 @@ fn bisection_locates_shadow_edges_between_steps() {
 #[test]
 fn pixels_without_extents_execute_no_steps() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let camera = look_at(Vec3::new(0.0, 1.2, 5.0), Vec3::new(0.0, 0.9, 0.0));
     let light = point_light(Vec3::new(0.4, 4.2, -0.3));
     let m = render(
@@ -494,7 +494,7 @@ fn pixels_without_extents_execute_no_steps() {
 /// were missing (the unshadowed reference breaks the per-pixel bound).
 fn check_no_missing_shadow(name: &str, camera: &Camera, light: &Light, scene: &Scene) {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let m = render(&gpu, &cache, camera, light, &medium(), scene, hybrid(64));
     let ref_occ = scene.reference_occluders();
     let shadowed = reference::inscatter_image(
@@ -679,7 +679,7 @@ fn spot_light_with_a_2d_shadow_map() {
     // A spot light pointing down at a sphere, seen from the side: rays that miss the cone get
     // exactly nothing from it; the rest match the reference (cone and shadow both exact there).
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let spot = SpotLight::new(
         Vec3::new(0.2, 4.0, 0.0),
         Vec3::new(-0.1, -1.0, 0.05),
@@ -731,7 +731,7 @@ fn spot_light_with_a_2d_shadow_map() {
 #[test]
 fn sphere_at_quarter_resolution_with_bilateral_upsampling() {
     let gpu = common::gpu_timed();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let camera = look_at(Vec3::new(0.0, 1.2, 5.0), Vec3::new(0.0, 0.9, 0.0));
     let light = point_light(Vec3::new(0.4, 4.2, -0.3));
     let scene = sphere_scene();
@@ -856,7 +856,7 @@ fn p95_with_shadow_resolution(
 fn shadow_map_minimum_resolution_is_where_the_p95_error_stays_within_two_percent() {
     use volshadow::nodes::{ShadowMapNode, ShadowMapSettings};
     let gpu = common::gpu_timed();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let camera = look_at(Vec3::new(0.0, 1.2, 5.0), Vec3::new(0.0, 0.9, 0.0));
     let light = point_light(Vec3::new(0.4, 4.2, -0.3));
     let scene = sphere_scene();
@@ -915,7 +915,7 @@ fn shadow_map_minimum_resolution_is_where_the_p95_error_stays_within_two_percent
 #[test]
 fn a_terrain_sized_occluder_does_not_cost_a_small_one_its_shadow() {
     let gpu = common::gpu_timed();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let camera = look_at(Vec3::new(0.0, 1.2, 5.0), Vec3::new(0.0, 1.5, 0.0));
     let light_pos = Vec3::new(0.4, 4.2, -0.3);
     let light = point_light(light_pos);

@@ -125,7 +125,7 @@ fn row_error(gpu: &[[f32; 4]], reference: &[DVec3], row: usize) -> (f64, usize) 
 fn sphere_penumbra_against_the_reference() {
     let (gpu, cache) = {
         let gpu = gpu();
-        let cache = Cache::new(&gpu.device);
+        let cache = common::cache(&gpu);
         (gpu, cache)
     };
     let s = scene();
@@ -169,7 +169,7 @@ fn sphere_penumbra_against_the_reference() {
 
     // Each method natively and in WGSL's worst case for the transcendental built-ins (the
     // reference computed once for both).
-    let worst_case = Cache::with_precision(&gpu.device, common::WORST_CASE);
+    let worst_case = common::cache_with(&gpu, common::WORST_CASE);
     for (cache, m) in [&cache, &worst_case].into_iter().flat_map(|c| {
         [
             MarchMethod::Exact,
@@ -228,7 +228,7 @@ fn sphere_penumbra_against_the_reference() {
 fn a_caller_s_cube_faces_give_the_node_s_image() {
     const N: u32 = 48;
     let gpu = gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let eye = Vec3::new(3.0, 2.5, 2.0);
     let camera = Camera::new(
         look_at_mat4(eye, Vec3::ZERO, Vec3::Y),
@@ -331,7 +331,7 @@ fn looking_straight_at_a_soft_light() {
     const N: u32 = 64;
     const BAR: f64 = 0.05;
     let gpu = gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let camera = common::look_at(Vec3::new(0.0, 0.0, 6.0), Vec3::ZERO, 20.0, 1.0);
     let medium = Medium::new(
         Vec3::splat(0.1),
@@ -414,7 +414,7 @@ fn torus_spot_penumbra_dense() {
 fn torus_spot(stride: u32, grid: u32) {
     const N: u32 = 64;
     let gpu = gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let eye = Vec3::new(3.0, 0.6, 0.0);
     let view = look_at_mat4(eye, Vec3::new(0.0, 0.6, 0.0), Vec3::Y);
     let camera = Camera::new(view, directx::perspective(1.2, 1.0, 0.1, 100.0)).unwrap();

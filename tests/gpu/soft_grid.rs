@@ -18,8 +18,8 @@ use volshadow::nodes::{
 use volshadow::reference::{self, Cuboid, Sphere};
 use volshadow::scene::shapes;
 use volshadow::{
-    Cache, Camera, DirectionalLight, Error, Light, Medium, PhaseFunction, PointLight,
-    ShaderPrecision, SpotLight,
+    Camera, DirectionalLight, Error, Light, Medium, PhaseFunction, PointLight, ShaderPrecision,
+    SpotLight,
 };
 
 const RMSE_BAR: f64 = 0.02;
@@ -704,7 +704,7 @@ fn check_scenes_wired(
     let mut within = 0;
     let mut telling = 0;
     let gpu = common::gpu();
-    let cache = Cache::with_precision(&gpu.device, precision);
+    let cache = common::cache_with(&gpu, precision);
     let mut hard_worst: f64 = 0.0;
     let mut unshadowed_least = f64::INFINITY;
     let mut worst: f64 = 0.0;
@@ -903,7 +903,7 @@ fn sphere_occluder(gpu: &volshadow::HeadlessGpu, at: Vec3) -> OccluderMesh {
 #[test]
 fn the_grid_is_rebuilt_only_when_the_shadow_map_changes() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let light: Light = PointLight::new(Vec3::ZERO, Vec3::ONE)
         .unwrap()
         .with_radius(0.3)
@@ -955,7 +955,7 @@ fn the_grid_is_rebuilt_only_when_the_shadow_map_changes() {
 #[test]
 fn the_grid_rejects_what_it_cannot_use() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     for size in [
         SoftShadowSize {
             directions: 1,
@@ -1158,7 +1158,7 @@ fn the_grid_rejects_what_it_cannot_use() {
 #[test]
 fn a_ground_adds_no_march_above_it() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let light: Light = PointLight::new(Vec3::new(0.0, 3.0, 0.0), Vec3::splat(4.0))
         .unwrap()
         .with_radius(0.3)
@@ -1360,7 +1360,7 @@ fn grid_cells_against_the_reference_visible_fraction() {
     const DEEP_ABS_BAR: f64 = 0.21;
     const OFF_BAR: f64 = 0.0002;
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let size = SoftShadowSize::default();
     let mut shadow = ShadowMapNode::new(
         &gpu.device,
@@ -1514,7 +1514,7 @@ fn grid_cells_against_the_reference_visible_fraction() {
 #[test]
 fn the_grid_built_where_the_cones_reach_is_the_whole_build() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let size = SoftShadowSize::default();
     let mut shadow = ShadowMapNode::new(&gpu.device, &cache, ShadowMapSettings::default()).unwrap();
     let mut kept = SoftShadowNode::new(&gpu.device, &cache, size).unwrap();
@@ -2047,7 +2047,7 @@ fn a_hole_in_a_turned_plate_per_point() {
     let s = random_gap_scene(406);
     let size = GAP_SIZE;
     let gpu = common::gpu();
-    let cache = Cache::with_precision(&gpu.device, ShaderPrecision::Native);
+    let cache = common::cache_with(&gpu, ShaderPrecision::Native);
     let wall = |e: DVec3, d: DVec3| wall_distance(s.wall, e, d);
     let reference = s.reference_image(size, &s.reference_occluders());
     let depths = common::depths_at(&s.camera, size, size, wall);
@@ -2113,7 +2113,7 @@ fn gap_grid_cells_against_the_reference_visible_fraction() {
     const UMBRA_MEAN_BAR: f64 = 1e-5;
     const UMBRA_MAX_BAR: f64 = 2.0 / 256.0;
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let size = SoftShadowSize::default();
     let (n, slices) = (size.directions as usize, size.slices as usize);
     let mut shadow = ShadowMapNode::new(&gpu.device, &cache, Default::default()).unwrap();
@@ -2251,7 +2251,7 @@ fn gap_grid_cells_against_the_reference_visible_fraction() {
 #[test]
 fn the_triangles_are_gathered_where_the_soft_shadows_take_them() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let half = Vec3::new(0.5, 0.3, 0.1);
     let cube = shapes::cuboid(Vec3::ZERO, half).unwrap();
     let mesh = OccluderMesh::new(&gpu.device, &cube);

@@ -13,7 +13,7 @@ use volshadow::nodes::{ShadowMapInputs, ShadowMapNode, ShadowMapSettings};
 use volshadow::scene::shapes::uv_sphere;
 use volshadow::scene::Camera;
 use volshadow::{
-    Cache, DirectionalLight, HeadlessGpu, Light, Occluder, OccluderMesh, PointLight, SpotLight,
+    DirectionalLight, HeadlessGpu, Light, Occluder, OccluderMesh, PointLight, SpotLight,
 };
 
 const CENTRE: Vec3 = Vec3::new(0.0, 1.5, 0.0);
@@ -29,7 +29,7 @@ fn visibility(
     hard: bool,
 ) -> Vec<f32> {
     let device = &gpu.device;
-    let cache = Cache::new(device);
+    let cache = common::cache(gpu);
     let mesh = OccluderMesh::new(device, &uv_sphere(CENTRE, RADIUS, 64, 32).unwrap());
     let occluders = [Occluder {
         mesh: &mesh,

@@ -10,7 +10,7 @@ use volshadow::gpu::{Occluder, OccluderMesh};
 use volshadow::nodes::{LightTextureNode, MarchSettings};
 use volshadow::reference::{self, TexturedSpot, TriangleMesh};
 use volshadow::scene::{shapes, LightTexture};
-use volshadow::{Cache, Error, Light, Medium, PhaseFunction, SpotLight};
+use volshadow::{Error, Light, Medium, PhaseFunction, SpotLight};
 
 const SIZE: u32 = 128;
 /// A textured spot's in-scatter RMSE against the reference, relative to the mean: the 2% of
@@ -71,7 +71,7 @@ fn textured_inscatter(
     size: u32,
 ) -> Vec<[f32; 4]> {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let depths = common::depths_at(&rig.camera, size, size, ground);
     let depth = common::depth_texture(&gpu, size, size, &depths);
     let gpu_mesh = OccluderMesh::new(&gpu.device, mesh);
@@ -204,7 +204,7 @@ fn invalid_spot_and_texture_inputs_are_errors() {
 
     // A texture that cannot be filtered: a typed error, no wgpu validation error.
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
     let mut node = LightTextureNode::new(&gpu.device, &cache).unwrap();
     for format in [

@@ -65,7 +65,7 @@ fn worst_pull(truth: &[[f32; 4]], test: &[[f32; 4]]) -> f64 {
 #[test]
 fn bilateral_filters_do_not_blend_across_a_depth_edge() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let camera = common::look_at(
         Vec3::new(0.0, 1.0, 6.0),
         Vec3::new(0.0, 1.0, 0.0),
@@ -196,7 +196,7 @@ fn invalid_scales_and_filters_are_errors() {
     ));
     assert_eq!(Scale::from_divisor(4), Ok(Scale::Quarter));
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     for (taps, ss, sz) in [
         (0, 1.0, 0.1),
         (4, 1.0, 0.1),

@@ -9,7 +9,7 @@ use volshadow::nodes::{
     AirlightTableNode, CompositeInputs, CompositeNode, MarchInputs, MarchMode, MarchNode,
     MarchSettings, TableSize,
 };
-use volshadow::{Cache, Camera, Error, Medium, PhaseFunction, PointLight};
+use volshadow::{Camera, Error, Medium, PhaseFunction, PointLight};
 
 fn view() -> Mat4 {
     glam::camera::rh::view::look_at_mat4(Vec3::new(0.0, 1.0, 5.0), Vec3::ZERO, Vec3::Y)
@@ -225,7 +225,7 @@ fn every_depth_convention_is_accepted_and_detected() {
 #[test]
 fn table_size_below_two_is_rejected() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     for size in [
         TableSize {
             along_ray: 1,
@@ -253,7 +253,7 @@ fn table_size_below_two_is_rejected() {
 #[test]
 fn bad_textures_are_typed_errors_not_validation_errors() {
     let gpu = common::gpu();
-    let cache = Cache::new(&gpu.device);
+    let cache = common::cache(&gpu);
     let camera = Camera::new(view(), projection()).unwrap();
     let light = volshadow::Light::from(PointLight::new(Vec3::Y, Vec3::ONE).unwrap());
     let medium = Medium::new(Vec3::splat(0.1), Vec3::ZERO, PhaseFunction::Isotropic).unwrap();
