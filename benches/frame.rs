@@ -37,8 +37,9 @@
 //!   depth after the frame), and per pixel of each light's march, from
 //!   its work counters ([`VolumetricShadows::set_work_counters`], a pipeline constant the
 //!   frame's own pipelines leave off): crossings stored and visited, shadow-map lookups,
-//!   light-texture samples and march steps, as mean and p99 over the march's pixels
-//!   (texture samples also as the mean over the pixels that take any: the lit ones).
+//!   light-texture samples (with the cells of its flat-region map read) and march steps, as
+//!   mean and p99 over the march's pixels (texture samples also as the mean over the pixels
+//!   that take any: the lit ones).
 //!
 //! `--size` defaults to 1920x1080 on a GPU and 256x144 on a CPU adapter; `--method` to each
 //! scene's own (`render`'s syntax: `exact[:SCALE]`, `hybrid:STEPS:SCALE`, `brute:STEPS`,

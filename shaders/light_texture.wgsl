@@ -5,10 +5,11 @@
 @group(0) @binding(0) var source: texture_2d<f32>;
 @group(0) @binding(1) var linear_sampler: sampler;
 
-// Level 0: the caller's texture, sampled at texel centres.
+// Level 0: the caller's texture, texel for texel (loaded, not sampled: a sample at the
+// interpolated centre may mix in a neighbour, and the flat-region map compares texels exactly).
 @fragment
 fn fs_copy(in: Fullscreen) -> @location(0) vec4<f32> {
-    return vec4<f32>(textureSampleLevel(source, linear_sampler, in.uv, 0.0).xyz, 1.0);
+    return vec4<f32>(textureLoad(source, vec2<i32>(in.position.xy), 0).xyz, 1.0);
 }
 
 @fragment

@@ -100,6 +100,10 @@ struct SoftGrid {
 // A light with a radius: the visible fraction of its disc on a light-space grid (read through
 // `light_sampler`, trilinear, clamped to the edges).
 @group(0) @binding(15) var soft_volume: texture_3d<f32>;
+// A textured spot: the flat regions of its texture's level 0 (`shaders/light_texture_flats.wgsl`:
+// per cell between four texel centres and per quadrant, the side of the largest square of flat
+// cells from the cell into that quadrant; 0 where the cell is not flat).
+@group(0) @binding(16) var light_flats: texture_2d<u32>;
 
 // Distance along the ray of the point with normalised scattering angle s (law of sines in the
 // eye–point–light triangle: x = D sin δ / sin β, δ = s w, β = (1 − s) w). Each sine is taken
@@ -608,15 +612,19 @@ struct Marched {
     steps: u32,
 }
 
+// The light texture's uv of a point given in the spot's frame (in front of the light).
+fn texture_uv(v: vec3<f32>) -> vec2<f32> {
+    let k = 1.0 / (max(-v.z, 1.0e-30) * mp.tan_half_angle);
+    return vec2<f32>(0.5 + 0.5 * v.x * k, 0.5 - 0.5 * v.y * k);
+}
+
 // The textured spot's I0 multiplier at a world point, read at the mip level whose texel
 // matches `step_angle` (the angle a march step subtends at the light; Wyman and Ramsey 2008, §3.3).
 fn light_texture(p: vec3<f32>, step_angle: f32) -> vec3<f32> {
     if (COUNT_WORK) {
         work.y += 1u;
     }
-    let v = (mp.tex_frame * vec4<f32>(p, 1.0)).xyz;
-    let k = 1.0 / (max(-v.z, 1.0e-30) * mp.tan_half_angle);
-    let uv = vec2<f32>(0.5 + 0.5 * v.x * k, 0.5 - 0.5 * v.y * k);
+    let uv = texture_uv((mp.tex_frame * vec4<f32>(p, 1.0)).xyz);
     let texel_angle = 2.0 * mp.tan_half_angle / mp.tex_width;
     let lod = clamp(vs_log2(max(step_angle / texel_angle, 1.0)), 0.0, mp.tex_mips - 1.0);
     return textureSampleLevel(light_tex, light_sampler, uv, lod).xyz;
@@ -647,8 +655,131 @@ fn step_texture(ray: PixelRay, r: AirRay, a: f32, b: f32, footprint: f32) -> vec
                 + light_texture(air.eye + x_of_s(r, mid + h) * ray.dir, footprint));
 }
 
-// ∫ tex dT over [s0, s1] in n uniform steps (a textured spot outside the extents, where
-// nothing is shadowed).
+// ∫ tex dT over [s0, s1], nothing shadowed on it (a textured spot's lit piece), one step per
+// region of the texture that the piece's image crosses. The image of a segment in the light's
+// texture is a segment (a central projection), traced here through the texture's cells
+// (`light_flats`): a square of flat cells (one bilinear value everywhere in it) in one step,
+// the largest that starts at the image's cell and extends the way the image moves; a cell that
+// is not flat (one bilinear patch) in one step sampled at its middle. Each step ends where the
+// image leaves the square or cell. Consecutive flat squares touch, so they have one value: it
+// is read once per run of them, and T is taken only at the run's ends, at the point of the
+// segment where the image is there (the fraction λ of the image is the fraction
+// μ = λ z0 / (λ z0 + (1 − λ) z1) of the segment, z the depth in the spot's frame), then its s.
+// The trace takes at most `texture_steps`; the rest of a piece that crosses more (a texture
+// without flat regions seen across many texels) is marched in uniform steps, as if untraced.
+fn march_texture(ray: PixelRay, r: AirRay, s0: f32, s1: f32) -> Marched {
+    var out: Marched;
+    out.t = vec3<f32>(0.0);
+    out.steps = 0u;
+    if (!(s1 > s0)) {
+        return out;
+    }
+    let x0 = x_of_s(r, s0);
+    let x1 = x_of_s(r, s1);
+    let v0 = (mp.tex_frame * vec4<f32>(air.eye + x0 * ray.dir, 1.0)).xyz;
+    let v1 = (mp.tex_frame * vec4<f32>(air.eye + x1 * ray.dir, 1.0)).xyz;
+    let z0 = max(-v0.z, 1.0e-30);
+    let z1 = max(-v1.z, 1.0e-30);
+    let size = vec2<f32>(textureDimensions(light_tex, 0));
+    let last_texel = vec2<i32>(size) - vec2<i32>(1);
+    let cells = vec2<i32>(textureDimensions(light_flats, 0));
+    // The image in cell coordinates (cell i spans [i, i + 1]: texel centres i and i + 1).
+    let q0 = texture_uv(v0) * size - 0.5;
+    let d = texture_uv(v1) * size - 0.5 - q0;
+    let reach = max(abs(d.x), abs(d.y));
+    // Each step's cell is found 1/128 cell further along the image than where it starts, so a
+    // step that ends on a cell's edge starts the next one in the next cell.
+    let ahead = select(0.0, (1.0 / 128.0) / reach, reach > 0.0);
+    let forward = d >= vec2<f32>(0.0);
+    let moving = d != vec2<f32>(0.0);
+    let d_safe = select(vec2<f32>(1.0), d, moving);
+    // The map's channel for the quadrant the image moves into.
+    let quadrant = select(1u, 0u, forward.x) + select(2u, 0u, forward.y);
+    var lambda = 0.0;
+    var s_a = s0;
+    var t_a = table_tt(table, air, r, s0);
+    // A run of flat squares in progress: its value (T at its start is t_a).
+    var run = false;
+    var run_value = vec3<f32>(0.0);
+    var n = 0u;
+    loop {
+        if (!(lambda < 1.0) || n >= mp.texture_steps) {
+            break;
+        }
+        let cell = clamp(vec2<i32>(floor(q0 + (lambda + ahead) * d)), vec2<i32>(0), cells - 1);
+        let k = i32(textureLoad(light_flats, cell, 0)[quadrant]);
+        if (COUNT_WORK) {
+            work.y += 1u;
+        }
+        n++;
+        // The square (a cell not flat: the cell itself); its face ahead, unbounded where it
+        // reaches the map's edge: beyond it the clamped lookups repeat the edge's cells.
+        let side = max(k, 1);
+        let ahead_face = select(cell + 1 - side, cell + side, forward);
+        let beyond = select(ahead_face <= vec2<i32>(0), ahead_face >= cells, forward);
+        let face = select(vec2<f32>(ahead_face), select(vec2<f32>(-1.0e30), vec2<f32>(1.0e30), forward), beyond);
+        let exits = select(vec2<f32>(2.0), (face - q0) / d_safe, moving);
+        let lambda_b = min(1.0, max(min(exits.x, exits.y), lambda + ahead));
+        if (k > 0) {
+            if (!run) {
+                run = true;
+                run_value = textureLoad(light_tex, min(cell, last_texel), 0).xyz;
+                if (COUNT_WORK) {
+                    work.y += 1u;
+                }
+            }
+            lambda = lambda_b;
+            continue;
+        }
+        // A cell that is not flat: close the run before it, then the cell.
+        if (run) {
+            let s_m = s_at_image(r, x0, x1, z0, z1, lambda, s_a, s1);
+            let t_m = table_tt(table, air, r, s_m);
+            out.t += t_between(t_a, t_m) * run_value;
+            t_a = t_m;
+            s_a = s_m;
+            run = false;
+        }
+        let s_b = s_at_image(r, x0, x1, z0, z1, lambda_b, s_a, s1);
+        let t_b = table_tt(table, air, r, s_b);
+        let q = q0 + 0.5 * (lambda + lambda_b) * d;
+        let value = textureSampleLevel(light_tex, light_sampler, (q + 0.5) / size, 0.0).xyz;
+        if (COUNT_WORK) {
+            work.y += 1u;
+        }
+        out.t += t_between(t_a, t_b) * value;
+        t_a = t_b;
+        s_a = s_b;
+        lambda = lambda_b;
+    }
+    if (run) {
+        let s_m = s_at_image(r, x0, x1, z0, z1, lambda, s_a, s1);
+        let t_m = table_tt(table, air, r, s_m);
+        out.t += t_between(t_a, t_m) * run_value;
+        t_a = t_m;
+        s_a = s_m;
+    }
+    out.steps = n;
+    if (lambda < 1.0) {
+        let rest = march_textured(ray, r, s_a, s1, texture_steps_for(r, s_a, s1));
+        out.t += rest.t;
+        out.steps += rest.steps;
+    }
+    return out;
+}
+
+// The s of the point of the segment [x0, x1] whose image is at the fraction `lambda` of the
+// image (z0, z1 the ends' depths in the spot's frame), within [lo, s1]; s1 itself at the end.
+fn s_at_image(r: AirRay, x0: f32, x1: f32, z0: f32, z1: f32, lambda: f32, lo: f32, s1: f32) -> f32 {
+    if (!(lambda < 1.0)) {
+        return s1;
+    }
+    let mu = lambda * z0 / (lambda * z0 + (1.0 - lambda) * z1);
+    return clamp(s_of_x(air, r, x0 + mu * (x1 - x0)), lo, s1);
+}
+
+// ∫ tex dT over [s0, s1] in n uniform steps (the rest of a piece `march_texture` did not
+// finish).
 fn march_textured(ray: PixelRay, r: AirRay, s0: f32, s1: f32, n: u32) -> Marched {
     var out: Marched;
     out.t = vec3<f32>(0.0);
@@ -968,7 +1099,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
             // No occluders: all of it is lit. (MODE_ANALYTIC lets the compiler drop the shadow
             // code from the analytic pipeline.)
             if (TEXTURED) {
-                let all = march_textured(ray, r, u0, u1, texture_steps_for(r, u0, u1));
+                let all = march_texture(ray, r, u0, u1);
                 total += all.t;
                 steps += all.steps;
             } else {
@@ -1032,10 +1163,9 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
                     v = vis_at(ray, r, 0.5 * (a + b));
                 }
                 if (TEXTURED) {
-                    // The texture still needs steps: one per texel the piece crosses.
-                    let n = texture_steps_for(r, a, b);
+                    // The texture still needs steps: one per region of it the piece crosses.
                     if (v > 0.0) {
-                        let m = march_textured(ray, r, a, b, n);
+                        let m = march_texture(ray, r, a, b);
                         total += v * m.t;
                         steps += m.steps;
                     }
@@ -1063,7 +1193,7 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
             if (TEXTURED) {
                 if (v > 0.0) {
-                    let all = march_textured(ray, r, u0, u1, texture_steps_for(r, u0, u1));
+                    let all = march_texture(ray, r, u0, u1);
                     total += v * all.t;
                     steps += all.steps;
                 }
@@ -1114,12 +1244,12 @@ fn march(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         if (TEXTURED) {
             if (v_before > 0.0) {
-                let before = march_textured(ray, r, u0, m0, texture_steps_for(r, u0, m0));
+                let before = march_texture(ray, r, u0, m0);
                 total += v_before * before.t;
                 steps += before.steps;
             }
             if (v_after > 0.0) {
-                let after = march_textured(ray, r, m1, u1, texture_steps_for(r, m1, u1));
+                let after = march_texture(ray, r, m1, u1);
                 total += v_after * after.t;
                 steps += after.steps;
             }

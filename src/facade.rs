@@ -157,7 +157,7 @@ impl LightSlot {
                     scene_depth: frame.scene_depth,
                     shadows: shadows.flatten(),
                     mode: step.planned.march,
-                    light_texture: fl.texture.and(self.texture.texture()),
+                    light_texture: fl.texture.and(self.texture.maps()),
                 };
                 self.march.prepare(device, queue, &inputs)?
             }

@@ -7,7 +7,7 @@ use std::fmt;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 #[non_exhaustive]
 pub enum Pass {
-    /// A textured spot light's blurred mip chain.
+    /// A textured spot light's blurred mip chain and the map of its flat regions.
     LightTexture,
     /// Occluder depth from the light.
     ShadowMap,

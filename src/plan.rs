@@ -429,7 +429,11 @@ fn plan(facts: &FrameFacts) -> Plan {
             continue;
         }
         if l.textured {
-            run(Pass::LightTexture, light, "blurred mip chain".into());
+            run(
+                Pass::LightTexture,
+                light,
+                "blurred mip chain and flat regions".into(),
+            );
         } else {
             skip(Pass::LightTexture, light, Reason::Untextured);
         }

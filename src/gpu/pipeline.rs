@@ -383,6 +383,7 @@ mod tests {
             wgsl_file!("extents.wgsl"),
             wgsl_file!("crossings.wgsl"),
             wgsl_file!("light_texture.wgsl"),
+            wgsl_file!("light_texture_flats.wgsl"),
             wgsl_file!("march.wgsl"),
             wgsl_file!("soft_shadow.wgsl"),
             wgsl_file!("shadow_map.wgsl"),

@@ -1,4 +1,5 @@
-//! The light-texture node: a textured spot light's texture as a blurred mip chain.
+//! The light-texture node: a textured spot light's texture as a blurred mip chain, and the map
+//! of its flat regions.
 //!
 //! # Input
 //! The caller's texture (e.g. from [`LightTexture::upload`](crate::scene::LightTexture::upload)):
@@ -7,8 +8,16 @@
 //! RGB radiance multipliers, row 0 at the top of the spot's frame.
 //!
 //! # Output
-//! `Rgba16Float`, the input's size, a full mip chain (each level a 4×4 tent of the one above),
-//! rebuilt only when the input texture changes.
+//! - [`texture`](LightTextureNode::texture): `Rgba16Float`, the input's size, a full mip chain
+//!   (each level a 4×4 tent of the one above);
+//! - [`flats`](LightTextureNode::flats): `Rgba8Uint`, one texel per cell between four texel
+//!   centres of level 0 (`max(w − 1, 1)` by `max(h − 1, 1)`; a cell is flat when its four
+//!   texels are equal): per quadrant (+x+y, −x+y, +x−y, −x−y), the side of the largest square
+//!   of flat cells, at most 63, that has the cell at its corner and extends into that quadrant;
+//!   0 where the cell is not flat. Bilinear lookups anywhere in such a square return one value,
+//!   so the march crosses it in one step (`shaders/light_texture_flats.wgsl`).
+//!
+//! Both are rebuilt only when the input texture changes.
 
 use crate::error::{Error, Result};
 use crate::gpu::pipeline::{bind_group, fullscreen_pipeline, layout, module, Binding};
@@ -26,11 +35,39 @@ const BINDINGS: [Binding; 2] = [
     Binding::Sampler,    // linear_sampler
 ];
 
-/// The node's layout and its two pipelines (level 0, the levels below), held by the [`Cache`].
+/// The flat-region passes' binding table (`shaders/light_texture_flats.wgsl`).
+const FLATS_BINDINGS: [Binding; 2] = [
+    Binding::Texture,     // source (level 0 of the mip chain)
+    Binding::UintTexture, // previous (the previous pass's output)
+];
+
+/// The flat-region passes: entry point, output's label and format (the last is the map).
+const FLATS_PASSES: [(&str, &str, wgpu::TextureFormat); 3] = [
+    (
+        "fs_flags",
+        "volshadow light texture flat cells",
+        wgpu::TextureFormat::R8Uint,
+    ),
+    (
+        "fs_runs",
+        "volshadow light texture flat runs",
+        wgpu::TextureFormat::Rg8Uint,
+    ),
+    (
+        "fs_squares",
+        "volshadow light texture flats",
+        wgpu::TextureFormat::Rgba8Uint,
+    ),
+];
+
+/// The node's layouts and pipelines (level 0, the levels below; the flat-region map's flags,
+/// rows and columns), held by the [`Cache`].
 #[derive(Clone)]
 pub(crate) struct Pipelines {
     layout: wgpu::BindGroupLayout,
     levels: [wgpu::RenderPipeline; 2],
+    flats_layout: wgpu::BindGroupLayout,
+    flats: [wgpu::RenderPipeline; 3],
 }
 
 impl CachedPipelines for Pipelines {
@@ -41,17 +78,51 @@ impl CachedPipelines for Pipelines {
 
 impl Pipelines {
     pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
+        let flats_label = "volshadow light texture flats";
+        let flats_layout = layout(
+            device,
+            flats_label,
+            wgpu::ShaderStages::FRAGMENT,
+            &FLATS_BINDINGS,
+        );
+        let flats_module = module(device, &wgsl_file!("light_texture_flats.wgsl"), precision);
+        let flats = FLATS_PASSES.map(|(entry, _, format)| {
+            fullscreen_pipeline(
+                device,
+                flats_label,
+                &flats_layout,
+                &flats_module,
+                entry,
+                format,
+                &[],
+            )
+        });
         let label = "volshadow light texture";
         let layout = layout(device, label, wgpu::ShaderStages::FRAGMENT, &BINDINGS);
         let module = module(device, &wgsl_file!("light_texture.wgsl"), precision);
         let format = wgpu::TextureFormat::Rgba16Float;
         let levels = ["fs_copy", "fs_down"]
             .map(|entry| fullscreen_pipeline(device, label, &layout, &module, entry, format, &[]));
-        Self { layout, levels }
+        Self {
+            layout,
+            levels,
+            flats_layout,
+            flats,
+        }
     }
 }
 
-/// Builds and holds the blurred mip chain of a light texture.
+/// A prepared light texture as the march reads it: the node's two outputs (see the module
+/// docs), from [`LightTextureNode::maps`].
+#[derive(Debug, Clone, Copy)]
+pub struct LightTextureMaps<'a> {
+    /// The blurred mip chain.
+    pub mips: &'a wgpu::Texture,
+    /// The flat-region map of the chain's level 0.
+    pub flats: &'a wgpu::Texture,
+}
+
+/// Builds and holds the blurred mip chain of a light texture and the map of its flat regions.
 pub struct LightTextureNode {
     pipelines: Pipelines,
     sampler: wgpu::Sampler,
@@ -59,6 +130,10 @@ pub struct LightTextureNode {
     mips: Option<wgpu::Texture>,
     /// Per level: the bind group reading the level above (or the source) and the target view.
     levels: Vec<(wgpu::BindGroup, wgpu::TextureView)>,
+    /// The flat cells, their runs along x and the flat-region map (see the module docs).
+    flats: Option<[wgpu::Texture; 3]>,
+    /// The flags, runs and squares passes: each one's bind group and target view.
+    flat_passes: Vec<(wgpu::BindGroup, wgpu::TextureView)>,
     pending: bool,
 }
 
@@ -76,6 +151,8 @@ impl LightTextureNode {
             source: None,
             mips: None,
             levels: Vec::new(),
+            flats: None,
+            flat_passes: Vec::new(),
             pending: false,
         })
     }
@@ -83,6 +160,21 @@ impl LightTextureNode {
     /// The mip chain (`None` before the first `prepare`).
     pub fn texture(&self) -> Option<&wgpu::Texture> {
         self.mips.as_ref()
+    }
+
+    /// The flat-region map of the mip chain's level 0 (see the module docs; `None` before the
+    /// first `prepare`).
+    pub fn flats(&self) -> Option<&wgpu::Texture> {
+        self.flats.as_ref().map(|f| &f[2])
+    }
+
+    /// Both outputs, for [`MarchInputs::light_texture`](crate::nodes::MarchInputs::light_texture)
+    /// (`None` before the first `prepare`).
+    pub fn maps(&self) -> Option<LightTextureMaps<'_>> {
+        Some(LightTextureMaps {
+            mips: self.mips.as_ref()?,
+            flats: self.flats()?,
+        })
     }
 }
 
@@ -188,6 +280,49 @@ impl Node for LightTextureNode {
                 (bind_group, target)
             })
             .collect();
+        let cells = wgpu::Extent3d {
+            width: (w - 1).max(1),
+            height: (h - 1).max(1),
+            depth_or_array_layers: 1,
+        };
+        let flats = FLATS_PASSES.map(|(_, label, format)| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: cells,
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            })
+        });
+        let level0 = mips.create_view(&wgpu::TextureViewDescriptor {
+            base_mip_level: 0,
+            mip_level_count: Some(1),
+            ..Default::default()
+        });
+        let views = flats.each_ref().map(|t| t.create_view(&Default::default()));
+        // Each pass reads the one before (the first, which reads only the source, is bound
+        // the runs it does not read).
+        self.flat_passes = [(1, 0), (0, 1), (1, 2)]
+            .into_iter()
+            .map(|(read, write)| {
+                let bind_group = bind_group(
+                    device,
+                    "volshadow light texture flats pass",
+                    &self.pipelines.flats_layout,
+                    [
+                        wgpu::BindingResource::TextureView(&level0),
+                        wgpu::BindingResource::TextureView(&views[read]),
+                    ],
+                );
+                (bind_group, views[write].clone())
+            })
+            .collect();
+        self.flats = Some(flats);
         self.source = Some(texture.clone());
         self.pending = true;
         Ok(true)
@@ -204,7 +339,24 @@ impl Encode for LightTextureNode {
         if !std::mem::take(&mut self.pending) {
             return Ok(());
         }
-        for (level, (bind_group, target)) in self.levels.iter().enumerate() {
+        let levels = self
+            .levels
+            .iter()
+            .enumerate()
+            .map(|(level, (bind_group, target))| {
+                (
+                    &self.pipelines.levels[usize::from(level > 0)],
+                    bind_group,
+                    target,
+                )
+            });
+        let flats = self
+            .pipelines
+            .flats
+            .iter()
+            .zip(&self.flat_passes)
+            .map(|(pipeline, (bind_group, target))| (pipeline, bind_group, target));
+        for (pipeline, bind_group, target) in levels.chain(flats) {
             let timestamp_writes = timer
                 .as_deref_mut()
                 .and_then(|t| t.render_pass(Pass::LightTexture));
@@ -227,7 +379,7 @@ impl Encode for LightTextureNode {
                     multiview_mask: None,
                 },
             );
-            pass.set_pipeline(&self.pipelines.levels[usize::from(level > 0)]);
+            pass.set_pipeline(pipeline);
             pass.set_bind_group(0, bind_group, &[]);
             pass.draw(0..3, 0..1);
         }

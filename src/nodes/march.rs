@@ -52,6 +52,7 @@ use crate::gpu::{
 use crate::nodes::cache::CachedPipelines;
 use crate::nodes::extents::{CrossingsBuild, Extents};
 use crate::nodes::light::{light_constant, LightUniform};
+use crate::nodes::light_texture::LightTextureMaps;
 use crate::nodes::pcss::{cell_angle, shadow_layout, ShadowBinding, ShadowUniform};
 use crate::nodes::shadow_map::ShadowMap;
 use crate::nodes::soft_shadow::SoftShadow;
@@ -64,7 +65,7 @@ use crate::scene::{Camera, Light, Medium};
 
 /// The march's binding table: `@binding(i)` of `shaders/march.wgsl`'s group 0 is entry `i`
 /// (group 1, the light and its shadow map, is [`ShadowBinding`]'s).
-const BINDINGS: [Binding; 16] = [
+const BINDINGS: [Binding; 17] = [
     Binding::Params,                                    // air
     Binding::Params,                                    // view
     Binding::Texture,                                   // table
@@ -81,6 +82,7 @@ const BINDINGS: [Binding; 16] = [
     Binding::Params,                                    // crossings
     Binding::ReadWrite,                                 // stats
     Binding::Volume,                                    // soft_volume
+    Binding::UintTexture,                               // light_flats
 ];
 
 /// How the march integrates each pixel's ray for one light this frame: the form its
@@ -386,11 +388,14 @@ pub struct MarchSettings {
     /// Resolution of the march relative to `scene_depth` (full, ½, ¼). Default full.
     pub scale: Scale,
     /// Textured spot lights: the most steps a piece of a ray takes for the texture's sake
-    /// (1 ..= 4096; default 32). A piece takes one step per texel of the light's texture its
-    /// image can cross (the angle it subtends at the light over the smallest texel's), up to
-    /// this many: before and after the shadow-volume extents, between the exact method's
-    /// crossings, and for the hybrid at least as many between the extents (the texture's detail
-    /// needs them whether or not a shadow is there).
+    /// (1 ..= 4096; default 32). Where nothing shadows it (before and after the shadow-volume
+    /// extents, between the exact method's crossings) a piece takes one step per flat region
+    /// of the texture its image crosses and one per cell between texel centres that is not
+    /// flat ([`LightTextureNode::flats`](crate::nodes::LightTextureNode::flats)), up to this
+    /// many, then uniform steps for the rest. The hybrid between the extents takes uniform
+    /// steps, one per texel the piece's image can cross (the angle it subtends at the light
+    /// over the smallest texel's), at least `steps` and at most this many or `steps`; brute
+    /// force marches everything with its `steps`.
     pub texture_steps: u32,
     /// Exact method: shadow-volume crossings recorded per pixel
     /// (1 ..= [`MAX_CROSSINGS_PER_PIXEL`](crate::nodes::MAX_CROSSINGS_PER_PIXEL)). Default
@@ -494,10 +499,10 @@ pub struct MarchInputs<'a> {
     /// radius and these `shadows`' [`ShadowForms`] (the planner's
     /// [`LightPlan::march`](crate::plan::LightPlan::march) in the facade).
     pub mode: MarchMode,
-    /// A spot light's texture as a blurred mip chain
-    /// ([`LightTextureNode::texture`](crate::nodes::LightTextureNode::texture)); `None` for an
-    /// untextured light.
-    pub light_texture: Option<&'a wgpu::Texture>,
+    /// A spot light's texture as a blurred mip chain and the map of its flat regions
+    /// ([`LightTextureNode::maps`](crate::nodes::LightTextureNode::maps)), encoded before the
+    /// march; `None` for an untextured light.
+    pub light_texture: Option<LightTextureMaps<'a>>,
 }
 
 #[repr(C)]
@@ -627,6 +632,7 @@ pub struct MarchNode {
     shadow: ShadowBinding,
     linear: wgpu::Sampler,
     dummy_light: wgpu::Texture,
+    dummy_flats: wgpu::Texture,
     dummy_depth: wgpu::Texture,
     dummy_buffer: wgpu::Buffer,
     dummy_volume: wgpu::Texture,
@@ -680,6 +686,13 @@ impl MarchNode {
                 "volshadow no light texture",
                 (1, 1, 1),
                 wgpu::TextureFormat::Rgba16Float,
+                sampled,
+            ),
+            dummy_flats: texture_2d(
+                device,
+                "volshadow no light texture flats",
+                (1, 1, 1),
+                wgpu::TextureFormat::R8Uint,
                 sampled,
             ),
             dummy_depth: texture_2d(
@@ -748,8 +761,9 @@ impl MarchNode {
     /// runs a pipeline built with the shader's `COUNT_WORK` constant (the pipelines of a frame
     /// without them do not contain the counting code) and [`stats_buffer`](Self::stats_buffer)
     /// holds, after its four pass counters, four `u32` per pixel of the march (row-major at its
-    /// resolution): shadow-map visibility queries, light-texture samples, crossing-list
-    /// entries read and crossing-list entries stored. [`MarchWork::from_bytes`] decodes them.
+    /// resolution): shadow-map visibility queries, light-texture reads (samples, and cells of
+    /// its flat-region map), crossing-list entries read and crossing-list entries stored.
+    /// [`MarchWork::from_bytes`] decodes them.
     pub fn set_work_counters(&mut self, on: bool) {
         self.work = on;
     }
@@ -761,7 +775,8 @@ impl MarchNode {
 pub struct MarchWork {
     /// Shadow-map visibility queries (each one filtered lookup, whatever its taps).
     pub lookups: Vec<u32>,
-    /// Light-texture samples (a textured spot).
+    /// Light-texture reads (a textured spot): its samples and the cells of its flat-region map
+    /// ([`LightTextureNode::flats`](crate::nodes::LightTextureNode::flats)) the march reads.
     pub texture_samples: Vec<u32>,
     /// Crossing-list entries read (the exact method walks its list once per interval).
     pub crossings_visited: Vec<u32>,
@@ -966,8 +981,9 @@ impl MarchNode {
             extent_textures[1],
             extent_textures[2],
             &outputs[1],
-            inputs.light_texture.unwrap_or(&self.dummy_light),
+            inputs.light_texture.map_or(&self.dummy_light, |t| t.mips),
             grid.map_or(&self.dummy_volume, |g| g.texture),
+            inputs.light_texture.map_or(&self.dummy_flats, |t| t.flats),
         ]
         .into_iter()
         .cloned()
@@ -1012,6 +1028,7 @@ impl MarchNode {
                     buffers[1].as_entire_binding(),
                     self.stats.as_entire_binding(),
                     view(8),
+                    view(9),
                 ],
             );
             self.bound = Some(Bound {
@@ -1067,8 +1084,8 @@ impl MarchNode {
                     s.texture_frame().to_cols_array(),
                     [
                         (0.5 * s.cone_angle()).tan(),
-                        t.width() as f32,
-                        t.mip_level_count() as f32,
+                        t.mips.width() as f32,
+                        t.mips.mip_level_count() as f32,
                     ],
                 ),
                 _ => ([0.0; 16], [0.0; 3]),
