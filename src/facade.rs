@@ -445,7 +445,7 @@ impl VolumetricShadows {
                 let planned = &plan.lights[i];
                 let kind = FrameLight {
                     light: planned.light,
-                    texture: frame.lights[i].texture,
+                    ..frame.lights[i]
                 }
                 .kind();
                 let light = Some(i);

@@ -15,6 +15,10 @@ pub struct FrameLight<'a> {
     pub light: Light,
     /// The spot's projected texture.
     pub texture: Option<&'a wgpu::Texture>,
+    /// Indices into the frame's [`occluders`](Frame::occluders) of those that shadow this
+    /// light (an engine's shadow-caster layers or flags); `None`: all of them. The planner's
+    /// culling then works on these.
+    pub casters: Option<&'a [usize]>,
 }
 
 impl FrameLight<'_> {
@@ -37,6 +41,7 @@ impl From<Light> for FrameLight<'_> {
         Self {
             light,
             texture: None,
+            casters: None,
         }
     }
 }

@@ -7,7 +7,7 @@
 
 use std::fmt;
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::gpu::Occluder;
 use crate::nodes::shadow_map::cube_faces_touched;
@@ -291,8 +291,23 @@ fn gather(frame: &Frame<'_>, settings: &Settings) -> Result<FrameFacts> {
     let mut lights = Vec::new();
     let eye = frame.camera.eye();
     for (i, fl) in frame.lights.iter().enumerate() {
+        if let Some(&j) = fl
+            .casters
+            .and_then(|c| c.iter().find(|&&j| j >= frame.occluders.len()))
+        {
+            return Err(Error::InvalidSetting {
+                field: "frame.lights.casters",
+                problem: format!(
+                    "light {i} names occluder {j}, but the frame has {}",
+                    frame.occluders.len()
+                ),
+            });
+        }
         let mut kept = Vec::new();
         for (j, o) in frame.occluders.iter().enumerate() {
+            if fl.casters.is_some_and(|c| !c.contains(&j)) {
+                continue;
+            }
             let bound = occluder_bound(eye, &fl.light, frame.medium, o.world_bounds());
             if bound < f64::from(settings.cull_threshold) {
                 culled.push(Culled {

@@ -543,6 +543,7 @@ impl<'a> GpuScene<'a> {
             .map(|(l, t)| FrameLight {
                 light: l.light,
                 texture: t.as_ref(),
+                casters: None,
             })
             .collect()
     }

@@ -682,6 +682,7 @@ fn render(
         FrameLight {
             light: scene.spot,
             texture: Some(&assets.spot_texture),
+            casters: None,
         },
     ];
     let occluders: Vec<Occluder> = scene

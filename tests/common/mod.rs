@@ -586,6 +586,7 @@ pub fn shadow_frame(gpu: &HeadlessGpu, cache: &Cache, passes: &ShadowPasses) -> 
     let lights = [FrameLight {
         light: *light,
         texture,
+        casters: None,
     }];
     let mut frame = FacadeFrame::new(gpu, cache, settings, depth);
     let vs = frame.run(gpu, camera, &lights, medium, occluders);

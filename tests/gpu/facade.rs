@@ -312,6 +312,7 @@ fn untextured_light_needs_no_light_texture_and_equals_a_white_texture() {
         &[FrameLight {
             light: spot.into(),
             texture: Some(&white),
+            casters: None,
         }],
         &medium(),
         &occluders,
@@ -761,6 +762,7 @@ fn under_an_error_target_a_textured_spot_scatters_at_full_resolution() {
         let light = FrameLight {
             light: spot,
             texture: textured.then_some(&texture),
+            casters: None,
         };
         let r = render(&rig, &mut vs, &[light], &medium(), &occluders);
         assert_eq!(
@@ -1276,6 +1278,7 @@ fn texture_samples(rig: &Rig, texture: &LightTexture, texels: u32) -> (f64, f64)
     let light = FrameLight {
         light: spot,
         texture: Some(&texture),
+        casters: None,
     };
     render(rig, &mut vs, &[light], &medium(), &occluders);
     let bytes = rig
@@ -1486,5 +1489,74 @@ fn a_shadow_map_on_demand_is_drawn_only_where_the_crossings_cannot_count() {
     assert!(
         image == whole(whole_maps(), &at(&roof)),
         "open mesh: not the whole map's image"
+    );
+}
+
+/// A light's `casters` (an engine's shadow layers) name the occluders that shadow it: with two
+/// spheres and a light whose casters are the second alone, the plan's occluders for the light
+/// are `[1]` and the image is the frame with that sphere alone (max relative difference 0:
+/// the same passes with the same inputs), while the frame with both differs (the first sphere's
+/// shadow, beyond 10%); an index past the frame's occluders is a typed error naming the field.
+#[test]
+fn a_lights_casters_are_the_only_occluders_that_shadow_it() {
+    let rig = rig();
+    let first = sphere_mesh(&rig);
+    let second = OccluderMesh::new(
+        &rig.gpu.device,
+        &shapes::uv_sphere(Vec3::new(1.2, 2.5, -0.3), 0.4, 16, 8).unwrap(),
+    );
+    let both = [
+        Occluder {
+            mesh: &first,
+            transform: Mat4::IDENTITY,
+        },
+        Occluder {
+            mesh: &second,
+            transform: Mat4::IDENTITY,
+        },
+    ];
+    let mut vs =
+        VolumetricShadows::new(&rig.gpu.device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
+    let casters = [1];
+    let only_second = FrameLight {
+        casters: Some(&casters),
+        ..light().into()
+    };
+    let chosen = render(&rig, &mut vs, &[only_second], &medium(), &both);
+    assert_eq!(chosen.plan.lights[0].occluders, vec![1]);
+    let alone = render(&rig, &mut vs, &[light().into()], &medium(), &both[1..]);
+    let all = render(&rig, &mut vs, &[light().into()], &medium(), &both);
+    let (same, differ) = (
+        max_rel(&chosen.image, &alone.image),
+        max_rel(&chosen.image, &all.image),
+    );
+    println!("casters [1] against the second sphere alone: {same:.2e}; against both: {differ:.3}");
+    assert!(same == 0.0, "against the second sphere alone: {same}");
+    assert!(
+        differ > 0.1,
+        "the first sphere's shadow is left out: {differ}"
+    );
+
+    let wrong = [2];
+    let bad = FrameLight {
+        casters: Some(&wrong),
+        ..light().into()
+    };
+    let e = vs
+        .prepare(
+            &rig.gpu.device,
+            &rig.gpu.queue,
+            &frame_of(&rig, &[bad], &medium(), &both),
+        )
+        .err();
+    assert!(
+        matches!(
+            e,
+            Some(volshadow::Error::InvalidSetting {
+                field: "frame.lights.casters",
+                ..
+            })
+        ),
+        "{e:?}"
     );
 }

@@ -279,6 +279,7 @@ fn a_failed_prepare_leaves_no_mixed_frame() {
         FrameLight {
             light: spot,
             texture: Some(&bad_texture),
+            casters: None,
         },
     ];
     let second = [point(b), spot.into()];
@@ -611,6 +612,7 @@ fn a_lights_texture_as_the_output_is_refused() {
         .unwrap()
         .into(),
         texture: Some(&mask),
+        casters: None,
     }];
     let settings = Settings {
         output_format: wgpu::TextureFormat::Rgba16Float,
@@ -755,6 +757,7 @@ fn a_layered_light_texture_is_a_typed_error() {
         .unwrap()
         .into(),
         texture: Some(&layered),
+        casters: None,
     }];
     let mut vs = VolumetricShadows::new(device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
     let (result, error) = scoped(device, || {

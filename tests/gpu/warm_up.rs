@@ -138,6 +138,7 @@ fn prepare_frames(
             let frame_light = [FrameLight {
                 light,
                 texture: textured.then_some(&rig.light_texture),
+                casters: None,
             }];
             assert_eq!(frame_light[0].kind(), kind);
             for occluders in [&occluder[..], &[]] {

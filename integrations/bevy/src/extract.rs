@@ -6,7 +6,7 @@ use std::collections::{HashMap, HashSet};
 use std::sync::Arc;
 
 use bevy::asset::{AssetEvent, AssetId, Assets};
-use bevy::camera::visibility::InheritedVisibility;
+use bevy::camera::visibility::{InheritedVisibility, RenderLayers};
 use bevy::camera::{Camera, Exposure};
 use bevy::ecs::message::MessageReader;
 use bevy::ecs::prelude::*;
@@ -201,6 +201,9 @@ pub struct ExtractedVolshadowView {
     pub(crate) exposure: f32,
     /// Whether it renders into part of its target only (not supported).
     pub(crate) viewport: bool,
+    /// The camera's render layers (Bevy's default, layer 0, without the component): the view
+    /// takes the lights whose layers share one with them.
+    pub(crate) layers: RenderLayers,
 }
 
 /// A camera's volshadow state lives on its render-world view: its extracted medium and its
@@ -214,24 +217,28 @@ impl ExtractComponent<RenderApp> for VolshadowMedium {
         &'static VolshadowMedium,
         &'static Camera,
         Option<&'static Exposure>,
+        Option<&'static RenderLayers>,
     );
     type QueryFilter = ();
     type Out = ExtractedVolshadowView;
 
     fn extract_component(
-        (medium, camera, exposure): QueryItem<'_, '_, Self::QueryData>,
+        (medium, camera, exposure, layers): QueryItem<'_, '_, Self::QueryData>,
     ) -> Option<Self::Out> {
         Some(ExtractedVolshadowView {
             medium: medium.clone(),
             exposure: exposure_of(exposure),
             viewport: camera.viewport.is_some(),
+            layers: layers.cloned().unwrap_or_default(),
         })
     }
 }
 
-/// A light with [`VolshadowLight`] on its render-world entity, as Bevy describes it.
-#[derive(Component, Clone, Copy, Debug)]
-pub struct ExtractedVolshadowLight(pub(crate) SourceLight);
+/// A light with [`VolshadowLight`] on its render-world entity, as Bevy describes it, and its
+/// render layers: as Bevy's lights do, it lights the views whose layers share one with them,
+/// and only the occluders whose layers share one with them shadow it.
+#[derive(Component, Clone, Debug)]
+pub struct ExtractedVolshadowLight(pub(crate) SourceLight, pub(crate) RenderLayers);
 
 impl SyncComponent<RenderApp> for VolshadowLight {
     type Target = ExtractedVolshadowLight;
@@ -244,6 +251,7 @@ impl ExtractComponent<RenderApp> for VolshadowLight {
         Option<&'static PointLight>,
         Option<&'static SpotLight>,
         Option<&'static DirectionalLight>,
+        Option<&'static RenderLayers>,
     );
     type QueryFilter = ();
     type Out = ExtractedVolshadowLight;
@@ -251,7 +259,7 @@ impl ExtractComponent<RenderApp> for VolshadowLight {
     /// `None` (no light in the render world) for an entity that is none of Bevy's three
     /// lights, and for a light that emits nothing (volshadow refuses a zero intensity).
     fn extract_component(
-        (marker, transform, point, spot, directional): QueryItem<'_, '_, Self::QueryData>,
+        (marker, transform, point, spot, directional, layers): QueryItem<'_, '_, Self::QueryData>,
     ) -> Option<Self::Out> {
         let position = vec3(transform.translation());
         let direction = vec3(transform.forward().into());
@@ -277,15 +285,18 @@ impl ExtractComponent<RenderApp> for VolshadowLight {
         } else {
             return None;
         };
-        (!light.is_dark()).then_some(ExtractedVolshadowLight(light))
+        (!light.is_dark())
+            .then(|| ExtractedVolshadowLight(light, layers.cloned().unwrap_or_default()))
     }
 }
 
-/// An occluder on its render-world entity: its mesh asset and its world transform.
-#[derive(Component, Clone, Copy, Debug)]
+/// An occluder on its render-world entity: its mesh asset, its world transform and its render
+/// layers (it shadows the lights that share one with them, as Bevy's shadow casters do).
+#[derive(Component, Clone, Debug)]
 pub struct ExtractedOccluder {
     pub(crate) mesh: AssetId<Mesh>,
     pub(crate) transform: glam::Mat4,
+    pub(crate) layers: RenderLayers,
 }
 
 impl SyncComponent<RenderApp> for VolshadowOccluder {
@@ -297,13 +308,14 @@ impl ExtractComponent<RenderApp> for VolshadowOccluder {
         &'static Mesh3d,
         &'static GlobalTransform,
         Option<&'static InheritedVisibility>,
+        Option<&'static RenderLayers>,
     );
     type QueryFilter = ();
     type Out = ExtractedOccluder;
 
     /// `None` for a hidden occluder: it neither draws nor occludes.
     fn extract_component(
-        (mesh, transform, visibility): QueryItem<'_, '_, Self::QueryData>,
+        (mesh, transform, visibility, layers): QueryItem<'_, '_, Self::QueryData>,
     ) -> Option<Self::Out> {
         if visibility.is_some_and(|v| !v.get()) {
             return None;
@@ -312,6 +324,7 @@ impl ExtractComponent<RenderApp> for VolshadowOccluder {
         Some(ExtractedOccluder {
             mesh: mesh.id(),
             transform: glam::Mat4::from_cols_array(&m),
+            layers: layers.cloned().unwrap_or_default(),
         })
     }
 }

@@ -55,6 +55,11 @@
 //!   camera gathers from each, `σs·I·π/(2d)·e^(−σt·d)` for a point or spot light of intensity
 //!   `I` at distance `d`, `σs·E/σt` for a directional light of irradiance `E`. Its plan names
 //!   the lights left out.
+//! * **Render layers** ([`RenderLayers`](bevy::camera::visibility::RenderLayers), layer 0
+//!   when absent) are kept as Bevy keeps them for its own lights and shadows: a camera's medium
+//!   is lit only by the lights on a layer the camera sees, and a light is shadowed only by the
+//!   occluders that share a layer with it. The plan counts the lights a camera's layers leave
+//!   out.
 //! * **Cameras** with [`VolshadowMedium`] get one [`volshadow::VolumetricShadows`] each, held
 //!   with its resolved depth in a [`ViewVolshadow`] on the camera's render-world view and
 //!   dropped with it. Bevy's component extraction brings the camera's medium, each light and

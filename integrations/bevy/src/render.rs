@@ -6,6 +6,7 @@ use std::collections::HashMap;
 use std::sync::Arc;
 
 use bevy::asset::AssetId;
+use bevy::camera::visibility::RenderLayers;
 use bevy::ecs::prelude::*;
 use bevy::mesh::Mesh;
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
@@ -220,13 +221,14 @@ pub(crate) fn prepare_views(
 ) {
     let device = device.wgpu_device();
     let queue: &wgpu::Queue = &queue;
-    let occluders: Vec<volshadow::Occluder> = occluders
+    let occluders: Vec<(volshadow::Occluder, &RenderLayers)> = occluders
         .iter()
         .filter_map(|o| {
-            Some(volshadow::Occluder {
+            let occluder = volshadow::Occluder {
                 mesh: &meshes.uploaded.get(&o.mesh)?.1,
                 transform: o.transform,
-            })
+            };
+            Some((occluder, &o.layers))
         })
         .collect();
     // Reports of cameras without a view this frame (despawned, medium removed, inactive) go.
@@ -293,7 +295,7 @@ fn prepare_view(
     queue: &wgpu::Queue,
     pipelines: &mut VolshadowPipelines,
     lights: &Lights,
-    occluders: &[volshadow::Occluder],
+    occluders: &[(volshadow::Occluder, &RenderLayers)],
     (extracted, camera, target, depth): (
         &ExtractedView,
         &ExtractedVolshadowView,
@@ -326,22 +328,42 @@ fn prepare_view(
     let eye = view_matrix.inverse().w_axis.truncate();
     let sigma_s = medium.scattering.element_sum() / 3.0;
     let sigma_t = sigma_s + medium.absorption.element_sum() / 3.0;
+    // Lights on render layers this camera does not see are not its (as Bevy's lights).
     let mut ranked: Vec<(f32, Entity, &ExtractedVolshadowLight)> = lights
         .iter()
+        .filter(|(_, l)| camera.layers.intersects(&l.1))
         .map(|(main, l)| (l.0.contribution(eye, sigma_s, sigma_t), main.id(), l))
         .collect();
+    let unseen = lights.iter().count() - ranked.len();
     ranked.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
     let left_out: Vec<String> = ranked
         .iter()
         .skip(MAX_LIGHTS)
         .map(|(_, e, _)| e.to_string())
         .collect();
+    ranked.truncate(MAX_LIGHTS);
+    // Each light's shadow casters: the occluders whose layers share one with the light's.
+    let casters: Vec<Vec<usize>> = ranked
+        .iter()
+        .map(|(_, _, l)| {
+            (0..occluders.len())
+                .filter(|&j| occluders[j].1.intersects(&l.1))
+                .collect()
+        })
+        .collect();
     let frame_lights = ranked
         .iter()
-        .take(MAX_LIGHTS)
-        .map(|(_, _, l)| l.0.to_volshadow(camera.exposure).map(Into::into))
+        .zip(&casters)
+        .map(|((_, _, l), casters)| {
+            let light = l.0.to_volshadow(camera.exposure)?;
+            Ok(volshadow::FrameLight {
+                casters: Some(casters),
+                ..light.into()
+            })
+        })
         .collect::<volshadow::Result<Vec<volshadow::FrameLight>>>()
         .map_err(text)?;
+    let occluders: Vec<volshadow::Occluder> = occluders.iter().map(|(o, _)| *o).collect();
 
     // Single-sampled depth: Bevy's own when it has one sample, resolved otherwise.
     let depth_texture: &wgpu::Texture = depth.texture();
@@ -364,7 +386,7 @@ fn prepare_view(
                 camera: &vs_camera,
                 lights: &frame_lights,
                 medium: &vs_medium,
-                occluders,
+                occluders: &occluders,
                 scene_color,
                 scene_depth: &scene_depth,
                 surfaces: None,
@@ -381,15 +403,18 @@ fn prepare_view(
         scene_color: scene_color.clone(),
         resolve,
     });
-    Ok(if left_out.is_empty() {
-        plan
-    } else {
-        format!(
-            "{plan}\n({} lights beyond the {MAX_LIGHTS} that add most to this view left out: {})",
+    let mut report = plan;
+    if !left_out.is_empty() {
+        report += &format!(
+            "\n({} lights beyond the {MAX_LIGHTS} that add most to this view left out: {})",
             left_out.len(),
             left_out.join(", ")
-        )
-    })
+        );
+    }
+    if unseen > 0 {
+        report += &format!("\n({unseen} lights on render layers this camera does not see)");
+    }
+    Ok(report)
 }
 
 /// Records one camera's volumetric shadows after Bevy's main pass: the MSAA depth resolve and

@@ -563,3 +563,80 @@ fn each_view_takes_the_lights_that_add_most_to_it() {
     }
     assert_eq!(RENDER_ERRORS.load(Ordering::SeqCst), 0);
 }
+
+/// The RMSE of two in-scatter images, relative to the mean of `b`.
+fn relative_rmse(a: &[[f32; 4]], b: &[[f32; 4]]) -> f64 {
+    let (mut sq, mut sum) = (0.0f64, 0.0f64);
+    for (p, q) in a.iter().zip(b) {
+        for c in 0..3 {
+            sq += (f64::from(p[c]) - f64::from(q[c])).powi(2);
+            sum += f64::from(q[c]);
+        }
+    }
+    let n = 3.0 * b.len() as f64;
+    (sq / n).sqrt() / (sum / n)
+}
+
+/// Render layers as Bevy's lights and shadow casters use them: a light lights the views whose
+/// layers share one with its own, and an occluder shadows the lights whose layers share one
+/// with its own. The camera sees layers 0 and 1, the light is on 0. The sphere on layer 1
+/// (drawn, but not the light's caster) casts no shadow: the in-scatter is the one with the
+/// sphere not an occluder at all (RMSE below 1e-6 of the mean), where on layer 0 its shadow
+/// changes it by more than 1% of the mean (5.3% measured). The light on layer 2 is not the
+/// camera's: its plan has no light and says why. Broken variants, checked: an occluder
+/// shadowing every light keeps the shadow on layer 1 (difference 0.15; fails), and a light
+/// lighting every view leaves the report without the light it does not see (fails).
+#[test]
+fn render_layers_choose_a_views_lights_and_a_lights_occluders() {
+    use bevy::camera::visibility::RenderLayers;
+    let mut app = headless_app();
+    let scene = spawn_scene(&mut app, Msaa::Off);
+    app.world_mut()
+        .entity_mut(scene.camera)
+        .insert(RenderLayers::from_layers(&[0, 1]));
+    settle(&mut app, 1);
+    let shadowed = inscatter(&app, scene.camera);
+
+    app.world_mut()
+        .entity_mut(scene.occluder)
+        .insert(RenderLayers::layer(1));
+    settle(&mut app, 1);
+    let other_layer = inscatter(&app, scene.camera);
+
+    app.world_mut()
+        .entity_mut(scene.occluder)
+        .remove::<VolshadowOccluder>();
+    settle(&mut app, 1);
+    let no_occluder = inscatter(&app, scene.camera);
+
+    let (same, shadow) = (
+        relative_rmse(&other_layer, &no_occluder),
+        relative_rmse(&shadowed, &no_occluder),
+    );
+    println!(
+        "sphere on layer 1 against no occluder: {same:.2e}; on layer 0 (its shadow): {shadow:.3}"
+    );
+    assert!(
+        shadow > 0.01,
+        "the sphere on the light's layer shadows: {shadow}"
+    );
+    assert!(
+        same < 1e-6,
+        "the sphere on another layer than the light's: {same}"
+    );
+
+    app.world_mut()
+        .entity_mut(scene.light)
+        .insert(RenderLayers::layer(2));
+    settle(&mut app, 1);
+    let plan = match report(&app, scene.camera) {
+        Some(ViewReport::Planned(plan)) => plan,
+        other => panic!("the light on layer 2: {other:?}"),
+    };
+    println!("{plan}");
+    assert!(
+        plan.contains("1 lights on render layers this camera does not see"),
+        "{plan}"
+    );
+    assert_eq!(RENDER_ERRORS.load(Ordering::SeqCst), 0);
+}
