@@ -200,20 +200,144 @@ fn vs_volume(
     return out;
 }
 
+// The depth passes' view: each pixel's ray (binding 1, as the exact mode's `cross_view`).
+@group(0) @binding(1) var<storage, read> cross_view: View;
+
+// The fragment's depth: where the face's plane is known, that of the point where the pixel's
+// centre ray meets it, to f32's precision rather than the rasteriser's (whose interpolated
+// depth loses the face where a huge triangle is clipped: an occluder 1e8 wide 1.4 units above
+// the eye); elsewhere (the cap at infinity) the rasterised one.
+fn face_depth(in: VolumeOut) -> f32 {
+    if (in.plane.w > 0.5) {
+        let ray = pixel_ray(cross_view, in.position.xy, cross_view.far_depth);
+        let eye = cross_view.world_from_view[3].xyz;
+        let along = dot(in.plane.xyz, ray.dir);
+        let t = dot(in.plane.xyz, in.anchor - eye) / along;
+        if (abs(along) > 1.0e-6 && t > 0.0 && t < 3.0e38) {
+            let clip = vv.clip_from_world * vec4<f32>(eye + ray.dir * t, 1.0);
+            if (clip.w > 0.0) {
+                return clamp(clip.z / clip.w, 0.0, 1.0);
+            }
+        }
+    }
+    return in.position.z;
+}
+
+// The volumes of an occluder far larger than its distance to the eye (see `ExtentsNode`'s
+// `clips_volumes`): the rasteriser clips a triangle in f32, and where its finite vertices lie
+// beyond about 2^24 times the depth of the clipped points (a roof 1e8 wide 1.4 units above the
+// eye), the clipped polygon loses its place and pixels lose the face. So a triangle whose
+// finite vertices reach farther from the eye than `VOLUME_CLIP_REACH` times its plane's
+// distance is first clipped here, in homogeneous world coordinates (its vertices at infinity
+// too), to a cube around the eye of that half-side, and drawn as the clipped polygon's fan:
+// at most nine vertices, seven fan triangles, one per instance (`instance_index`), each
+// invocation reading its whole triangle (`vertex_index` = 3 · triangle + corner). What is cut
+// away lies farther than 4096 times the plane's distance, so its rays leave the eye within
+// 1/4096 rad of the plane: a band a fraction of a pixel wide along the plane's horizon. Other
+// triangles are drawn from their own vertices, as `vs_volume` draws them; a fan triangle the
+// polygon does not have is degenerate outside the clip volume.
+const VOLUME_CLIP_REACH: f32 = 4096.0;
+
+@group(1) @binding(0) var<storage, read> clip_volume: array<VolumeVertex>;
+
+fn max_abs(v: vec3<f32>) -> f32 {
+    let a = abs(v);
+    return max(a.x, max(a.y, a.z));
+}
+
+// Whether `a` precedes `b` in lexicographic order (x, then y, z, w).
+fn precedes(a: vec4<f32>, b: vec4<f32>) -> bool {
+    if (a.x != b.x) {
+        return a.x < b.x;
+    }
+    if (a.y != b.y) {
+        return a.y < b.y;
+    }
+    if (a.z != b.z) {
+        return a.z < b.z;
+    }
+    return a.w < b.w;
+}
+
+@vertex
+fn vs_volume_clipped(@builtin(vertex_index) v: u32, @builtin(instance_index) fan: u32)
+    -> VolumeOut {
+    let t = v / 3u;
+    let corner = v - 3u * t;
+    let first = clip_volume[3u * t];
+    var out: VolumeOut;
+    out.conservative = first.flags.x;
+    out.plane = first.plane;
+    out.anchor = first.anchor.xyz;
+    let e = cross_view.world_from_view[3].xyz;
+    var p: array<vec4<f32>, 9>;
+    var far = 0.0;
+    for (var c = 0u; c < 3u; c++) {
+        p[c] = clip_volume[3u * t + c].position;
+        if (p[c].w != 0.0) {
+            far = max(far, max_abs(p[c].xyz / p[c].w - e));
+        }
+    }
+    var n = 3u;
+    let reach = VOLUME_CLIP_REACH * abs(dot(first.plane.xyz, first.anchor.xyz - e));
+    if (first.plane.w > 0.5 && far > reach) {
+        // Sutherland–Hodgman against `reach w - s (p - e w)[axis] >= 0`, six planes.
+        var q: array<vec4<f32>, 9>;
+        for (var plane = 0u; plane < 6u; plane++) {
+            let axis = plane / 2u;
+            let s = select(1.0, -1.0, (plane & 1u) == 1u);
+            var m = 0u;
+            for (var i = 0u; i < n; i++) {
+                let a = p[i];
+                let b = p[select(i + 1u, 0u, i + 1u == n)];
+                let da = reach * a.w - s * (a[axis] - e[axis] * a.w);
+                let db = reach * b.w - s * (b[axis] - e[axis] * b.w);
+                if (da >= 0.0 && m < 9u) {
+                    q[m] = a;
+                    m++;
+                }
+                if ((da >= 0.0) != (db >= 0.0) && m < 9u) {
+                    // From the edge's lesser end, so the triangle across the edge finds the
+                    // same point, bit for bit: no crack between the two.
+                    if (precedes(a, b)) {
+                        q[m] = a + (b - a) * (da / (da - db));
+                    } else {
+                        q[m] = b + (a - b) * (db / (db - da));
+                    }
+                    m++;
+                }
+            }
+            n = m;
+            for (var i = 0u; i < n; i++) {
+                p[i] = q[i];
+            }
+        }
+    }
+    if (fan + 2u >= n) {
+        out.position = vec4<f32>(2.0, 2.0, 2.0, 1.0);
+        return out;
+    }
+    let k = select(select(fan + 2u, fan + 1u, corner == 1u), 0u, corner == 0u);
+    out.position = vv.clip_from_world * p[k];
+    return out;
+}
+
 // Nearest front face: front faces of closed meshes only.
 @fragment
-fn fs_front(in: VolumeOut, @builtin(front_facing) front: bool) {
+fn fs_front(in: VolumeOut, @builtin(front_facing) front: bool) -> @builtin(frag_depth) f32 {
     if (!front || in.conservative > 0.5) {
         discard;
     }
+    return face_depth(in);
 }
 
 // Nearest and farthest back face: back faces, and every face of an open mesh.
 @fragment
-fn fs_back(in: VolumeOut, @builtin(front_facing) front: bool) {
+fn fs_back(in: VolumeOut, @builtin(front_facing) front: bool) -> @builtin(frag_depth) f32 {
     if (front && in.conservative < 0.5) {
         discard;
     }
+    return face_depth(in);
 }
 
 // ---- exact mode: every face crossing in front of the surface, per pixel ----
@@ -225,7 +349,6 @@ struct CrossingParams {
     near: f32,        // the volumes' projection near plane (depth = near / view depth)
 }
 
-@group(0) @binding(1) var<storage, read> cross_view: View;
 @group(0) @binding(2) var<storage, read> cp: CrossingParams;
 @group(0) @binding(3) var cross_scene_depth: texture_depth_2d;
 // Per pixel four u32: the crossing count in front of the surface (bit 31: a face of an open or

@@ -276,6 +276,18 @@ pub enum Error {
     /// Reading a buffer or texture back from the GPU failed (headless helper).
     #[error("GPU readback failed: {0}")]
     Readback(String),
+    /// wgpu reported a validation error while `during` (`prepare`, `encode`) made or recorded
+    /// work from the caller's resources, which every other check let through: in practice a
+    /// texture made on another `wgpu::Device` than the one passed (wgpu's public API cannot
+    /// tell which device a texture belongs to, so it is found where wgpu binds it). `message`
+    /// is wgpu's.
+    #[error("wgpu validation error during {during}: {message}")]
+    Validation {
+        /// The call that caught it.
+        during: &'static str,
+        /// wgpu's description.
+        message: String,
+    },
 }
 
 /// A glTF file that could not be loaded (feature `gltf`), as [`Error::Gltf`].

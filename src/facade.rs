@@ -3,6 +3,7 @@
 use crate::error::{Error, Result};
 use crate::frame::{Frame, FrameLight};
 use crate::gpu::headless::HeadlessGpu;
+use crate::gpu::scope::validated;
 use crate::gpu::{GpuTimer, Occluder, PassTime};
 use crate::nodes::{
     AirlightTableNode, CompositeInputs, CompositeNode, CompositeSurfaces, CrossingsRequest,
@@ -235,6 +236,12 @@ impl VolumetricShadows {
         settings: Settings,
     ) -> Result<Self> {
         validate(&settings)?;
+        if device != cache.device() {
+            return Err(Error::InvalidSetting {
+                field: "cache",
+                problem: "made for another device than the one passed".into(),
+            });
+        }
         let timer = device
             .features()
             .contains(wgpu::Features::TIMESTAMP_QUERY)
@@ -303,6 +310,11 @@ impl VolumetricShadows {
     /// * [`Error::NonFinite`], [`Error::SingularMatrix`] or [`Error::InvalidTransform`] for an
     ///   occluder's transform, [`Error::InvalidBuffer`] naming `occluder.mesh` for a mesh made
     ///   on another device;
+    /// * [`Error::InvalidSetting`] naming `device` for another device than the facade's;
+    ///   [`Error::Validation`] for a texture made on another device (wgpu's public API cannot
+    ///   tell a texture's device, so `prepare` runs in a validation error scope and returns
+    ///   what wgpu reports where it binds the texture, rather than `Ok` beside a validation
+    ///   error; on native backends, where a scope's result is ready at once);
     /// * [`Error::DeviceLimitExceeded`], naming the buffer and the `wgpu::Limits` field, for
     ///   every buffer beyond the device's limits: the occluders' shadow volumes or transforms,
     ///   the exact method's crossing lists (16 bytes a pixel: 4096² at full resolution is
@@ -319,7 +331,15 @@ impl VolumetricShadows {
         frame: &Frame<'_>,
     ) -> Result<&Plan> {
         self.unprepared = Some("the last prepare failed");
-        self.prepare_frame(device, queue, frame)?;
+        if device != self.cache.device() {
+            return Err(Error::InvalidSetting {
+                field: "device",
+                problem: "not the device the facade and its Cache were made for".into(),
+            });
+        }
+        validated(device, "prepare", || {
+            self.prepare_frame(device, queue, frame)
+        })?;
         self.unprepared = None;
         Ok(&self.plan)
     }
@@ -491,7 +511,10 @@ impl VolumetricShadows {
     /// Recording nothing: [`Error::NotPrepared`] without a successful
     /// [`prepare`](Self::prepare) of the current frame (before the first, after a failed one,
     /// after [`invalidate`](Self::invalidate) or [`set_settings`](Self::set_settings));
-    /// [`Error::InvalidTexture`] naming `output` when it is not such a texture. See the
+    /// [`Error::InvalidTexture`] naming `output` when it is not such a texture;
+    /// [`Error::Validation`] when it was made on another device (found by binding it in an
+    /// encoder of the facade's own, never submitted; once per texture, so an engine's target
+    /// is checked on its first frame and a swapchain's images each frame). See the
     /// [crate-level example](crate#example).
     pub fn encode<'o>(
         &mut self,
@@ -501,16 +524,19 @@ impl VolumetricShadows {
         let output = output.into();
         self.check_prepared()?;
         self.check_output(&output)?;
-        if let Some(t) = self.timer.as_mut() {
-            t.clear();
-        }
-        for index in 0..self.plan.steps.len() {
-            self.record(encoder, &output, index)?;
-        }
-        if let Some(t) = &self.timer {
-            t.resolve(encoder);
-        }
-        Ok(())
+        let device = self.cache.device().clone();
+        validated(&device, "encode", || {
+            if let Some(t) = self.timer.as_mut() {
+                t.clear();
+            }
+            for index in 0..self.plan.steps.len() {
+                self.record(encoder, &output, index)?;
+            }
+            if let Some(t) = &self.timer {
+                t.resolve(encoder);
+            }
+            Ok(())
+        })
     }
 
     /// Records only step `index` of the plan (`plan().steps[index]`), untimed: for profilers
@@ -543,7 +569,8 @@ impl VolumetricShadows {
             self.check_output(&output)?;
         }
         let timer = self.timer.take();
-        let result = self.record(encoder, &output, index);
+        let device = self.cache.device().clone();
+        let result = validated(&device, "encode", || self.record(encoder, &output, index));
         self.timer = timer;
         result
     }
@@ -585,7 +612,7 @@ impl VolumetricShadows {
                 (Pass::IssTable, None) => Err(Error::NotPrepared {
                     reason: "the plan names the ISS table, which has no resources",
                 }),
-                _ => self.composite.encode(encoder, output, timer),
+                _ => self.composite.encode_checked(encoder, output, timer),
             };
         };
         // Slots and plan are built together by a successful prepare; a stale plan is refused
@@ -602,7 +629,7 @@ impl VolumetricShadows {
             Pass::AirlightTable => &mut slot.table,
             Pass::March => &mut slot.march,
             Pass::Upsample => &mut slot.upsample,
-            Pass::Composite => return self.composite.encode(encoder, output, timer),
+            Pass::Composite => return self.composite.encode_checked(encoder, output, timer),
             Pass::IssTable => return Ok(()), // a frame step, recorded above
             Pass::SoftShadow => match slot.soft.as_mut() {
                 Some(node) => node,

@@ -10,9 +10,11 @@ use crate::scene::{Mesh, MeshSummary};
 /// by [`Mesh::new`]. Upload once, instance any number of times with [`Occluder`].
 ///
 /// The mesh keeps its device: a frame on another device of the same `wgpu::Instance` refuses
-/// it ([`Error::InvalidBuffer`] naming `occluder.mesh`). Devices of two separate instances
-/// number their resources alike and wgpu's public API cannot tell them apart, so a mesh must
-/// not be passed to another instance's device.
+/// it ([`Error::InvalidBuffer`] naming `occluder.mesh`), as it refuses textures of another
+/// device ([`Error::Validation`]). Devices of two separate instances number their resources
+/// alike and wgpu's public API cannot tell them apart (a resource of one resolves to another
+/// resource of the other, or wgpu panics), so no resource may be passed to another instance's
+/// device.
 ///
 /// Used in the [crate-level example](crate#example).
 pub struct OccluderMesh {

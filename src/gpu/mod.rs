@@ -7,6 +7,7 @@ mod mesh;
 pub(crate) mod passes;
 pub(crate) mod pipeline;
 pub(crate) mod precision;
+pub(crate) mod scope;
 mod timer;
 pub(crate) mod wgsl;
 

@@ -50,6 +50,16 @@ pub(crate) fn begin_render<'e>(
     encoder.begin_render_pass(descriptor)
 }
 
+/// Begins a render pass in an encoder of the crate's own that is finished and dropped, never
+/// submitted (a check of the caller's texture, see `CompositeNode::check_output`): no work,
+/// so not counted.
+pub(crate) fn begin_unsubmitted_render<'e>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    descriptor: &wgpu::RenderPassDescriptor<'_>,
+) -> wgpu::RenderPass<'e> {
+    encoder.begin_render_pass(descriptor)
+}
+
 /// Begins a compute pass, counted.
 pub(crate) fn begin_compute<'e>(
     encoder: &'e mut wgpu::CommandEncoder,

@@ -271,7 +271,7 @@ pub(crate) fn dispatch(
 pub(crate) fn depth_pipeline(
     device: &wgpu::Device,
     label: &str,
-    layout: &wgpu::BindGroupLayout,
+    layouts: &[&wgpu::BindGroupLayout],
     module: &wgpu::ShaderModule,
     vertex_entry: &str,
     fragment_entry: Option<&str>,
@@ -281,7 +281,7 @@ pub(crate) fn depth_pipeline(
 ) -> wgpu::RenderPipeline {
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(label),
-        layout: Some(&pipeline_layout(device, label, &[layout])),
+        layout: Some(&pipeline_layout(device, label, layouts)),
         vertex: wgpu::VertexState {
             module,
             entry_point: Some(vertex_entry),

@@ -60,6 +60,11 @@ impl Cache {
         }
     }
 
+    /// The device the cache builds for.
+    pub(crate) fn device(&self) -> &wgpu::Device {
+        &self.device
+    }
+
     /// The precision the shaders were compiled with.
     pub fn precision(&self) -> ShaderPrecision {
         self.precision

@@ -72,18 +72,27 @@ pub(crate) struct LayerArgs {
     pub draws: Vec<(u32, u64)>,
 }
 
-/// The draw arguments of a gated map: per recorded layer its clear, then its occluders'
-/// indexed draws (each `index_count` indices, one instance).
-pub(crate) fn arguments(layers: &[(u32, Vec<(u32, u32)>)]) -> (Vec<u32>, Vec<LayerArgs>) {
+/// One layer's draws for [`arguments`]: the layer, and per draw `(draw, count, instances)`.
+pub(crate) type LayerDraws = (u32, Vec<(u32, u32, u32)>);
+
+/// The draw arguments of a gated map: per recorded layer its clear, then its occluders' draws
+/// `(draw, count, instances)`: indexed (`count` indices, one instance), or for a clipped
+/// occluder non-indexed (`count` vertices, `instances` fan triangles each).
+pub(crate) fn arguments(layers: &[LayerDraws]) -> (Vec<u32>, Vec<LayerArgs>) {
     let mut words = Vec::new();
     let mut placed = Vec::new();
     for (layer, draws) in layers {
         let clear = 4 * words.len() as u64;
         words.extend([3, 1, 0, 0]);
         let mut at = Vec::new();
-        for &(draw, index_count) in draws {
+        for &(draw, count, instances) in draws {
             at.push((draw, 4 * words.len() as u64));
-            words.extend([index_count, 1, 0, 0, 0]);
+            if instances == 1 {
+                words.extend([count, 1, 0, 0, 0]);
+            } else {
+                // A clipped occluder's non-indexed draw (`vs_shadow_clipped`).
+                words.extend([count, instances, 0, 0]);
+            }
         }
         placed.push(LayerArgs {
             layer: *layer,
@@ -93,9 +102,13 @@ pub(crate) fn arguments(layers: &[(u32, Vec<(u32, u32)>)]) -> (Vec<u32>, Vec<Lay
     }
     debug_assert_eq!(
         words.len(),
-        placed
+        layers
             .iter()
-            .map(|l| CLEAR_WORDS + DRAW_WORDS * l.draws.len())
+            .map(|(_, draws)| CLEAR_WORDS
+                + draws
+                    .iter()
+                    .map(|d| if d.2 == 1 { DRAW_WORDS } else { CLEAR_WORDS })
+                    .sum::<usize>())
             .sum::<usize>()
     );
     (words, placed)

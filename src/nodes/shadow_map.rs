@@ -62,9 +62,30 @@ use crate::scene::{Camera, DirectionalLight, Light};
 
 /// The binding table: `@binding(i)` of `shaders/shadow_map.wgsl` is entry `i`.
 const BINDINGS: [Binding; 2] = [
-    Binding::DynamicParams(64), // face: clip_from_world, one slot per face
-    Binding::DynamicParams(64), // instance: world_from_object, one slot per occluder
+    Binding::DynamicParams(FACE_BYTES), // face: clip_from_world and centre, one slot per face
+    Binding::DynamicParams(INSTANCE_BYTES), // instance: world_from_object and clip reach
 ];
+
+/// `vs_shadow_clipped`'s: [`BINDINGS`], then the occluder's mesh read as storage.
+const CLIPPED_BINDINGS: [Binding; 4] = [
+    Binding::DynamicParams(FACE_BYTES),     // face
+    Binding::DynamicParams(INSTANCE_BYTES), // instance
+    Binding::VertexParams,                  // clip_positions
+    Binding::VertexParams,                  // clip_indices
+];
+
+/// WGSL `ShadowFace`: the face's matrix and the light's position.
+const FACE_BYTES: u64 = 80;
+/// WGSL `Instance`: the occluder's transform and its [`clip_reach`] (0: none).
+const INSTANCE_BYTES: u64 = 80;
+
+/// An occluder reaching farther from the light than this times its distance is clipped to a
+/// cube of that half-side around the light before it is drawn ([`clip_reach`]).
+const CLIP_REACH: f32 = 4096.0;
+
+/// The fan triangles (instances) a clipped triangle is drawn as: a triangle clipped by a
+/// cube's six planes keeps at most nine vertices.
+const FAN: u32 = 7;
 
 /// The binding table of `shaders/triangles.wgsl` (the occluders' triangles for the exact
 /// visible fraction, [`ShadowMap::triangles`]).
@@ -99,6 +120,11 @@ pub(crate) struct Pipelines {
     depth: wgpu::RenderPipeline,
     /// Faces turned away from the light only: a closed occluder's nearest back face.
     back: wgpu::RenderPipeline,
+    /// `depth` and `back` for occluders far larger than their distance to the light, whose
+    /// triangles are clipped around the light first (`vs_shadow_clipped`, [`clip_reach`]).
+    clipped_layout: wgpu::BindGroupLayout,
+    depth_clipped: wgpu::RenderPipeline,
+    back_clipped: wgpu::RenderPipeline,
     /// The occluders' triangles in world space (`shaders/triangles.wgsl`).
     gather_layout: wgpu::BindGroupLayout,
     gather: wgpu::ComputePipeline,
@@ -137,7 +163,7 @@ impl Pipelines {
             depth_pipeline(
                 device,
                 label,
-                &layout,
+                &[&layout],
                 &module,
                 "vs_shadow",
                 None,
@@ -150,10 +176,29 @@ impl Pipelines {
                 cull_mode,
             )
         };
+        let clipped_layout = crate::gpu::pipeline::layout(
+            device,
+            "volshadow shadow map clipped",
+            wgpu::ShaderStages::VERTEX,
+            &CLIPPED_BINDINGS,
+        );
+        let clipped = |cull_mode| {
+            depth_pipeline(
+                device,
+                "volshadow shadow map clipped",
+                &[&clipped_layout],
+                &module,
+                "vs_shadow_clipped",
+                None,
+                &[],
+                Some(wgpu::CompareFunction::Greater),
+                cull_mode,
+            )
+        };
         let clear = depth_pipeline(
             device,
             "volshadow shadow map clear",
-            &layout,
+            &[&layout],
             &module,
             "vs_clear",
             None,
@@ -170,6 +215,9 @@ impl Pipelines {
             // Counter-clockwise is front (wgpu's default), as the crate's meshes wind faces
             // seen from outside.
             back: pipeline(Some(wgpu::Face::Front)),
+            depth_clipped: clipped(None),
+            back_clipped: clipped(Some(wgpu::Face::Front)),
+            clipped_layout,
             layout,
         }
     }
@@ -477,6 +525,62 @@ struct Draw {
     indices: wgpu::Buffer,
     index_count: u32,
     closed: bool,
+    /// For an occluder with a [`clip_reach`]: its bind group of `CLIPPED_BINDINGS`, drawn by
+    /// `vs_shadow_clipped` (`index_count` vertices, [`FAN`] instances).
+    clipped: Option<wgpu::BindGroup>,
+}
+
+impl Draw {
+    /// Records the draw with `pipelines`' `depth` or `back` pipeline (`back`: faces turned away
+    /// from the light, an open mesh's nearest face), with the face and instance slots
+    /// `offsets`.
+    fn record(
+        &self,
+        pass: &mut wgpu::RenderPass<'_>,
+        pipelines: &Pipelines,
+        group: &wgpu::BindGroup,
+        offsets: [u32; 2],
+        back: bool,
+    ) {
+        let back = back && self.closed;
+        if let Some(clipped) = &self.clipped {
+            pass.set_pipeline(if back {
+                &pipelines.back_clipped
+            } else {
+                &pipelines.depth_clipped
+            });
+            pass.set_bind_group(0, clipped, &offsets);
+            pass.draw(0..self.index_count, 0..FAN);
+            return;
+        }
+        pass.set_pipeline(if back {
+            &pipelines.back
+        } else {
+            &pipelines.depth
+        });
+        pass.set_bind_group(0, group, &offsets);
+        pass.set_vertex_buffer(0, self.positions.slice(..));
+        pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
+        pass.draw_indexed(0..self.index_count, 0, 0..1);
+    }
+}
+
+/// The half-side of the cube around the light that `occluder`'s triangles are clipped to
+/// before the rasteriser clips them (`vs_shadow_clipped`), where they need it: [`CLIP_REACH`]
+/// times the distance from a point or spot light to the occluder's bounds, where the bounds
+/// reach farther than that from the light (in some axis). One value for all its triangles, so
+/// that two triangles sharing an edge cut it at the same points, bit for bit: each triangle's
+/// own distance would give neighbours different cubes, and the points each computes on a
+/// shared edge 1e7 long are off the edge by f32 steps of its far end, which opened a wedge
+/// beside the light that the light leaked through. `None` for a directional light, an occluder
+/// within its cube, and a light inside the bounds (its distance to them is 0; see the
+/// crate's Limits).
+fn clip_reach(light: &Light, occluder: &Occluder<'_>) -> Option<f32> {
+    let p = light.position()?;
+    let (lo, hi) = occluder.world_bounds();
+    let reach = CLIP_REACH * p.clamp(lo, hi).distance(p);
+    let farthest = (p - lo).abs().max((p - hi).abs()).max_element();
+    (reach > 0.0 && farthest > reach).then_some(reach)
 }
 
 /// A point light's six cube faces (+X, −X, +Y, −Y, +Z, −Z) around `position`: 90°
@@ -562,6 +666,27 @@ pub(crate) fn standard_cube_near(faces: &[Mat4], position: Vec3) -> f32 {
 
 /// Uniform slots are 256 bytes apart (the core minimum dynamic-offset alignment).
 const SLOT: u64 = 256;
+
+/// The first `size` bytes of `buffer`, bound at a dynamic offset of one [`SLOT`] per item.
+fn slot(buffer: &wgpu::Buffer, size: u64) -> wgpu::BindingResource<'_> {
+    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+        buffer,
+        offset: 0,
+        size: wgpu::BufferSize::new(size),
+    })
+}
+
+/// WGSL `ShadowFace`'s words: the matrix's columns, then the centre.
+fn slot_words((face, centre): (Mat4, Vec4)) -> [u32; 20] {
+    let mut words = [0u32; 20];
+    for (w, f) in words
+        .iter_mut()
+        .zip(face.to_cols_array().into_iter().chain(centre.to_array()))
+    {
+        *w = f.to_bits();
+    }
+    words
+}
 
 /// A directional map's depth bias in texels of the cascade a point falls in (world units:
 /// this times the cascade's texel). A point of the medium counts as lit while it lies less
@@ -920,7 +1045,7 @@ impl ShadowMapNode {
         if changed {
             self.key = key;
             self.place(light, occluders, directional);
-            self.upload(queue, occluders);
+            self.upload(device, queue, light, occluders);
             self.gather_triangles(device, light, occluders);
             self.pending = true;
             self.generation += 1;
@@ -939,12 +1064,16 @@ impl ShadowMapNode {
             // known here, so a layer once drawn stays in the list.
             let mut layers = Vec::new();
             for layer in 0..self.faces.len() {
-                let drawn: Vec<(u32, u32)> = match self.layer_draws.as_ref() {
+                let drawn: Vec<(u32, u32, u32)> = match self.layer_draws.as_ref() {
                     Some(l) => l.get(layer).map_or(&[][..], Vec::as_slice).to_vec(),
                     None => (0..self.draws.len() as u32).collect(),
                 }
                 .into_iter()
-                .map(|i| (i, self.draws[i as usize].index_count))
+                .map(|i| {
+                    let draw = &self.draws[i as usize];
+                    let instances = if draw.clipped.is_some() { FAN } else { 1 };
+                    (i, draw.index_count, instances)
+                })
                 .collect();
                 let dirty = self.dirty.get_mut(layer);
                 let was = dirty.as_deref().copied().unwrap_or(true);
@@ -1021,18 +1150,14 @@ impl ShadowMapNode {
                 usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
-            let slot = |buffer| {
-                wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                    buffer,
-                    offset: 0,
-                    size: wgpu::BufferSize::new(64),
-                })
-            };
             self.bind_group = Some(bind_group(
                 device,
                 "volshadow shadow map",
                 &self.pipelines.layout,
-                [slot(&self.face_buffer), slot(&buffer)],
+                [
+                    slot(&self.face_buffer, FACE_BYTES),
+                    slot(&buffer, INSTANCE_BYTES),
+                ],
             ));
             self.instance_buffer = Some(buffer);
         }
@@ -1137,19 +1262,49 @@ impl ShadowMapNode {
     }
 
     /// Writes the faces' matrices and the occluders' transforms, and lists the draws.
-    fn upload(&mut self, queue: &wgpu::Queue, occluders: &[Occluder<'_>]) {
+    fn upload(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        light: &Light,
+        occluders: &[Occluder<'_>],
+    ) {
+        let centre = light.position().unwrap_or_default().extend(1.0);
         for (i, face) in self.faces.iter().enumerate() {
-            queue.write_buffer(&self.face_buffer, i as u64 * SLOT, bytemuck::bytes_of(face));
+            let words = slot_words((*face, centre));
+            queue.write_buffer(
+                &self.face_buffer,
+                i as u64 * SLOT,
+                bytemuck::cast_slice(&words),
+            );
         }
         let instances = self.instance_buffer.as_ref().expect("just created");
         self.draws.clear();
         for (i, o) in occluders.iter().enumerate() {
-            queue.write_buffer(instances, i as u64 * SLOT, bytemuck::bytes_of(&o.transform));
+            let mut words = [0f32; 20];
+            words[..16].copy_from_slice(&o.transform.to_cols_array());
+            let reach = clip_reach(light, o);
+            words[16] = reach.unwrap_or(0.0);
+            queue.write_buffer(instances, i as u64 * SLOT, bytemuck::cast_slice(&words));
+            let clipped = reach.map(|_| {
+                bind_group(
+                    device,
+                    "volshadow shadow map clipped",
+                    &self.pipelines.clipped_layout,
+                    [
+                        slot(&self.face_buffer, FACE_BYTES),
+                        slot(instances, INSTANCE_BYTES),
+                        o.mesh.positions.as_entire_binding(),
+                        o.mesh.indices.as_entire_binding(),
+                    ],
+                )
+            });
             self.draws.push(Draw {
                 positions: o.mesh.positions.clone(),
                 indices: o.mesh.indices.clone(),
                 index_count: o.mesh.triangle_count * 3,
                 closed: o.mesh.is_closed(),
+                clipped,
             });
         }
     }
@@ -1341,10 +1496,17 @@ impl ShadowMapNode {
             pass.set_pipeline(&self.pipelines.clear);
             pass.set_bind_group(0, bind_group, &[face, 0]);
             pass.draw_indirect(live, layer.clear);
-            pass.set_pipeline(&self.pipelines.depth);
             for &(i, at) in &layer.draws {
                 let draw = &self.draws[i as usize];
-                pass.set_bind_group(0, bind_group, &[face, i * SLOT as u32]);
+                let offsets = [face, i * SLOT as u32];
+                if let Some(clipped) = &draw.clipped {
+                    pass.set_pipeline(&self.pipelines.depth_clipped);
+                    pass.set_bind_group(0, clipped, &offsets);
+                    pass.draw_indirect(live, at);
+                    continue;
+                }
+                pass.set_pipeline(&self.pipelines.depth);
+                pass.set_bind_group(0, bind_group, &offsets);
                 pass.set_vertex_buffer(0, draw.positions.slice(..));
                 pass.set_index_buffer(draw.indices.slice(..), wgpu::IndexFormat::Uint32);
                 pass.draw_indexed_indirect(live, at);
@@ -1433,17 +1595,14 @@ impl Encode for ShadowMapNode {
                     None => &mut all,
                 };
                 for i in indices {
-                    let draw = &self.draws[i as usize];
                     // An open mesh has no inside: its back layer is its nearest face.
-                    pass.set_pipeline(if back && draw.closed {
-                        &self.pipelines.back
-                    } else {
-                        &self.pipelines.depth
-                    });
-                    pass.set_bind_group(0, bind_group, &[layer * SLOT as u32, i * SLOT as u32]);
-                    pass.set_vertex_buffer(0, draw.positions.slice(..));
-                    pass.set_index_buffer(draw.indices.slice(..), wgpu::IndexFormat::Uint32);
-                    pass.draw_indexed(0..draw.index_count, 0, 0..1);
+                    self.draws[i as usize].record(
+                        &mut pass,
+                        &self.pipelines,
+                        bind_group,
+                        [layer * SLOT as u32, i * SLOT as u32],
+                        back,
+                    );
                 }
             }
         }

@@ -1142,3 +1142,132 @@ fn a_scale_beyond_f32_is_reported_as_such() {
     );
     assert!(r.is_ok(), "{:?}", r.err());
 }
+
+/// Textures made on another device of the same adapter, in each of the frame's texture slots
+/// and as the output: each is refused with a typed error, nothing recorded and no validation
+/// error (they were `Ok` with a validation error, a texture of another device in a bind group
+/// or a pass); the own textures then render. A `Cache` of the other device, and a `prepare`
+/// on it, are refused too.
+#[test]
+fn textures_from_another_device_are_typed_errors() {
+    let rig = rig(16);
+    let device = &rig.gpu.device;
+    let (other, other_queue) =
+        pollster::block_on(rig.gpu.adapter.request_device(&Default::default())).unwrap();
+    let foreign = |format: wgpu::TextureFormat, usage: wgpu::TextureUsages| {
+        other.create_texture(&wgpu::TextureDescriptor {
+            label: Some("foreign"),
+            size: rig.color.size(),
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage,
+            view_formats: &[],
+        })
+    };
+    let color = foreign(rig.color.format(), rig.color.usage());
+    let depth = foreign(rig.depth.format(), rig.depth.usage());
+    let out = foreign(
+        wgpu::TextureFormat::Rgba32Float,
+        wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+    );
+    let medium = medium();
+    let lights = [point(Vec3::new(0.4, 4.5, -0.5))];
+    // A Cache of the other device, and a prepare on it.
+    let other_cache = Cache::new(&other);
+    match VolumetricShadows::new(device, &rig.gpu.queue, &other_cache, settings()) {
+        Err(Error::InvalidSetting { field, .. }) => assert_eq!(field, "cache"),
+        other => panic!("expected the cache refused, got {:?}", other.err()),
+    }
+    let mut vs = VolumetricShadows::new(device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
+    match vs.prepare(&other, &other_queue, &frame(&rig, &lights, &medium, &[])) {
+        Err(Error::InvalidSetting { field, .. }) => assert_eq!(field, "device"),
+        other => panic!("expected the device refused, got {:?}", other.err()),
+    }
+    for (name, swap) in [("scene_color", 0), ("scene_depth", 1)] {
+        let (result, error) = scoped(device, || {
+            let mut f = frame(&rig, &lights, &medium, &[]);
+            if swap == 0 {
+                f.scene_color = &color;
+            } else {
+                f.scene_depth = &depth;
+            }
+            vs.prepare(device, &rig.gpu.queue, &f).err()
+        });
+        println!("{name}: {result:?}, {error:?}");
+        assert!(error.is_none(), "{name}: {error:?}");
+        assert!(
+            matches!(
+                result,
+                Some(Error::Validation {
+                    during: "prepare",
+                    ..
+                })
+            ),
+            "{name}: {result:?}"
+        );
+    }
+    let mask = foreign(
+        wgpu::TextureFormat::Rgba16Float,
+        wgpu::TextureUsages::TEXTURE_BINDING,
+    );
+    let spot = [FrameLight {
+        light: SpotLight::new(
+            Vec3::new(0.0, 4.0, 0.0),
+            Vec3::NEG_Y,
+            1.0,
+            Vec3::splat(20.0),
+        )
+        .unwrap()
+        .into(),
+        texture: Some(&mask),
+        casters: None,
+    }];
+    let (result, error) = scoped(device, || {
+        vs.prepare(device, &rig.gpu.queue, &frame(&rig, &spot, &medium, &[]))
+            .err()
+    });
+    println!("light texture: {result:?}, {error:?}");
+    assert!(error.is_none(), "light texture: {error:?}");
+    assert!(
+        matches!(
+            result,
+            Some(Error::Validation {
+                during: "prepare",
+                ..
+            })
+        ),
+        "light texture: {result:?}"
+    );
+    let target = output(&rig.gpu, rig.size, 1);
+    render(
+        &rig,
+        &mut vs,
+        &frame(&rig, &lights, &medium, &[]),
+        (&target).into(),
+    );
+    vs.prepare(device, &rig.gpu.queue, &frame(&rig, &lights, &medium, &[]))
+        .unwrap();
+    let (result, error) = scoped(device, || {
+        let mut encoder = device.create_command_encoder(&Default::default());
+        let r = vs.encode(&mut encoder, &out).err();
+        drop(encoder.finish());
+        r
+    });
+    println!("output: {result:?}, {error:?}");
+    assert!(error.is_none(), "output: {error:?}");
+    match result {
+        Some(Error::Validation { during, message }) => {
+            assert!(during.starts_with("encode"), "{during}");
+            assert!(message.contains("match Device"), "{message}");
+        }
+        other => panic!("expected the output refused, got {other:?}"),
+    }
+    render(
+        &rig,
+        &mut vs,
+        &frame(&rig, &lights, &medium, &[]),
+        (&target).into(),
+    );
+}

@@ -19,6 +19,7 @@ mod hardening;
 mod headless;
 mod iss_spot;
 mod iss_table;
+mod large_occluders;
 mod light_placement;
 mod occluder_texel;
 mod shadows;
