@@ -780,9 +780,9 @@ impl Node for ExtentsNode {
 /// farther from the eye (in some axis) than [`RASTER_SAFE_REACH`] times their distance from it,
 /// or than the extents' near plane (the rasteriser clips nothing nearer). Within it every
 /// finite volume vertex lies within 65536 times the depth of any point the rasteriser clips,
-/// where it holds (measured with rasterised lists before they were clipped, a roof's half-size
-/// over its distance from the eye: 7e5 moved the image's mean by 0.06%, 7e6 by 1.2%, 7e7 by
-/// 43%). Elsewhere the plain pipelines draw, with a seventh of the vertex work.
+/// where it holds (rasterised lists without the clip, a roof's half-size over its distance
+/// from the eye: 7e5 moves the image's mean by 0.06%, 7e6 by 1.2%, 7e7 by 43%; see
+/// CHANGELOG.md). Elsewhere the plain pipelines draw, with a seventh of the vertex work.
 fn clips_volumes(eye: glam::Vec3, near: f32, occluders: &[Occluder<'_>]) -> bool {
     occluders.iter().any(|o| {
         let (lo, hi) = o.world_bounds();
