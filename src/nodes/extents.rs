@@ -761,8 +761,7 @@ impl Node for ExtentsNode {
             // The compute build tests each pixel's ray against each face from the eye and
             // clips nothing, so it holds at any scale; the rasterised lists lose the volumes'
             // caps at infinity where an occluder is far larger than its distance to the eye
-            // (measured: an open triangle 1e7 wide 1.4 above the eye, 1.2% of the image's
-            // mean; 1e8, 11%), which clipping the finite faces does not cure.
+            // (figures in CHANGELOG.md), which clipping the finite faces does not cure.
             if self.clipping {
                 request.build = CrossingsBuild::Compute;
             }
