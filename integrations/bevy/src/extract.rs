@@ -199,8 +199,9 @@ impl SourceLight {
 pub struct ExtractedVolshadowView {
     pub(crate) medium: VolshadowMedium,
     pub(crate) exposure: f32,
-    /// Whether it renders into part of its target only (not supported).
-    pub(crate) viewport: bool,
+    /// The part of its target it renders into, when not all of it: physical origin and size,
+    /// and the depth range.
+    pub(crate) viewport: Option<bevy::camera::Viewport>,
     /// The camera's render layers (Bevy's default, layer 0, without the component): the view
     /// takes the lights whose layers share one with them.
     pub(crate) layers: RenderLayers,
@@ -228,7 +229,7 @@ impl ExtractComponent<RenderApp> for VolshadowMedium {
         Some(ExtractedVolshadowView {
             medium: medium.clone(),
             exposure: exposure_of(exposure),
-            viewport: camera.viewport.is_some(),
+            viewport: camera.viewport.clone(),
             layers: layers.cloned().unwrap_or_default(),
         })
     }

@@ -70,9 +70,12 @@
 //!   and before the post-processing, then only records: the depth resolve and the passes,
 //!   reading the view's HDR colour and depth and writing the next HDR target
 //!   ([`ViewTarget::post_process_write`](bevy::render::view::ViewTarget::post_process_write)).
-//!   A camera must render its whole target: one with a viewport is reported as an error and
-//!   left without fog. [`VolshadowSystems`] names these steps, to order other systems
-//!   around them.
+//!   A camera with a viewport, or one sharing its target with other cameras (whose
+//!   post-process passes swap the target's main textures), is fogged in textures of its own:
+//!   it copies its rectangle's colour out of the main texture of the moment it records, its
+//!   depth is cut out (and resolved) to the rectangle, and a pass writes the next target, the
+//!   fogged rectangle in the rest of the scene. [`VolshadowSystems`] names these steps, to
+//!   order other systems around them.
 //! * **Pipelines** are shared by every camera in one volshadow [`volshadow::Cache`], made
 //!   when Bevy creates the render device (`RenderStartup`). A view's first frame builds the
 //!   pipelines it uses in `Prepare`, so recording never compiles; the rest of what its
@@ -114,6 +117,7 @@ mod extract;
 pub mod headless;
 mod render;
 mod resolve;
+mod viewport;
 
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};

@@ -20,14 +20,16 @@ use crate::extract::{
     ExtractedOccluder, ExtractedVolshadowLight, ExtractedVolshadowView, OccluderSources,
 };
 use crate::resolve::{DepthResolve, ResolvedDepth};
+use crate::viewport::{Region, RegionTextures, RegionWrite};
 use crate::{ViewReport, VolshadowDiagnostics, VolshadowQuality};
 
-/// The pipelines every view shares: volshadow's [`Cache`] and the depth resolve, made at
-/// `RenderStartup`, and which settings and light kinds have been warmed.
+/// The pipelines every view shares: volshadow's [`Cache`], the depth resolve and the region
+/// write, made at `RenderStartup`, and which settings and light kinds have been warmed.
 #[derive(Resource)]
 pub(crate) struct VolshadowPipelines {
     cache: Cache,
     resolve: DepthResolve,
+    write: RegionWrite,
     /// The settings and light kinds whose remaining pipelines are being (or have been) built
     /// in the background.
     warmed: Vec<(Settings, LightKind)>,
@@ -40,6 +42,7 @@ pub(crate) fn init_pipelines(mut commands: Commands, device: Res<RenderDevice>) 
     commands.insert_resource(VolshadowPipelines {
         cache: Cache::new(device),
         resolve: DepthResolve::new(device),
+        write: RegionWrite::new(device),
         warmed: Vec::new(),
     });
 }
@@ -120,7 +123,8 @@ pub(crate) fn prepare_occluder_meshes(
 }
 
 /// One camera's volumetric shadows, on its render-world view: the facade (its GPU resources
-/// and this frame's plan), the resolved depth with MSAA, and what this frame recorded.
+/// and this frame's plan), the resolved depth (with MSAA, a viewport or a shared target), the
+/// region's own textures (with a viewport or a shared target), and what this frame recorded.
 /// Removed with the camera's [`VolshadowMedium`](crate::VolshadowMedium) or its view.
 #[derive(Component)]
 pub struct ViewVolshadow {
@@ -128,6 +132,7 @@ pub struct ViewVolshadow {
     /// The quality the facade's settings were made from (with the output format in them).
     quality: VolshadowQuality,
     depth: Option<ResolvedDepth>,
+    region: Option<RegionTextures>,
     /// This frame's preparation, when it succeeded: what the recording needs.
     prepared: Option<Prepared>,
 }
@@ -137,8 +142,12 @@ struct Prepared {
     /// The view's main texture the facade read as the scene's colour: the recording writes
     /// only while it is still the main texture (no pass before it swapped them).
     scene_color: wgpu::Texture,
-    /// Whether the depth is resolved from MSAA first.
+    /// Whether the depth is resolved (or cut out of a shared one) first.
     resolve: bool,
+    /// Whether the facade reads and writes the region's own textures (a viewport, or a target
+    /// shared with other cameras): the scene's colour is copied out of the main texture of
+    /// the moment it records, and the region write fills the post-process target.
+    region: bool,
 }
 
 impl ViewVolshadow {
@@ -147,8 +156,8 @@ impl ViewVolshadow {
         &self.facade
     }
 
-    /// The in-scatter that the frame's light `light` added (full resolution, `Rgba32Float`),
-    /// for debugging and tests.
+    /// The in-scatter that the frame's light `light` added (`Rgba32Float`, of the camera's
+    /// viewport, or its target, at the facade's resolution), for debugging and tests.
     pub fn inscatter(&self, light: usize) -> Option<&wgpu::Texture> {
         self.facade.inscatter(light)
     }
@@ -233,7 +242,17 @@ pub(crate) fn prepare_views(
         .collect();
     // Reports of cameras without a view this frame (despawned, medium removed, inactive) go.
     diagnostics.retain(|camera| views.iter().any(|(_, main, ..)| main.id() == camera));
+    // Targets that several of these cameras draw into share their main textures.
+    let mains: Vec<wgpu::Texture> = views
+        .iter()
+        .map(|(.., target, _, _)| (**target.main_texture()).clone())
+        .collect();
     for (entity, main, extracted, camera, target, depth, state) in &mut views {
+        let shared = mains
+            .iter()
+            .filter(|t| **t == **target.main_texture())
+            .count()
+            > 1;
         let mut created = None;
         let state: &mut ViewVolshadow = match state {
             Some(state) => state.into_inner(),
@@ -251,7 +270,7 @@ pub(crate) fn prepare_views(
             &mut pipelines,
             &lights,
             &occluders,
-            (extracted, camera, target, depth),
+            (extracted, camera, target, depth, shared),
             state,
         );
         if let Some(state) = created {
@@ -285,29 +304,62 @@ fn new_view(
         facade: VolumetricShadows::new(device, queue, &pipelines.cache, settings).map_err(text)?,
         quality,
         depth: None,
+        region: None,
         prepared: None,
     })
 }
 
-/// Prepares one view; its plan's text, or why nothing will be drawn.
+/// The rectangle of its target a view fogs in textures of its own: its viewport (clamped to the
+/// target, as Bevy draws it) or, for a camera sharing its target with others, the whole target;
+/// `None` where the facade reads and writes the view's main textures directly.
+fn region_of(
+    camera: &ExtractedVolshadowView,
+    target: &ViewTarget,
+    shared: bool,
+) -> Result<Option<Region>, String> {
+    let size = target.main_texture().size();
+    let whole = Region::whole(size);
+    let region = match &camera.viewport {
+        Some(v) => {
+            if v.depth != (0.0..1.0) {
+                return Err(format!(
+                    "the camera's viewport has the depth range {:?}: volshadow_bevy reads \
+                     depth of the range 0..1 only",
+                    v.depth
+                ));
+            }
+            let viewport = (v.physical_position.to_array(), v.physical_size.to_array());
+            Region::clamped(viewport, size).ok_or_else(|| {
+                format!(
+                    "the camera's viewport (at {}, size {}) holds no pixel of its {}x{} target",
+                    v.physical_position, v.physical_size, size.width, size.height
+                )
+            })?
+        }
+        None => whole,
+    };
+    Ok((shared || region != whole).then_some(region))
+}
+
+/// Prepares one view (`shared`: whether other cameras draw into its target); its plan's text,
+/// or why nothing will be drawn.
 fn prepare_view(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
     pipelines: &mut VolshadowPipelines,
     lights: &Lights,
     occluders: &[(volshadow::Occluder, &RenderLayers)],
-    (extracted, camera, target, depth): (
+    (extracted, camera, target, depth, shared): (
         &ExtractedView,
         &ExtractedVolshadowView,
         &ViewTarget,
         &ViewDepthStencilTexture,
+        bool,
     ),
     state: &mut ViewVolshadow,
 ) -> Result<String, String> {
     state.prepared = None;
-    if camera.viewport {
-        return Err("the camera has a viewport: volshadow_bevy draws whole targets only".into());
-    }
+    let region = region_of(camera, target, shared)?;
     let medium = &camera.medium;
     let format = target.main_texture_format();
     if state.quality != medium.quality || state.facade.settings().output_format != format {
@@ -365,18 +417,34 @@ fn prepare_view(
         .map_err(text)?;
     let occluders: Vec<volshadow::Occluder> = occluders.iter().map(|(o, _)| *o).collect();
 
-    // Single-sampled depth: Bevy's own when it has one sample, resolved otherwise.
+    // Single-sampled depth of the view's region: Bevy's own when it has one sample and is the
+    // view's alone, resolved or cut out otherwise.
     let depth_texture: &wgpu::Texture = depth.texture();
-    let resolve = depth_texture.sample_count() > 1;
+    let resolve = depth_texture.sample_count() > 1 || region.is_some();
     let scene_depth = if resolve {
-        pipelines
-            .resolve
-            .prepare(device, &mut state.depth, depth_texture)
+        let whole = Region::whole(depth_texture.size());
+        pipelines.resolve.prepare(
+            device,
+            queue,
+            &mut state.depth,
+            depth_texture,
+            region.unwrap_or(whole),
+        )
     } else {
         state.depth = None;
         depth_texture.clone()
     };
-    let scene_color: &wgpu::Texture = target.main_texture();
+    // The scene's colour: the main texture, or the region's own copy of it.
+    pipelines.write.prepare(device, format);
+    let scene_color: &wgpu::Texture = match region {
+        Some(region) => {
+            &RegionTextures::prepare(device, queue, &mut state.region, region, format).color
+        }
+        None => {
+            state.region = None;
+            target.main_texture()
+        }
+    };
     let plan = state
         .facade
         .prepare(
@@ -400,8 +468,9 @@ fn prepare_view(
         frame_lights.iter().map(|l| l.kind()),
     );
     state.prepared = Some(Prepared {
-        scene_color: scene_color.clone(),
+        scene_color: (**target.main_texture()).clone(),
         resolve,
+        region: region.is_some(),
     });
     let mut report = plan;
     if !left_out.is_empty() {
@@ -417,27 +486,31 @@ fn prepare_view(
     Ok(report)
 }
 
-/// Records one camera's volumetric shadows after Bevy's main pass: the MSAA depth resolve and
-/// [`VolumetricShadows::encode`] into the view's next post-process target. Everything else
-/// was decided in `prepare_views`.
+/// Records one camera's volumetric shadows after Bevy's main pass: the depth resolve (MSAA, or
+/// the view's region of a viewport or shared target) and [`VolumetricShadows::encode`] into the
+/// view's next post-process target, or, for a region, the copy of its colour out of the main
+/// texture, the passes into the region's output and the region write. Everything else was
+/// decided in `prepare_views`.
 pub(crate) fn record_view(
-    view: ViewQuery<(
-        &MainEntity,
-        &ViewTarget,
-        &ViewDepthStencilTexture,
-        &mut ViewVolshadow,
-    )>,
+    view: ViewQuery<(&MainEntity, &ViewTarget, &mut ViewVolshadow)>,
     pipelines: Res<VolshadowPipelines>,
     diagnostics: Res<VolshadowDiagnostics>,
     mut ctx: RenderContext,
 ) {
-    let (main, target, depth, mut state) = view.into_inner();
+    let (main, target, mut state) = view.into_inner();
     let state = &mut *state;
     let Some(prepared) = state.prepared.take() else {
         return; // not prepared this frame: its report says why
     };
-    let current: &wgpu::Texture = target.main_texture();
-    if *current != prepared.scene_color {
+    let device = ctx.render_device().wgpu_device().clone();
+    let write = target.post_process_write();
+    let (source, destination): (&wgpu::Texture, &wgpu::Texture) =
+        (write.source_texture, write.destination_texture);
+    // From here the view's main texture is `destination`, so every way out writes it: the
+    // fogged scene, or the scene as it is.
+    // A view of its own target reads the main texture it was prepared with; a region copies
+    // its colour out of whichever main texture holds the scene now.
+    if !prepared.region && *source != prepared.scene_color {
         diagnostics.set(
             main.id(),
             ViewReport::Failed(
@@ -446,26 +519,42 @@ pub(crate) fn record_view(
                     .into(),
             ),
         );
+        pipelines
+            .write
+            .encode(&device, ctx.command_encoder(), source, None, destination);
         return;
     }
-    if prepared.resolve {
-        match (&state.depth, depth.texture().sample_count() > 1) {
-            (Some(resolved), true) => pipelines.resolve.encode(ctx.command_encoder(), resolved),
-            _ => return,
-        }
-    }
-    let write = target.post_process_write();
-    let (source, destination): (&wgpu::Texture, &wgpu::Texture) =
-        (write.source_texture, write.destination_texture);
     let encoder = ctx.command_encoder();
-    if let Err(e) = state.facade.encode(encoder, destination) {
-        // Recording nothing (encode checks before it records): the next target gets the
-        // scene as it is, so the swap Bevy made shows the frame without fog, not a stale one.
-        encoder.copy_texture_to_texture(
-            source.as_image_copy(),
-            destination.as_image_copy(),
-            source.size(),
-        );
-        diagnostics.set(main.id(), ViewReport::Failed(e.to_string()));
+    if prepared.resolve {
+        let Some(resolved) = &state.depth else {
+            pipelines
+                .write
+                .encode(&device, encoder, source, None, destination);
+            return;
+        };
+        pipelines.resolve.encode(encoder, resolved);
+    }
+    let region = state.region.as_ref().filter(|_| prepared.region);
+    if let Some(region) = region {
+        region.copy_in(encoder, source);
+    }
+    let output = region.map_or(destination, |r| &r.output);
+    match state.facade.encode(encoder, output) {
+        Ok(()) => {
+            if region.is_some() {
+                pipelines
+                    .write
+                    .encode(&device, encoder, source, region, destination);
+            }
+        }
+        Err(e) => {
+            // Recording nothing (encode checks before it records): the next target gets the
+            // scene as it is, so the swap Bevy made shows the frame without fog, not a stale
+            // one.
+            pipelines
+                .write
+                .encode(&device, encoder, source, None, destination);
+            diagnostics.set(main.id(), ViewReport::Failed(e.to_string()));
+        }
     }
 }

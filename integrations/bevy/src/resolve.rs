@@ -1,29 +1,45 @@
-//! Multisampled depth to one value per pixel, for the passes that read single-sampled depth.
+//! A view's depth as the passes read it: one value per pixel, of the view's region of its
+//! target. Multisampled depth is resolved (the median of each pixel's samples); a camera with a
+//! viewport, or sharing its target, has its rectangle cut out.
 
 use volshadow::wgpu;
 
-/// Writes the median sample of each pixel of a multisampled depth texture into a single-sampled
-/// one.
+use crate::viewport::{Region, RegionUniform};
+
+/// Writes, for each pixel of a region of a depth texture, the one value the passes read into a
+/// single-sampled texture of the region's size: the median sample where the source is
+/// multisampled, the depth itself where not.
 pub(crate) struct DepthResolve {
+    multisampled: Resolve,
+    single: Resolve,
+}
+
+/// One source kind's pipeline and layout.
+struct Resolve {
     pipeline: wgpu::RenderPipeline,
     layout: wgpu::BindGroupLayout,
 }
 
-const SHADER: &str = r"
-@group(0) @binding(0) var depth_ms: texture_depth_multisampled_2d;
+const VERTEX_AND_REGION: &str = r"
+// origin (xy) and size (zw) of the region read
+@group(0) @binding(1) var<uniform> region: vec4<u32>;
 
 @vertex
 fn vs(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
     let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
     return vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
 }
+";
 
 // The median of the pixel's samples (the upper one for an even count): where two surfaces
 // share a pixel, the depth of the one that covers most of its samples, which is most likely
 // the one at its centre.
+const MULTISAMPLED: &str = r"
+@group(0) @binding(0) var depth_ms: texture_depth_multisampled_2d;
+
 @fragment
 fn fs(@builtin(position) p: vec4<f32>) -> @builtin(frag_depth) f32 {
-    let pixel = vec2<i32>(p.xy);
+    let pixel = vec2<i32>(p.xy) + vec2<i32>(region.xy);
     let n = i32(textureNumSamples(depth_ms));
     var picked = textureLoad(depth_ms, pixel, 0);
     for (var i = 0; i < n; i++) {
@@ -43,35 +59,62 @@ fn fs(@builtin(position) p: vec4<f32>) -> @builtin(frag_depth) f32 {
 }
 ";
 
+const SINGLE: &str = r"
+@group(0) @binding(0) var depth: texture_depth_2d;
+
+@fragment
+fn fs(@builtin(position) p: vec4<f32>) -> @builtin(frag_depth) f32 {
+    return textureLoad(depth, vec2<i32>(p.xy) + vec2<i32>(region.xy), 0);
+}
+";
+
 /// The resolved depth's format: what Bevy's 3D depth is.
 const FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
-impl DepthResolve {
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
+impl Resolve {
+    fn new(device: &wgpu::Device, multisampled: bool) -> Self {
+        let label = Some(if multisampled {
+            "volshadow_bevy depth resolve"
+        } else {
+            "volshadow_bevy depth crop"
+        });
+        let fragment = if multisampled { MULTISAMPLED } else { SINGLE };
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("volshadow_bevy depth resolve"),
-            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+            label,
+            source: wgpu::ShaderSource::Wgsl(format!("{VERTEX_AND_REGION}{fragment}").into()),
         });
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("volshadow_bevy depth resolve"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::FRAGMENT,
-                ty: wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Depth,
-                    view_dimension: wgpu::TextureViewDimension::D2,
-                    multisampled: true,
+            label,
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Depth,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled,
+                    },
+                    count: None,
                 },
-                count: None,
-            }],
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: wgpu::BufferSize::new(16),
+                    },
+                    count: None,
+                },
+            ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("volshadow_bevy depth resolve"),
+            label,
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
         let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("volshadow_bevy depth resolve"),
+            label,
             layout: Some(&pipeline_layout),
             vertex: wgpu::VertexState {
                 module: &module,
@@ -99,21 +142,36 @@ impl DepthResolve {
         });
         Self { pipeline, layout }
     }
+}
 
-    /// The single-sampled target for `source` and the bind group that reads it: `kept` while
-    /// it was made for this source texture, else a new one (kept in `kept`).
+impl DepthResolve {
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
+        Self {
+            multisampled: Resolve::new(device, true),
+            single: Resolve::new(device, false),
+        }
+    }
+
+    /// The single-sampled depth of `region` of `source` (`kept` when it was made for them),
+    /// to be written by [`encode`](Self::encode) as the view records.
     pub(crate) fn prepare(
         &self,
         device: &wgpu::Device,
+        queue: &wgpu::Queue,
         kept: &mut Option<ResolvedDepth>,
         source: &wgpu::Texture,
+        region: Region,
     ) -> wgpu::Texture {
-        if let Some(r) = kept.as_ref().filter(|r| r.source == *source) {
+        if let Some(r) = kept
+            .as_mut()
+            .filter(|r| r.source == *source && r.target.size() == region.extent())
+        {
+            r.region.set(queue, region);
             return r.target.clone();
         }
         let target = device.create_texture(&wgpu::TextureDescriptor {
             label: Some("volshadow_bevy resolved depth"),
-            size: source.size(),
+            size: region.extent(),
             mip_level_count: 1,
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
@@ -125,22 +183,39 @@ impl DepthResolve {
             aspect: wgpu::TextureAspect::DepthOnly,
             ..Default::default()
         });
+        let resolve = self.of(source);
+        let mut uniform = RegionUniform::new(device, "volshadow_bevy depth region");
+        uniform.set(queue, region);
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("volshadow_bevy depth resolve"),
-            layout: &self.layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: wgpu::BindingResource::TextureView(&source_view),
-            }],
+            layout: &resolve.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::TextureView(&source_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: uniform.buffer.as_entire_binding(),
+                },
+            ],
         });
-        let resolved = ResolvedDepth {
+        *kept = Some(ResolvedDepth {
             source: source.clone(),
             target_view: target.create_view(&Default::default()),
             target: target.clone(),
+            region: uniform,
             bind_group,
-        };
-        *kept = Some(resolved);
+        });
         target
+    }
+
+    fn of(&self, source: &wgpu::Texture) -> &Resolve {
+        if source.sample_count() > 1 {
+            &self.multisampled
+        } else {
+            &self.single
+        }
     }
 
     /// Records the resolve that [`prepare`](Self::prepare) set up.
@@ -160,18 +235,19 @@ impl DepthResolve {
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        pass.set_pipeline(&self.pipeline);
+        pass.set_pipeline(&self.of(&resolved.source).pipeline);
         pass.set_bind_group(0, &resolved.bind_group, &[]);
         pass.draw(0..3, 0..1);
     }
 }
 
-/// A view's resolved depth: the single-sampled target and the bind group reading the
-/// multisampled source it was made for (Bevy reuses a view's depth texture while its size
-/// stays, so both are kept across frames).
+/// A view's resolved depth: the single-sampled target, the region it reads and the bind group
+/// reading the source it was made for (Bevy reuses a view's depth texture while its size
+/// stays, so all are kept across frames).
 pub(crate) struct ResolvedDepth {
     source: wgpu::Texture,
     target: wgpu::Texture,
     target_view: wgpu::TextureView,
+    region: RegionUniform,
     bind_group: wgpu::BindGroup,
 }
