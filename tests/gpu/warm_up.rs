@@ -42,8 +42,10 @@ struct Rig {
     sphere: OccluderMesh,
 }
 
+/// A rig on a device of its own: the counts are the instance's, so a test that counts must not
+/// share its instance with tests that build pipelines at the same time.
 fn rig() -> Rig {
-    let gpu = common::gpu();
+    let gpu = HeadlessGpu::new().expect("GPU tests need a wgpu adapter (lavapipe works)");
     let camera = common::look_at(
         Vec3::new(0.0, 1.5, 6.0),
         Vec3::new(0.0, 1.0, 0.0),
@@ -166,98 +168,107 @@ fn prepare_frames(
     (built(gpu) - before, marks)
 }
 
-/// Every method at half resolution, on the output format the facade's defaults use. Half
+/// `method` at half resolution, on the output format the facade's defaults use. Half
 /// resolution uses every pipeline full resolution does (the march's variants do not depend on
 /// the scale) and the upsample's too; each frame here plans the upsample's light-kind variant.
-fn every_setting() -> Vec<Settings> {
-    [
-        MarchMethod::Exact,
-        MarchMethod::Hybrid,
-        MarchMethod::BruteForce,
-        MarchMethod::Textbook,
-    ]
-    .map(|method| {
-        let mut settings = Settings::default();
-        settings.march.method = method;
-        settings.march.scale = Scale::Half;
-        settings
-    })
-    .to_vec()
+fn half_resolution(method: MarchMethod) -> Settings {
+    let mut settings = Settings::default();
+    settings.march.method = method;
+    settings.march.scale = Scale::Half;
+    settings
 }
 
-#[test]
-fn after_warm_up_no_frame_builds_a_pipeline() {
+/// After `warm_up` of `method`'s settings for every light kind on a new cache, no frame of
+/// those settings builds a pipeline or a module (and a second warm-up builds nothing); the
+/// first frame of each kind is marked first, no repeated frame is. One test per method, each on
+/// a device of its own, so that they run side by side.
+fn no_frame_builds_after_warm_up(method: MarchMethod) {
     let rig = rig();
-    let mut cold_total = 0;
-    for (i, settings) in every_setting().into_iter().enumerate() {
-        // A cold cache (the first method only: building pipelines on lavapipe is slow): the
-        // frames build what they need, and the count sees it.
-        let mut cold_built = 0;
-        if i == 0 {
-            let cold = Cache::new(&rig.gpu.device);
-            for kind in LightKind::ALL {
-                cold_built += prepare_frames(&rig, &cold, settings, kind).0;
-            }
+    let settings = half_resolution(method);
+    let warm = Cache::new(&rig.gpu.device);
+    let before = built(&rig.gpu);
+    settings
+        .warm_up(&rig.gpu.device, &warm, &LightKind::ALL)
+        .unwrap();
+    let by_warm_up = built(&rig.gpu) - before;
+    // Warming twice builds nothing more.
+    let before = built(&rig.gpu);
+    settings
+        .warm_up(&rig.gpu.device, &warm, &LightKind::ALL)
+        .unwrap();
+    assert_eq!(built(&rig.gpu), before, "a second warm-up built pipelines");
+    let mut failures = Vec::new();
+    for kind in LightKind::ALL {
+        let (n, marks) = prepare_frames(&rig, &warm, settings, kind);
+        if n != 0 {
+            failures.push(format!("{kind:?}: {n}"));
         }
-        cold_total += cold_built;
-
-        let warm = Cache::new(&rig.gpu.device);
-        let before = built(&rig.gpu);
-        settings
-            .warm_up(&rig.gpu.device, &warm, &LightKind::ALL)
-            .unwrap();
-        let by_warm_up = built(&rig.gpu) - before;
-        // Warming twice builds nothing more.
-        let before = built(&rig.gpu);
-        settings
-            .warm_up(&rig.gpu.device, &warm, &LightKind::ALL)
-            .unwrap();
-        assert_eq!(built(&rig.gpu), before, "a second warm-up built pipelines");
-        let mut failures = Vec::new();
-        for kind in LightKind::ALL {
-            let (n, marks) = prepare_frames(&rig, &warm, settings, kind);
-            if n != 0 {
-                failures.push(format!("{kind:?}: {n}"));
-            }
-            let (first_round, second_round) = marks.split_at(marks.len() / 2);
-            assert!(
-                first_round[0],
-                "{kind:?}: the very first frame is not marked"
-            );
-            assert!(
-                second_round.iter().all(|m| !m),
-                "{kind:?}: a repeated frame is marked first: {marks:?}"
-            );
-        }
-        println!(
-            "{:?} at {:?}: cold frames built {cold_built} pipelines and modules; warm-up built \
-             {by_warm_up}; frames after it built {}",
-            settings.march.method,
-            settings.march.scale,
-            if failures.is_empty() {
-                "none".to_string()
-            } else {
-                failures.join(", ")
-            }
+        let (first_round, second_round) = marks.split_at(marks.len() / 2);
+        assert!(
+            first_round[0],
+            "{kind:?}: the very first frame is not marked"
         );
         assert!(
-            failures.is_empty(),
-            "{:?} at {:?}: frames after warm_up built pipelines or modules: {}",
-            settings.march.method,
-            settings.march.scale,
-            failures.join(", ")
+            second_round.iter().all(|m| !m),
+            "{kind:?}: a repeated frame is marked first: {marks:?}"
         );
     }
-    // The measure sees what frames build: without warm_up they build pipelines.
+    println!(
+        "{method:?} at {:?}: warm-up built {by_warm_up}; frames after it built {}",
+        settings.march.scale,
+        if failures.is_empty() {
+            "none".to_string()
+        } else {
+            failures.join(", ")
+        }
+    );
     assert!(
-        cold_total > 0,
-        "the cold frames built nothing: the count is blind"
+        failures.is_empty(),
+        "{method:?} at {:?}: frames after warm_up built pipelines or modules: {}",
+        settings.march.scale,
+        failures.join(", ")
     );
 }
 
 #[test]
+fn after_warm_up_no_exact_frame_builds_a_pipeline() {
+    no_frame_builds_after_warm_up(MarchMethod::Exact);
+}
+
+#[test]
+fn after_warm_up_no_hybrid_frame_builds_a_pipeline() {
+    no_frame_builds_after_warm_up(MarchMethod::Hybrid);
+}
+
+#[test]
+fn after_warm_up_no_brute_force_frame_builds_a_pipeline() {
+    no_frame_builds_after_warm_up(MarchMethod::BruteForce);
+}
+
+#[test]
+fn after_warm_up_no_textbook_frame_builds_a_pipeline() {
+    no_frame_builds_after_warm_up(MarchMethod::Textbook);
+}
+
+/// The measure sees what frames build: the same frames on a cold cache (the exact method's;
+/// building pipelines on lavapipe is slow) build pipelines, for every light kind.
+#[test]
+fn cold_frames_build_pipelines_and_the_count_sees_them() {
+    let rig = rig();
+    let cold = Cache::new(&rig.gpu.device);
+    for kind in LightKind::ALL {
+        let built = prepare_frames(&rig, &cold, half_resolution(MarchMethod::Exact), kind).0;
+        println!("{kind:?}: cold frames built {built} pipelines and modules");
+        assert!(
+            built > 0,
+            "{kind:?}: the cold frames built nothing: the count is blind"
+        );
+    }
+}
+
+#[test]
 fn warm_up_refuses_bad_settings_and_builds_nothing() {
-    let gpu = common::gpu();
+    let gpu = HeadlessGpu::new().expect("GPU tests need a wgpu adapter (lavapipe works)");
     let cache = Cache::new(&gpu.device);
     let before = built(&gpu);
     let mut bad = Settings::default();
