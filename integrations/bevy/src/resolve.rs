@@ -4,7 +4,7 @@
 
 use volshadow::wgpu;
 
-use crate::viewport::{Region, RegionUniform};
+use crate::viewport::{Region, RegionUniform, FULL_TARGET_VERTEX};
 
 /// Writes, for each pixel of a region of a depth texture, the one value the passes read into a
 /// single-sampled texture of the region's size: the median sample where the source is
@@ -20,15 +20,9 @@ struct Resolve {
     layout: wgpu::BindGroupLayout,
 }
 
-const VERTEX_AND_REGION: &str = r"
+const REGION: &str = r"
 // origin (xy) and size (zw) of the region read
 @group(0) @binding(1) var<uniform> region: vec4<u32>;
-
-@vertex
-fn vs(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
-    let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
-    return vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
-}
 ";
 
 // The median of the pixel's samples (the upper one for an even count): where two surfaces
@@ -81,7 +75,9 @@ impl Resolve {
         let fragment = if multisampled { MULTISAMPLED } else { SINGLE };
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label,
-            source: wgpu::ShaderSource::Wgsl(format!("{VERTEX_AND_REGION}{fragment}").into()),
+            source: wgpu::ShaderSource::Wgsl(
+                format!("{FULL_TARGET_VERTEX}{REGION}{fragment}").into(),
+            ),
         });
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label,

@@ -156,17 +156,20 @@ impl RegionTextures {
     }
 }
 
-const SHADER: &str = r"
-@group(0) @binding(0) var scene: texture_2d<f32>;
-@group(0) @binding(1) var fog: texture_2d<f32>;
-// origin (xy) and size (zw) of the fogged rectangle
-@group(0) @binding(2) var<uniform> region: vec4<u32>;
-
+/// The plugin's full-target passes' vertex stage: one triangle covering the target.
+pub(crate) const FULL_TARGET_VERTEX: &str = r"
 @vertex
 fn vs(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
     let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
     return vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
 }
+";
+
+const SHADER: &str = r"
+@group(0) @binding(0) var scene: texture_2d<f32>;
+@group(0) @binding(1) var fog: texture_2d<f32>;
+// origin (xy) and size (zw) of the fogged rectangle
+@group(0) @binding(2) var<uniform> region: vec4<u32>;
 
 @fragment
 fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
@@ -195,7 +198,7 @@ impl RegionWrite {
     pub(crate) fn new(device: &wgpu::Device) -> Self {
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("volshadow_bevy region write"),
-            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+            source: wgpu::ShaderSource::Wgsl(format!("{FULL_TARGET_VERTEX}{SHADER}").into()),
         });
         let texture = |binding| wgpu::BindGroupLayoutEntry {
             binding,

@@ -735,14 +735,16 @@ fn planned(app: &App, camera: Entity, what: &str) -> String {
     }
 }
 
-/// A camera with a viewport (a `W × H` rectangle at (20, 10) of a 128 × 80 target) fogs that
-/// rectangle, as a camera of a `W × H` target of its own does: its in-scatter is the `W × H`
-/// view's against the reference (p95 ≤ 0.1%, the bar of `without_msaa_the_inscatter_is_exact`),
-/// and the final image's rectangle is the other camera's image to within one 8-bit level (the
-/// same values, rounded once; measured 0). Broken variants, checked: the depth read from the
-/// target's corner instead of the viewport's (p95 51%), and the fogged rectangle written at the
-/// target's corner (181 levels), each fail. The rectangle is also far from the scene without
-/// fog (more than 16 levels; measured 212), so that the comparison sees the fog.
+/// A camera with a viewport (a `W × H` rectangle at (20, 10) of a 128 × 80 target, Bevy's
+/// default 4× MSAA, so its depth is resolved and cut out to the rectangle) fogs that rectangle
+/// as a camera of a `W × H` target of its own does: its in-scatter is the `W × H` view's
+/// against the reference (p95 ≤ 1%, the bar of `inscatter_inside_bevy_matches_the_reference`
+/// with MSAA), and the final image's rectangle is the other camera's image to within one 8-bit
+/// level (the same values, rounded once; measured 0). Broken variants, checked: the
+/// depth read from the target's corner instead of the viewport's (p95 51%), and the fogged
+/// rectangle written at the target's corner (179 levels), each fail. The rectangle is
+/// also far from the scene without fog (more than 16 levels; measured 212), so that the
+/// comparison sees the fog.
 #[test]
 fn a_camera_with_a_viewport_fogs_its_rectangle_as_a_target_of_its_size() {
     let origin = UVec2::new(20, 10);
@@ -751,7 +753,7 @@ fn a_camera_with_a_viewport_fogs_its_rectangle_as_a_target_of_its_size() {
     let camera = spawn_camera(
         &mut app,
         &image,
-        Msaa::Off,
+        Msaa::Sample4,
         Some((origin, UVec2::new(W, H))),
         medium(),
     );
@@ -761,11 +763,11 @@ fn a_camera_with_a_viewport_fogs_its_rectangle_as_a_target_of_its_size() {
     let p95 = inscatter_p95(&app, camera, (W, H), &medium());
     let in_viewport = target_bytes(&app, &image);
 
-    let own_target = own_target_image(medium());
+    let own_target = own_target_image(medium(), Msaa::Sample4);
 
     let mut plain = volshadow_bevy::headless::app(false);
     let image_plain = target_image(&mut plain, W, H);
-    spawn_camera(&mut plain, &image_plain, Msaa::Off, None, None);
+    spawn_camera(&mut plain, &image_plain, Msaa::Sample4, None, None);
     spawn_world(&mut plain);
     settle(&mut plain, 2);
     let no_fog = target_bytes(&plain, &image_plain);
@@ -776,7 +778,7 @@ fn a_camera_with_a_viewport_fogs_its_rectangle_as_a_target_of_its_size() {
          from the scene without fog",
         100.0 * p95
     );
-    assert!(p95 <= 0.001, "in-scatter p95 {p95:.5}");
+    assert!(p95 <= 0.01, "in-scatter p95 {p95:.5}");
     assert!(
         largest <= 1,
         "{largest} levels from the image of a target of its own"
@@ -790,10 +792,10 @@ fn a_camera_with_a_viewport_fogs_its_rectangle_as_a_target_of_its_size() {
 }
 
 /// The final image of a camera of the scene alone on a `W × H` target, in `m`.
-fn own_target_image(m: VolshadowMedium) -> Vec<u8> {
+fn own_target_image(m: VolshadowMedium, msaa: Msaa) -> Vec<u8> {
     let mut app = headless_app();
     let image = target_image(&mut app, W, H);
-    spawn_camera(&mut app, &image, Msaa::Off, None, m);
+    spawn_camera(&mut app, &image, msaa, None, m);
     spawn_world(&mut app);
     settle(&mut app, 2);
     target_bytes(&app, &image)
@@ -841,8 +843,20 @@ fn two_cameras_on_one_target_fog_each_its_viewport_in_its_medium() {
     let p95_left = inscatter_p95(&app, left, (W, H), &medium());
     let p95_right = inscatter_p95(&app, right, (W, H), &thick_medium());
     let both = target_bytes(&app, &image);
-    let left_off = largest_difference(&both, 2 * W, (0, 10), &own_target_image(medium()), W);
-    let right_off = largest_difference(&both, 2 * W, (W, 10), &own_target_image(thick_medium()), W);
+    let left_off = largest_difference(
+        &both,
+        2 * W,
+        (0, 10),
+        &own_target_image(medium(), Msaa::Off),
+        W,
+    );
+    let right_off = largest_difference(
+        &both,
+        2 * W,
+        (W, 10),
+        &own_target_image(thick_medium(), Msaa::Off),
+        W,
+    );
     println!(
         "two cameras: p95 {:.4}% (left), {:.4}% (right); rectangles {left_off} and {right_off} \
          levels from their own targets' images",
