@@ -70,6 +70,20 @@ impl RegionUniform {
         }
     }
 
+    /// The layout entry of a fragment shader's region uniform at `binding`.
+    pub(crate) fn layout_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+        wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: wgpu::BufferSize::new(16),
+            },
+            count: None,
+        }
+    }
+
     pub(crate) fn set(&mut self, queue: &wgpu::Queue, region: Region) {
         if self.region != Some(region) {
             let bytes: Vec<u8> = region
@@ -212,20 +226,7 @@ impl RegionWrite {
         };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("volshadow_bevy region write"),
-            entries: &[
-                texture(0),
-                texture(1),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 2,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: wgpu::BufferSize::new(16),
-                    },
-                    count: None,
-                },
-            ],
+            entries: &[texture(0), texture(1), RegionUniform::layout_entry(2)],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("volshadow_bevy region write"),
