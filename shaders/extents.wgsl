@@ -1,4 +1,5 @@
 #import prelude.wgsl
+#import clip.wgsl
 // Shadow-volume extents node.
 //
 // 1. `reset` and `extrude` (compute): per occluder edge, a silhouette edge (one adjacent face
@@ -239,25 +240,6 @@ fn face_depth(in: VolumeOut) -> f32 {
 const VOLUME_CLIP_REACH: f32 = 4096.0;
 
 @group(1) @binding(0) var<storage, read> clip_volume: array<VolumeVertex>;
-
-fn max_abs(v: vec3<f32>) -> f32 {
-    let a = abs(v);
-    return max(a.x, max(a.y, a.z));
-}
-
-// Whether `a` precedes `b` in lexicographic order (x, then y, z, w).
-fn precedes(a: vec4<f32>, b: vec4<f32>) -> bool {
-    if (a.x != b.x) {
-        return a.x < b.x;
-    }
-    if (a.y != b.y) {
-        return a.y < b.y;
-    }
-    if (a.z != b.z) {
-        return a.z < b.z;
-    }
-    return a.w < b.w;
-}
 
 @vertex
 fn vs_volume_clipped(@builtin(vertex_index) v: u32, @builtin(instance_index) fan: u32)

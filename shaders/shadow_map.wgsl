@@ -1,4 +1,5 @@
 #import prelude.wgsl
+#import clip.wgsl
 // Shadow-map node: occluder depth from the light, one layer per face (six for a point light's
 // cube, one for a spot light). Reversed-Z infinite perspective: depth = near / distance along
 // the face's axis, so nearer occluders win with `Greater` and nothing is clipped far away.
@@ -40,22 +41,6 @@ fn vs_shadow(@location(0) position: vec4<f32>) -> @builtin(position) vec4<f32> {
 @group(0) @binding(2) var<storage, read> clip_positions: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> clip_indices: array<u32>;
 
-fn max_abs(v: vec3<f32>) -> f32 {
-    let a = abs(v);
-    return max(a.x, max(a.y, a.z));
-}
-
-// Whether `a` precedes `b` in lexicographic order (x, then y, z).
-fn precedes(a: vec3<f32>, b: vec3<f32>) -> bool {
-    if (a.x != b.x) {
-        return a.x < b.x;
-    }
-    if (a.y != b.y) {
-        return a.y < b.y;
-    }
-    return a.z < b.z;
-}
-
 @vertex
 fn vs_shadow_clipped(@builtin(vertex_index) v: u32, @builtin(instance_index) fan: u32)
     -> @builtin(position) vec4<f32> {
@@ -89,7 +74,7 @@ fn vs_shadow_clipped(@builtin(vertex_index) v: u32, @builtin(instance_index) fan
                 if ((da >= 0.0) != (db >= 0.0) && m < 9u) {
                     // From the edge's lesser end, so the triangle across the edge finds the
                     // same point, bit for bit: no crack between the two.
-                    if (precedes(a, b)) {
+                    if (precedes(vec4<f32>(a, 0.0), vec4<f32>(b, 0.0))) {
                         q[m] = a + (b - a) * (da / (da - db));
                     } else {
                         q[m] = b + (a - b) * (db / (db - da));

@@ -34,6 +34,7 @@ pub(crate) const FILES: &[Wgsl<'static>] = &[
     wgsl_file!("iss.wgsl"),
     wgsl_file!("crossings.wgsl"),
     wgsl_file!("composite.wgsl"),
+    wgsl_file!("clip.wgsl"),
     #[cfg(test)]
     Wgsl {
         name: "broken.wgsl",
