@@ -12,6 +12,12 @@ fn fs_copy(in: Fullscreen) -> @location(0) vec4<f32> {
     return vec4<f32>(textureLoad(source, vec2<i32>(in.position.xy), 0).xyz, 1.0);
 }
 
+// Level 0 from the red channel alone, as a grey mask (`TextureChannels::Red`).
+@fragment
+fn fs_copy_red(in: Fullscreen) -> @location(0) vec4<f32> {
+    return vec4<f32>(vec3<f32>(textureLoad(source, vec2<i32>(in.position.xy), 0).x), 1.0);
+}
+
 @fragment
 fn fs_down(in: Fullscreen) -> @location(0) vec4<f32> {
     let texel = 1.0 / vec2<f32>(textureDimensions(source));

@@ -7,8 +7,8 @@ use crate::gpu::scope::validated;
 use crate::gpu::{GpuTimer, Occluder, PassTime};
 use crate::nodes::{
     AirlightTableNode, CompositeInputs, CompositeNode, CompositeSurfaces, CrossingsRequest,
-    ExtentsInputs, ExtentsNode, IssTableNode, IssTableSize, LightTextureNode, MarchInputs,
-    MarchNode, MarchSettings, OutputTarget, ShadowMapInputs, ShadowMapNode, Shadows,
+    ExtentsInputs, ExtentsNode, IssTableNode, IssTableSize, LightTextureInput, LightTextureNode,
+    MarchInputs, MarchNode, MarchSettings, OutputTarget, ShadowMapInputs, ShadowMapNode, Shadows,
     SoftShadowInputs, SoftShadowNode, TableInputs, UpsampleInputs, UpsampleNode, MAX_LIGHTS,
 };
 use crate::nodes::{Cache, Encode, LightKind, Node};
@@ -71,7 +71,13 @@ impl LightSlot {
         let (width, height) = (frame.scene_depth.width(), frame.scene_depth.height());
         Ok(match pass {
             Pass::LightTexture => match fl.texture {
-                Some(t) => self.texture.prepare(device, queue, t)?,
+                Some(texture) => {
+                    let input = LightTextureInput {
+                        texture,
+                        channels: fl.texture_channels,
+                    };
+                    self.texture.prepare(device, queue, &input)?
+                }
                 None => false,
             },
             Pass::ShadowMap => {

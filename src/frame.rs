@@ -3,7 +3,7 @@
 
 use crate::gpu::Occluder;
 use crate::nodes::LightKind;
-use crate::scene::{Camera, Light, Medium};
+use crate::scene::{Camera, Light, Medium, TextureChannels};
 
 /// A light of the frame, with an optional texture for a spot light (any filterable format,
 /// `TEXTURE_BINDING`, e.g. from [`LightTexture::upload`](crate::scene::LightTexture::upload)).
@@ -15,6 +15,9 @@ pub struct FrameLight<'a> {
     pub light: Light,
     /// The spot's projected texture.
     pub texture: Option<&'a wgpu::Texture>,
+    /// Which of the texture's channels count: its RGB (the default), or its red channel as a
+    /// grey mask.
+    pub texture_channels: TextureChannels,
     /// Indices into the frame's [`occluders`](Frame::occluders) of those that shadow this
     /// light (an engine's shadow-caster layers or flags); `None`: all of them. The planner's
     /// culling then works on these.
@@ -41,6 +44,7 @@ impl From<Light> for FrameLight<'_> {
         Self {
             light,
             texture: None,
+            texture_channels: TextureChannels::Rgb,
             casters: None,
         }
     }

@@ -544,6 +544,7 @@ impl<'a> GpuScene<'a> {
                 light: l.light,
                 texture: t.as_ref(),
                 casters: None,
+                texture_channels: Default::default(),
             })
             .collect()
     }

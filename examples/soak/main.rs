@@ -683,6 +683,7 @@ fn render(
             light: scene.spot,
             texture: Some(&assets.spot_texture),
             casters: None,
+            texture_channels: Default::default(),
         },
     ];
     let occluders: Vec<Occluder> = scene

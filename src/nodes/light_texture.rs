@@ -28,6 +28,7 @@ use crate::nodes::cache::CachedPipelines;
 use crate::nodes::Cache;
 use crate::nodes::{Encode, Node};
 use crate::pass::Pass;
+use crate::scene::TextureChannels;
 
 /// The binding table: `@binding(i)` of `shaders/light_texture.wgsl` is entry `i`.
 const BINDINGS: [Binding; 2] = [
@@ -65,7 +66,8 @@ const FLATS_PASSES: [(&str, &str, wgpu::TextureFormat); 3] = [
 #[derive(Clone)]
 pub(crate) struct Pipelines {
     layout: wgpu::BindGroupLayout,
-    levels: [wgpu::RenderPipeline; 2],
+    /// Level 0 from RGB, the levels below, level 0 from red.
+    levels: [wgpu::RenderPipeline; 3],
     flats_layout: wgpu::BindGroupLayout,
     flats: [wgpu::RenderPipeline; 3],
 }
@@ -101,7 +103,7 @@ impl Pipelines {
         let layout = layout(device, label, wgpu::ShaderStages::FRAGMENT, &BINDINGS);
         let module = module(device, &wgsl_file!("light_texture.wgsl"), precision);
         let format = wgpu::TextureFormat::Rgba16Float;
-        let levels = ["fs_copy", "fs_down"]
+        let levels = ["fs_copy", "fs_down", "fs_copy_red"]
             .map(|entry| fullscreen_pipeline(device, label, &layout, &module, entry, format, &[]));
         Self {
             layout,
@@ -127,6 +129,7 @@ pub struct LightTextureNode {
     pipelines: Pipelines,
     sampler: wgpu::Sampler,
     source: Option<wgpu::Texture>,
+    channels: TextureChannels,
     mips: Option<wgpu::Texture>,
     /// Per level: the bind group reading the level above (or the source) and the target view.
     levels: Vec<(wgpu::BindGroup, wgpu::TextureView)>,
@@ -149,6 +152,7 @@ impl LightTextureNode {
                 ..Default::default()
             }),
             source: None,
+            channels: TextureChannels::Rgb,
             mips: None,
             levels: Vec::new(),
             flats: None,
@@ -178,11 +182,20 @@ impl LightTextureNode {
     }
 }
 
-impl Node for LightTextureNode {
-    type Inputs<'a> = wgpu::Texture;
+/// The light-texture node's input: the caller's texture and which of its channels count.
+#[derive(Debug, Clone, Copy)]
+pub struct LightTextureInput<'a> {
+    /// The texture (see the module docs).
+    pub texture: &'a wgpu::Texture,
+    /// Its RGB, or its red channel as a grey mask.
+    pub channels: TextureChannels,
+}
 
-    /// Validates `texture` and schedules a rebuild when it differs from the last one. Returns
-    /// whether the next [`encode`](Self::encode) rebuilds the mip chain.
+impl Node for LightTextureNode {
+    type Inputs<'a> = LightTextureInput<'a>;
+
+    /// Validates the texture and schedules a rebuild when it or the channels differ from the
+    /// last ones. Returns whether the next [`encode`](Self::encode) rebuilds the mip chain.
     ///
     /// # Errors
     ///
@@ -192,8 +205,9 @@ impl Node for LightTextureNode {
         &mut self,
         device: &wgpu::Device,
         _queue: &wgpu::Queue,
-        texture: &wgpu::Texture,
+        input: &LightTextureInput<'_>,
     ) -> Result<bool> {
+        let texture = input.texture;
         let problem = |p: String| {
             Err(Error::InvalidTexture {
                 field: "light_texture",
@@ -227,7 +241,7 @@ impl Node for LightTextureNode {
         {
             return problem("needs TextureUsages::TEXTURE_BINDING".into());
         }
-        if self.source.as_ref() == Some(texture) {
+        if self.source.as_ref() == Some(texture) && self.channels == input.channels {
             return Ok(self.pending);
         }
         let (w, h) = (texture.width(), texture.height());
@@ -324,6 +338,7 @@ impl Node for LightTextureNode {
             .collect();
         self.flats = Some(flats);
         self.source = Some(texture.clone());
+        self.channels = input.channels;
         self.pending = true;
         Ok(true)
     }
@@ -344,11 +359,12 @@ impl Encode for LightTextureNode {
             .iter()
             .enumerate()
             .map(|(level, (bind_group, target))| {
-                (
-                    &self.pipelines.levels[usize::from(level > 0)],
-                    bind_group,
-                    target,
-                )
+                let pipeline = match (level, self.channels) {
+                    (0, TextureChannels::Rgb) => 0,
+                    (0, TextureChannels::Red) => 2,
+                    _ => 1,
+                };
+                (&self.pipelines.levels[pipeline], bind_group, target)
             });
         let flats = self
             .pipelines

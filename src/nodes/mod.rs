@@ -89,7 +89,7 @@ pub use extents::{
     MAX_CROSSINGS_PER_PIXEL,
 };
 pub use iss_table::{IssPhase, IssTableNode, IssTableSize, ISS_TAU_RANGE};
-pub use light_texture::{LightTextureMaps, LightTextureNode};
+pub use light_texture::{LightTextureInput, LightTextureMaps, LightTextureNode};
 pub use march::{
     MarchInputs, MarchMethod, MarchMode, MarchNode, MarchSettings, MarchStats, MarchWork,
     ShadowForms, Shadows, DEFAULT_CROSSINGS,

@@ -61,15 +61,15 @@ impl<'a> TexturedSpot<'a> {
 /// The spot's texture frame in f64: the unit vectors `(right, up, forward)` in world space of
 /// the frame's `+x`, `+y` and `−z`, i.e. the rows of the rotation of
 /// [`SpotLight::texture_frame`] (glam's right-handed `look_to`), rebuilt from its documented
-/// rule: `forward` is the light's direction (renormalised in f64), the up hint is `+Y` unless
-/// `|direction.y| ≥ 0.9` (then `+X`), `right = normalize(forward × hint)`,
-/// `up = right × forward`.
+/// rule: `forward` is the light's direction (renormalised in f64), the up hint is
+/// [`SpotLight::texture_up`] when given, else `+Y` unless `|direction.y| ≥ 0.9` (then `+X`),
+/// `right = normalize(forward × hint)`, `up = right × forward`.
 pub fn texture_axes(spot: &SpotLight) -> (DVec3, DVec3, DVec3) {
     let dir = spot.direction();
-    let hint = if dir.y.abs() < 0.9 {
-        DVec3::Y
-    } else {
-        DVec3::X
+    let hint = match spot.texture_up() {
+        Some(up) => up.as_dvec3(),
+        None if dir.y.abs() < 0.9 => DVec3::Y,
+        None => DVec3::X,
     };
     let forward = unit(dir.as_dvec3()).unwrap_or(DVec3::NEG_Z);
     let right = unit(forward.cross(hint)).unwrap_or(DVec3::X);

@@ -113,6 +113,7 @@ pub struct SpotLight {
     cone_angle: f32,
     intensity: Vec3,
     radius: f32,
+    texture_up: Option<Vec3>,
 }
 
 impl SpotLight {
@@ -176,6 +177,32 @@ impl SpotLight {
             cone_angle,
             intensity,
             radius: 0.0,
+            texture_up: None,
+        })
+    }
+    /// The same light with its [texture frame](Self::texture_frame)'s up hint `up` (any
+    /// non-zero finite length, not along the cone's axis): the frame's `+y` is `up` made
+    /// perpendicular to the axis, so a projected texture turns with the light about its axis
+    /// (an engine's light transform: its up vector). Without one the hint is `+Y`, or `+X` when
+    /// the axis is within ~25° of vertical.
+    ///
+    /// # Errors
+    ///
+    /// [`Error::NonFinite`] for a non-finite `up`, [`Error::DegenerateDirection`] (field
+    /// `spot_light.texture_up`) for one of zero length or within ~0.06° of the axis (the
+    /// sine of their angle below 1e-3), about which the frame's turn is undefined.
+    pub fn with_texture_up(self, up: Vec3) -> Result<Self> {
+        finite("spot_light.texture_up", &up.to_array())?;
+        let scaled = up / up.abs().max_element();
+        let unit = scaled.normalize_or_zero();
+        if up == Vec3::ZERO || unit == Vec3::ZERO || self.direction.cross(unit).length() < 1e-3 {
+            return Err(Error::DegenerateDirection {
+                field: "spot_light.texture_up",
+            });
+        }
+        Ok(Self {
+            texture_up: Some(unit),
+            ..self
         })
     }
     /// The same light as a sphere of `radius` (world units; 0, the default, is a point and
@@ -212,6 +239,11 @@ impl SpotLight {
     /// Radius of the light's sphere (0: a point).
     pub fn radius(&self) -> f32 {
         self.radius
+    }
+    /// The texture frame's up hint given by [`with_texture_up`](Self::with_texture_up)
+    /// (normalised), if any.
+    pub fn texture_up(&self) -> Option<Vec3> {
+        self.texture_up
     }
 }
 

@@ -16,6 +16,18 @@ use glam::{Mat4, Vec3};
 use crate::error::{Error, Result};
 use crate::scene::SpotLight;
 
+/// Which channels of a spot's GPU texture ([`FrameLight::texture`](crate::FrameLight::texture))
+/// are its emission's multipliers.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub enum TextureChannels {
+    /// Red, green and blue: a coloured texture (stained glass).
+    #[default]
+    Rgb,
+    /// The red channel alone, as a grey mask for every colour (a gobo; Bevy's
+    /// `SpotLightTexture` convention). Green, blue and alpha are ignored.
+    Red,
+}
+
 /// Linear RGB texels, row-major from the top row.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LightTexture {
@@ -249,10 +261,13 @@ impl LightTexture {
 
 impl SpotLight {
     /// The spot's texture frame: a view matrix looking along the cone's axis from the light,
-    /// with up = +Y (or +X when the axis is within ~25° of vertical). See [`LightTexture`].
+    /// with the up hint of [`with_texture_up`](SpotLight::with_texture_up), or else +Y (+X
+    /// when the axis is within ~25° of vertical). See [`LightTexture`].
     pub fn texture_frame(&self) -> Mat4 {
         let dir = self.direction();
-        let up = if dir.y.abs() < 0.9 { Vec3::Y } else { Vec3::X };
+        let up = self
+            .texture_up()
+            .unwrap_or(if dir.y.abs() < 0.9 { Vec3::Y } else { Vec3::X });
         glam::camera::rh::view::look_to_mat4(self.position(), dir, up)
     }
 }

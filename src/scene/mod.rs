@@ -10,7 +10,7 @@ pub mod shapes;
 
 pub use camera::Camera;
 pub use light::{DirectionalLight, Light, PointLight, SpotLight};
-pub use light_texture::LightTexture;
+pub use light_texture::{LightTexture, TextureChannels};
 pub use medium::{Medium, PhaseFunction};
 pub(crate) use mesh::{check_object_transform, TransformProblem};
 pub use mesh::{Edge, Mesh, MeshSummary};

@@ -498,6 +498,7 @@ pub struct ShadowPasses<'a> {
     shadow_resolution: u32,
     filter: volshadow::nodes::UpsampleFilter,
     texture: Option<&'a wgpu::Texture>,
+    channels: volshadow::scene::TextureChannels,
     /// Wired by hand with the faces scaled by this (see [`by_hand`]), not through the facade.
     by_hand: Option<f32>,
 }
@@ -520,6 +521,7 @@ impl<'a> ShadowPasses<'a> {
             shadow_resolution: 1024,
             filter: volshadow::nodes::UpsampleFilter::DepthAware3x3,
             texture: None,
+            channels: volshadow::scene::TextureChannels::Rgb,
             by_hand: None,
         }
     }
@@ -546,6 +548,11 @@ impl<'a> ShadowPasses<'a> {
         Self { texture, ..self }
     }
 
+    /// Which of the texture's channels count (default: RGB).
+    pub fn channels(self, channels: volshadow::scene::TextureChannels) -> Self {
+        Self { channels, ..self }
+    }
+
     /// The nodes wired by hand instead of the facade, the shadow map's faces times
     /// `face_scale` (see [`by_hand::frame`]).
     pub fn by_hand(self, face_scale: f32) -> Self {
@@ -569,6 +576,7 @@ pub fn shadow_frame(gpu: &HeadlessGpu, cache: &Cache, passes: &ShadowPasses) -> 
         shadow_resolution,
         filter,
         texture,
+        channels,
         by_hand,
     } = *passes;
     if let Some(face_scale) = by_hand {
@@ -587,6 +595,7 @@ pub fn shadow_frame(gpu: &HeadlessGpu, cache: &Cache, passes: &ShadowPasses) -> 
         light: *light,
         texture,
         casters: None,
+        texture_channels: channels,
     }];
     let mut frame = FacadeFrame::new(gpu, cache, settings, depth);
     let vs = frame.run(gpu, camera, &lights, medium, occluders);

@@ -61,10 +61,10 @@ fn in_cone(s: &SpotLight, x: DVec3) -> bool {
 /// The spot's texture frame in f64 from glam's `look_to` (up = +Y unless |dir.y| ≥ 0.9).
 fn frame(s: &SpotLight) -> DMat4 {
     let dir = s.direction();
-    let up = if dir.y.abs() < 0.9 {
-        DVec3::Y
-    } else {
-        DVec3::X
+    let up = match s.texture_up() {
+        Some(up) => up.as_dvec3(),
+        None if dir.y.abs() < 0.9 => DVec3::Y,
+        None => DVec3::X,
     };
     look_to_mat4(s.position().as_dvec3(), dir.as_dvec3().normalize(), up)
 }
@@ -358,6 +358,31 @@ fn uv_mapping_follows_the_documented_frame() {
             10.0,
             Vec3::ONE,
         ),
+        // Up hints of the caller's (`with_texture_up`): oblique, nearly along the axis (2°
+        // off it), and a vertical one for a vertical axis's neighbour.
+        test_spot()
+            .with_texture_up(Vec3::new(0.7, -0.2, 1.3))
+            .unwrap(),
+        spot(
+            DVec3::new(0.0, 2.0, 0.0),
+            DVec3::new(0.0, -1.0, 0.0),
+            30.0,
+            Vec3::ONE,
+        )
+        .with_texture_up(Vec3::new(
+            2f32.to_radians().sin(),
+            -2f32.to_radians().cos(),
+            0.0,
+        ))
+        .unwrap(),
+        spot(
+            DVec3::new(-3.0, 1.0, 2.0),
+            DVec3::new(1.0, 0.2, -0.4),
+            100.0,
+            Vec3::ONE,
+        )
+        .with_texture_up(Vec3::Y)
+        .unwrap(),
     ];
     let (mut axis_err, mut edge_err, mut f32_err) = (0.0f64, 0.0f64, 0.0f64);
     for s in &spots {
@@ -624,4 +649,55 @@ fn kink_breakpoints_keep_large_textures_accurate() {
     // panels, takes tens of ms): timings on a shared machine are not test assertions. The
     // split above judges the quadrature on every texture size.
     println!("slowest textured ray: {slowest:.3} s");
+}
+
+/// An up hint turns the frame: its +y is the hint made perpendicular to the axis (in the f64
+/// frame and the f32 matrix alike), and a hint with no part across the axis, zero or not
+/// finite is `DegenerateDirection` or `NonFinite`, named `spot_light.texture_up`.
+#[test]
+fn the_texture_frame_follows_the_up_hint() {
+    let s = test_spot();
+    let a = s.direction().as_dvec3();
+    let mut rng = Rng::new(11);
+    let mut worst = 0.0f64;
+    for _ in 0..200 {
+        let hint = DVec3::new(rng.next() - 0.5, rng.next() - 0.5, rng.next() - 0.5);
+        let Ok(turned) = s.with_texture_up(hint.as_vec3()) else {
+            continue;
+        };
+        let across = (hint - a * a.dot(hint)).normalize();
+        let (_, up, _) = texture_axes(&turned);
+        let y32 = turned
+            .texture_frame()
+            .inverse()
+            .transform_vector3(Vec3::Y)
+            .as_dvec3();
+        worst = worst
+            .max((up - across).length())
+            .max((y32 - across).length());
+    }
+    println!("frame +y against the hint across the axis: {worst:.1e}");
+    // f32 rounding of the hint and the matrix (~6e-8 an axis); 1e-6 leaves room.
+    assert!(worst <= 1e-6, "{worst:e}");
+    let axis = s.direction();
+    for (bad, kind) in [
+        (Vec3::ZERO, "degenerate"),
+        (axis * 3.0, "degenerate"),
+        (-axis, "degenerate"),
+        (Vec3::new(f32::NAN, 0.0, 1.0), "non-finite"),
+        (Vec3::new(f32::INFINITY, 0.0, 1.0), "non-finite"),
+    ] {
+        match (s.with_texture_up(bad), kind) {
+            (Err(volshadow::Error::DegenerateDirection { field }), "degenerate")
+            | (Err(volshadow::Error::NonFinite { field, .. }), "non-finite") => {
+                assert_eq!(field, "spot_light.texture_up")
+            }
+            (other, _) => panic!("{bad}: {other:?}"),
+        }
+    }
+    // Huge and tiny finite hints normalise.
+    for scale in [1e-30f32, 1e30] {
+        let up = s.with_texture_up(Vec3::new(1.0, 0.0, 0.3) * scale).unwrap();
+        assert!((up.texture_up().unwrap().length() - 1.0).abs() < 1e-6);
+    }
 }

@@ -313,6 +313,7 @@ fn untextured_light_needs_no_light_texture_and_equals_a_white_texture() {
             light: spot.into(),
             texture: Some(&white),
             casters: None,
+            texture_channels: Default::default(),
         }],
         &medium(),
         &occluders,
@@ -763,6 +764,7 @@ fn under_an_error_target_a_textured_spot_scatters_at_full_resolution() {
             light: spot,
             texture: textured.then_some(&texture),
             casters: None,
+            texture_channels: Default::default(),
         };
         let r = render(&rig, &mut vs, &[light], &medium(), &occluders);
         assert_eq!(
@@ -1279,6 +1281,7 @@ fn texture_samples(rig: &Rig, texture: &LightTexture, texels: u32) -> (f64, f64)
         light: spot,
         texture: Some(&texture),
         casters: None,
+        texture_channels: Default::default(),
     };
     render(rig, &mut vs, &[light], &medium(), &occluders);
     let bytes = rig

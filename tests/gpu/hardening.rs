@@ -280,6 +280,7 @@ fn a_failed_prepare_leaves_no_mixed_frame() {
             light: spot,
             texture: Some(&bad_texture),
             casters: None,
+            texture_channels: Default::default(),
         },
     ];
     let second = [point(b), spot.into()];
@@ -613,6 +614,7 @@ fn a_lights_texture_as_the_output_is_refused() {
         .into(),
         texture: Some(&mask),
         casters: None,
+        texture_channels: Default::default(),
     }];
     let settings = Settings {
         output_format: wgpu::TextureFormat::Rgba16Float,
@@ -758,6 +760,7 @@ fn a_layered_light_texture_is_a_typed_error() {
         .into(),
         texture: Some(&layered),
         casters: None,
+        texture_channels: Default::default(),
     }];
     let mut vs = VolumetricShadows::new(device, &rig.gpu.queue, &rig.cache, settings()).unwrap();
     let (result, error) = scoped(device, || {
@@ -1223,6 +1226,7 @@ fn textures_from_another_device_are_typed_errors() {
         .into(),
         texture: Some(&mask),
         casters: None,
+        texture_channels: Default::default(),
     }];
     let (result, error) = scoped(device, || {
         vs.prepare(device, &rig.gpu.queue, &frame(&rig, &spot, &medium, &[]))

@@ -141,6 +141,7 @@ fn prepare_frames(
                 light,
                 texture: textured.then_some(&rig.light_texture),
                 casters: None,
+                texture_channels: Default::default(),
             }];
             assert_eq!(frame_light[0].kind(), kind);
             for occluders in [&occluder[..], &[]] {

@@ -11,7 +11,8 @@ use bevy::camera::{Camera, Exposure};
 use bevy::ecs::message::MessageReader;
 use bevy::ecs::prelude::*;
 use bevy::ecs::query::QueryItem;
-use bevy::light::{DirectionalLight, PointLight, SpotLight};
+use bevy::image::Image;
+use bevy::light::{DirectionalLight, PointLight, SpotLight, SpotLightTexture};
 use bevy::mesh::{Mesh, Mesh3d, PrimitiveTopology};
 use bevy::render::extract_component::ExtractComponent;
 use bevy::render::sync_component::SyncComponent;
@@ -113,6 +114,8 @@ pub(crate) enum SourceLight {
     Spot {
         position: glam::Vec3,
         direction: glam::Vec3,
+        /// The transform's up: a [`SpotLightTexture`]'s frame turns with it, as Bevy's does.
+        up: glam::Vec3,
         outer_angle: f32,
         flux: glam::Vec3,
         radius: f32,
@@ -175,6 +178,7 @@ impl SourceLight {
             SourceLight::Spot {
                 position,
                 direction,
+                up,
                 outer_angle,
                 flux,
                 radius,
@@ -185,6 +189,7 @@ impl SourceLight {
                 flux * per_steradian,
             )?
             .with_radius(radius)?
+            .with_texture_up(up)?
             .into(),
             SourceLight::Directional {
                 direction,
@@ -235,11 +240,16 @@ impl ExtractComponent<RenderApp> for VolshadowMedium {
     }
 }
 
-/// A light with [`VolshadowLight`] on its render-world entity, as Bevy describes it, and its
-/// render layers: as Bevy's lights do, it lights the views whose layers share one with them,
-/// and only the occluders whose layers share one with them shadow it.
+/// A light with [`VolshadowLight`] on its render-world entity, as Bevy describes it, its
+/// render layers (as Bevy's lights do, it lights the views whose layers share one with them,
+/// and only the occluders whose layers share one with them shadow it) and a spot's
+/// [`SpotLightTexture`] image.
 #[derive(Component, Clone, Debug)]
-pub struct ExtractedVolshadowLight(pub(crate) SourceLight, pub(crate) RenderLayers);
+pub struct ExtractedVolshadowLight(
+    pub(crate) SourceLight,
+    pub(crate) RenderLayers,
+    pub(crate) Option<AssetId<Image>>,
+);
 
 impl SyncComponent<RenderApp> for VolshadowLight {
     type Target = ExtractedVolshadowLight;
@@ -253,6 +263,7 @@ impl ExtractComponent<RenderApp> for VolshadowLight {
         Option<&'static SpotLight>,
         Option<&'static DirectionalLight>,
         Option<&'static RenderLayers>,
+        Option<&'static SpotLightTexture>,
     );
     type QueryFilter = ();
     type Out = ExtractedVolshadowLight;
@@ -260,7 +271,11 @@ impl ExtractComponent<RenderApp> for VolshadowLight {
     /// `None` (no light in the render world) for an entity that is none of Bevy's three
     /// lights, and for a light that emits nothing (volshadow refuses a zero intensity).
     fn extract_component(
-        (marker, transform, point, spot, directional, layers): QueryItem<'_, '_, Self::QueryData>,
+        (marker, transform, point, spot, directional, layers, texture): QueryItem<
+            '_,
+            '_,
+            Self::QueryData,
+        >,
     ) -> Option<Self::Out> {
         let position = vec3(transform.translation());
         let direction = vec3(transform.forward().into());
@@ -274,6 +289,7 @@ impl ExtractComponent<RenderApp> for VolshadowLight {
             SourceLight::Spot {
                 position,
                 direction,
+                up: vec3(transform.up().into()),
                 outer_angle: s.outer_angle,
                 flux: linear(s.color) * s.intensity,
                 radius: marker.radius.unwrap_or(s.radius),
@@ -286,8 +302,11 @@ impl ExtractComponent<RenderApp> for VolshadowLight {
         } else {
             return None;
         };
+        // Only a spot's texture counts (Bevy's point-light textures are cube maps, which
+        // volshadow does not project).
+        let texture = spot.and(texture).map(|t| t.image.id());
         (!light.is_dark())
-            .then(|| ExtractedVolshadowLight(light, layers.cloned().unwrap_or_default()))
+            .then(|| ExtractedVolshadowLight(light, layers.cloned().unwrap_or_default(), texture))
     }
 }
 

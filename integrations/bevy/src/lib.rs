@@ -104,7 +104,11 @@
 //!   (Bevy's default when the camera has none).
 //!
 //! A spot's cone is its `outer_angle` (volshadow's spots have a hard edge: the soft falloff
-//! from `inner_angle` is not modelled). A light's `range` is not a cut-off for volshadow.
+//! from `inner_angle` is not modelled). A light's `range` is not a cut-off for volshadow. A
+//! spot's [`SpotLightTexture`](bevy::light::SpotLightTexture) becomes volshadow's textured spot:
+//! the image's red channel as a grey mask (what Bevy reads), turned with the light's transform
+//! (its up is the texture frame's); the light is left out of the fog until its image is on the
+//! GPU (its plan says it waits).
 //!
 //! # Debugging
 //!

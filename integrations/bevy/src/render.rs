@@ -9,8 +9,10 @@ use bevy::asset::AssetId;
 use bevy::camera::visibility::RenderLayers;
 use bevy::ecs::prelude::*;
 use bevy::mesh::Mesh;
+use bevy::render::render_asset::RenderAssets;
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::sync_world::MainEntity;
+use bevy::render::texture::GpuImage;
 use bevy::render::view::{ExtractedView, ViewDepthStencilTexture, ViewTarget};
 use bevy::render::Extract;
 use volshadow::nodes::{LightKind, MAX_LIGHTS};
@@ -225,6 +227,7 @@ pub(crate) fn prepare_views(
     meshes: Res<OccluderMeshes>,
     lights: Lights,
     occluders: Query<&ExtractedOccluder>,
+    images: Res<RenderAssets<GpuImage>>,
     diagnostics: Res<VolshadowDiagnostics>,
     mut views: Views,
 ) {
@@ -268,7 +271,7 @@ pub(crate) fn prepare_views(
             device,
             queue,
             &mut pipelines,
-            &lights,
+            (&lights, &images),
             &occluders,
             (extracted, camera, target, depth, shared),
             state,
@@ -347,7 +350,7 @@ fn prepare_view(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
     pipelines: &mut VolshadowPipelines,
-    lights: &Lights,
+    (lights, images): (&Lights, &RenderAssets<GpuImage>),
     occluders: &[(volshadow::Occluder, &RenderLayers)],
     (extracted, camera, target, depth, shared): (
         &ExtractedView,
@@ -380,13 +383,20 @@ fn prepare_view(
     let eye = view_matrix.inverse().w_axis.truncate();
     let sigma_s = medium.scattering.element_sum() / 3.0;
     let sigma_t = sigma_s + medium.absorption.element_sum() / 3.0;
-    // Lights on render layers this camera does not see are not its (as Bevy's lights).
-    let mut ranked: Vec<(f32, Entity, &ExtractedVolshadowLight)> = lights
+    // Lights on render layers this camera does not see are not its (as Bevy's lights); a
+    // spot whose texture is not on the GPU yet waits for it (drawn without its mask, its whole
+    // cone would flash lit).
+    let seen: Vec<_> = lights
         .iter()
         .filter(|(_, l)| camera.layers.intersects(&l.1))
-        .map(|(main, l)| (l.0.contribution(eye, sigma_s, sigma_t), main.id(), l))
         .collect();
-    let unseen = lights.iter().count() - ranked.len();
+    let unseen = lights.iter().count() - seen.len();
+    let mut ranked: Vec<(f32, Entity, &ExtractedVolshadowLight)> = seen
+        .iter()
+        .filter(|(_, l)| l.2.is_none_or(|image| images.get(image).is_some()))
+        .map(|&(main, l)| (l.0.contribution(eye, sigma_s, sigma_t), main.id(), l))
+        .collect();
+    let waiting = seen.len() - ranked.len();
     ranked.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
     let left_out: Vec<String> = ranked
         .iter()
@@ -408,8 +418,12 @@ fn prepare_view(
         .zip(&casters)
         .map(|((_, _, l), casters)| {
             let light = l.0.to_volshadow(camera.exposure)?;
+            // Bevy reads a spot texture's red channel alone, as a mask.
+            let texture = l.2.and_then(|image| images.get(image)).map(|g| &*g.texture);
             Ok(volshadow::FrameLight {
                 casters: Some(casters),
+                texture,
+                texture_channels: volshadow::scene::TextureChannels::Red,
                 ..light.into()
             })
         })
@@ -482,6 +496,9 @@ fn prepare_view(
     }
     if unseen > 0 {
         report += &format!("\n({unseen} lights on render layers this camera does not see)");
+    }
+    if waiting > 0 {
+        report += &format!("\n({waiting} spot lights waiting for their texture to load)");
     }
     Ok(report)
 }
