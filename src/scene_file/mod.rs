@@ -56,7 +56,8 @@
 //!     `{"checkerboard": {"size", "cells", "a", "b"}}` (size 1..=4096, cells 1..=size, colours
 //!     RGB >= 0), `{"stained_glass": {"size", "cells", "seed"}}` (see [`stained_glass`]; size
 //!     1..=4096, cells 1..=size) or `{"file": "window.png"}` (feature `image`; relative to the
-//!     scene file's folder, and inside it: see [`crate::load`]).
+//!     scene file's folder, and inside it: see [`crate::load`]); optional `texture_up`, the
+//!     texture frame's up hint (see [`SpotLight::with_texture_up`](crate::SpotLight::with_texture_up)).
 //!   * both: optional `radius` (finite, >= 0, default 0): the light is a sphere of that radius
 //!     and casts soft shadows (see [`PointLight`](crate::PointLight#radius-soft-shadows)).
 //! * `medium` (required): `sigma_s` (RGB or one number, >= 0; required unless the phase is

@@ -321,6 +321,7 @@ fn light(l: spec::Light, path: &str, ctx: &mut Ctx) -> P<SceneLight> {
             cone_angle_degrees: Num(cone),
             intensity: i,
             texture: t,
+            texture_up,
             radius: r,
         } => {
             let position = point(position, &at("position"))?;
@@ -341,9 +342,20 @@ fn light(l: spec::Light, path: &str, ctx: &mut Ctx) -> P<SceneLight> {
             let i = intensity(i, &at("intensity"))?;
             let texture = t.map(|t| texture(t, &at("texture"), ctx)).transpose()?;
             let r = light_radius(r, &at("radius"))?;
-            let light = SpotLight::new(position, direction, cone.to_radians(), i)
+            let mut light = SpotLight::new(position, direction, cone.to_radians(), i)
                 .and_then(|l| l.with_radius(r))
                 .map_err(from_error(path))?;
+            if let Some(Floats(up)) = texture_up {
+                let up = Vec3::from_array(up);
+                light = light.with_texture_up(up).map_err(|_| {
+                    problem(
+                        &at("texture_up"),
+                        format!(
+                            "must be a finite vector with a part across the direction, got {up}"
+                        ),
+                    )
+                })?;
+            }
             Ok(SceneLight {
                 light: Light::Spot(light),
                 texture,

@@ -321,6 +321,7 @@ pub(super) enum Light {
         cone_angle_degrees: Num,
         intensity: Rgb,
         texture: Option<Texture>,
+        texture_up: Option<Floats<3>>,
         radius: Option<Num>,
     },
     Directional {

@@ -434,6 +434,37 @@ fn error_bad_cone_angle() {
     );
 }
 
+/// A spot's `texture_up` is its texture frame's up hint (`SpotLight::with_texture_up`),
+/// none when left out; one along the direction, zero or of the wrong length is an error
+/// naming it.
+#[test]
+fn spot_texture_up() {
+    let at = |up: &str| {
+        with(&format!(
+            r#""lights": [{{"type": "spot", "position": [0,5,0], "direction": [0,-1,0], "cone_angle_degrees": 40, "intensity": 1{up}}}]"#
+        ))
+    };
+    let spot = |text: &str| match parse(text).unwrap().lights[0].light {
+        Light::Spot(s) => s,
+        other => panic!("{other:?}"),
+    };
+    assert_eq!(spot(&at("")).texture_up(), None);
+    let turned = spot(&at(r#", "texture_up": [0, 0, 2]"#));
+    assert_eq!(turned.texture_up(), Some(volshadow::glam::Vec3::Z));
+    for bad in ["[0, -3, 0]", "[0, 0, 0]"] {
+        let message = expect_error(
+            &at(&format!(r#", "texture_up": {bad}"#)),
+            "lights[0].texture_up",
+            &["a part across the direction"],
+        );
+        assert!(
+            message.starts_with("<string>: lights[0].texture_up: "),
+            "{message}"
+        );
+    }
+    parse(&at(r#", "texture_up": [1, 0]"#)).unwrap_err();
+}
+
 /// A light's `radius` is read (soft shadows), defaults to 0, and a negative one is an error
 /// naming it (was: an unknown field).
 #[test]
