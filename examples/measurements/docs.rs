@@ -108,10 +108,10 @@ pub fn document(doc: Doc, runs: &[Run]) -> String {
     let _ = writeln!(
         out,
         "Generated, not written by hand: `.ci/measure` runs the tests (`cargo test --features \
-         gltf,image -- --nocapture`) and the report, and `cargo run --example measurements` \
+         gltf,image,sweeps -- --nocapture`) and the report, and `cargo run --example measurements` \
          turns the metric lines they print (`tests/common/metric.rs`) into this page; rerunning \
          it rewrites the page. A check's test reruns alone with `cargo test --features \
-         gltf,image --test TIER FILE::TEST -- --nocapture`, `TIER` the folder of its file.\n"
+         gltf,image,sweeps --test TIER FILE::TEST -- --nocapture`, `TIER` the folder of its file.\n"
     );
     let used: Vec<&Run> = runs
         .iter()
@@ -128,7 +128,7 @@ pub fn document(doc: Doc, runs: &[Run]) -> String {
         {
             commands.insert(
                 0,
-                "`cargo test --features gltf,image -- --nocapture`".into(),
+                "`cargo test --features gltf,image,sweeps -- --nocapture`".into(),
             );
         }
         let _ = writeln!(

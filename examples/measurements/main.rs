@@ -6,7 +6,7 @@
 //! cargo run --example measurements -- --docs-only
 //! ```
 //!
-//! Each run's logs (`cargo test --features gltf,image -- --nocapture` and the report's output,
+//! Each run's logs (`cargo test --features gltf,image,sweeps -- --nocapture` and the report's output,
 //! as `.ci/measure` writes them) become `docs/measurements/NAME.tsv`: the run's date, adapter,
 //! failed tests and metric lines, NAME taken from the adapter (`llvmpipe`, `nvidia-h200`) unless
 //! `--run` names it. The documents are then rewritten from every `.tsv` there, one column of
@@ -33,7 +33,7 @@ Writes docs/ACCURACY.md and docs/PERFORMANCE.md from metric lines.
 usage: cargo run --example measurements -- [--run NAME] [--date YYYY-MM-DD] LOG...
        cargo run --example measurements -- --docs-only
 
-LOG...       logs of one run: `cargo test --features gltf,image -- --nocapture` and the
+LOG...       logs of one run: `cargo test --features gltf,image,sweeps -- --nocapture` and the
              report's output (.ci/measure writes both); saved as docs/measurements/NAME.tsv
 --run NAME   the run's name (default: from the adapter, e.g. llvmpipe)
 --date DATE  the run's date (default: today, UTC)
