@@ -26,6 +26,37 @@ fn ground(o: DVec3, d: DVec3) -> f64 {
     }
 }
 
+/// The medium of most of this file's tests: HG 0.5, σs (0.2, 0.22, 0.25), σa 0.03.
+fn hg_medium() -> Medium {
+    Medium::new(
+        Vec3::new(0.2, 0.22, 0.25),
+        Vec3::splat(0.03),
+        PhaseFunction::HenyeyGreenstein { g: 0.5 },
+    )
+    .unwrap()
+}
+
+/// `mesh` as the reference's occluder, where it stands.
+fn reference_occluder(mesh: &volshadow::scene::Mesh) -> [reference::Occluder; 1] {
+    [reference::Occluder::Mesh(TriangleMesh::from_indexed(
+        mesh.positions(),
+        mesh.indices(),
+        glam::DMat4::IDENTITY,
+    ))]
+}
+
+/// The reference's `SIZE`² in-scatter of `spot` projecting `texture` over the ground.
+fn textured_reference(
+    camera: &volshadow::Camera,
+    medium: &Medium,
+    spot: SpotLight,
+    texture: &LightTexture,
+    occluders: &[reference::Occluder],
+) -> Vec<glam::DVec3> {
+    let textured = TexturedSpot { spot, texture };
+    reference::inscatter_image(camera, SIZE, SIZE, ground, medium, &textured, occluders)
+}
+
 /// The scene of this file: a spot above a sphere (centre 0, 2.2, 0; radius 0.5) over a
 /// ground, a coloured checkerboard, and the camera looking at the sphere.
 struct Rig {
@@ -111,44 +142,30 @@ fn textured_rmse_of(rig: Rig, medium: &Medium) -> f64 {
         .all(|t| t[0..3].iter().all(|v| v.is_finite() && *v >= 0.0)));
 
     let textured = TexturedSpot { spot, texture };
-    let ref_occ = [reference::Occluder::Mesh(TriangleMesh::from_indexed(
-        mesh.positions(),
-        mesh.indices(),
-        glam::DMat4::IDENTITY,
-    ))];
-    let reference =
-        reference::inscatter_image(&camera, SIZE, SIZE, ground, medium, &textured, &ref_occ);
-    let (mut sq, mut sum) = (0.0, 0.0);
-    for (g, r) in inscatter.iter().zip(&reference) {
-        for c in 0..3 {
-            sq += (f64::from(g[c]) - r[c]).powi(2);
-            sum += r[c];
-        }
-    }
-    let n = 3.0 * reference.len() as f64;
-    // The texture matters: a uniform white texture gives a clearly different image.
-    let plain = reference::inscatter_image(&camera, SIZE, SIZE, ground, medium, &spot, &ref_occ);
-    let plain_sq: f64 = plain
+    let ref_occ = reference_occluder(&mesh);
+    let rgb = |v: &[glam::DVec3]| -> Vec<[f64; 3]> { v.iter().map(|r| r.to_array()).collect() };
+    let reference = rgb(&reference::inscatter_image(
+        &camera, SIZE, SIZE, ground, medium, &textured, &ref_occ,
+    ));
+    let image: Vec<[f64; 3]> = inscatter
         .iter()
-        .zip(&reference)
-        .map(|(p, r)| (0..3).map(|c| (p[c] - r[c]).powi(2)).sum::<f64>())
-        .sum();
-    let plain_rmse = (plain_sq / n).sqrt() / (sum / n);
+        .map(|g| [0, 1, 2].map(|c| f64::from(g[c])))
+        .collect();
+    // The texture matters: a uniform white texture gives a clearly different image.
+    let plain = rgb(&reference::inscatter_image(
+        &camera, SIZE, SIZE, ground, medium, &spot, &ref_occ,
+    ));
+    let plain_rmse = relative_rmse(&plain, &reference);
     assert!(
         plain_rmse > 0.1,
         "the texture should change the image, RMSE without it {plain_rmse:.3}"
     );
-    (sq / n).sqrt() / (sum / n)
+    relative_rmse(&image, &reference)
 }
 
 #[test]
 fn checkerboard_spot_matches_reference() {
-    let medium = Medium::new(
-        Vec3::new(0.2, 0.22, 0.25),
-        Vec3::splat(0.03),
-        PhaseFunction::HenyeyGreenstein { g: 0.5 },
-    )
-    .unwrap();
+    let medium = hg_medium();
     let rmse = textured_rmse(&medium);
     println!("textured spot, HG 0.5: RMSE {rmse:.4} of mean");
     common::metric::accuracy(
@@ -222,12 +239,7 @@ fn thin_lines(size: u32, seed: u64) -> LightTexture {
 /// says (the line or dot at its edge stepped over), 17.1%: it fails.
 #[test]
 fn thin_lines_between_flat_regions_match_the_reference() {
-    let medium = Medium::new(
-        Vec3::new(0.2, 0.22, 0.25),
-        Vec3::splat(0.03),
-        PhaseFunction::HenyeyGreenstein { g: 0.5 },
-    )
-    .unwrap();
+    let medium = hg_medium();
     let texture = thin_lines(96, 17);
     let lines = texture.texels().iter().filter(|t| t.x < 0.5).count();
     assert!(
@@ -245,25 +257,8 @@ fn thin_lines_between_flat_regions_match_the_reference() {
     let rig = rig();
     let flat_ground = LightTexture::new(96, 96, vec![Vec3::new(0.9, 0.8, 0.7); 96 * 96]).unwrap();
     let mesh = shapes::uv_sphere(rig.center, 0.5, 24, 12).unwrap();
-    let ref_occ = [reference::Occluder::Mesh(TriangleMesh::from_indexed(
-        mesh.positions(),
-        mesh.indices(),
-        glam::DMat4::IDENTITY,
-    ))];
-    let image = |t: &LightTexture| {
-        reference::inscatter_image(
-            &rig.camera,
-            SIZE,
-            SIZE,
-            ground,
-            &medium,
-            &TexturedSpot {
-                spot: rig.spot,
-                texture: t,
-            },
-            &ref_occ,
-        )
-    };
+    let ref_occ = reference_occluder(&mesh);
+    let image = |t: &LightTexture| textured_reference(&rig.camera, &medium, rig.spot, t, &ref_occ);
     let (with, without) = (image(&texture), image(&flat_ground));
     let (mut sq, mut sum) = (0.0, 0.0);
     for (a, b) in with.iter().zip(&without) {
@@ -299,12 +294,7 @@ fn thin_lines_between_flat_regions_match_the_reference() {
 /// piece dropped, 82.6%.
 #[test]
 fn a_piece_beyond_texture_steps_is_marched_to_its_end() {
-    let medium = Medium::new(
-        Vec3::new(0.2, 0.22, 0.25),
-        Vec3::splat(0.03),
-        PhaseFunction::HenyeyGreenstein { g: 0.5 },
-    )
-    .unwrap();
+    let medium = hg_medium();
     let mesh = shapes::uv_sphere(Vec3::new(0.0, 2.2, 0.0), 0.5, 24, 12).unwrap();
     let total = |texture_steps: u32| {
         let rig = Rig {
@@ -528,12 +518,7 @@ fn invalid_spot_and_texture_inputs_are_errors() {
 #[test]
 fn soft_textured_spot_against_the_reference() {
     const SOFT_SIZE: u32 = 64;
-    let medium = Medium::new(
-        Vec3::new(0.2, 0.22, 0.25),
-        Vec3::splat(0.03),
-        PhaseFunction::HenyeyGreenstein { g: 0.5 },
-    )
-    .unwrap();
+    let medium = hg_medium();
     let rig = rig();
     let Rig {
         spot,
@@ -631,12 +616,7 @@ fn relative_rmse(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
 /// texture's RGB, 259.5%; `texture_frame` ignoring the hint, 450.6%: both fail.
 #[test]
 fn a_red_mask_turned_by_the_spots_up_hint_matches_the_reference() {
-    let medium = Medium::new(
-        Vec3::new(0.2, 0.22, 0.25),
-        Vec3::splat(0.03),
-        PhaseFunction::HenyeyGreenstein { g: 0.5 },
-    )
-    .unwrap();
+    let medium = hg_medium();
     let size = 16u32;
     let mut rng = common::rng::Rng::new(7);
     let mut blocks = || -> Vec<f32> { (0..16).map(|_| rng.range(0.05, 1.0) as f32).collect() };
@@ -679,25 +659,12 @@ fn a_red_mask_turned_by_the_spots_up_hint_matches_the_reference() {
         .collect();
     assert!(image.iter().flatten().all(|v| v.is_finite() && *v >= 0.0));
 
-    let ref_occ = [reference::Occluder::Mesh(TriangleMesh::from_indexed(
-        mesh.positions(),
-        mesh.indices(),
-        glam::DMat4::IDENTITY,
-    ))];
+    let ref_occ = reference_occluder(&mesh);
     let reference_of = |spot: SpotLight, texture: &LightTexture| -> Vec<[f64; 3]> {
-        let textured = TexturedSpot { spot, texture };
-        reference::inscatter_image(
-            &rig.camera,
-            SIZE,
-            SIZE,
-            ground,
-            &medium,
-            &textured,
-            &ref_occ,
-        )
-        .iter()
-        .map(|r| [r[0], r[1], r[2]])
-        .collect()
+        textured_reference(&rig.camera, &medium, spot, texture, &ref_occ)
+            .iter()
+            .map(|r| r.to_array())
+            .collect()
     };
     let truth = reference_of(rig.spot, &grey);
     let unturned = relative_rmse(&reference_of(plain_spot, &grey), &truth);
