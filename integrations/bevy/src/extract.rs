@@ -21,7 +21,7 @@ use bevy::transform::components::GlobalTransform;
 use volshadow::glam;
 
 use crate::render::ViewVolshadow;
-use crate::{exposure_of, VolshadowLight, VolshadowMedium, VolshadowOccluder};
+use crate::{exposure_of, VolshadowLight, VolshadowMedium, VolshadowOccluder, VolshadowSurfaces};
 
 /// A mesh asset as volshadow's mesh, or why it cannot occlude.
 type Converted = Result<Arc<volshadow::scene::Mesh>, String>;
@@ -210,6 +210,8 @@ pub struct ExtractedVolshadowView {
     /// The camera's render layers (Bevy's default, layer 0, without the component): the view
     /// takes the lights whose layers share one with them.
     pub(crate) layers: RenderLayers,
+    /// The camera's [`VolshadowSurfaces`], when the medium's light on its surfaces is drawn.
+    pub(crate) surfaces: Option<VolshadowSurfaces>,
 }
 
 /// A camera's volshadow state lives on its render-world view: its extracted medium and its
@@ -224,18 +226,20 @@ impl ExtractComponent<RenderApp> for VolshadowMedium {
         &'static Camera,
         Option<&'static Exposure>,
         Option<&'static RenderLayers>,
+        Option<&'static VolshadowSurfaces>,
     );
     type QueryFilter = ();
     type Out = ExtractedVolshadowView;
 
     fn extract_component(
-        (medium, camera, exposure, layers): QueryItem<'_, '_, Self::QueryData>,
+        (medium, camera, exposure, layers, surfaces): QueryItem<'_, '_, Self::QueryData>,
     ) -> Option<Self::Out> {
         Some(ExtractedVolshadowView {
             medium: medium.clone(),
             exposure: exposure_of(exposure),
             viewport: camera.viewport.clone(),
             layers: layers.cloned().unwrap_or_default(),
+            surfaces: surfaces.copied(),
         })
     }
 }

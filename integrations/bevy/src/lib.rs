@@ -76,6 +76,10 @@
 //!   depth is cut out (and resolved) to the rectangle, and a pass writes the next target, the
 //!   fogged rectangle in the rest of the scene. [`VolshadowSystems`] names these steps, to
 //!   order other systems around them.
+//! * **Surfaces** of a camera with [`VolshadowSurfaces`] get the light the medium scatters onto
+//!   them (volshadow's surface term), added by the composite: normals from Bevy's normal
+//!   prepass, albedo from the deferred G-buffer (a deferred camera) or the component (a
+//!   forward one), decoded in a small pass of the plugin's own before volshadow's.
 //! * **Pipelines** are shared by every camera in one volshadow [`volshadow::Cache`], made
 //!   when Bevy creates the render device (`RenderStartup`). A view's first frame builds the
 //!   pipelines it uses in `Prepare`, so recording never compiles; the rest of what its
@@ -121,6 +125,7 @@ mod extract;
 pub mod headless;
 mod render;
 mod resolve;
+mod surfaces;
 mod viewport;
 
 use std::collections::HashMap;
@@ -129,7 +134,10 @@ use std::sync::{Arc, Mutex};
 use bevy::app::{App, Plugin, PostUpdate};
 use bevy::asset::AssetEventSystems;
 use bevy::camera::{Camera3d, Exposure, Hdr};
-use bevy::core_pipeline::core_3d::prepare_core_3d_depth_textures;
+use bevy::core_pipeline::core_3d::{prepare_core_3d_depth_textures, prepare_prepass_textures};
+#[cfg(doc)]
+use bevy::core_pipeline::prepass::DeferredPrepass;
+use bevy::core_pipeline::prepass::NormalPrepass;
 use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
 use bevy::ecs::prelude::*;
 use bevy::render::extract_component::ExtractComponentPlugin;
@@ -188,6 +196,33 @@ pub enum VolshadowQuality {
 impl Default for VolshadowQuality {
     fn default() -> Self {
         Self::ErrorTarget(0.01)
+    }
+}
+
+/// Draws, on a camera with [`VolshadowMedium`], the light the medium scatters onto the scene's
+/// surfaces (volshadow's surface term: the in-scattered light each point and spot light
+/// gives a Lambertian surface through the fog, unshadowed), added by the composite to what
+/// Bevy drew. It requires Bevy's [`NormalPrepass`], whose normals it reads; with MSAA, each
+/// pixel takes the sample whose depth the resolved depth holds.
+///
+/// The albedo: a camera with Bevy's [`DeferredPrepass`] reads each material's diffuse colour
+/// from the G-buffer (the base colour times `1 − metallic`, as Bevy's deferred lighting
+/// decodes it; unlit materials reflect nothing); a forward camera has no such buffer (Bevy's
+/// forward prepass writes no colour), so every surface it sees has [`albedo`](Self::albedo).
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+#[require(NormalPrepass)]
+pub struct VolshadowSurfaces {
+    /// The diffuse albedo (linear RGB, each in 0..=1) of the surfaces of a camera without a
+    /// deferred G-buffer.
+    pub albedo: volshadow::glam::Vec3,
+}
+
+impl Default for VolshadowSurfaces {
+    /// An albedo of 0.5 in every channel.
+    fn default() -> Self {
+        Self {
+            albedo: volshadow::glam::Vec3::splat(0.5),
+        }
     }
 }
 
@@ -303,6 +338,7 @@ impl Plugin for VolshadowPlugin {
                     render::prepare_views
                         .in_set(RenderSystems::Prepare)
                         .after(prepare_core_3d_depth_textures)
+                        .after(prepare_prepass_textures)
                         .after(VolshadowSystems::PrepareMeshes)
                         .in_set(VolshadowSystems::PrepareViews),
                 ),

@@ -7,6 +7,7 @@ use std::sync::Arc;
 
 use bevy::asset::AssetId;
 use bevy::camera::visibility::RenderLayers;
+use bevy::core_pipeline::prepass::ViewPrepassTextures;
 use bevy::ecs::prelude::*;
 use bevy::mesh::Mesh;
 use bevy::render::render_asset::RenderAssets;
@@ -22,15 +23,18 @@ use crate::extract::{
     ExtractedOccluder, ExtractedVolshadowLight, ExtractedVolshadowView, OccluderSources,
 };
 use crate::resolve::{DepthResolve, ResolvedDepth};
+use crate::surfaces::{DecodedSurfaces, SurfaceDecode, SurfaceSources};
 use crate::viewport::{Region, RegionTextures, RegionWrite};
 use crate::{ViewReport, VolshadowDiagnostics, VolshadowQuality};
 
-/// The pipelines every view shares: volshadow's [`Cache`], the depth resolve and the region
-/// write, made at `RenderStartup`, and which settings and light kinds have been warmed.
+/// The pipelines every view shares: volshadow's [`Cache`], the depth resolve, the surfaces'
+/// decode and the region write, made at `RenderStartup`, and which settings and light kinds
+/// have been warmed.
 #[derive(Resource)]
 pub(crate) struct VolshadowPipelines {
     cache: Cache,
     resolve: DepthResolve,
+    surfaces: SurfaceDecode,
     write: RegionWrite,
     /// The settings and light kinds whose remaining pipelines are being (or have been) built
     /// in the background.
@@ -44,6 +48,7 @@ pub(crate) fn init_pipelines(mut commands: Commands, device: Res<RenderDevice>) 
     commands.insert_resource(VolshadowPipelines {
         cache: Cache::new(device),
         resolve: DepthResolve::new(device),
+        surfaces: SurfaceDecode::new(device),
         write: RegionWrite::new(device),
         warmed: Vec::new(),
     });
@@ -126,7 +131,8 @@ pub(crate) fn prepare_occluder_meshes(
 
 /// One camera's volumetric shadows, on its render-world view: the facade (its GPU resources
 /// and this frame's plan), the resolved depth (with MSAA, a viewport or a shared target), the
-/// region's own textures (with a viewport or a shared target), and what this frame recorded.
+/// decoded surfaces (with [`VolshadowSurfaces`](crate::VolshadowSurfaces)), the region's own
+/// textures (with a viewport or a shared target), and what this frame recorded.
 /// Removed with the camera's [`VolshadowMedium`](crate::VolshadowMedium) or its view.
 #[derive(Component)]
 pub struct ViewVolshadow {
@@ -134,6 +140,7 @@ pub struct ViewVolshadow {
     /// The quality the facade's settings were made from (with the output format in them).
     quality: VolshadowQuality,
     depth: Option<ResolvedDepth>,
+    surfaces: Option<DecodedSurfaces>,
     region: Option<RegionTextures>,
     /// This frame's preparation, when it succeeded: what the recording needs.
     prepared: Option<Prepared>,
@@ -146,6 +153,8 @@ struct Prepared {
     scene_color: wgpu::Texture,
     /// Whether the depth is resolved (or cut out of a shared one) first.
     resolve: bool,
+    /// Whether the surfaces are decoded from the prepass (before the passes read them).
+    surfaces: bool,
     /// Whether the facade reads and writes the region's own textures (a viewport, or a target
     /// shared with other cameras): the scene's colour is copied out of the main texture of
     /// the moment it records, and the region write fills the post-process target.
@@ -205,6 +214,7 @@ type Views<'w, 's> = Query<
         &'static ExtractedVolshadowView,
         &'static ViewTarget,
         &'static ViewDepthStencilTexture,
+        Option<&'static ViewPrepassTextures>,
         Option<&'static mut ViewVolshadow>,
     ),
 >;
@@ -248,9 +258,9 @@ pub(crate) fn prepare_views(
     // Targets that several of these cameras draw into share their main textures.
     let mains: Vec<wgpu::Texture> = views
         .iter()
-        .map(|(.., target, _, _)| (**target.main_texture()).clone())
+        .map(|(.., target, _, _, _)| (**target.main_texture()).clone())
         .collect();
-    for (entity, main, extracted, camera, target, depth, state) in &mut views {
+    for (entity, main, extracted, camera, target, depth, prepass, state) in &mut views {
         let shared = mains
             .iter()
             .filter(|t| **t == **target.main_texture())
@@ -273,7 +283,7 @@ pub(crate) fn prepare_views(
             &mut pipelines,
             (&lights, &images),
             &occluders,
-            (extracted, camera, target, depth, shared),
+            (extracted, camera, target, depth, prepass, shared),
             state,
         );
         if let Some(state) = created {
@@ -307,6 +317,7 @@ fn new_view(
         facade: VolumetricShadows::new(device, queue, &pipelines.cache, settings).map_err(text)?,
         quality,
         depth: None,
+        surfaces: None,
         region: None,
         prepared: None,
     })
@@ -352,11 +363,12 @@ fn prepare_view(
     pipelines: &mut VolshadowPipelines,
     (lights, images): (&Lights, &RenderAssets<GpuImage>),
     occluders: &[(volshadow::Occluder, &RenderLayers)],
-    (extracted, camera, target, depth, shared): (
+    (extracted, camera, target, depth, prepass, shared): (
         &ExtractedView,
         &ExtractedVolshadowView,
         &ViewTarget,
         &ViewDepthStencilTexture,
+        Option<&ViewPrepassTextures>,
         bool,
     ),
     state: &mut ViewVolshadow,
@@ -448,6 +460,40 @@ fn prepare_view(
         state.depth = None;
         depth_texture.clone()
     };
+    // The surfaces, decoded from the prepass over the same region as the depth.
+    let surfaces = match camera.surfaces {
+        Some(wanted) => {
+            let normal = prepass.and_then(|p| p.normal.as_ref()).ok_or(
+                "the camera has VolshadowSurfaces but no normal prepass this frame (add Bevy's \
+                 NormalPrepass)",
+            )?;
+            let sources = SurfaceSources {
+                normal: &normal.texture.texture,
+                depth: depth_texture,
+                gbuffer: prepass
+                    .and_then(|p| p.deferred.as_ref())
+                    .map(|d| &*d.texture.texture),
+            };
+            let whole = Region::whole(sources.normal.size());
+            let decoded = pipelines.surfaces.prepare(
+                device,
+                queue,
+                &mut state.surfaces,
+                &sources,
+                region.unwrap_or(whole),
+                wanted.albedo,
+            );
+            Some(volshadow::Surfaces {
+                normal: &decoded.normal,
+                albedo: &decoded.albedo,
+            })
+        }
+        None => {
+            state.surfaces = None;
+            None
+        }
+    };
+    let decode = surfaces.is_some();
     // The scene's colour: the main texture, or the region's own copy of it.
     pipelines.write.prepare(device, format);
     let scene_color: &wgpu::Texture = match region {
@@ -471,7 +517,7 @@ fn prepare_view(
                 occluders: &occluders,
                 scene_color,
                 scene_depth: &scene_depth,
-                surfaces: None,
+                surfaces,
             },
         )
         .map_err(text)?
@@ -484,6 +530,7 @@ fn prepare_view(
     state.prepared = Some(Prepared {
         scene_color: (**target.main_texture()).clone(),
         resolve,
+        surfaces: decode,
         region: region.is_some(),
     });
     let mut report = plan;
@@ -550,6 +597,15 @@ pub(crate) fn record_view(
             return;
         };
         pipelines.resolve.encode(encoder, resolved);
+    }
+    if prepared.surfaces {
+        let Some(decoded) = &state.surfaces else {
+            pipelines
+                .write
+                .encode(&device, encoder, source, None, destination);
+            return;
+        };
+        pipelines.surfaces.encode(encoder, decoded);
     }
     let region = state.region.as_ref().filter(|_| prepared.region);
     if let Some(region) = region {
