@@ -241,7 +241,12 @@ fn seeded_huge_roofs_match_the_reference() {
 /// the hybrid is 1.5%, 1.7%, 3.2% (at 3e3) and 10.7% (at 1e4) over a bar of 2%; from 3e4 every
 /// method loses the shadow (exact 51% at 3e4; from 1e5 the triangle and the plane come out as
 /// the unshadowed image under all four, RMSE 116–121%, the slab 86–128%). The exact method
-/// samples the map between crossings, so it loses what the map loses. Run it with `--ignored` after a change to the cascades.
+/// samples the map between crossings, so it loses what the map loses. Two causes, measured:
+/// the default shadow distance is the occluders' farthest corner, so the roof spreads the
+/// cascades over its own size (with `with_shadow_distance(60.0)` half-sizes 1e2 to 1e4 pass,
+/// hybrid 1.3%); from 1e5 the volumes lose it, not the map (with that distance, brute force's
+/// mean 0.1055 against the reference's 0.1048, the exact method's 0.1652, the hybrid's
+/// 0.1512). Run it with `--ignored` after a change to the cascades or the volumes.
 #[test]
 #[ignore = "a sun's cascades lose a roof wider than about 1e3 times its distance (GUIDE, Limits)"]
 fn a_roof_far_larger_than_its_distance_shadows_a_sun() {
@@ -262,6 +267,86 @@ fn a_roof_far_larger_than_its_distance_shadows_a_sun() {
                 &format!("sun, {kind} of half-size {s:e}"),
                 &measured,
                 shadow,
+            );
+        }
+    }
+}
+
+/// A small cube's sun shadow over a ground slab far larger than the view (0.2 below the
+/// depth buffer's ground, so it shadows nothing in view), half-sizes 1e2 to 1e7: every method
+/// within its bar. Ignored: it fails from 1e5 (lavapipe, 2026-12-04): without the slab and up
+/// to 1e4 the exact method is exact and the others within 1.2%; at 1e5 the exact method's RMSE
+/// is 28% (p95 100%: pixels drawn dark), at 1e7 42%, the hybrid and brute force 2.25% (bar
+/// 2%). A terrain-sized ground under a sun is an ordinary scene; see
+/// [`a_roof_far_larger_than_its_distance_shadows_a_sun`].
+#[test]
+#[ignore = "a ground 1e5 wide under a sun spoils a small occluder's shadow (GUIDE, Limits)"]
+fn a_ground_far_larger_than_the_view_keeps_a_small_occluders_sun_shadow() {
+    let camera = common::look_at(
+        Vec3::new(0.0, 1.6, 5.5),
+        Vec3::new(0.0, 1.5, 0.0),
+        60.0,
+        1.0,
+    );
+    let light: Light =
+        volshadow::DirectionalLight::new(Vec3::new(0.3, -1.0, 0.2), Vec3::splat(3.0))
+            .unwrap()
+            .into();
+    let gpu = common::gpu();
+    let cache = common::cache(&gpu);
+    let medium = medium();
+    let depths = common::depths_at(&camera, N, N, ground);
+    let depth = common::depth_texture(&gpu, N, N, &depths);
+    let cube = shapes::cuboid(Vec3::new(0.0, 2.2, 0.0), Vec3::splat(0.5)).unwrap();
+    for s in [1e2f32, 1e4, 1e5, 1e7] {
+        let floor = roof("slab", s, -0.2);
+        let meshes = [&cube, &floor];
+        let occluder: Vec<reference::Occluder> = meshes
+            .iter()
+            .map(|m| {
+                reference::Occluder::Mesh(TriangleMesh::from_indexed(
+                    m.positions(),
+                    m.indices(),
+                    glam::DMat4::IDENTITY,
+                ))
+            })
+            .collect();
+        let expected =
+            reference::inscatter_image(&camera, N, N, ground, &medium, &light, &occluder);
+        let keep = ImageError::keep_away_from_lights(&camera, &[light], N, N);
+        let gpu_meshes: Vec<OccluderMesh> = meshes
+            .iter()
+            .map(|m| OccluderMesh::new(&gpu.device, m))
+            .collect();
+        let occluders: Vec<Occluder> = gpu_meshes
+            .iter()
+            .map(|m| Occluder {
+                mesh: m,
+                transform: Mat4::IDENTITY,
+            })
+            .collect();
+        for &(name, method, build, steps, bar) in &CONFIGS {
+            let passes = common::ShadowPasses::new(&camera, &light, &medium, &depth, &occluders)
+                .settings(MarchSettings {
+                    method,
+                    crossings_build: build,
+                    steps,
+                    ..MarchSettings::default()
+                });
+            let image: Vec<DVec3> = common::shadow_frame(&gpu, &cache, &passes)
+                .inscatter
+                .iter()
+                .map(|p| DVec3::new(p[0].into(), p[1].into(), p[2].into()))
+                .collect();
+            let e = ImageError::measure(&image, &expected, &keep);
+            println!(
+                "ground of half-size {s:e}, {name}: RMSE {:.4}, p95 {:.4}",
+                e.rmse, e.p95
+            );
+            assert!(
+                e.rmse <= bar,
+                "ground of half-size {s:e}, {name}: RMSE {:.4} over {bar}",
+                e.rmse
             );
         }
     }
