@@ -430,15 +430,10 @@ fn plan(facts: &FrameFacts) -> Plan {
         };
         if !facts.scatters {
             lights.push(light_plan);
-            for pass in [
-                Pass::LightTexture,
-                Pass::ShadowMap,
-                Pass::Extents,
-                Pass::SoftShadow,
-                Pass::AirlightTable,
-                Pass::March,
-                Pass::Upsample,
-            ] {
+            for pass in Pass::ALL
+                .into_iter()
+                .filter(|p| p.per_light() && p.needs_scattering())
+            {
                 skip(pass, light, Reason::NoScattering);
             }
             continue;
