@@ -372,27 +372,25 @@ mod tests {
         Ok(())
     }
 
-    /// Every module a node builds (and the self-contained `SHADOW_WGSL`, on its own) parses and
-    /// validates at every precision.
+    /// Every shader file in `shaders/` parses and validates at every precision, composed with
+    /// its imports as a node composes it: the pass files, the self-contained `SHADOW_WGSL` and
+    /// the shared files, the folder read when the test runs, so that no list of files can miss
+    /// one (`precision.wgsl`, the wrappers every composition begins with, is checked by all).
     #[test]
     fn every_shader_compiles() {
-        for source in [
-            wgsl_file!("airlight_table.wgsl"),
-            wgsl_file!("airlight_table_sum.wgsl"),
-            wgsl_file!("composite.wgsl"),
-            wgsl_file!("extents.wgsl"),
-            wgsl_file!("crossings.wgsl"),
-            wgsl_file!("light_texture.wgsl"),
-            wgsl_file!("light_texture_flats.wgsl"),
-            wgsl_file!("march.wgsl"),
-            wgsl_file!("soft_shadow.wgsl"),
-            wgsl_file!("shadow_map.wgsl"),
-            wgsl_file!("shadow_gate.wgsl"),
-            wgsl_file!("triangles.wgsl"),
-            wgsl_file!("upsample.wgsl"),
-            wgsl_file!("shadow.wgsl"),
-            wgsl_file!("iss_table.wgsl"),
-        ] {
+        let folder = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
+        let mut names: Vec<String> = std::fs::read_dir(&folder)
+            .expect("the shaders folder")
+            .map(|entry| entry.expect("a folder entry").file_name())
+            .filter_map(|name| name.into_string().ok())
+            .filter(|name| name.ends_with(".wgsl") && name != "precision.wgsl")
+            .collect();
+        names.sort();
+        // The pass files and the shared ones, each a dozen or more.
+        assert!(names.len() >= 19, "{names:?}");
+        for name in &names {
+            let text = std::fs::read_to_string(folder.join(name)).expect("a shader file");
+            let source = Wgsl { name, text: &text };
             for precision in ShaderPrecision::ALL {
                 if let Err(e) = check(&source, precision) {
                     panic!("{precision:?}: {e}");
