@@ -351,7 +351,7 @@ pub(crate) fn fullscreen_pipeline(
 
 #[cfg(test)]
 mod tests {
-    use crate::gpu::wgsl::{compose, wgsl_file, Wgsl};
+    use crate::gpu::wgsl::{compose, Wgsl};
     use crate::gpu::ShaderPrecision;
 
     /// Parses and validates `source` with its imports; an error names the file and line it is
