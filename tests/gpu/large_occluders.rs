@@ -99,25 +99,46 @@ fn errors(
     mesh: &Mesh,
     transform: Mat4,
 ) -> (Vec<(&'static str, f64, ImageError, usize)>, f64) {
+    errors_of(camera, light, &[(mesh, transform)])
+}
+
+/// [`errors`] of a scene of several occluders, each a mesh and its transform; the darkening
+/// is theirs together.
+fn errors_of(
+    camera: &Camera,
+    light: &Light,
+    meshes: &[(&Mesh, Mat4)],
+) -> (Vec<(&'static str, f64, ImageError, usize)>, f64) {
     let gpu = common::gpu();
     let cache = common::cache(&gpu);
     let medium = medium();
     let depths = common::depths_at(camera, N, N, ground);
     let depth = common::depth_texture(&gpu, N, N, &depths);
-    let occluder = [reference::Occluder::Mesh(TriangleMesh::from_indexed(
-        mesh.positions(),
-        mesh.indices(),
-        transform.as_dmat4(),
-    ))];
+    let occluder: Vec<reference::Occluder> = meshes
+        .iter()
+        .map(|(mesh, transform)| {
+            reference::Occluder::Mesh(TriangleMesh::from_indexed(
+                mesh.positions(),
+                mesh.indices(),
+                transform.as_dmat4(),
+            ))
+        })
+        .collect();
     let expected = reference::inscatter_image(camera, N, N, ground, &medium, light, &occluder);
     let unshadowed = reference::inscatter_image(camera, N, N, ground, &medium, light, &[]);
     let keep = ImageError::keep_away_from_lights(camera, &[*light], N, N);
     let shadow = ImageError::measure(&expected, &unshadowed, &keep).rmse;
-    let gpu_mesh = OccluderMesh::new(&gpu.device, mesh);
-    let occluders = [Occluder {
-        mesh: &gpu_mesh,
-        transform,
-    }];
+    let gpu_meshes: Vec<(OccluderMesh, Mat4)> = meshes
+        .iter()
+        .map(|(mesh, transform)| (OccluderMesh::new(&gpu.device, mesh), *transform))
+        .collect();
+    let occluders: Vec<Occluder> = gpu_meshes
+        .iter()
+        .map(|(mesh, transform)| Occluder {
+            mesh,
+            transform: *transform,
+        })
+        .collect();
     let measured = CONFIGS
         .iter()
         .map(|&(name, method, build, steps, bar)| {
@@ -234,6 +255,13 @@ fn seeded_huge_roofs_match_the_reference() {
     }
 }
 
+/// The sun of the sun tests: high, tilted about 20° from overhead.
+fn sun() -> Light {
+    volshadow::DirectionalLight::new(Vec3::new(0.3, -1.0, 0.2), Vec3::splat(3.0))
+        .unwrap()
+        .into()
+}
+
 /// A sun over the roofs of [`a_roof_far_larger_than_its_distance_keeps_its_shadow`], the eye
 /// under them looking up through them, at half-sizes 1e2 to 1e10: every method within its bar.
 /// Ignored: it fails, the limit the GUIDE names (a sun's cascades are not clipped). Measured
@@ -256,10 +284,7 @@ fn a_roof_far_larger_than_its_distance_shadows_a_sun() {
         60.0,
         1.0,
     );
-    let light: Light =
-        volshadow::DirectionalLight::new(Vec3::new(0.3, -1.0, 0.2), Vec3::splat(3.0))
-            .unwrap()
-            .into();
+    let light = sun();
     for kind in ["plane", "slab", "triangle"] {
         for s in [1e2f32, 1e3, 1e4, 1e5, 1e8, 1e10] {
             let (measured, shadow) = errors(&camera, &light, &roof(kind, s, 3.0), Mat4::IDENTITY);
@@ -288,63 +313,19 @@ fn a_ground_far_larger_than_the_view_keeps_a_small_occluders_sun_shadow() {
         60.0,
         1.0,
     );
-    let light: Light =
-        volshadow::DirectionalLight::new(Vec3::new(0.3, -1.0, 0.2), Vec3::splat(3.0))
-            .unwrap()
-            .into();
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
-    let medium = medium();
-    let depths = common::depths_at(&camera, N, N, ground);
-    let depth = common::depth_texture(&gpu, N, N, &depths);
+    let light = sun();
     let cube = shapes::cuboid(Vec3::new(0.0, 2.2, 0.0), Vec3::splat(0.5)).unwrap();
     for s in [1e2f32, 1e4, 1e5, 1e7] {
         let floor = roof("slab", s, -0.2);
-        let meshes = [&cube, &floor];
-        let occluder: Vec<reference::Occluder> = meshes
-            .iter()
-            .map(|m| {
-                reference::Occluder::Mesh(TriangleMesh::from_indexed(
-                    m.positions(),
-                    m.indices(),
-                    glam::DMat4::IDENTITY,
-                ))
-            })
-            .collect();
-        let expected =
-            reference::inscatter_image(&camera, N, N, ground, &medium, &light, &occluder);
-        let keep = ImageError::keep_away_from_lights(&camera, &[light], N, N);
-        let gpu_meshes: Vec<OccluderMesh> = meshes
-            .iter()
-            .map(|m| OccluderMesh::new(&gpu.device, m))
-            .collect();
-        let occluders: Vec<Occluder> = gpu_meshes
-            .iter()
-            .map(|m| Occluder {
-                mesh: m,
-                transform: Mat4::IDENTITY,
-            })
-            .collect();
-        for &(name, method, build, steps, bar) in &CONFIGS {
-            let passes = common::ShadowPasses::new(&camera, &light, &medium, &depth, &occluders)
-                .settings(MarchSettings {
-                    method,
-                    crossings_build: build,
-                    steps,
-                    ..MarchSettings::default()
-                });
-            let image: Vec<DVec3> = common::shadow_frame(&gpu, &cache, &passes)
-                .inscatter
-                .iter()
-                .map(|p| DVec3::new(p[0].into(), p[1].into(), p[2].into()))
-                .collect();
-            let e = ImageError::measure(&image, &expected, &keep);
+        let meshes = [(&cube, Mat4::IDENTITY), (&floor, Mat4::IDENTITY)];
+        let (measured, _) = errors_of(&camera, &light, &meshes);
+        for (name, bar, e, non_finite) in measured {
             println!(
                 "ground of half-size {s:e}, {name}: RMSE {:.4}, p95 {:.4}",
                 e.rmse, e.p95
             );
             assert!(
-                e.rmse <= bar,
+                e.rmse <= bar && non_finite == 0,
                 "ground of half-size {s:e}, {name}: RMSE {:.4} over {bar}",
                 e.rmse
             );

@@ -4,7 +4,7 @@
 
 use volshadow::wgpu;
 
-use crate::viewport::{Region, RegionUniform, FULL_TARGET_VERTEX};
+use crate::viewport::{full_target_pipeline, Region, RegionUniform, FULL_TARGET_VERTEX};
 
 /// Writes, for each pixel of a region of a depth texture, the one value the passes read into a
 /// single-sampled texture of the region's size: the median sample where the source is
@@ -27,15 +27,11 @@ const REGION: &str = r"
 
 // The median of the pixel's samples (the upper one for an even count): where two surfaces
 // share a pixel, the depth of the one that covers most of its samples, which is most likely
-// the one at its centre.
-const MULTISAMPLED: &str = r"
-@group(0) @binding(0) var depth_ms: texture_depth_multisampled_2d;
-
-@fragment
-fn fs(@builtin(position) p: vec4<f32>) -> @builtin(frag_depth) f32 {
-    let pixel = vec2<i32>(p.xy) + vec2<i32>(region.xy);
+// the one at its centre. The surfaces' decode reads its normal from the same sample.
+pub(crate) const MEDIAN_SAMPLE: &str = r"
+fn median_sample(depth_ms: texture_depth_multisampled_2d, pixel: vec2<i32>) -> i32 {
     let n = i32(textureNumSamples(depth_ms));
-    var picked = textureLoad(depth_ms, pixel, 0);
+    var picked = 0;
     for (var i = 0; i < n; i++) {
         let d = textureLoad(depth_ms, pixel, i);
         var below = 0;
@@ -46,10 +42,20 @@ fn fs(@builtin(position) p: vec4<f32>) -> @builtin(frag_depth) f32 {
             equal += select(0, 1, e == d);
         }
         if (below <= n / 2 && n / 2 < below + equal) {
-            picked = d;
+            picked = i;
         }
     }
     return picked;
+}
+";
+
+const MULTISAMPLED: &str = r"
+@group(0) @binding(0) var depth_ms: texture_depth_multisampled_2d;
+
+@fragment
+fn fs(@builtin(position) p: vec4<f32>) -> @builtin(frag_depth) f32 {
+    let pixel = vec2<i32>(p.xy) + vec2<i32>(region.xy);
+    return textureLoad(depth_ms, pixel, median_sample(depth_ms, pixel));
 }
 ";
 
@@ -67,20 +73,24 @@ const FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
 impl Resolve {
     fn new(device: &wgpu::Device, multisampled: bool) -> Self {
-        let label = Some(if multisampled {
+        let label = if multisampled {
             "volshadow_bevy depth resolve"
         } else {
             "volshadow_bevy depth crop"
-        });
-        let fragment = if multisampled { MULTISAMPLED } else { SINGLE };
+        };
+        let fragment = if multisampled {
+            format!("{MEDIAN_SAMPLE}{MULTISAMPLED}")
+        } else {
+            SINGLE.to_string()
+        };
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label,
+            label: Some(label),
             source: wgpu::ShaderSource::Wgsl(
                 format!("{FULL_TARGET_VERTEX}{REGION}{fragment}").into(),
             ),
         });
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label,
+            label: Some(label),
             entries: &[
                 wgpu::BindGroupLayoutEntry {
                     binding: 0,
@@ -95,38 +105,20 @@ impl Resolve {
                 RegionUniform::layout_entry(1),
             ],
         });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        let pipeline = full_target_pipeline(
+            device,
             label,
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label,
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: Default::default(),
-            depth_stencil: Some(wgpu::DepthStencilState {
+            &module,
+            &layout,
+            &[],
+            Some(wgpu::DepthStencilState {
                 format: FORMAT,
                 depth_write_enabled: Some(true),
                 depth_compare: Some(wgpu::CompareFunction::Always),
                 stencil: Default::default(),
                 bias: Default::default(),
             }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs"),
-                compilation_options: Default::default(),
-                targets: &[],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        );
         Self { pipeline, layout }
     }
 }
@@ -156,16 +148,12 @@ impl DepthResolve {
             r.region.set(queue, region);
             return r.target.clone();
         }
-        let target = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("volshadow_bevy resolved depth"),
-            size: region.extent(),
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        });
+        let target = region.texture(
+            device,
+            "volshadow_bevy resolved depth",
+            FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+        );
         let source_view = source.create_view(&wgpu::TextureViewDescriptor {
             aspect: wgpu::TextureAspect::DepthOnly,
             ..Default::default()

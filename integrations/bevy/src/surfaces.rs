@@ -7,7 +7,8 @@
 
 use volshadow::wgpu;
 
-use crate::viewport::{Region, RegionUniform, FULL_TARGET_VERTEX};
+use crate::resolve::MEDIAN_SAMPLE;
+use crate::viewport::{full_target_pipeline, Region, RegionUniform, FULL_TARGET_VERTEX};
 
 /// The decoded textures' format: normals in −1..1 and albedo, both read as floats.
 const FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;
@@ -50,29 +51,14 @@ fn load_normal(pixel: vec2<i32>, s: i32) -> vec3<f32> {
 }
 ";
 
-// The sample the depth resolve picks (the median depth, the upper one for an even count), so
-// that the normal is of the surface the resolved depth is of.
+// The sample the depth resolve picks (`MEDIAN_SAMPLE`), so that the normal is of the surface
+// the resolved depth is of.
 const MULTISAMPLED: &str = r"
 @group(0) @binding(0) var normals: texture_multisampled_2d<f32>;
 @group(0) @binding(3) var depth_ms: texture_depth_multisampled_2d;
 
 fn sample_of(pixel: vec2<i32>) -> i32 {
-    let n = i32(textureNumSamples(depth_ms));
-    var picked = 0;
-    for (var i = 0; i < n; i++) {
-        let d = textureLoad(depth_ms, pixel, i);
-        var below = 0;
-        var equal = 0;
-        for (var j = 0; j < n; j++) {
-            let e = textureLoad(depth_ms, pixel, j);
-            below += select(0, 1, e < d);
-            equal += select(0, 1, e == d);
-        }
-        if (below <= n / 2 && n / 2 < below + equal) {
-            picked = i;
-        }
-    }
-    return picked;
+    return median_sample(depth_ms, pixel);
 }
 
 fn load_normal(pixel: vec2<i32>, s: i32) -> vec3<f32> {
@@ -120,14 +106,18 @@ struct Decode {
 
 impl Decode {
     fn new(device: &wgpu::Device, multisampled: bool, deferred: bool) -> Self {
-        let label = Some("volshadow_bevy surfaces");
+        let label = "volshadow_bevy surfaces";
+        let sampling = if multisampled {
+            format!("{MEDIAN_SAMPLE}{MULTISAMPLED}")
+        } else {
+            SINGLE.to_string()
+        };
         let source = format!(
-            "{FULL_TARGET_VERTEX}{COMMON}{}{}",
-            if multisampled { MULTISAMPLED } else { SINGLE },
+            "{FULL_TARGET_VERTEX}{COMMON}{sampling}{}",
             if deferred { DEFERRED } else { FORWARD }
         );
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label,
+            label: Some(label),
             source: wgpu::ShaderSource::Wgsl(source.into()),
         });
         let texture = |binding, sample_type, multisampled| wgpu::BindGroupLayoutEntry {
@@ -144,16 +134,8 @@ impl Decode {
         let mut entries = vec![
             texture(0, float, multisampled),
             RegionUniform::layout_entry(1),
-            wgpu::BindGroupLayoutEntry {
-                binding: 2,
-                visibility: wgpu::ShaderStages::FRAGMENT,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: wgpu::BufferSize::new(16),
-                },
-                count: None,
-            },
+            // The albedo: a 16-byte fragment uniform, as the region's.
+            RegionUniform::layout_entry(2),
         ];
         if multisampled {
             entries.push(texture(3, wgpu::TextureSampleType::Depth, true));
@@ -162,35 +144,17 @@ impl Decode {
             entries.push(texture(4, wgpu::TextureSampleType::Uint, false));
         }
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label,
+            label: Some(label),
             entries: &entries,
         });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        let pipeline = full_target_pipeline(
+            device,
             label,
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label,
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: Default::default(),
-            depth_stencil: None,
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs"),
-                compilation_options: Default::default(),
-                targets: &[Some(FORMAT.into()), Some(FORMAT.into())],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+            &module,
+            &layout,
+            &[Some(FORMAT.into()), Some(FORMAT.into())],
+            None,
+        );
         Self { pipeline, layout }
     }
 }
@@ -226,19 +190,9 @@ impl SurfaceDecode {
                 && d.gbuffer_source.as_ref() == sources.gbuffer
         };
         if !kept.as_ref().is_some_and(fits) {
-            let texture = |label| {
-                device.create_texture(&wgpu::TextureDescriptor {
-                    label: Some(label),
-                    size: region.extent(),
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format: FORMAT,
-                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                        | wgpu::TextureUsages::TEXTURE_BINDING,
-                    view_formats: &[],
-                })
-            };
+            let usage =
+                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
+            let texture = |label| region.texture(device, label, FORMAT, usage);
             let (normal, albedo_texture) = (
                 texture("volshadow_bevy surface normals"),
                 texture("volshadow_bevy surface albedo"),

@@ -44,6 +44,26 @@ impl Region {
         }
     }
 
+    /// A single-sampled 2D texture of the region's size.
+    pub(crate) fn texture(
+        self,
+        device: &wgpu::Device,
+        label: &str,
+        format: wgpu::TextureFormat,
+        usage: wgpu::TextureUsages,
+    ) -> wgpu::Texture {
+        device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: self.extent(),
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage,
+            view_formats: &[],
+        })
+    }
+
     /// The uniform the shaders read: origin, then size.
     fn uniform(self) -> [u32; 4] {
         [self.origin[0], self.origin[1], self.size[0], self.size[1]]
@@ -119,18 +139,7 @@ impl RegionTextures {
         let fits =
             |t: &RegionTextures| t.color.format() == format && t.color.size() == region.extent();
         if !kept.as_ref().is_some_and(fits) {
-            let texture = |label, usage| {
-                device.create_texture(&wgpu::TextureDescriptor {
-                    label: Some(label),
-                    size: region.extent(),
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format,
-                    usage,
-                    view_formats: &[],
-                })
-            };
+            let texture = |label, usage| region.texture(device, label, format, usage);
             let color = texture(
                 "volshadow_bevy region colour",
                 wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
@@ -170,6 +179,44 @@ impl RegionTextures {
     }
 }
 
+/// A full-target pass's pipeline: [`FULL_TARGET_VERTEX`]'s `vs` and `module`'s `fs`, one bind
+/// group of `layout`, writing `targets` (and `depth`).
+pub(crate) fn full_target_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    module: &wgpu::ShaderModule,
+    layout: &wgpu::BindGroupLayout,
+    targets: &[Option<wgpu::ColorTargetState>],
+    depth_stencil: Option<wgpu::DepthStencilState>,
+) -> wgpu::RenderPipeline {
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(layout)],
+        immediate_size: 0,
+    });
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(label),
+        layout: Some(&pipeline_layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: Default::default(),
+        depth_stencil,
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some("fs"),
+            compilation_options: Default::default(),
+            targets,
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
 /// The plugin's full-target passes' vertex stage: one triangle covering the target.
 pub(crate) const FULL_TARGET_VERTEX: &str = r"
 @vertex
@@ -202,7 +249,6 @@ fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
 pub(crate) struct RegionWrite {
     module: wgpu::ShaderModule,
     layout: wgpu::BindGroupLayout,
-    pipeline_layout: wgpu::PipelineLayout,
     pipelines: Vec<(wgpu::TextureFormat, wgpu::RenderPipeline)>,
     /// An empty region's uniform, for a write of the scene alone.
     none: wgpu::Buffer,
@@ -228,16 +274,10 @@ impl RegionWrite {
             label: Some("volshadow_bevy region write"),
             entries: &[texture(0), texture(1), RegionUniform::layout_entry(2)],
         });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("volshadow_bevy region write"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
         let none = RegionUniform::new(device, "volshadow_bevy no region").buffer;
         Self {
             module,
             layout,
-            pipeline_layout,
             pipelines: Vec::new(),
             none,
         }
@@ -248,27 +288,14 @@ impl RegionWrite {
         if self.pipelines.iter().any(|(f, _)| *f == format) {
             return;
         }
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("volshadow_bevy region write"),
-            layout: Some(&self.pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &self.module,
-                entry_point: Some("vs"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: Default::default(),
-            depth_stencil: None,
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &self.module,
-                entry_point: Some("fs"),
-                compilation_options: Default::default(),
-                targets: &[Some(format.into())],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let pipeline = full_target_pipeline(
+            device,
+            "volshadow_bevy region write",
+            &self.module,
+            &self.layout,
+            &[Some(format.into())],
+            None,
+        );
         self.pipelines.push((format, pipeline));
     }
 

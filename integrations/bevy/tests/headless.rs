@@ -143,19 +143,9 @@ fn spawn_camera(
     camera.id()
 }
 
-/// The scene's light, its sphere (an occluder) and the ground.
-fn spawn_world(app: &mut App) -> (Entity, Entity) {
-    let world = app.world_mut();
-    let sphere = world.resource_mut::<Assets<Mesh>>().add(sphere_mesh());
-    let ground = world.resource_mut::<Assets<Mesh>>().add(
-        Plane3d::new(Vec3::Y, Vec2::splat(GROUND_HALF))
-            .mesh()
-            .build(),
-    );
-    let material = world
-        .resource_mut::<Assets<StandardMaterial>>()
-        .add(StandardMaterial::default());
-    let light = world
+/// The scene's point light, lighting the medium.
+fn spawn_light(world: &mut World) -> Entity {
+    world
         .spawn((
             PointLight {
                 intensity: LUMENS,
@@ -164,7 +154,27 @@ fn spawn_world(app: &mut App) -> (Entity, Entity) {
             Transform::from_translation(LIGHT),
             VolshadowLight::default(),
         ))
-        .id();
+        .id()
+}
+
+/// The scene's ground plane, as a mesh asset.
+fn ground_mesh(world: &mut World) -> Handle<Mesh> {
+    world.resource_mut::<Assets<Mesh>>().add(
+        Plane3d::new(Vec3::Y, Vec2::splat(GROUND_HALF))
+            .mesh()
+            .build(),
+    )
+}
+
+/// The scene's light, its sphere (an occluder) and the ground.
+fn spawn_world(app: &mut App) -> (Entity, Entity) {
+    let world = app.world_mut();
+    let sphere = world.resource_mut::<Assets<Mesh>>().add(sphere_mesh());
+    let ground = ground_mesh(world);
+    let material = world
+        .resource_mut::<Assets<StandardMaterial>>()
+        .add(StandardMaterial::default());
+    let light = spawn_light(world);
     let occluder = world
         .spawn((
             Mesh3d(sphere),
@@ -242,20 +252,18 @@ fn reference_image_in(
     reference_of(w, h, m, shadowed, &light)
 }
 
-/// [`reference_image_in`] lit by `light`.
-fn reference_of(
-    w: u32,
-    h: u32,
-    m: &VolshadowMedium,
-    shadowed: bool,
-    light: &impl reference::LightSource,
-) -> (Vec<DVec3>, Vec<bool>) {
-    // What Bevy's camera builds: a right-handed view, an infinite reversed-Z projection.
+/// What Bevy's camera of a `w × h` target builds: a right-handed view, an infinite reversed-Z
+/// projection.
+fn reference_camera(w: u32, h: u32) -> volshadow::Camera {
     let v3 = |v: Vec3| volshadow::glam::Vec3::from_array(v.to_array());
     let view = rh::view::look_at_mat4(v3(EYE), v3(TARGET), volshadow::glam::Vec3::Y);
     let projection =
         rh::proj::directx::perspective_infinite_reverse(FOV, w as f32 / h as f32, NEAR);
-    let camera = volshadow::Camera::new(view, projection).unwrap();
+    volshadow::Camera::new(view, projection).unwrap()
+}
+
+/// The ico sphere's own triangles, placed where the scene has it.
+fn placed_sphere() -> TriangleMesh {
     let mesh = sphere_mesh();
     let positions: Vec<volshadow::glam::Vec3> = mesh
         .attribute(Mesh::ATTRIBUTE_POSITION)
@@ -266,11 +274,23 @@ fn reference_of(
         .map(|p| volshadow::glam::Vec3::from_array(*p))
         .collect();
     let indices: Vec<u32> = mesh.indices().unwrap().iter().map(|i| i as u32).collect();
-    let placed = TriangleMesh::from_indexed(
+    TriangleMesh::from_indexed(
         &positions,
         &indices,
         DMat4::from_translation(DVec3::from_array(SPHERE_AT.to_array().map(f64::from))),
-    );
+    )
+}
+
+/// [`reference_image_in`] lit by `light`.
+fn reference_of(
+    w: u32,
+    h: u32,
+    m: &VolshadowMedium,
+    shadowed: bool,
+    light: &impl reference::LightSource,
+) -> (Vec<DVec3>, Vec<bool>) {
+    let camera = reference_camera(w, h);
+    let placed = placed_sphere();
     let vs_medium = volshadow::Medium::new(m.scattering, m.absorption, m.phase).unwrap();
     let ground = |eye: DVec3, dir: DVec3| {
         if dir.y >= 0.0 {
@@ -1080,11 +1100,7 @@ fn spawn_surfaces_world(
 ) -> Entity {
     let world = app.world_mut();
     let sphere_mesh = world.resource_mut::<Assets<Mesh>>().add(sphere_mesh());
-    let ground_mesh = world.resource_mut::<Assets<Mesh>>().add(
-        Plane3d::new(Vec3::Y, Vec2::splat(GROUND_HALF))
-            .mesh()
-            .build(),
-    );
+    let ground_mesh = ground_mesh(world);
     let mut materials = world.resource_mut::<Assets<StandardMaterial>>();
     let (ground, sphere) = (materials.add(ground), materials.add(sphere));
     world.spawn((
@@ -1093,16 +1109,7 @@ fn spawn_surfaces_world(
         Transform::from_translation(SPHERE_AT),
     ));
     world.spawn((Mesh3d(ground_mesh), MeshMaterial3d(ground)));
-    world
-        .spawn((
-            PointLight {
-                intensity: LUMENS,
-                ..Default::default()
-            },
-            Transform::from_translation(LIGHT),
-            VolshadowLight::default(),
-        ))
-        .id()
+    spawn_light(world)
 }
 
 /// A float target (`Rgba16Float`, the HDR main texture's format), read back as f32.
@@ -1163,22 +1170,9 @@ fn surface_irradiance_reference() -> &'static [(usize, Surface, DVec3)] {
 
 fn surface_irradiance_of(m: &VolshadowMedium, step: u32) -> Vec<(usize, Surface, DVec3)> {
     let v3 = |v: Vec3| volshadow::glam::Vec3::from_array(v.to_array());
-    let view = rh::view::look_at_mat4(v3(EYE), v3(TARGET), volshadow::glam::Vec3::Y);
-    let projection =
-        rh::proj::directx::perspective_infinite_reverse(FOV, W as f32 / H as f32, NEAR);
-    let camera = volshadow::Camera::new(view, projection).unwrap();
-    let mesh = sphere_mesh();
-    let positions: Vec<volshadow::glam::Vec3> = mesh
-        .attribute(Mesh::ATTRIBUTE_POSITION)
-        .unwrap()
-        .as_float3()
-        .unwrap()
-        .iter()
-        .map(|p| volshadow::glam::Vec3::from_array(*p))
-        .collect();
-    let indices: Vec<u32> = mesh.indices().unwrap().iter().map(|i| i as u32).collect();
+    let camera = reference_camera(W, H);
     let centre = DVec3::from_array(SPHERE_AT.to_array().map(f64::from));
-    let placed = TriangleMesh::from_indexed(&positions, &indices, DMat4::from_translation(centre));
+    let placed = placed_sphere();
     let hit = |px: u32, py: u32| -> (Surface, DVec3, f64) {
         let (eye, dir) = reference::camera_ray(&camera, reference::pixel_ndc(W, H, px, py));
         let sphere = placed.ray_distance(eye, dir);
@@ -1329,7 +1323,7 @@ fn forward_surface_term(msaa: Msaa, albedo: volshadow::glam::Vec3) -> (Vec<DVec3
 /// picks) on the sphere. With MSAA the ground is characterised, not held to the bar: the
 /// resolved depth is one sample's, up to ⅜ of a pixel from the centre the composite casts its
 /// ray through, and on ground seen at a few degrees 96 pixels across that moves the surface
-/// point by metres (measured p95 5.65%, worst 10.3%, at 96×64, shrinking with the pixels'
+/// point by metres (measured p95 5.38%, worst 10.3%, at 96×64, shrinking with the pixels'
 /// angle; the plugin's README names it). The reference with the channels' albedos swapped is
 /// far beyond the bar (checked: above 10%), so a plugin that mixed them fails. Broken
 /// variants, run (lavapipe, 2026-12-04; measured 0.19% and, with MSAA on the sphere, 0.45%):
