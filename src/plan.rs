@@ -332,11 +332,13 @@ fn gather(frame: &Frame<'_>, settings: &Settings) -> Result<FrameFacts> {
         };
         let penumbra_below_texel =
             ShadowMapNode::penumbra_below_texel(&fl.light, nearest, settings.shadow_map.resolution);
+        let bounds = kept.iter().map(|&j| frame.occluders[j].world_bounds());
+        let light = with_sun_reach(fl.light, eye, frame.medium, bounds);
         lights.push(LightFacts {
             light: if penumbra_below_texel {
-                without_radius(fl.light)
+                without_radius(light)
             } else {
-                fl.light
+                light
             },
             textured: fl.texture.is_some(),
             occluders: kept,
@@ -371,6 +373,37 @@ fn nearest_occluder<'o>(light: &Light, occluders: impl Iterator<Item = &'o Occlu
             p.clamp(lo, hi).distance(p)
         })
         .fold(f32::INFINITY, f32::min)
+}
+
+/// A directional light without a shadow distance of its own gets the medium's
+/// [`shadow_reach`](crate::scene::Medium::shadow_reach) where its occluders reach farther from
+/// the eye than that: its cascades then cover the fog that can be seen, not the occluders'
+/// extent (the shadow map's default). A ground 1e5 wide spread them over its own size, and the
+/// map lost a roof's shadow above the eye (`tests/gpu/large_occluders.rs`). Other lights, and
+/// a sun whose occluders lie within the reach, are returned as they are.
+fn with_sun_reach(
+    light: Light,
+    eye: glam::Vec3,
+    medium: &crate::scene::Medium,
+    bounds: impl Iterator<Item = (glam::Vec3, glam::Vec3)>,
+) -> Light {
+    let Light::Directional(sun) = light else {
+        return light;
+    };
+    let Some(reach) = medium
+        .shadow_reach()
+        .filter(|_| sun.shadow_distance().is_none())
+    else {
+        return light;
+    };
+    let farthest = bounds
+        .map(|(lo, hi)| (eye - lo).abs().max((eye - hi).abs()).length())
+        .fold(0.0f32, f32::max);
+    if farthest > reach {
+        sun.with_shadow_distance(reach).map_or(light, Light::from)
+    } else {
+        light
+    }
 }
 
 /// The light with radius 0.
@@ -644,6 +677,54 @@ mod tests {
         eprintln!("cull bounds: radius 0 {hard:e}, 7 {soft:e}, 9.75 {reaching:e}");
         assert!(hard < 1e-3 && soft > 1e-3, "{hard} {soft}");
         assert_eq!(reaching, f64::INFINITY);
+    }
+
+    /// A sun over occluders that reach beyond the medium's shadow reach gets it as its shadow
+    /// distance; within it, or with a distance of its own, or a medium that does not attenuate
+    /// in some channel, it keeps what it had; a point light is untouched.
+    #[test]
+    fn a_suns_shadow_distance_is_bounded_by_the_mediums_reach() {
+        use crate::scene::DirectionalLight;
+        let medium = Medium::new(
+            Vec3::splat(0.1),
+            Vec3::splat(0.01),
+            PhaseFunction::Isotropic,
+        )
+        .unwrap();
+        let reach = medium.shadow_reach().unwrap();
+        assert!((reach - 1e6f32.ln() / 0.11).abs() < 1e-3 * reach, "{reach}");
+        let eye = Vec3::new(0.0, 1.6, 5.5);
+        let sun = DirectionalLight::new(Vec3::new(0.3, -1.0, 0.2), Vec3::ONE).unwrap();
+        let huge = (Vec3::new(-1e5, -0.3, -1e5), Vec3::new(1e5, -0.1, 1e5));
+        let small = (Vec3::splat(-1.0), Vec3::splat(1.0));
+        let distance = |light: Light| match light {
+            Light::Directional(d) => d.shadow_distance(),
+            _ => None,
+        };
+        let planned = |light, bounds: &[(Vec3, Vec3)], medium: &Medium| {
+            distance(super::with_sun_reach(
+                light,
+                eye,
+                medium,
+                bounds.iter().copied(),
+            ))
+        };
+        assert_eq!(planned(sun.into(), &[small, huge], &medium), Some(reach));
+        assert_eq!(planned(sun.into(), &[small], &medium), None);
+        let own = sun.with_shadow_distance(5e4).unwrap();
+        assert_eq!(planned(own.into(), &[huge], &medium), Some(5e4));
+        let clear_red = Medium::new(
+            Vec3::new(0.0, 0.1, 0.1),
+            Vec3::ZERO,
+            PhaseFunction::Isotropic,
+        )
+        .unwrap();
+        assert_eq!(planned(sun.into(), &[huge], &clear_red), None);
+        let point: Light = PointLight::new(Vec3::ZERO, Vec3::ONE).unwrap().into();
+        assert_eq!(
+            super::with_sun_reach(point, eye, &medium, [huge].into_iter()),
+            point
+        );
     }
 
     /// Every light a frame can have, under every method: the march's mode in the plan reads

@@ -264,9 +264,15 @@ pub struct Extents<'a> {
     pub crossings: Option<Crossings<'a>>,
 }
 
-/// The near plane of the extents' projection, relative to the eye–light distance: small enough
-/// that volumes are cut only right at the eye, where the start-at-zero rule covers them.
+/// The near plane of the extents' projection, relative to the eye–light distance (a directional
+/// light: the scene's size seen from the eye): small enough that volumes are cut only right at
+/// the eye, where the start-at-zero rule covers them. Never more than 1% of the
+/// distance from the eye to the nearest occluder's bounds.
 pub const EXTENTS_NEAR: f32 = 1e-4;
+
+/// The most of the distance from the eye to the nearest occluder's bounds (of those outside
+/// which the eye is) that the extents' near plane may be.
+const NEAREST_SHARE: f32 = 1e-2;
 
 /// Extrude slots are 256 bytes apart (the core minimum dynamic-offset alignment).
 const SLOT: u64 = 256;
@@ -927,7 +933,21 @@ impl ExtentsNode {
                 .fold(0.0, f32::max),
         }
         .max(1e-20);
-        self.near = EXTENTS_NEAR * eye_light;
+        // Never beyond a hundredth of the way to the nearest occluder the eye is outside of:
+        // scaled by the light's distance or the scene's size alone, a distant light or a
+        // ground 1e5 wide put it metres from the eye, and it cut the volumes of an occluder
+        // there (a cube 5 units away over such a ground lost its shadow, and the fog near the
+        // ground went black). An occluder whose bounds hold the eye gives no bound.
+        let eye = camera.eye();
+        let nearest = occluders
+            .iter()
+            .map(|o| {
+                let (lo, hi) = o.world_bounds();
+                eye.clamp(lo, hi).distance(eye)
+            })
+            .filter(|d| *d > 0.0)
+            .fold(f32::INFINITY, f32::min);
+        self.near = (EXTENTS_NEAR * eye_light).min(NEAREST_SHARE * nearest);
         let mut proj = camera.projection();
         let w_row = proj.row(3);
         let k = -w_row.z; // clip w = −k z_view

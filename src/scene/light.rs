@@ -333,7 +333,9 @@ impl DirectionalLight {
     }
     /// The same light whose shadow map covers what the camera sees up to view depth `distance`
     /// from the eye (world units, finite and positive). Without it, the map covers up to the
-    /// farthest corner of the occluders' bounds. Beyond the shadow distance, points outside
+    /// farthest corner of the occluders' bounds, and [`VolumetricShadows`](crate::VolumetricShadows)
+    /// stops it at the medium's [`shadow_reach`](crate::scene::Medium::shadow_reach) where that
+    /// is nearer. Beyond the shadow distance, points outside
     /// every cascade count as lit (see [`ShadowMapNode`](crate::nodes::ShadowMapNode)). A
     /// shorter distance spends the map's texels on a smaller region: sharper shafts near the
     /// camera.

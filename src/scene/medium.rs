@@ -145,6 +145,22 @@ impl Medium {
     pub fn sigma_t(&self) -> Vec3 {
         self.sigma_s + self.sigma_a
     }
+
+    /// The fraction of a ray's unshadowed in-scatter that [`shadow_reach`](Self::shadow_reach)
+    /// leaves beyond it: far below every accuracy bar the crate is held to (the tightest is
+    /// 1e-3 of the mean).
+    pub const SHADOW_REACH_FRACTION: f32 = 1e-6;
+
+    /// The distance along a ray beyond which the medium holds less than
+    /// [`SHADOW_REACH_FRACTION`](Self::SHADOW_REACH_FRACTION) of the ray's unshadowed in-scatter
+    /// (light of one direction, in every channel): `ln(1/fraction) / σt` for the least σt. The
+    /// in-scatter beyond distance `D` is `e^(−σt·D)` of the whole ray's. `None` where a channel
+    /// does not attenuate (its light reaches any distance). The planner bounds a directional
+    /// light's default shadow distance by it.
+    pub fn shadow_reach(&self) -> Option<f32> {
+        let least = self.sigma_t().min_element();
+        (least > 0.0).then(|| (1.0 / Self::SHADOW_REACH_FRACTION).ln() / least)
+    }
     /// The phase function.
     pub fn phase(&self) -> PhaseFunction {
         self.phase
