@@ -248,6 +248,8 @@ struct LightFacts {
     /// A point light's cube faces that its occluders' bounding spheres reach (+X, −X, +Y, −Y,
     /// +Z, −Z): the shadow map draws only those; the others stay clear and read lit.
     faces: Option<[bool; 6]>,
+    /// A sun's shadow distance where the planner set it (the medium's shadow reach).
+    sun_reach: Option<f32>,
 }
 
 /// What the planner knows about the frame.
@@ -334,6 +336,10 @@ fn gather(frame: &Frame<'_>, settings: &Settings) -> Result<FrameFacts> {
             ShadowMapNode::penumbra_below_texel(&fl.light, nearest, settings.shadow_map.resolution);
         let bounds = kept.iter().map(|&j| frame.occluders[j].world_bounds());
         let light = with_sun_reach(fl.light, eye, frame.medium, bounds);
+        let sun_reach = match (light, fl.light) {
+            (Light::Directional(d), Light::Directional(given)) if d != given => d.shadow_distance(),
+            _ => None,
+        };
         lights.push(LightFacts {
             light: if penumbra_below_texel {
                 without_radius(light)
@@ -344,6 +350,7 @@ fn gather(frame: &Frame<'_>, settings: &Settings) -> Result<FrameFacts> {
             occluders: kept,
             penumbra_below_texel,
             faces,
+            sun_reach,
         });
     }
     Ok(FrameFacts {
@@ -511,7 +518,13 @@ fn plan(facts: &FrameFacts) -> Plan {
                             6 - drawn.len()
                         )
                     }
-                    None => String::new(),
+                    None => match l.sun_reach {
+                        Some(d) => format!(
+                            ", cascades to {d:.4} from the eye (the medium's shadow reach; the \
+                             occluders reach farther)"
+                        ),
+                        None => String::new(),
+                    },
                 };
                 // The crossings decide every pixel they can count: the map only the rest.
                 let on_demand = f.extents && f.crossings && !facts.surface_maps;
@@ -725,6 +738,29 @@ mod tests {
             super::with_sun_reach(point, eye, &medium, [huge].into_iter()),
             point
         );
+        // The plan says so on the shadow map's step.
+        let facts = FrameFacts {
+            scatters: true,
+            lights: vec![LightFacts {
+                light: sun.with_shadow_distance(reach).unwrap().into(),
+                textured: false,
+                occluders: vec![0],
+                penumbra_below_texel: false,
+                faces: None,
+                sun_reach: Some(reach),
+            }],
+            method: MarchMethod::Exact,
+            steps: 64,
+            crossings: 16,
+            scale: Scale::Full,
+            filter: UpsampleFilter::DepthAware3x3,
+            culled: Vec::new(),
+            error_target: None,
+            surfaces: false,
+            surface_maps: false,
+        };
+        let text = plan(&facts).to_string();
+        assert!(text.contains("the medium's shadow reach"), "{text}");
     }
 
     /// Every light a frame can have, under every method: the march's mode in the plan reads
@@ -754,6 +790,7 @@ mod tests {
                             occluders,
                             penumbra_below_texel,
                             faces: None,
+                            sun_reach: None,
                         }],
                         method,
                         steps: 64,
