@@ -589,22 +589,19 @@ pub(crate) fn record_view(
         return;
     }
     let encoder = ctx.command_encoder();
-    if prepared.resolve {
-        let Some(resolved) = &state.depth else {
-            pipelines
-                .write
-                .encode(&device, encoder, source, None, destination);
-            return;
-        };
+    // What the preparation made for the passes to read; without it, the scene as it is.
+    if (prepared.resolve && state.depth.is_none())
+        || (prepared.surfaces && state.surfaces.is_none())
+    {
+        pipelines
+            .write
+            .encode(&device, encoder, source, None, destination);
+        return;
+    }
+    if let Some(resolved) = state.depth.as_ref().filter(|_| prepared.resolve) {
         pipelines.resolve.encode(encoder, resolved);
     }
-    if prepared.surfaces {
-        let Some(decoded) = &state.surfaces else {
-            pipelines
-                .write
-                .encode(&device, encoder, source, None, destination);
-            return;
-        };
+    if let Some(decoded) = state.surfaces.as_ref().filter(|_| prepared.surfaces) {
         pipelines.surfaces.encode(encoder, decoded);
     }
     let region = state.region.as_ref().filter(|_| prepared.region);
