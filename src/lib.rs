@@ -1,17 +1,12 @@
-//! # volshadow
+#![doc = include_str!("../README.md")]
 //!
-//! Volumetric shadows — light shafts, and the dark shafts that occluders cut through fog,
-//! haze and smoke — for homogeneous single-scattering media, as render-graph nodes that record
-//! into the caller's own `wgpu` device and command encoder.
+//! # Beyond the README
 //!
-//! Most applications need one type, [`VolumetricShadows`]: create it once with
-//! [`VolumetricShadows::new`], then every frame describe the scene in a [`Frame`] (your
-//! [`Camera`], up to four lights, the [`Medium`], the [`Occluder`]s and your rendered colour
-//! and depth textures), call [`VolumetricShadows::prepare`] (validates, uploads, plans) and
-//! [`VolumetricShadows::encode`] (records into your encoder; you submit). The [`Plan`] that
-//! `prepare` returns says which passes run and why the others are left out.
+//! The text above is the repository's `README.md`, included as it is: the crate has one front
+//! door, not two copies of it (its images and relative links point into the repository). What
+//! follows is in the rustdoc only.
 //!
-//! # Example
+//! ## A complete program
 //!
 //! A complete frame: a device, the application's colour and depth textures (cleared here,
 //! where an application draws its scene), a camera from glam 0.34's `camera::rh` functions, a
@@ -230,21 +225,19 @@
 //! (with [`HeadlessGpu`], which also reads textures back); the repository's `examples/` hold a
 //! scene-file renderer, a glTF viewer and an interactive window.
 //!
-//! # How it works
+//! ## Where the method comes from
 //!
-//! The airlight (in-scattered light) is evaluated in closed form through a per-frame table
-//! built on the GPU from a numerically stable form of the analytic single-scattering model of
-//! Sun, Ramamoorthi, Narasimhan and Nayar ("A Practical Analytic Single Scattering Model for
-//! Real Time Rendering", 2005), so it stays finite and accurate from optical depth 1e-4 to
-//! 100, looking straight into the light or with the light behind the eye. Shadows are
-//! integrated exactly by default: every shadow-volume face a pixel's ray crosses is recorded,
-//! and between two crossings, where visibility cannot change, the closed form is used (after
-//! Biri, Arquès and Michelin's exact integration between shadow planes); only a textured spot
-//! light's colour is marched. Wyman and Ramsey's hybrid ("Interactive Volumetric Shadows in
-//! Participating Media with Single-Scattering", 2008: march only between the shadow volumes'
-//! extents), brute force and the textbook march remain as settings. A light with a radius
-//! gets soft shadows from a light-space grid of fractional visibility; the light the medium
-//! scatters onto surfaces comes from a per-medium table ([`nodes::IssTableNode`]).
+//! The closed-form airlight is a numerically stable form of the analytic single-scattering
+//! model of Sun, Ramamoorthi, Narasimhan and Nayar ("A Practical Analytic Single Scattering
+//! Model for Real Time Rendering", 2005), tabulated per frame on the GPU. The exact method
+//! integrates between shadow-volume crossings after Biri, Arquès and Michelin's exact
+//! integration between shadow planes; the hybrid method is Wyman and Ramsey's ("Interactive
+//! Volumetric Shadows in Participating Media with Single-Scattering", 2008: march only between
+//! the shadow volumes' extents). A light with a radius gets soft shadows from a light-space grid
+//! of fractional visibility; the light the medium scatters onto surfaces comes from a
+//! per-medium table ([`nodes::IssTableNode`]).
+//!
+//! ## How the crate is built
 //!
 //! Objects are split by lifetime: a shared [`Cache`] of pipelines and layouts, and
 //! per-view nodes ([`nodes`]) that own their textures. Each node has `new`, `prepare`
@@ -255,7 +248,7 @@
 //! [`reference`](mod@reference) is an independent f64 integrator of the same model, the ground
 //! truth the tests compare every GPU image with.
 //!
-//! # Documents
+//! ## Documents
 //!
 //! * [`method`]: the maths, the papers it comes from, and design notes (`docs/METHOD.md`).
 //! * [`accuracy`]: every accuracy check of the test suite, its current value and its bound
@@ -351,8 +344,3 @@ pub const ISS_WGSL: &str = concat!(
 /// 4.5% and p95 12.5% (point light; spot 5.9%, 16.2%), the hard lookup 18.7% and 46%; on the
 /// sphere itself mean 0.2%, p95 0.5%.
 pub const SHADOW_WGSL: &str = include_str!("../shaders/shadow.wgsl");
-
-/// The README's usage snippet, compiled (not run) by `cargo test --doc`.
-#[doc = include_str!("../README.md")]
-#[cfg(doctest)]
-pub struct ReadmeDoctests;

@@ -174,3 +174,50 @@ fn generated_documents_match_their_runs() {
         println!("{file}: {rows} table rows from {} runs", runs.len());
     }
 }
+
+/// One front door (issue 66, item 6): the crate's rustdoc opens with the README itself,
+/// included (`#![doc = include_str!("../README.md")]`), and its own `//!` text repeats no line
+/// of the README's prose (code aside), so the two cannot drift apart. Without the include (the rustdoc
+/// writing its own introduction, as it did before) this fails, and so does a README paragraph
+/// copied into the crate docs.
+#[test]
+fn the_crate_docs_open_with_the_readme() {
+    let lib = read("src/lib.rs");
+    let readme = read("README.md");
+    let first = lib
+        .lines()
+        .find(|l| !l.trim().is_empty())
+        .expect("an empty src/lib.rs");
+    assert_eq!(
+        first, "#![doc = include_str!(\"../README.md\")]",
+        "src/lib.rs does not open with the README as its crate documentation"
+    );
+    let docs: String = lib
+        .lines()
+        .filter_map(|l| l.trim_start().strip_prefix("//!"))
+        .map(|l| l.trim())
+        .collect::<Vec<_>>()
+        .join(" ");
+    // The README's prose: its lines outside fenced code blocks (the two examples' code may
+    // share a line such as an import list).
+    let mut in_code = false;
+    let prose = readme.lines().map(str::trim).filter(|l| {
+        if l.starts_with("```") {
+            in_code = !in_code;
+            return false;
+        }
+        !in_code
+    });
+    let repeated: Vec<&str> = prose
+        .filter(|l| l.len() >= 60 && !l.starts_with('|') && !l.starts_with('<'))
+        .filter(|l| docs.contains(*l))
+        .collect();
+    assert!(
+        repeated.is_empty(),
+        "README lines repeated in src/lib.rs's own docs: {repeated:#?}"
+    );
+    println!(
+        "crate docs: README included, {} further lines of their own",
+        lib.lines().filter(|l| l.starts_with("//!")).count()
+    );
+}
