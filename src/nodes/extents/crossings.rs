@@ -378,7 +378,7 @@ impl ExtentsNode {
     pub(super) fn encode_crossings(
         &self,
         encoder: &mut wgpu::CommandEncoder,
-        mut timer: Option<&mut GpuTimer>,
+        timer: Option<&mut GpuTimer>,
         lists: &CrossingLists,
         target: &wgpu::Texture,
         volume: &wgpu::Buffer,
@@ -391,9 +391,7 @@ impl ExtentsNode {
         // The depth target is only there because a render pass needs an attachment:
         // the pipeline neither tests nor writes it.
         let view = target.create_view(&Default::default());
-        let timestamp_writes = timer
-            .as_deref_mut()
-            .and_then(|t| t.render_pass(Pass::Extents));
+        let timestamp_writes = timer.and_then(|t| t.render_pass(Pass::Extents));
         let mut pass = crate::gpu::passes::begin_render(
             encoder,
             &wgpu::RenderPassDescriptor {
@@ -425,7 +423,7 @@ impl ExtentsNode {
     fn encode_bins(
         &self,
         encoder: &mut wgpu::CommandEncoder,
-        mut timer: Option<&mut GpuTimer>,
+        timer: Option<&mut GpuTimer>,
         lists: &CrossingLists,
         bins: &Bins,
     ) {
@@ -442,9 +440,7 @@ impl ExtentsNode {
             encoder,
             &wgpu::ComputePassDescriptor {
                 label: Some("volshadow crossings"),
-                timestamp_writes: timer
-                    .as_deref_mut()
-                    .and_then(|t| t.compute_pass(Pass::Extents)),
+                timestamp_writes: timer.and_then(|t| t.compute_pass(Pass::Extents)),
             },
         );
         let [setup, count, scan, fill, build] = &self.pipelines.bin;

@@ -529,9 +529,7 @@ impl ExtentsNode {
                 encoder,
                 &wgpu::ComputePassDescriptor {
                     label: Some("volshadow extrude"),
-                    timestamp_writes: timer
-                        .as_deref_mut()
-                        .and_then(|t| t.compute_pass(Pass::Extents)),
+                    timestamp_writes: timer.and_then(|t| t.compute_pass(Pass::Extents)),
                 },
             );
             pass.set_pipeline(&self.pipelines.extrude);
