@@ -242,23 +242,7 @@ impl<'a> Loader<'a, '_> {
         // Positions.
         let a = position_accessor.value();
         let accessor = self.accessor(a, &what, "POSITION")?;
-        let layout = match (accessor.type_, accessor.component_type) {
-            (Checked::Valid(Type::Vec3), Checked::Valid(c)) if c.0 != ComponentType::U32 => {
-                Layout {
-                    component: c.0,
-                    components: 3,
-                }
-            }
-            _ => {
-                return Err(self.fail(
-                    ErrorKind::Malformed,
-                    format!(
-                        "{what}: POSITION accessor {a} must be a VEC3 of FLOAT (or of 8- or \
-                         16-bit integers)"
-                    ),
-                ))
-            }
-        };
+        let layout = self.position_layout(accessor, a, &what)?;
         let vertex_count = count(accessor);
         if vertex_count > Mesh::MAX_POSITIONS as u64 {
             return Err(wrap(Error::MeshTooLarge {
@@ -315,6 +299,26 @@ impl<'a> Loader<'a, '_> {
             return Ok(None);
         }
         Mesh::new(&positions, &triangles).map(Some).map_err(wrap)
+    }
+
+    /// The layout of `what`'s POSITION accessor `a`: a VEC3 of FLOAT (or of 8- or 16-bit
+    /// integers).
+    fn position_layout(&self, accessor: &json::Accessor, a: usize, what: &str) -> Result<Layout> {
+        match (accessor.type_, accessor.component_type) {
+            (Checked::Valid(Type::Vec3), Checked::Valid(c)) if c.0 != ComponentType::U32 => {
+                Ok(Layout {
+                    component: c.0,
+                    components: 3,
+                })
+            }
+            _ => Err(self.fail(
+                ErrorKind::Malformed,
+                format!(
+                    "{what}: POSITION accessor {a} must be a VEC3 of FLOAT (or of 8- or \
+                     16-bit integers)"
+                ),
+            )),
+        }
     }
 
     /// The indices of accessor `a` of `what`, a primitive whose POSITION has `vertices`
