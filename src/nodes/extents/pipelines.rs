@@ -66,9 +66,9 @@ pub(crate) struct Pipelines {
     /// Front, back near and back far.
     pub(super) depths: [wgpu::RenderPipeline; 3],
     pub(super) crossings: wgpu::RenderPipeline,
-    /// `depths` through `vs_volume_clipped`, with the volume bound as group 1
-    /// (`clip_layout`), for frames whose occluders [`clips_volumes`](super::clips_volumes) says may need it (the
-    /// exact method's lists are then built by compute passes).
+    /// `depths` through `vs_volume_clipped`, with the volume bound as group 1 (`clip_layout`), for
+    /// frames whose occluders [`clips_volumes`](super::clips_volumes) says may need it (the exact
+    /// method's lists are then built by compute passes).
     pub(super) clip_layout: wgpu::BindGroupLayout,
     pub(super) depths_clipped: [wgpu::RenderPipeline; 3],
     pub(super) bin_layout: wgpu::BindGroupLayout,

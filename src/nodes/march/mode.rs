@@ -4,11 +4,12 @@
 
 use super::{MarchInputs, Shadows};
 
-/// How the march integrates each pixel's ray for one light this frame: the form its
-/// [`MarchMethod`] takes given the shadow inputs the frame has, and the shader's `MODE`
-/// pipeline constant. The planner picks it with [`MarchMode::choose`]
-/// ([`LightPlan::march`](crate::plan::LightPlan::march)); a caller wiring the nodes by hand
-/// calls `choose` too, and [`MarchNode::prepare`](crate::nodes::MarchNode::prepare) checks that its inputs carry what the mode reads.
+/// How the march integrates each pixel's ray for one light this frame: the form its [`MarchMethod`]
+/// takes given the shadow inputs the frame has, and the shader's `MODE` pipeline constant. The
+/// planner picks it with [`MarchMode::choose`]
+/// ([`LightPlan::march`](crate::plan::LightPlan::march)); a caller wiring the nodes by hand calls
+/// `choose` too, and [`MarchNode::prepare`](crate::nodes::Node::prepare) checks that its inputs
+/// carry what the mode reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum MarchMode {
     /// No occluders: the closed-form airlight, one table lookup per pixel.
@@ -48,11 +49,12 @@ impl ShadowForms {
 
 impl MarchMode {
     /// The mode `method` takes for a light (`soft`: with a radius) whose shadows have `shadows`
-    /// (`None`: no occluders): the one rule, read by the planner and by [`Cache::warm_up`](crate::nodes::Cache::warm_up).
-    /// Without occluders the airlight is analytic (the textbook march still marches). A light
-    /// with a radius and a soft-shadow grid is marched inside its penumbra cones (the extents
-    /// bound the hard shadow only); otherwise the hybrid needs extents, the exact method
-    /// extents with crossing lists, and what lacks them is marched over the whole ray.
+    /// (`None`: no occluders): the one rule, read by the planner and by
+    /// [`Cache::warm_up`](crate::nodes::Cache::warm_up). Without occluders the airlight is analytic
+    /// (the textbook march still marches). A light with a radius and a soft-shadow grid is marched
+    /// inside its penumbra cones (the extents bound the hard shadow only); otherwise the hybrid
+    /// needs extents, the exact method extents with crossing lists, and what lacks them is marched
+    /// over the whole ray.
     pub fn choose(method: MarchMethod, soft: bool, shadows: Option<ShadowForms>) -> MarchMode {
         use MarchMethod as M;
         match (method, shadows) {
@@ -100,13 +102,14 @@ impl std::fmt::Display for MarchMode {
 #[non_exhaustive]
 pub enum MarchMethod {
     /// Every shadow-volume face the ray crosses in front of the surface is recorded (up to
-    /// [`MarchSettings::crossings`](crate::nodes::MarchSettings::crossings) per pixel); between consecutive crossings visibility is
-    /// constant, so each interval is integrated in closed form (`T(s₁) − T(s₀)`) times its
-    /// visibility (Biri, Arquès & Michelin 2006: exact integration between sorted shadow
-    /// planes). Boundaries come from geometry, and so does visibility: an interval is lit where
-    /// no closed volume is around it (counted from the far end); the shadow map decides only
-    /// where a face of an open or non-manifold mesh crosses the pixel. A pixel whose list overflows is marched, as the hybrid does, between
-    /// its nearest and farthest crossing. The default.
+    /// [`MarchSettings::crossings`](crate::nodes::MarchSettings::crossings) per pixel); between
+    /// consecutive crossings visibility is constant, so each interval is integrated in closed form
+    /// (`T(s₁) − T(s₀)`) times its visibility (Biri, Arquès & Michelin 2006: exact integration
+    /// between sorted shadow planes). Boundaries come from geometry, and so does visibility: an
+    /// interval is lit where no closed volume is around it (counted from the far end); the shadow
+    /// map decides only where a face of an open or non-manifold mesh crosses the pixel. A pixel
+    /// whose list overflows is marched, as the hybrid does, between its nearest and farthest
+    /// crossing. The default.
     #[default]
     Exact,
     /// Analytic outside the shadow-volume extents, marched between them (Wyman & Ramsey 2008).

@@ -16,8 +16,8 @@ pub struct MarchStats {
 }
 
 impl MarchStats {
-    /// Decodes the bytes of [`MarchNode::stats_buffer`](crate::nodes::MarchNode::stats_buffer) (four `u32` in the platform's byte
-    /// order, the last unused).
+    /// Decodes the bytes of [`MarchNode::stats_buffer`](crate::nodes::MarchNode::stats_buffer)
+    /// (four `u32` in the platform's byte order, the last unused).
     pub fn from_bytes(bytes: &[u8]) -> Option<Self> {
         let words: &[u32] = bytemuck::try_cast_slice(bytes.get(..16)?).ok()?;
         Some(Self {
@@ -28,7 +28,8 @@ impl MarchStats {
     }
 }
 
-/// A march's per-pixel work counters (see [`MarchNode::set_work_counters`](crate::nodes::MarchNode::set_work_counters)), one entry per
+/// A march's per-pixel work counters (see
+/// [`MarchNode::set_work_counters`](crate::nodes::MarchNode::set_work_counters)), one entry per
 /// pixel in row-major order.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct MarchWork {
@@ -45,8 +46,9 @@ pub struct MarchWork {
 }
 
 impl MarchWork {
-    /// Decodes the bytes of a [`MarchNode::stats_buffer`](crate::nodes::MarchNode::stats_buffer) written with work counters on
-    /// (`u32` in the platform's byte order); `None` when they hold no counters.
+    /// Decodes the bytes of a [`MarchNode::stats_buffer`](crate::nodes::MarchNode::stats_buffer)
+    /// written with work counters on (`u32` in the platform's byte order); `None` when they hold no
+    /// counters.
     pub fn from_bytes(bytes: &[u8]) -> Option<Self> {
         let words: Vec<u32> = bytes
             .chunks_exact(4)

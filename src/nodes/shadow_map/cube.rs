@@ -57,13 +57,13 @@ pub(crate) fn cube_faces_touched(position: Vec3, spheres: &[Vec4]) -> [bool; 6] 
     touched
 }
 
-/// The near plane of `faces` where they are the cube faces this node draws for a point light
-/// at `position` ([`ShadowMapNode::face_matrices`](super::ShadowMapNode::face_matrices)), entry by entry to within 1e-5 of each
-/// entry's size, else 0. The shaders then project a point into a face with a few selects on
-/// its offset from the light (`cube_clip` in `shaders/pcss.wgsl`) in place of the face's
-/// matrix, which each SIMD lane reads for its own face: on the report's soft scene on
-/// llvmpipe the march at ½ resolution took about 0.9 of its time, and so did the soft-shadow
-/// grid's build. A caller's map with other faces keeps the matrices.
+/// The near plane of `faces` where they are the cube faces this node draws for a point light at
+/// `position` ([`ShadowMapNode::face_matrices`](super::ShadowMapNode::face_matrices)), entry by
+/// entry to within 1e-5 of each entry's size, else 0. The shaders then project a point into a face
+/// with a few selects on its offset from the light (`cube_clip` in `shaders/pcss.wgsl`) in place of
+/// the face's matrix, which each SIMD lane reads for its own face: on the report's soft scene on
+/// llvmpipe the march at ½ resolution took about 0.9 of its time, and so did the soft-shadow grid's
+/// build. A caller's map with other faces keeps the matrices.
 pub(crate) fn standard_cube_near(faces: &[Mat4], position: Vec3) -> f32 {
     // Reversed-Z infinite perspective: clip z = near (the matrix's column w, row z).
     let near = faces.first().map_or(0.0, |f| f.w_axis.z);

@@ -168,9 +168,9 @@ fn layer_pass<'e>(
 }
 
 impl ShadowMapNode {
-    /// Records a gated map ([`ShadowMapInputs::fallback`](super::ShadowMapInputs::fallback)): the gate's scan, then each listed
-    /// layer's render pass, which loads the layer and draws its clear and its occluders from
-    /// the gate's arguments (zero, drawing nothing, unless the gate opened).
+    /// Records a gated map ([`ShadowMapInputs::fallback`](super::ShadowMapInputs::fallback)): the
+    /// gate's scan, then each listed layer's render pass, which loads the layer and draws its clear
+    /// and its occluders from the gate's arguments (zero, drawing nothing, unless the gate opened).
     fn encode_gated(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
@@ -213,7 +213,8 @@ impl ShadowMapNode {
 }
 
 impl Encode for ShadowMapNode {
-    /// Records the render of every face, if [`prepare`](Self::prepare) found a change.
+    /// Records the render of every face, if [`prepare`](crate::nodes::Node::prepare) found a
+    /// change.
     fn encode(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,

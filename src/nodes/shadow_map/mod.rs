@@ -584,7 +584,7 @@ impl Node for ShadowMapNode {
     /// Validates the occluders and decides whether the map must be re-rendered. Returns
     /// whether the next [`encode`](crate::nodes::Encode::encode) will render. A directional light's
     /// orthographic map is fitted to what `inputs.camera` sees up to the light's
-    /// [shadow distance](DirectionalLight::with_shadow_distance), or, without one, up to the
+    /// [shadow distance](crate::DirectionalLight::with_shadow_distance), or, without one, up to the
     /// farthest corner of the occluders' bounds (see [`directional_matrix`](Self::directional_matrix)),
     /// and re-renders only when the fitted map moved by a texel, the light or an occluder
     /// changed; point and spot lights do not read the camera.

@@ -34,14 +34,15 @@ pub struct ShadowMap<'a> {
     /// light reversed-Z orthographic (see the module docs).
     pub faces: &'a [Mat4],
     /// Relative depth bias of a point or spot light's map (a directional map's is
-    /// [`DIRECTIONAL_BIAS_TEXELS`] texels of each cascade, from its face).
+    /// [`DIRECTIONAL_BIAS_TEXELS`](crate::nodes::DIRECTIONAL_BIAS_TEXELS) texels of each cascade,
+    /// from its face).
     pub depth_bias: f32,
-    /// The occluders' world-space bounding spheres (centre, radius), which bound where a light
-    /// with a radius can cast a penumbra. [`ShadowMapNode`] takes each mesh's farthest vertex
-    /// from its box's centre, so that a sphere's is its own radius, not its box's
-    /// circumsphere (√3 times as large: on the report's soft scene its penumbra cone made the
-    /// march at ½ resolution 1.44–1.49 times as long, alternated in one process). Empty (a
-    /// shadow map rendered by the caller without them): a soft light's rays are marched whole.
+    /// The occluders' world-space bounding spheres (centre, radius), which bound where a light with
+    /// a radius can cast a penumbra. [`ShadowMapNode`](crate::nodes::ShadowMapNode) takes each
+    /// mesh's farthest vertex from its box's centre, so that a sphere's is its own radius, not its
+    /// box's circumsphere (√3 times as large: on the report's soft scene its penumbra cone made the
+    /// march at ½ resolution 1.44–1.49 times as long, alternated in one process). Empty (a shadow
+    /// map rendered by the caller without them): a soft light's rays are marched whole.
     pub bounds: &'a [Vec4],
     /// For each of `bounds` (same order; missing or zero: none), a plane `(n, d)` with the
     /// occluder in `n·x ≤ d` and the light's sphere strictly beyond it: no line from a point
@@ -76,8 +77,8 @@ pub struct ShadowMap<'a> {
     pub triangles: Option<&'a wgpu::Buffer>,
     /// Changes whenever the map's contents do, so that what is derived from it (the
     /// [`SoftShadowNode`](crate::nodes::SoftShadowNode)'s grid) is rebuilt only then:
-    /// [`ShadowMapNode`] counts its renders. A map the caller renders must change it at
-    /// every render.
+    /// [`ShadowMapNode`](crate::nodes::ShadowMapNode) counts its renders. A map the caller renders
+    /// must change it at every render.
     pub generation: u64,
 }
 

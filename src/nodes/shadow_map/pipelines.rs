@@ -24,7 +24,8 @@ const CLIPPED_BINDINGS: [Binding; 4] = [
 
 /// WGSL `ShadowFace`: the face's matrix and the light's position.
 pub(super) const FACE_BYTES: u64 = 80;
-/// WGSL `Instance`: the occluder's transform and its [`clip_reach`](super::draw::clip_reach) (0: none).
+/// WGSL `Instance`: the occluder's transform and its [`clip_reach`](super::draw::clip_reach) (0:
+/// none).
 pub(super) const INSTANCE_BYTES: u64 = 80;
 
 /// The binding table of `shaders/triangles.wgsl` (the occluders' triangles for the exact
