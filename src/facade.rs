@@ -80,26 +80,7 @@ impl LightSlot {
                 }
                 None => false,
             },
-            Pass::ShadowMap => {
-                // On demand, the crossing lists prepared by the extents step before it.
-                let fallback = step
-                    .planned
-                    .map_on_demand
-                    .then(|| self.extents.extents()?.crossings)
-                    .flatten();
-                if step.planned.map_on_demand && fallback.is_none() {
-                    return Err(Error::NotPrepared {
-                        reason: "the plan draws a shadow map on demand without crossing lists",
-                    });
-                }
-                let inputs = ShadowMapInputs {
-                    light,
-                    occluders,
-                    camera,
-                    fallback,
-                };
-                self.shadow.prepare(device, queue, &inputs)?
-            }
+            Pass::ShadowMap => self.prepare_shadow_map(device, queue, step)?,
             Pass::Extents => self.extents.prepare(
                 device,
                 queue,
@@ -137,37 +118,7 @@ impl LightSlot {
                 let inputs = TableInputs { eye, light, medium };
                 self.table.prepare(device, queue, &inputs)?
             }
-            Pass::March => {
-                self.march.set_settings(MarchSettings {
-                    scale,
-                    ..settings.march
-                })?;
-                let light_index = Some(i);
-                let shadows = plan.runs(Pass::ShadowMap, light_index).then(|| {
-                    Some(Shadows {
-                        shadow_map: self.shadow.shadow_map()?,
-                        extents: plan
-                            .runs(Pass::Extents, light_index)
-                            .then(|| self.extents.extents())
-                            .flatten(),
-                        soft: plan
-                            .runs(Pass::SoftShadow, light_index)
-                            .then(|| self.soft.as_ref()?.output())
-                            .flatten(),
-                    })
-                });
-                let inputs = MarchInputs {
-                    camera,
-                    light,
-                    medium,
-                    table: &self.table,
-                    scene_depth: frame.scene_depth,
-                    shadows: shadows.flatten(),
-                    mode: step.planned.march,
-                    light_texture: fl.texture.and(self.texture.maps()),
-                };
-                self.march.prepare(device, queue, &inputs)?
-            }
+            Pass::March => self.prepare_march(device, queue, settings, plan, step)?,
             Pass::Upsample => {
                 self.upsample.set_settings(settings.upsample)?;
                 let inputs = UpsampleInputs {
@@ -182,6 +133,78 @@ impl LightSlot {
             }
             Pass::Composite | Pass::IssTable => true,
         })
+    }
+
+    /// Prepares the light's shadow map: on demand ([`LightPlan::map_on_demand`]), with the
+    /// crossing lists prepared by the extents step before it.
+    fn prepare_shadow_map(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        step: &StepInputs<'_, '_>,
+    ) -> Result<bool> {
+        let light = &step.planned.light;
+        let fallback = step
+            .planned
+            .map_on_demand
+            .then(|| self.extents.extents()?.crossings)
+            .flatten();
+        if step.planned.map_on_demand && fallback.is_none() {
+            return Err(Error::NotPrepared {
+                reason: "the plan draws a shadow map on demand without crossing lists",
+            });
+        }
+        let inputs = ShadowMapInputs {
+            light,
+            occluders: step.occluders,
+            camera: step.frame.camera,
+            fallback,
+        };
+        self.shadow.prepare(device, queue, &inputs)
+    }
+
+    /// Prepares the light's march at its planned scale and mode, with the shadow inputs the
+    /// plan runs for it.
+    fn prepare_march(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        settings: &Settings,
+        plan: &Plan,
+        step: &StepInputs<'_, '_>,
+    ) -> Result<bool> {
+        let (frame, i) = (step.frame, step.index);
+        let (light, scale) = (&step.planned.light, step.planned.scale);
+        let fl = &frame.lights[i];
+        self.march.set_settings(MarchSettings {
+            scale,
+            ..settings.march
+        })?;
+        let light_index = Some(i);
+        let shadows = plan.runs(Pass::ShadowMap, light_index).then(|| {
+            Some(Shadows {
+                shadow_map: self.shadow.shadow_map()?,
+                extents: plan
+                    .runs(Pass::Extents, light_index)
+                    .then(|| self.extents.extents())
+                    .flatten(),
+                soft: plan
+                    .runs(Pass::SoftShadow, light_index)
+                    .then(|| self.soft.as_ref()?.output())
+                    .flatten(),
+            })
+        });
+        let inputs = MarchInputs {
+            camera: frame.camera,
+            light,
+            medium: frame.medium,
+            table: &self.table,
+            scene_depth: frame.scene_depth,
+            shadows: shadows.flatten(),
+            mode: step.planned.march,
+            light_texture: fl.texture.and(self.texture.maps()),
+        };
+        self.march.prepare(device, queue, &inputs)
     }
 
     /// The light's in-scatter at the output resolution: the upsample's when it is planned.

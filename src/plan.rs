@@ -437,187 +437,227 @@ fn light_scale(scale: Scale, shadowed: bool, textured: bool, error_target: Optio
 /// Decides the passes of a frame. The light texture, shadow map and table are planned whenever
 /// they apply; [`Plan::unchanged`] leaves them out when their node has nothing new to record.
 fn plan(facts: &FrameFacts) -> Plan {
-    let mut steps = Vec::new();
-    let mut run = |pass, light, detail: String| {
-        steps.push(Step {
-            pass,
-            light,
-            detail,
-        })
-    };
-    let mut skips = Vec::new();
-    let mut skip = |pass, light, reason| {
-        skips.push(Skip {
-            pass,
-            light,
-            reason,
-        })
-    };
+    let mut d = Decisions::default();
     let mut lights = Vec::new();
     for (i, l) in facts.lights.iter().enumerate() {
-        let light = Some(i);
-        let shadowed = !l.occluders.is_empty();
-        let soft = l.light.radius() > 0.0;
-        let directional = matches!(l.light, Light::Directional(_));
-        let scale = light_scale(facts.scale, shadowed, l.textured, facts.error_target);
-        let mut light_plan = LightPlan {
-            light: l.light,
-            occluders: l.occluders.clone(),
-            scale,
-            march: MarchMode::choose(facts.method, soft, None),
-            shadows: None,
-            map_on_demand: false,
-        };
-        if !facts.scatters {
-            lights.push(light_plan);
-            for pass in Pass::ALL
-                .into_iter()
-                .filter(|p| p.per_light() && p.needs_scattering())
-            {
-                skip(pass, light, Reason::NoScattering);
-            }
-            continue;
-        }
-        if l.textured {
-            run(
-                Pass::LightTexture,
-                light,
-                "blurred mip chain and flat regions".into(),
-            );
-        } else {
-            skip(Pass::LightTexture, light, Reason::Untextured);
-        }
-        // The shadow inputs the march gets. The hybrid and the exact method bound the marched
-        // interval: by the shadow volumes' extents (with crossing lists for the exact method),
-        // or for a light with a radius by the penumbra cones of the soft-shadow grid.
-        let bounded = matches!(facts.method, MarchMethod::Hybrid | MarchMethod::Exact);
-        let forms = shadowed.then_some(ShadowForms {
-            extents: bounded && !soft,
-            crossings: facts.method == MarchMethod::Exact,
-            soft_grid: bounded && soft,
-        });
-        match forms {
-            None => {
-                skip(Pass::ShadowMap, light, Reason::NoOccluders);
-                skip(Pass::Extents, light, Reason::NoOccluders);
-                skip(Pass::SoftShadow, light, Reason::NoOccluders);
-            }
-            Some(f) => {
-                let count = l.occluders.len();
-                let faces = match l.faces {
-                    Some(faces) => {
-                        const NAMES: [&str; 6] = ["+X", "-X", "+Y", "-Y", "+Z", "-Z"];
-                        let drawn: Vec<&str> = NAMES
-                            .iter()
-                            .zip(faces)
-                            .filter_map(|(n, f)| f.then_some(*n))
-                            .collect();
-                        format!(
-                            ", cube faces {} ({} without occluders not drawn)",
-                            drawn.join(" "),
-                            6 - drawn.len()
-                        )
-                    }
-                    None => match l.sun_reach {
-                        Some(d) => format!(
-                            ", cascades to {d:.4} from the eye (the medium's shadow reach; the \
-                             occluders reach farther)"
-                        ),
-                        None => String::new(),
-                    },
-                };
-                // The crossings decide every pixel they can count: the map only the rest.
-                let on_demand = f.extents && f.crossings && !facts.surface_maps;
-                light_plan.map_on_demand = on_demand;
-                let at = scale.divisor();
-                // Extents first: a map drawn on demand reads the crossing lists.
-                if f.extents && f.crossings {
-                    let per_pixel = facts.crossings;
-                    let detail = format!("crossing lists of {per_pixel} per pixel, at 1/{at}");
-                    run(Pass::Extents, light, detail);
-                } else if f.extents {
-                    run(Pass::Extents, light, format!("at 1/{at}"));
-                } else if f.soft_grid {
-                    skip(Pass::Extents, light, Reason::SoftLight);
-                } else {
-                    skip(Pass::Extents, light, Reason::BruteForce);
-                }
-                let demand = if on_demand {
-                    "; drawn only in a frame where a pixel's crossings cannot be counted \
-                     (a full list, an open mesh), decided on the GPU"
-                } else {
-                    ""
-                };
-                run(
-                    Pass::ShadowMap,
-                    light,
-                    format!("{count} occluder(s){faces}{demand}"),
-                );
-                if f.soft_grid {
-                    let detail = "visible fraction of the light's disc on a light-space grid";
-                    run(Pass::SoftShadow, light, detail.into());
-                } else if l.penumbra_below_texel {
-                    skip(Pass::SoftShadow, light, Reason::PenumbraBelowTexel);
-                } else if !soft {
-                    skip(Pass::SoftShadow, light, Reason::HardLight);
-                } else {
-                    skip(Pass::SoftShadow, light, Reason::BruteForce);
-                }
-            }
-        }
-        if directional {
-            skip(Pass::AirlightTable, light, Reason::ClosedFormAirlight);
-        } else {
-            run(Pass::AirlightTable, light, "rebuilt".into());
-        }
-        light_plan.march = MarchMode::choose(facts.method, soft, forms);
-        light_plan.shadows = forms;
-        let method = match light_plan.march {
-            MarchMode::Analytic => "analytic".to_string(),
-            MarchMode::Hybrid if forms.is_some_and(|f| f.soft_grid) => format!(
-                "penumbra cones marched through the soft-shadow grid (half a step a cell, at most {})",
-                facts.steps
-            ),
-            MarchMode::Hybrid => format!("hybrid, {} steps", facts.steps),
-            MarchMode::BruteForce => format!("brute force, {} steps", facts.steps),
-            MarchMode::Exact => format!(
-                "exact between crossings, overflowing pixels marched with {} steps",
-                facts.steps
-            ),
-            MarchMode::Textbook => format!("textbook march, {} steps", facts.steps),
-        };
-        run(
-            Pass::March,
-            light,
-            format!("{method}, at 1/{}", scale.divisor()),
-        );
-        if scale == Scale::Full && facts.scale != Scale::Full && shadowed && l.textured {
-            skip(Pass::Upsample, light, Reason::TexturedUnderErrorTarget);
-        } else if scale == Scale::Full {
-            skip(Pass::Upsample, light, Reason::FullResolution);
-        } else {
-            run(Pass::Upsample, light, format!("{:?}", facts.filter));
-        }
-        lights.push(light_plan);
+        lights.push(plan_light(&mut d, facts, i, l));
     }
     if !facts.surfaces {
-        skip(Pass::IssTable, None, Reason::NoSurfaceInput);
+        d.skip(Pass::IssTable, None, Reason::NoSurfaceInput);
     } else if !facts.scatters {
-        skip(Pass::IssTable, None, Reason::NoScattering);
+        d.skip(Pass::IssTable, None, Reason::NoScattering);
     } else {
-        run(Pass::IssTable, None, "rebuilt".into());
+        d.run(Pass::IssTable, None, "rebuilt".into());
     }
-    run(
+    d.run(
         Pass::Composite,
         None,
         format!("{} light(s)", facts.lights.len()),
     );
     Plan {
-        steps,
-        skipped: skips,
+        steps: d.steps,
+        skipped: d.skipped,
         culled: facts.culled.clone(),
         lights,
         scatters: facts.scatters,
+    }
+}
+
+/// The steps and skips of a plan, in the order they are decided.
+#[derive(Default)]
+struct Decisions {
+    steps: Vec<Step>,
+    skipped: Vec<Skip>,
+}
+
+impl Decisions {
+    /// `pass` runs for `light`, doing `detail`.
+    fn run(&mut self, pass: Pass, light: Option<usize>, detail: String) {
+        self.steps.push(Step {
+            pass,
+            light,
+            detail,
+        })
+    }
+
+    /// `pass` is left out for `light`, for `reason`.
+    fn skip(&mut self, pass: Pass, light: Option<usize>, reason: Reason) {
+        self.skipped.push(Skip {
+            pass,
+            light,
+            reason,
+        })
+    }
+}
+
+/// Decides light `i`'s passes (`l` its facts) into `d`; returns its plan.
+fn plan_light(d: &mut Decisions, facts: &FrameFacts, i: usize, l: &LightFacts) -> LightPlan {
+    let light = Some(i);
+    let shadowed = !l.occluders.is_empty();
+    let soft = l.light.radius() > 0.0;
+    let directional = matches!(l.light, Light::Directional(_));
+    let scale = light_scale(facts.scale, shadowed, l.textured, facts.error_target);
+    let mut light_plan = LightPlan {
+        light: l.light,
+        occluders: l.occluders.clone(),
+        scale,
+        march: MarchMode::choose(facts.method, soft, None),
+        shadows: None,
+        map_on_demand: false,
+    };
+    if !facts.scatters {
+        for pass in Pass::ALL
+            .into_iter()
+            .filter(|p| p.per_light() && p.needs_scattering())
+        {
+            d.skip(pass, light, Reason::NoScattering);
+        }
+        return light_plan;
+    }
+    if l.textured {
+        d.run(
+            Pass::LightTexture,
+            light,
+            "blurred mip chain and flat regions".into(),
+        );
+    } else {
+        d.skip(Pass::LightTexture, light, Reason::Untextured);
+    }
+    // The shadow inputs the march gets. The hybrid and the exact method bound the marched
+    // interval: by the shadow volumes' extents (with crossing lists for the exact method),
+    // or for a light with a radius by the penumbra cones of the soft-shadow grid.
+    let bounded = matches!(facts.method, MarchMethod::Hybrid | MarchMethod::Exact);
+    let forms = shadowed.then_some(ShadowForms {
+        extents: bounded && !soft,
+        crossings: facts.method == MarchMethod::Exact,
+        soft_grid: bounded && soft,
+    });
+    match forms {
+        None => {
+            d.skip(Pass::ShadowMap, light, Reason::NoOccluders);
+            d.skip(Pass::Extents, light, Reason::NoOccluders);
+            d.skip(Pass::SoftShadow, light, Reason::NoOccluders);
+        }
+        Some(f) => light_plan.map_on_demand = plan_shadows(d, facts, i, l, f, scale),
+    }
+    if directional {
+        d.skip(Pass::AirlightTable, light, Reason::ClosedFormAirlight);
+    } else {
+        d.run(Pass::AirlightTable, light, "rebuilt".into());
+    }
+    light_plan.march = MarchMode::choose(facts.method, soft, forms);
+    light_plan.shadows = forms;
+    let method = march_detail(light_plan.march, forms, facts.steps);
+    d.run(
+        Pass::March,
+        light,
+        format!("{method}, at 1/{}", scale.divisor()),
+    );
+    if scale == Scale::Full && facts.scale != Scale::Full && shadowed && l.textured {
+        d.skip(Pass::Upsample, light, Reason::TexturedUnderErrorTarget);
+    } else if scale == Scale::Full {
+        d.skip(Pass::Upsample, light, Reason::FullResolution);
+    } else {
+        d.run(Pass::Upsample, light, format!("{:?}", facts.filter));
+    }
+    light_plan
+}
+
+/// Decides the shadow passes of light `i` (`l` its facts), whose march gets the shadow inputs
+/// `f` at `scale`: the extents, the shadow map and the soft-shadow grid. Returns whether the
+/// map is drawn on demand ([`LightPlan::map_on_demand`]).
+fn plan_shadows(
+    d: &mut Decisions,
+    facts: &FrameFacts,
+    i: usize,
+    l: &LightFacts,
+    f: ShadowForms,
+    scale: Scale,
+) -> bool {
+    let light = Some(i);
+    let soft = l.light.radius() > 0.0;
+    let count = l.occluders.len();
+    let faces = map_layers_detail(l);
+    // The crossings decide every pixel they can count: the map only the rest.
+    let on_demand = f.extents && f.crossings && !facts.surface_maps;
+    let at = scale.divisor();
+    // Extents first: a map drawn on demand reads the crossing lists.
+    if f.extents && f.crossings {
+        let per_pixel = facts.crossings;
+        let detail = format!("crossing lists of {per_pixel} per pixel, at 1/{at}");
+        d.run(Pass::Extents, light, detail);
+    } else if f.extents {
+        d.run(Pass::Extents, light, format!("at 1/{at}"));
+    } else if f.soft_grid {
+        d.skip(Pass::Extents, light, Reason::SoftLight);
+    } else {
+        d.skip(Pass::Extents, light, Reason::BruteForce);
+    }
+    let demand = if on_demand {
+        "; drawn only in a frame where a pixel's crossings cannot be counted \
+         (a full list, an open mesh), decided on the GPU"
+    } else {
+        ""
+    };
+    d.run(
+        Pass::ShadowMap,
+        light,
+        format!("{count} occluder(s){faces}{demand}"),
+    );
+    if f.soft_grid {
+        let detail = "visible fraction of the light's disc on a light-space grid";
+        d.run(Pass::SoftShadow, light, detail.into());
+    } else if l.penumbra_below_texel {
+        d.skip(Pass::SoftShadow, light, Reason::PenumbraBelowTexel);
+    } else if !soft {
+        d.skip(Pass::SoftShadow, light, Reason::HardLight);
+    } else {
+        d.skip(Pass::SoftShadow, light, Reason::BruteForce);
+    }
+    on_demand
+}
+
+/// The shadow map's layers in words, for its step's detail: a point light's cube faces drawn,
+/// or where a sun's cascades stop at the medium's shadow reach (empty otherwise).
+fn map_layers_detail(l: &LightFacts) -> String {
+    match l.faces {
+        Some(faces) => {
+            const NAMES: [&str; 6] = ["+X", "-X", "+Y", "-Y", "+Z", "-Z"];
+            let drawn: Vec<&str> = NAMES
+                .iter()
+                .zip(faces)
+                .filter_map(|(n, f)| f.then_some(*n))
+                .collect();
+            format!(
+                ", cube faces {} ({} without occluders not drawn)",
+                drawn.join(" "),
+                6 - drawn.len()
+            )
+        }
+        None => match l.sun_reach {
+            Some(d) => format!(
+                ", cascades to {d:.4} from the eye (the medium's shadow reach; the \
+                 occluders reach farther)"
+            ),
+            None => String::new(),
+        },
+    }
+}
+
+/// The march's method in words, for its step's detail: `mode` with the shadow inputs `forms`
+/// and `steps` steps.
+fn march_detail(mode: MarchMode, forms: Option<ShadowForms>, steps: u32) -> String {
+    match mode {
+        MarchMode::Analytic => "analytic".to_string(),
+        MarchMode::Hybrid if forms.is_some_and(|f| f.soft_grid) => format!(
+            "penumbra cones marched through the soft-shadow grid (half a step a cell, at most {steps})"
+        ),
+        MarchMode::Hybrid => format!("hybrid, {steps} steps"),
+        MarchMode::BruteForce => format!("brute force, {steps} steps"),
+        MarchMode::Exact => {
+            format!("exact between crossings, overflowing pixels marched with {steps} steps")
+        }
+        MarchMode::Textbook => format!("textbook march, {steps} steps"),
     }
 }
 

@@ -46,59 +46,8 @@ impl<'a> Loader<'a, '_> {
                 .collect());
         }
 
-        // Each node's parent; glTF nodes form disjoint strict trees.
-        let mut parent: Vec<Option<usize>> = vec![None; nodes.len()];
-        for (i, node) in nodes.iter().enumerate() {
-            for child in node.children.iter().flatten() {
-                let c = child.value();
-                if c >= nodes.len() {
-                    return Err(self.fail(
-                        ErrorKind::Malformed,
-                        format!(
-                            "{} has child {c}, but there are {} nodes",
-                            node_name(root, i),
-                            nodes.len()
-                        ),
-                    ));
-                }
-                if let Some(p) = parent[c] {
-                    return Err(self.fail(
-                        ErrorKind::Malformed,
-                        format!("node {c} has two parents, nodes {p} and {i}"),
-                    ));
-                }
-                if c == i {
-                    return Err(self.fail(
-                        ErrorKind::Malformed,
-                        format!("{} is its own child", node_name(root, i)),
-                    ));
-                }
-                parent[c] = Some(i);
-            }
-        }
-
-        let scene_roots = |s: usize| -> Result<&'a [json::Index<json::Node>]> {
-            match root.scenes.get(s) {
-                Some(scene) => Ok(&scene.nodes),
-                None => Err(self.fail(
-                    ErrorKind::Malformed,
-                    format!(
-                        "the default scene is {s}, but there are {} scenes",
-                        root.scenes.len()
-                    ),
-                )),
-            }
-        };
-        let roots: Vec<usize> = if let Some(s) = root.scene {
-            scene_roots(s.value())?.iter().map(|n| n.value()).collect()
-        } else if !root.scenes.is_empty() {
-            root.scenes
-                .iter()
-                .flat_map(|scene| scene.nodes.iter().map(|n| n.value()))
-                .collect()
-        } else {
-            (0..nodes.len()).filter(|&i| parent[i].is_none()).collect()
-        };
+        let parent = self.parents()?;
+        let roots = self.roots(&parent)?;
 
         let mut visited = vec![false; nodes.len()];
         let mut out = Vec::new();
@@ -155,6 +104,73 @@ impl<'a> Loader<'a, '_> {
             }
         }
         Ok(out)
+    }
+
+    /// Each node's parent; glTF nodes form disjoint strict trees (checked: a child index in
+    /// range, one parent, not its own).
+    fn parents(&self) -> Result<Vec<Option<usize>>> {
+        let root = self.root;
+        let nodes = &root.nodes;
+        let mut parent: Vec<Option<usize>> = vec![None; nodes.len()];
+        for (i, node) in nodes.iter().enumerate() {
+            for child in node.children.iter().flatten() {
+                let c = child.value();
+                if c >= nodes.len() {
+                    return Err(self.fail(
+                        ErrorKind::Malformed,
+                        format!(
+                            "{} has child {c}, but there are {} nodes",
+                            node_name(root, i),
+                            nodes.len()
+                        ),
+                    ));
+                }
+                if let Some(p) = parent[c] {
+                    return Err(self.fail(
+                        ErrorKind::Malformed,
+                        format!("node {c} has two parents, nodes {p} and {i}"),
+                    ));
+                }
+                if c == i {
+                    return Err(self.fail(
+                        ErrorKind::Malformed,
+                        format!("{} is its own child", node_name(root, i)),
+                    ));
+                }
+                parent[c] = Some(i);
+            }
+        }
+        Ok(parent)
+    }
+
+    /// The nodes the placements start from: the default scene's roots, else every scene's,
+    /// else (no scenes) every node without a parent.
+    fn roots(&self, parent: &[Option<usize>]) -> Result<Vec<usize>> {
+        let root = self.root;
+        let nodes = &root.nodes;
+        let scene_roots = |s: usize| -> Result<&'a [json::Index<json::Node>]> {
+            match root.scenes.get(s) {
+                Some(scene) => Ok(&scene.nodes),
+                None => Err(self.fail(
+                    ErrorKind::Malformed,
+                    format!(
+                        "the default scene is {s}, but there are {} scenes",
+                        root.scenes.len()
+                    ),
+                )),
+            }
+        };
+        let roots: Vec<usize> = if let Some(s) = root.scene {
+            scene_roots(s.value())?.iter().map(|n| n.value()).collect()
+        } else if !root.scenes.is_empty() {
+            root.scenes
+                .iter()
+                .flat_map(|scene| scene.nodes.iter().map(|n| n.value()))
+                .collect()
+        } else {
+            (0..nodes.len()).filter(|&i| parent[i].is_none()).collect()
+        };
+        Ok(roots)
     }
 
     /// The triangle primitives of mesh `m`, built on first use.
@@ -226,23 +242,7 @@ impl<'a> Loader<'a, '_> {
         // Positions.
         let a = position_accessor.value();
         let accessor = self.accessor(a, &what, "POSITION")?;
-        let layout = match (accessor.type_, accessor.component_type) {
-            (Checked::Valid(Type::Vec3), Checked::Valid(c)) if c.0 != ComponentType::U32 => {
-                Layout {
-                    component: c.0,
-                    components: 3,
-                }
-            }
-            _ => {
-                return Err(self.fail(
-                    ErrorKind::Malformed,
-                    format!(
-                        "{what}: POSITION accessor {a} must be a VEC3 of FLOAT (or of 8- or \
-                         16-bit integers)"
-                    ),
-                ))
-            }
-        };
+        let layout = self.position_layout(accessor, a, &what)?;
         let vertex_count = count(accessor);
         if vertex_count > Mesh::MAX_POSITIONS as u64 {
             return Err(wrap(Error::MeshTooLarge {
@@ -290,81 +290,96 @@ impl<'a> Loader<'a, '_> {
                 (0..positions.len() as u32).collect()
             }
             Some(index_accessor) => {
-                let a = index_accessor.value();
-                let accessor = self.accessor(a, &what, "indices")?;
-                let layout = match (accessor.type_, accessor.component_type) {
-                    (Checked::Valid(Type::Scalar), Checked::Valid(c))
-                        if matches!(
-                            c.0,
-                            ComponentType::U8 | ComponentType::U16 | ComponentType::U32
-                        ) =>
-                    {
-                        Layout {
-                            component: c.0,
-                            components: 1,
-                        }
-                    }
-                    _ => {
-                        return Err(self.fail(
-                            ErrorKind::Malformed,
-                            format!(
-                                "{what}: indices accessor {a} must be a SCALAR of \
-                                 UNSIGNED_BYTE, UNSIGNED_SHORT or UNSIGNED_INT"
-                            ),
-                        ))
-                    }
-                };
-                if count(accessor) > max_indices {
-                    return Err(wrap(Error::MeshTooLarge {
-                        field: "triangles",
-                        count: usize::try_from(count(accessor) / 3).unwrap_or(usize::MAX),
-                        max: Mesh::MAX_TRIANGLES,
-                    }));
-                }
-                let raw = self.read(a, layout, &what)?;
-                let indices: Vec<u32> = raw
-                    .chunks_exact(layout.element_size())
-                    .map(|e| component_u32(layout.component, e))
-                    .collect();
-                if let Some((k, &index)) = indices
-                    .iter()
-                    .enumerate()
-                    .find(|(_, &i)| i as usize >= positions.len())
-                {
-                    return Err(self.fail(
-                        ErrorKind::IndexOutOfRange,
-                        format!(
-                            "{what}: index {k} of accessor {a} is {index}, but POSITION has \
-                             {} vertices",
-                            positions.len()
-                        ),
-                    ));
-                }
-                indices
+                self.indices(index_accessor.value(), &what, positions.len(), wrap)?
             }
         };
 
-        let triangles: Vec<u32> = match mode {
-            Mode::TriangleStrip => (0..indices.len().saturating_sub(2))
-                .flat_map(|i| {
-                    let (a, b, c) = (indices[i], indices[i + 1], indices[i + 2]);
-                    // Odd triangles swap their last two corners to keep the winding.
-                    if i % 2 == 0 {
-                        [a, b, c]
-                    } else {
-                        [a, c, b]
-                    }
-                })
-                .collect(),
-            Mode::TriangleFan => (1..indices.len().saturating_sub(1))
-                .flat_map(|i| [indices[i], indices[i + 1], indices[0]])
-                .collect(),
-            _ => indices,
-        };
+        let triangles = triangle_list(mode, indices);
         if triangles.is_empty() {
             return Ok(None);
         }
         Mesh::new(&positions, &triangles).map(Some).map_err(wrap)
+    }
+
+    /// The layout of `what`'s POSITION accessor `a`: a VEC3 of FLOAT (or of 8- or 16-bit
+    /// integers).
+    fn position_layout(&self, accessor: &json::Accessor, a: usize, what: &str) -> Result<Layout> {
+        match (accessor.type_, accessor.component_type) {
+            (Checked::Valid(Type::Vec3), Checked::Valid(c)) if c.0 != ComponentType::U32 => {
+                Ok(Layout {
+                    component: c.0,
+                    components: 3,
+                })
+            }
+            _ => Err(self.fail(
+                ErrorKind::Malformed,
+                format!(
+                    "{what}: POSITION accessor {a} must be a VEC3 of FLOAT (or of 8- or \
+                     16-bit integers)"
+                ),
+            )),
+        }
+    }
+
+    /// The indices of accessor `a` of `what`, a primitive whose POSITION has `vertices`
+    /// vertices, each checked against them (`wrap` names the primitive in a size error).
+    fn indices(
+        &mut self,
+        a: usize,
+        what: &str,
+        vertices: usize,
+        wrap: impl Fn(Error) -> Error,
+    ) -> Result<Vec<u32>> {
+        let max_indices = 3 * Mesh::MAX_TRIANGLES as u64 + 2;
+        let accessor = self.accessor(a, what, "indices")?;
+        let layout = match (accessor.type_, accessor.component_type) {
+            (Checked::Valid(Type::Scalar), Checked::Valid(c))
+                if matches!(
+                    c.0,
+                    ComponentType::U8 | ComponentType::U16 | ComponentType::U32
+                ) =>
+            {
+                Layout {
+                    component: c.0,
+                    components: 1,
+                }
+            }
+            _ => {
+                return Err(self.fail(
+                    ErrorKind::Malformed,
+                    format!(
+                        "{what}: indices accessor {a} must be a SCALAR of \
+                         UNSIGNED_BYTE, UNSIGNED_SHORT or UNSIGNED_INT"
+                    ),
+                ))
+            }
+        };
+        if count(accessor) > max_indices {
+            return Err(wrap(Error::MeshTooLarge {
+                field: "triangles",
+                count: usize::try_from(count(accessor) / 3).unwrap_or(usize::MAX),
+                max: Mesh::MAX_TRIANGLES,
+            }));
+        }
+        let raw = self.read(a, layout, what)?;
+        let indices: Vec<u32> = raw
+            .chunks_exact(layout.element_size())
+            .map(|e| component_u32(layout.component, e))
+            .collect();
+        if let Some((k, &index)) = indices
+            .iter()
+            .enumerate()
+            .find(|(_, &i)| i as usize >= vertices)
+        {
+            return Err(self.fail(
+                ErrorKind::IndexOutOfRange,
+                format!(
+                    "{what}: index {k} of accessor {a} is {index}, but POSITION has \
+                     {vertices} vertices"
+                ),
+            ));
+        }
+        Ok(indices)
     }
 
     /// Accessor `a`, referenced as `role` by `what`.
@@ -442,62 +457,84 @@ impl<'a> Loader<'a, '_> {
         };
 
         if let Some(sparse) = &accessor.sparse {
-            let m = sparse.count.0;
-            if m > n {
-                return Err(out_of_range(format!(
-                    "has {m} sparse elements but only {n} elements"
-                )));
-            }
-            let index_component = match sparse.indices.component_type {
-                Checked::Valid(c) => c.0,
-                Checked::Invalid => {
-                    return Err(self.fail(
-                        ErrorKind::Malformed,
-                        format!("{what}: accessor {a} has sparse indices of an invalid type"),
-                    ))
-                }
-            };
-            let index_layout = Layout {
-                component: index_component,
-                components: 1,
-            };
-            let m = m as usize;
-            let isize_ = index_layout.element_size();
-            let view = sparse.indices.buffer_view.value();
-            let offset = sparse.indices.byte_offset.0;
-            let data = self.view(view, what)?;
-            let Some(bytes) = slice_at(data, offset, m, isize_) else {
-                return Err(out_of_range(format!(
-                    "has {m} sparse indices at byte {offset} of bufferView {view}, which is \
-                     only {} bytes long",
-                    data.len()
-                )));
-            };
-            let targets: Vec<u32> = bytes
-                .chunks_exact(isize_)
-                .map(|b| component_u32(index_component, b))
-                .collect();
-            if let Some(&t) = targets.iter().find(|&&t| u64::from(t) >= n) {
-                return Err(out_of_range(format!(
-                    "has sparse index {t}, but only {n} elements"
-                )));
-            }
-            let view = sparse.values.buffer_view.value();
-            let offset = sparse.values.byte_offset.0;
-            let data = self.view(view, what)?;
-            let Some(values) = slice_at(data, offset, m, elem) else {
-                return Err(out_of_range(format!(
-                    "has {m} sparse values at byte {offset} of bufferView {view}, which is \
-                     only {} bytes long",
-                    data.len()
-                )));
-            };
-            for (t, value) in targets.iter().zip(values.chunks_exact(elem)) {
-                let t = *t as usize * elem;
-                out[t..t + elem].copy_from_slice(value);
-            }
+            self.apply_sparse((a, accessor, sparse), elem, what, &mut out)?;
         }
         Ok(out)
+    }
+
+    /// Writes accessor `a`'s `sparse` elements (of `elem` bytes) over `out`, its dense
+    /// elements, checking their count, indices and bytes against the accessor and the views.
+    fn apply_sparse(
+        &mut self,
+        (a, accessor, sparse): (usize, &json::Accessor, &json::accessor::sparse::Sparse),
+        elem: usize,
+        what: &str,
+        out: &mut [u8],
+    ) -> Result<()> {
+        let label = self.label;
+        let n = count(accessor);
+        let out_of_range = |problem: String| {
+            gltf_error(
+                label,
+                ErrorKind::AccessorOutOfRange,
+                format!("{what}: accessor {a} {problem}"),
+            )
+        };
+        let m = sparse.count.0;
+        if m > n {
+            return Err(out_of_range(format!(
+                "has {m} sparse elements but only {n} elements"
+            )));
+        }
+        let index_component = match sparse.indices.component_type {
+            Checked::Valid(c) => c.0,
+            Checked::Invalid => {
+                return Err(self.fail(
+                    ErrorKind::Malformed,
+                    format!("{what}: accessor {a} has sparse indices of an invalid type"),
+                ))
+            }
+        };
+        let index_layout = Layout {
+            component: index_component,
+            components: 1,
+        };
+        let m = m as usize;
+        let isize_ = index_layout.element_size();
+        let view = sparse.indices.buffer_view.value();
+        let offset = sparse.indices.byte_offset.0;
+        let data = self.view(view, what)?;
+        let Some(bytes) = slice_at(data, offset, m, isize_) else {
+            return Err(out_of_range(format!(
+                "has {m} sparse indices at byte {offset} of bufferView {view}, which is \
+                 only {} bytes long",
+                data.len()
+            )));
+        };
+        let targets: Vec<u32> = bytes
+            .chunks_exact(isize_)
+            .map(|b| component_u32(index_component, b))
+            .collect();
+        if let Some(&t) = targets.iter().find(|&&t| u64::from(t) >= n) {
+            return Err(out_of_range(format!(
+                "has sparse index {t}, but only {n} elements"
+            )));
+        }
+        let view = sparse.values.buffer_view.value();
+        let offset = sparse.values.byte_offset.0;
+        let data = self.view(view, what)?;
+        let Some(values) = slice_at(data, offset, m, elem) else {
+            return Err(out_of_range(format!(
+                "has {m} sparse values at byte {offset} of bufferView {view}, which is \
+                 only {} bytes long",
+                data.len()
+            )));
+        };
+        for (t, value) in targets.iter().zip(values.chunks_exact(elem)) {
+            let t = *t as usize * elem;
+            out[t..t + elem].copy_from_slice(value);
+        }
+        Ok(())
     }
 
     /// Buffer view `v`'s byte stride, if it has one.
@@ -628,5 +665,27 @@ impl<'a> Loader<'a, '_> {
             )),
             Err(e) => Err(e),
         }
+    }
+}
+
+/// The triangles' corners (three indices each) of a primitive drawn in `mode` from `indices`:
+/// a strip's odd triangles swap their last two corners to keep the winding.
+fn triangle_list(mode: Mode, indices: Vec<u32>) -> Vec<u32> {
+    match mode {
+        Mode::TriangleStrip => (0..indices.len().saturating_sub(2))
+            .flat_map(|i| {
+                let (a, b, c) = (indices[i], indices[i + 1], indices[i + 2]);
+                // Odd triangles swap their last two corners to keep the winding.
+                if i % 2 == 0 {
+                    [a, b, c]
+                } else {
+                    [a, c, b]
+                }
+            })
+            .collect(),
+        Mode::TriangleFan => (1..indices.len().saturating_sub(1))
+            .flat_map(|i| [indices[i], indices[i + 1], indices[0]])
+            .collect(),
+        _ => indices,
     }
 }

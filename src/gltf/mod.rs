@@ -159,24 +159,7 @@ fn load_bytes(
         (_, kind) => fail(kind, problem),
     })?;
 
-    let version = root.asset.version.trim();
-    if version.split('.').next() != Some("2") {
-        return Err(fail(
-            ErrorKind::Unsupported,
-            format!("glTF version {version:?} is not supported (only 2.x)"),
-        ));
-    }
-    if let Some(ext) = root
-        .extensions_required
-        .iter()
-        .find(|ext| UNSUPPORTED_EXTENSIONS.contains(&ext.as_str()))
-    {
-        return Err(fail(
-            ErrorKind::Unsupported,
-            format!("the file requires the extension {ext}, which this loader cannot decode"),
-        ));
-    }
-
+    check_supported(&root, label)?;
     budget.add(Limit::Nodes, root.nodes.len() as u64, label)?;
     let mut loader = Loader {
         root: &root,
@@ -223,26 +206,7 @@ fn load_bytes(
             })?;
         }
         let name = root.meshes.get(mesh_index).and_then(|m| m.name.clone());
-        if transform.determinant() < 0.0 {
-            // A mirroring node (valid glTF: its triangles' winding reverses). Occluders take
-            // no mirroring transform (their shadow volumes would turn inside out), so the
-            // mesh is mirrored in its own space and wound the other way, and the transform
-            // mirrored back: the same world triangles, facing out.
-            let mirror = Mat4::from_scale(Vec3::new(-1.0, 1.0, 1.0));
-            for mesh in primitives {
-                out.push(GltfMesh {
-                    name: name.clone(),
-                    mesh: mirrored(mesh)?,
-                    transform: transform * mirror,
-                });
-            }
-            continue;
-        }
-        out.extend(primitives.iter().map(|mesh| GltfMesh {
-            name: name.clone(),
-            mesh: mesh.clone(),
-            transform,
-        }));
+        place(&mut out, primitives, name, transform)?;
     }
     if out.is_empty() {
         return Err(fail(
@@ -256,6 +220,60 @@ fn load_bytes(
         ));
     }
     Ok(out)
+}
+
+/// Fails on a glTF version other than 2.x and on a required extension this loader cannot
+/// decode.
+fn check_supported(root: &json::Root, label: &str) -> Result<()> {
+    let fail = |kind, problem: String| gltf_error(label, kind, problem);
+    let version = root.asset.version.trim();
+    if version.split('.').next() != Some("2") {
+        return Err(fail(
+            ErrorKind::Unsupported,
+            format!("glTF version {version:?} is not supported (only 2.x)"),
+        ));
+    }
+    if let Some(ext) = root
+        .extensions_required
+        .iter()
+        .find(|ext| UNSUPPORTED_EXTENSIONS.contains(&ext.as_str()))
+    {
+        return Err(fail(
+            ErrorKind::Unsupported,
+            format!("the file requires the extension {ext}, which this loader cannot decode"),
+        ));
+    }
+    Ok(())
+}
+
+/// Appends to `out` one placement of a mesh's `primitives` (named `name`) at `transform`.
+fn place(
+    out: &mut Vec<GltfMesh>,
+    primitives: &[Mesh],
+    name: Option<String>,
+    transform: Mat4,
+) -> Result<()> {
+    if transform.determinant() < 0.0 {
+        // A mirroring node (valid glTF: its triangles' winding reverses). Occluders take
+        // no mirroring transform (their shadow volumes would turn inside out), so the
+        // mesh is mirrored in its own space and wound the other way, and the transform
+        // mirrored back: the same world triangles, facing out.
+        let mirror = Mat4::from_scale(Vec3::new(-1.0, 1.0, 1.0));
+        for mesh in primitives {
+            out.push(GltfMesh {
+                name: name.clone(),
+                mesh: mirrored(mesh)?,
+                transform: transform * mirror,
+            });
+        }
+        return Ok(());
+    }
+    out.extend(primitives.iter().map(|mesh| GltfMesh {
+        name: name.clone(),
+        mesh: mesh.clone(),
+        transform,
+    }));
+    Ok(())
 }
 
 /// `mesh` mirrored in x, each triangle wound the other way (so it still faces out).

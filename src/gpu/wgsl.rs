@@ -15,12 +15,13 @@ pub(crate) struct Wgsl<'a> {
     pub text: &'a str,
 }
 
-/// The `shaders/` file `$name`.
+/// The `shaders/` file `$name` (from the crate's root, so that a node in a folder of
+/// `src/nodes/` names it as one in a file does).
 macro_rules! wgsl_file {
     ($name:literal) => {
         $crate::gpu::wgsl::Wgsl {
             name: $name,
-            text: include_str!(concat!("../../shaders/", $name)),
+            text: include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/shaders/", $name)),
         }
     };
 }

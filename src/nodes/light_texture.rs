@@ -208,42 +208,23 @@ impl Node for LightTextureNode {
         input: &LightTextureInput<'_>,
     ) -> Result<bool> {
         let texture = input.texture;
-        let problem = |p: String| {
-            Err(Error::InvalidTexture {
-                field: "light_texture",
-                problem: p,
-            })
-        };
-        let format = texture.format();
-        let filterable = format
-            .guaranteed_format_features(device.features())
-            .flags
-            .contains(wgpu::TextureFormatFeatureFlags::FILTERABLE);
-        let float = matches!(
-            format.sample_type(None, Some(device.features())),
-            Some(wgpu::TextureSampleType::Float { filterable: true })
-        );
-        if !(filterable && float) {
-            return problem(format!("{format:?} cannot be filtered on this device"));
-        }
-        if texture.dimension() != wgpu::TextureDimension::D2 || texture.sample_count() != 1 {
-            return problem("must be a single-sampled 2D texture".into());
-        }
-        if texture.depth_or_array_layers() != 1 {
-            return problem(format!(
-                "has {} array layers, expected 1",
-                texture.depth_or_array_layers()
-            ));
-        }
-        if !texture
-            .usage()
-            .contains(wgpu::TextureUsages::TEXTURE_BINDING)
-        {
-            return problem("needs TextureUsages::TEXTURE_BINDING".into());
-        }
+        check_texture(device, texture)?;
         if self.source.as_ref() == Some(texture) && self.channels == input.channels {
             return Ok(self.pending);
         }
+        self.build_mips(device, texture);
+        self.build_flats(device, texture);
+        self.source = Some(texture.clone());
+        self.channels = input.channels;
+        self.pending = true;
+        Ok(true)
+    }
+}
+
+impl LightTextureNode {
+    /// (Re)creates the mip chain for `texture` and each level's bind group (reading the level
+    /// above, or the source) and target view.
+    fn build_mips(&mut self, device: &wgpu::Device, texture: &wgpu::Texture) {
         let (w, h) = (texture.width(), texture.height());
         let levels = 32 - w.max(h).leading_zeros();
         self.mips = Some(device.create_texture(&wgpu::TextureDescriptor {
@@ -294,6 +275,13 @@ impl Node for LightTextureNode {
                 (bind_group, target)
             })
             .collect();
+    }
+
+    /// (Re)creates the flat-region textures of the chain's level 0 (cells of `texture`'s size
+    /// less one) and the bind group and target of each of the flags, runs and squares passes.
+    fn build_flats(&mut self, device: &wgpu::Device, texture: &wgpu::Texture) {
+        let (w, h) = (texture.width(), texture.height());
+        let mips = self.mips.as_ref().expect("created with the levels");
         let cells = wgpu::Extent3d {
             width: (w - 1).max(1),
             height: (h - 1).max(1),
@@ -337,11 +325,46 @@ impl Node for LightTextureNode {
             })
             .collect();
         self.flats = Some(flats);
-        self.source = Some(texture.clone());
-        self.channels = input.channels;
-        self.pending = true;
-        Ok(true)
     }
+}
+
+/// Checks that `texture` is a filterable single-sampled 2D colour texture of one layer, with
+/// `TEXTURE_BINDING`.
+fn check_texture(device: &wgpu::Device, texture: &wgpu::Texture) -> Result<()> {
+    let problem = |p: String| {
+        Err(Error::InvalidTexture {
+            field: "light_texture",
+            problem: p,
+        })
+    };
+    let format = texture.format();
+    let filterable = format
+        .guaranteed_format_features(device.features())
+        .flags
+        .contains(wgpu::TextureFormatFeatureFlags::FILTERABLE);
+    let float = matches!(
+        format.sample_type(None, Some(device.features())),
+        Some(wgpu::TextureSampleType::Float { filterable: true })
+    );
+    if !(filterable && float) {
+        return problem(format!("{format:?} cannot be filtered on this device"));
+    }
+    if texture.dimension() != wgpu::TextureDimension::D2 || texture.sample_count() != 1 {
+        return problem("must be a single-sampled 2D texture".into());
+    }
+    if texture.depth_or_array_layers() != 1 {
+        return problem(format!(
+            "has {} array layers, expected 1",
+            texture.depth_or_array_layers()
+        ));
+    }
+    if !texture
+        .usage()
+        .contains(wgpu::TextureUsages::TEXTURE_BINDING)
+    {
+        return problem("needs TextureUsages::TEXTURE_BINDING".into());
+    }
+    Ok(())
 }
 
 impl Encode for LightTextureNode {

@@ -1,5 +1,6 @@
-//! Render-graph nodes. Each lives in one file with its GPU definition (binding table, layout,
-//! pipelines, parameter struct; its WGSL is `shaders/<node>.wgsl`) and keeps one contract:
+//! Render-graph nodes. Each lives in one file (or, split by concern, one folder) with its GPU
+//! definition (binding table, layout, pipelines, parameter struct; its WGSL is
+//! `shaders/<node>.wgsl`) and keeps one contract:
 //!
 //! * `new(device, &Cache, settings) -> Result<Self>`: long-lived resources (`settings` left out
 //!   where a node has none); `settings()` and `set_settings(settings) -> Result<()>` where they

@@ -192,6 +192,54 @@ fn ball_interval(c: DVec3, rho: f64, y: f64) -> Option<(f64, f64)> {
     })
 }
 
+/// The triangle `a` (corners in the cap's frame) clipped to the slab `z_min ≤ z ≤ cut`
+/// (`b`: scratch; `a` ends as the clipped polygon), where it keeps a corner and overlaps the
+/// cap's square (`tan_a`: the tangent of the cap's half-angle), with the rows through its
+/// corners added to `breaks`.
+fn clip_polygon(
+    (a, b): (&mut Vec<DVec3>, &mut Vec<DVec3>),
+    (z_min, cut): (f64, f64),
+    tan_a: f64,
+    breaks: &mut Vec<f64>,
+) -> Option<Polygon> {
+    clip(a, z_min, -1.0, b);
+    if b.len() < 3 {
+        return None;
+    }
+    clip(b, cut, 1.0, a);
+    if a.len() < 3 {
+        return None;
+    }
+    let proj = |q: &DVec3| (q.x / (q.z * tan_a), q.y / (q.z * tan_a));
+    let (mut u0, mut u1, mut v0, mut v1) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
+    for q in a.iter() {
+        let (u, v) = proj(q);
+        (u0, u1, v0, v1) = (u0.min(u), u1.max(u), v0.min(v), v1.max(v));
+    }
+    if u0 >= 1.0 || u1 <= -1.0 || v0 >= 1.0 || v1 <= -1.0 {
+        return None; // wholly outside the cap's square
+    }
+    let mut corners = [DVec3::ZERO; 5];
+    let len = a.len().min(5);
+    corners[..len].copy_from_slice(&a[..len]);
+    for q in a.iter() {
+        let v = proj(q).1;
+        if v.abs() < 1.0 {
+            breaks.push(v.asin());
+        }
+    }
+    Some(Polygon {
+        corners,
+        len,
+        v: (v0, v1),
+    })
+}
+
 /// The visible fraction of the cap of half-angle `alpha` around the unit `axis` of the light
 /// at distance `d` (radius `r`) from `x`, hidden by `shapes`; `None` where a sphere straddles
 /// the plane where the lines have entered the light (see the [module docs](self)).
@@ -224,42 +272,10 @@ pub(crate) fn visible(
                 for t in triangles {
                     a.clear();
                     a.extend(t.iter().map(|&q| frame(q)));
-                    clip(&a, z_min, -1.0, &mut b);
-                    if b.len() < 3 {
-                        continue;
+                    let slab = (z_min, cut);
+                    if let Some(p) = clip_polygon((&mut a, &mut b), slab, tan_a, &mut breaks) {
+                        polygons.push(p);
                     }
-                    clip(&b, cut, 1.0, &mut a);
-                    if a.len() < 3 {
-                        continue;
-                    }
-                    let proj = |q: &DVec3| (q.x / (q.z * tan_a), q.y / (q.z * tan_a));
-                    let (mut u0, mut u1, mut v0, mut v1) = (
-                        f64::INFINITY,
-                        f64::NEG_INFINITY,
-                        f64::INFINITY,
-                        f64::NEG_INFINITY,
-                    );
-                    for q in &a {
-                        let (u, v) = proj(q);
-                        (u0, u1, v0, v1) = (u0.min(u), u1.max(u), v0.min(v), v1.max(v));
-                    }
-                    if u0 >= 1.0 || u1 <= -1.0 || v0 >= 1.0 || v1 <= -1.0 {
-                        continue; // wholly outside the cap's square
-                    }
-                    let mut corners = [DVec3::ZERO; 5];
-                    let len = a.len().min(5);
-                    corners[..len].copy_from_slice(&a[..len]);
-                    for q in &a {
-                        let v = proj(q).1;
-                        if v.abs() < 1.0 {
-                            breaks.push(v.asin());
-                        }
-                    }
-                    polygons.push(Polygon {
-                        corners,
-                        len,
-                        v: (v0, v1),
-                    });
                 }
             }
             &&Shape::Ball(centre, rho) => {
@@ -295,39 +311,7 @@ pub(crate) fn visible(
     points.sort_by(f64::total_cmp);
     points.dedup();
     let segments: Vec<(usize, f64, f64)> = points.windows(2).map(|w| (0, w[0], w[1])).collect();
-    let row = |theta: f64| {
-        let (s, c) = theta.sin_cos();
-        let y = tan_a * s;
-        let w = tan_a * c;
-        let k2 = 1.0 + y * y;
-        let f = |x: f64| x / (k2 * (k2 + x * x).sqrt());
-        let v = s;
-        let mut hidden: Vec<(f64, f64)> = polygons
-            .iter()
-            .filter(|p| p.v.0 < v && v < p.v.1)
-            .filter_map(|p| polygon_interval(p, y))
-            .chain(
-                balls
-                    .iter()
-                    .filter_map(|&(c, rho)| ball_interval(c, rho, y)),
-            )
-            .map(|(lo, hi)| (lo.max(-w), hi.min(w)))
-            .filter(|(lo, hi)| lo < hi)
-            .collect();
-        hidden.sort_by(|p, q| p.0.total_cmp(&q.0));
-        let mut seen = 0.0;
-        let mut from = -w;
-        for (lo, hi) in hidden {
-            if lo > from {
-                seen += f(lo) - f(from);
-            }
-            from = from.max(hi);
-        }
-        if w > from {
-            seen += f(w) - f(from);
-        }
-        tan_a * c * seen
-    };
+    let row = |theta: f64| row_seen(theta, tan_a, &polygons, &balls);
     // The tolerance is relative to the cap's solid angle as well as to what is seen, which a
     // sliver of the light makes tiny (and a hidden light zero, exactly: no row sees anything).
     let cap = 2.0 * std::f64::consts::PI * 2.0 * (0.5 * alpha).sin().powi(2);
@@ -340,4 +324,40 @@ pub(crate) fn visible(
     )
     .x;
     Some((seen / cap).clamp(0.0, 1.0))
+}
+
+/// What the row at angle `theta` sees of the cap of half-angle tangent `tan_a`: the rest of its
+/// width where `polygons` and `balls` hide none, weighted by the solid angle along it.
+fn row_seen(theta: f64, tan_a: f64, polygons: &[Polygon], balls: &[(DVec3, f64)]) -> f64 {
+    let (s, c) = theta.sin_cos();
+    let y = tan_a * s;
+    let w = tan_a * c;
+    let k2 = 1.0 + y * y;
+    let f = |x: f64| x / (k2 * (k2 + x * x).sqrt());
+    let v = s;
+    let mut hidden: Vec<(f64, f64)> = polygons
+        .iter()
+        .filter(|p| p.v.0 < v && v < p.v.1)
+        .filter_map(|p| polygon_interval(p, y))
+        .chain(
+            balls
+                .iter()
+                .filter_map(|&(c, rho)| ball_interval(c, rho, y)),
+        )
+        .map(|(lo, hi)| (lo.max(-w), hi.min(w)))
+        .filter(|(lo, hi)| lo < hi)
+        .collect();
+    hidden.sort_by(|p, q| p.0.total_cmp(&q.0));
+    let mut seen = 0.0;
+    let mut from = -w;
+    for (lo, hi) in hidden {
+        if lo > from {
+            seen += f(lo) - f(from);
+        }
+        from = from.max(hi);
+    }
+    if w > from {
+        seen += f(w) - f(from);
+    }
+    tan_a * c * seen
 }

@@ -368,21 +368,28 @@ fn the_check_finds_upward_uses_and_cycles() {
 }
 
 /// Every use of one module inside `src/nodes/` by another, from `(path, text)` pairs relative
-/// to `src` (only the `nodes/*.rs` files count; `nodes/mod.rs` declares and re-exports, as
-/// `lib.rs` does above): `crate::nodes::x`, `nodes::x` and `super::x` paths, a name
-/// re-exported by `mod_rs` counting as the module it comes from.
+/// to `src` (the `nodes/*.rs` files, and a folder module's `nodes/x/*.rs` files counting as
+/// module `x`; `nodes/mod.rs` declares and re-exports, as `lib.rs` does above):
+/// `crate::nodes::x`, `nodes::x` and `super::x` paths (in a folder module's files
+/// `super::super::x`, their `super::` being the folder's own module), a name re-exported by
+/// `mod_rs` counting as the module it comes from.
 fn node_edges(files: &[(String, String)], mod_rs: &str, modules: &BTreeSet<String>) -> Vec<Edge> {
     let reexports = root_reexports(mod_rs);
     let mut out = Vec::new();
     for (path, text) in files {
-        let Some(from) = path
+        let Some(file) = path
             .strip_prefix("nodes/")
             .and_then(|f| f.strip_suffix(".rs"))
-            .filter(|f| *f != "mod" && !f.contains('/'))
+            .filter(|f| *f != "mod")
         else {
             continue;
         };
-        for prefix in ["crate::nodes::", "nodes::", "super::"] {
+        let (from, parent) = match file.split_once('/') {
+            Some((folder, rest)) if !rest.contains('/') => (folder, "super::super::"),
+            Some(_) => continue,
+            None => (file, "super::"),
+        };
+        for prefix in ["crate::nodes::", "nodes::", parent] {
             for (to, line) in uses_after(text, prefix, &reexports) {
                 if to != from && modules.contains(&to) {
                     out.push(Edge {
@@ -416,6 +423,17 @@ fn modules_inside_nodes_form_no_circle() {
             if name != "mod" {
                 modules.insert(name);
             }
+        } else if path.is_dir() {
+            // A node split into a folder: its files are the module `name`.
+            for inner in std::fs::read_dir(&path).expect("read a folder of src/nodes") {
+                let inner = inner.expect("entry").path();
+                if inner.extension().is_some_and(|e| e == "rs") {
+                    let file = inner.file_name().unwrap().to_string_lossy().to_string();
+                    let text = std::fs::read_to_string(&inner).expect("read source");
+                    files.push((format!("nodes/{name}/{file}"), text));
+                }
+            }
+            modules.insert(name);
         }
     }
     let mod_rs = std::fs::read_to_string(dir.join("mod.rs")).expect("read nodes/mod.rs");
@@ -458,7 +476,9 @@ fn modules_inside_nodes_form_no_circle() {
     }
 
     // Planted: `a` names `b` through `crate::nodes::`, `b` names `a`'s re-exported type
-    // through `super::`; `c` names `a` in a comment only.
+    // through `super::`; `c` names `a` in a comment only. Then in a folder module `d`: its
+    // `super::` paths name its own files (`super::a` is `d/a.rs`, no edge), and
+    // `super::super::b` names the node `b`, which names `d` back: a circle.
     let planted = [
         ("nodes/a.rs", "use crate::nodes::b::Helper;"),
         ("nodes/b.rs", "fn f(n: &super::ANode) {}"),
@@ -466,17 +486,43 @@ fn modules_inside_nodes_form_no_circle() {
             "nodes/c.rs",
             "// crate::nodes::a::ANode\nuse crate::nodes::{self};",
         ),
+        ("nodes/d/mod.rs", "mod a; use crate::nodes::c::C;"),
+        (
+            "nodes/d/a.rs",
+            "use super::a::X; use super::super::b::Helper;",
+        ),
     ];
     let planted: Vec<(String, String)> = planted
         .iter()
         .map(|(p, t)| (p.to_string(), t.to_string()))
         .collect();
-    let names: BTreeSet<String> = ["a", "b", "c"].iter().map(|s| s.to_string()).collect();
-    let found = node_edges(&planted, "pub use a::{ANode, AInputs};", &names);
+    let names: BTreeSet<String> = ["a", "b", "c", "d"].iter().map(|s| s.to_string()).collect();
+    let found = node_edges(&planted[..3], "pub use a::{ANode, AInputs};", &names);
     assert_eq!(found.len(), 2, "{found:?}");
     assert_eq!(
         cycle(&found),
         Some(vec!["a".to_string(), "b".to_string(), "a".to_string()])
+    );
+    let mut planted = planted;
+    planted[1].1 = "fn f(n: &super::DNode) {}".to_string();
+    planted[0].1 = String::new();
+    let found = node_edges(&planted, "pub use d::{DNode};", &names);
+    let pairs: Vec<(&str, &str, &str)> = found
+        .iter()
+        .map(|e| (e.from.as_str(), e.to.as_str(), e.site.as_str()))
+        .collect();
+    assert_eq!(
+        pairs,
+        [
+            ("b", "d", "nodes/b.rs:1"),
+            ("d", "c", "nodes/d/mod.rs:1"),
+            ("d", "b", "nodes/d/a.rs:1")
+        ],
+        "{found:?}"
+    );
+    assert_eq!(
+        cycle(&found),
+        Some(vec!["b".to_string(), "d".to_string(), "b".to_string()])
     );
 }
 

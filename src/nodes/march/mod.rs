@@ -63,6 +63,14 @@ use crate::nodes::{Encode, Node};
 use crate::pass::Pass;
 use crate::scene::{Camera, Light, Medium};
 
+mod mode;
+mod stats;
+
+pub use mode::{MarchMethod, MarchMode, ShadowForms};
+pub use stats::{MarchStats, MarchWork};
+
+use stats::stats_buffer;
+
 /// The march's binding table: `@binding(i)` of `shaders/march.wgsl`'s group 0 is entry `i`
 /// (group 1, the light and its shadow map, is [`ShadowBinding`]'s).
 const BINDINGS: [Binding; 17] = [
@@ -84,97 +92,6 @@ const BINDINGS: [Binding; 17] = [
     Binding::Volume,                                    // soft_volume
     Binding::UintTexture,                               // light_flats
 ];
-
-/// How the march integrates each pixel's ray for one light this frame: the form its
-/// [`MarchMethod`] takes given the shadow inputs the frame has, and the shader's `MODE`
-/// pipeline constant. The planner picks it with [`MarchMode::choose`]
-/// ([`LightPlan::march`](crate::plan::LightPlan::march)); a caller wiring the nodes by hand
-/// calls `choose` too, and [`MarchNode::prepare`] checks that its inputs carry what the mode reads.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum MarchMode {
-    /// No occluders: the closed-form airlight, one table lookup per pixel.
-    Analytic = 0,
-    /// Closed form outside the shadow volumes' extents (for a light with a radius, outside the
-    /// penumbra cones of the soft-shadow grid), marched between them.
-    Hybrid = 1,
-    /// Marched over the whole ray.
-    BruteForce = 2,
-    /// Closed form between the crossings of each pixel's list.
-    Exact = 3,
-    /// The textbook Riemann sum over the whole ray.
-    Textbook = 4,
-}
-
-/// Which shadow inputs a light's march has this frame (see [`MarchMode::choose`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct ShadowForms {
-    /// The shadow volumes' extents ([`Shadows::extents`]).
-    pub extents: bool,
-    /// The extents carry crossing lists.
-    pub crossings: bool,
-    /// A soft-shadow grid ([`Shadows::soft`]).
-    pub soft_grid: bool,
-}
-
-impl ShadowForms {
-    /// The forms `shadows` has.
-    pub fn of(shadows: &Shadows<'_>) -> Self {
-        Self {
-            extents: shadows.extents.is_some(),
-            crossings: shadows.extents.is_some_and(|e| e.crossings.is_some()),
-            soft_grid: shadows.soft.is_some(),
-        }
-    }
-}
-
-impl MarchMode {
-    /// The mode `method` takes for a light (`soft`: with a radius) whose shadows have `shadows`
-    /// (`None`: no occluders): the one rule, read by the planner and by [`Cache::warm_up`].
-    /// Without occluders the airlight is analytic (the textbook march still marches). A light
-    /// with a radius and a soft-shadow grid is marched inside its penumbra cones (the extents
-    /// bound the hard shadow only); otherwise the hybrid needs extents, the exact method
-    /// extents with crossing lists, and what lacks them is marched over the whole ray.
-    pub fn choose(method: MarchMethod, soft: bool, shadows: Option<ShadowForms>) -> MarchMode {
-        use MarchMethod as M;
-        match (method, shadows) {
-            (M::Textbook, _) => MarchMode::Textbook,
-            (_, None) => MarchMode::Analytic,
-            (M::Exact | M::Hybrid, Some(s)) if soft && s.soft_grid => MarchMode::Hybrid,
-            (M::Hybrid, Some(s)) if s.extents && !s.crossings => MarchMode::Hybrid,
-            (M::Exact, Some(s)) if s.extents && s.crossings => MarchMode::Exact,
-            _ => MarchMode::BruteForce,
-        }
-    }
-
-    /// What this mode reads that `inputs` lack, if anything.
-    fn missing(self, inputs: &MarchInputs<'_>) -> Option<&'static str> {
-        let forms = inputs.shadows.as_ref().map(ShadowForms::of);
-        let soft = inputs.light.radius() > 0.0;
-        match (self, forms) {
-            (MarchMode::Analytic | MarchMode::Textbook, _) => None,
-            (_, None) => Some("shadows"),
-            (MarchMode::BruteForce, Some(_)) => None,
-            (MarchMode::Hybrid, Some(f)) if (soft && f.soft_grid) || f.extents => None,
-            (MarchMode::Hybrid, Some(_)) => {
-                Some("shadows.extents (or, for a light with a radius, shadows.soft)")
-            }
-            (MarchMode::Exact, Some(f)) if f.crossings => None,
-            (MarchMode::Exact, Some(_)) => Some("shadows.extents with crossing lists"),
-        }
-    }
-}
-
-impl std::fmt::Display for MarchMode {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            MarchMode::Analytic => "analytic",
-            MarchMode::Hybrid => "hybrid",
-            MarchMode::BruteForce => "brute force",
-            MarchMode::Exact => "exact",
-            MarchMode::Textbook => "textbook march",
-        })
-    }
-}
 
 /// The march shader's pipeline constants: one pipeline each.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -332,43 +249,6 @@ impl Pipelines {
                 "march",
                 &constants,
             )
-        })
-    }
-}
-
-/// How the shadowed part of each ray is integrated.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[non_exhaustive]
-pub enum MarchMethod {
-    /// Every shadow-volume face the ray crosses in front of the surface is recorded (up to
-    /// [`MarchSettings::crossings`] per pixel); between consecutive crossings visibility is
-    /// constant, so each interval is integrated in closed form (`T(s₁) − T(s₀)`) times its
-    /// visibility (Biri, Arquès & Michelin 2006: exact integration between sorted shadow
-    /// planes). Boundaries come from geometry, and so does visibility: an interval is lit where
-    /// no closed volume is around it (counted from the far end); the shadow map decides only
-    /// where a face of an open or non-manifold mesh crosses the pixel. A pixel whose list overflows is marched, as the hybrid does, between
-    /// its nearest and farthest crossing. The default.
-    #[default]
-    Exact,
-    /// Analytic outside the shadow-volume extents, marched between them (Wyman & Ramsey 2008).
-    Hybrid,
-    /// Marched over the whole ray, adding the closed-form integral between steps and
-    /// sampling only the visibility: a strong baseline.
-    BruteForce,
-    /// The textbook march: a Riemann sum of the in-scattering integrand
-    /// `σs·p·I·e^{−σt(d+x)}/d²·V·Δx` at steps uniform in distance, up to the surface or to
-    /// where the transmittance from the eye falls below 1e-4 (as most engines' volumetric fog
-    /// does). Only a baseline for the error-against-time report.
-    Textbook,
-}
-
-impl std::fmt::Display for MarchMethod {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            MarchMethod::Exact => "exact",
-            MarchMethod::Hybrid => "hybrid",
-            MarchMethod::BruteForce => "brute force",
-            MarchMethod::Textbook => "textbook march",
         })
     }
 }
@@ -538,33 +418,6 @@ fn ortho_half_width(m: &glam::Mat4) -> Option<f32> {
     let row = m.row(0).truncate().length();
     let half = 1.0 / row;
     (half.is_finite() && half > 0.0).then_some(half)
-}
-
-/// What the exact method met in a frame, counted by the march (see
-/// [`MarchNode::stats_buffer`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct MarchStats {
-    /// Pixels whose crossing list overflowed (marched between their nearest and farthest
-    /// crossing instead).
-    pub overflowed: u32,
-    /// Pixels whose list was more than half full (counted only for those, so that the common
-    /// case does not contend on one counter).
-    pub crowded: u32,
-    /// The most crossings one of those pixels had (0 when no list was more than half full).
-    pub max_crossings: u32,
-}
-
-impl MarchStats {
-    /// Decodes the bytes of [`MarchNode::stats_buffer`] (four `u32` in the platform's byte
-    /// order, the last unused).
-    pub fn from_bytes(bytes: &[u8]) -> Option<Self> {
-        let words: &[u32] = bytemuck::try_cast_slice(bytes.get(..16)?).ok()?;
-        Some(Self {
-            overflowed: words[0],
-            crowded: words[1],
-            max_crossings: words[2],
-        })
-    }
 }
 
 /// Computes in-scattered radiance per pixel into its own `Rgba32Float` texture.
@@ -767,56 +620,6 @@ impl MarchNode {
     pub fn set_work_counters(&mut self, on: bool) {
         self.work = on;
     }
-}
-
-/// A march's per-pixel work counters (see [`MarchNode::set_work_counters`]), one entry per
-/// pixel in row-major order.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct MarchWork {
-    /// Shadow-map visibility queries (each one filtered lookup, whatever its taps).
-    pub lookups: Vec<u32>,
-    /// Light-texture reads (a textured spot): its samples and the cells of its flat-region map
-    /// ([`LightTextureNode::flats`](crate::nodes::LightTextureNode::flats)) the march reads.
-    pub texture_samples: Vec<u32>,
-    /// Crossing-list entries read (the exact method walks its list once per interval).
-    pub crossings_visited: Vec<u32>,
-    /// Crossing-list entries stored for the pixel (in front of its surface, at most the
-    /// list's length).
-    pub crossings_stored: Vec<u32>,
-}
-
-impl MarchWork {
-    /// Decodes the bytes of a [`MarchNode::stats_buffer`] written with work counters on
-    /// (`u32` in the platform's byte order); `None` when they hold no counters.
-    pub fn from_bytes(bytes: &[u8]) -> Option<Self> {
-        let words: Vec<u32> = bytes
-            .chunks_exact(4)
-            .map(|c| u32::from_ne_bytes([c[0], c[1], c[2], c[3]]))
-            .collect();
-        let pixels = words.get(4..)?;
-        if pixels.is_empty() {
-            return None;
-        }
-        let column = |k: usize| pixels.chunks_exact(4).map(|p| p[k]).collect();
-        Some(Self {
-            lookups: column(0),
-            texture_samples: column(1),
-            crossings_visited: column(2),
-            crossings_stored: column(3),
-        })
-    }
-}
-
-/// A march's stats buffer of `size` bytes.
-fn stats_buffer(device: &wgpu::Device, size: u64) -> wgpu::Buffer {
-    device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("volshadow march stats"),
-        size,
-        usage: wgpu::BufferUsages::STORAGE
-            | wgpu::BufferUsages::COPY_DST
-            | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    })
 }
 
 impl Node for MarchNode {

@@ -27,258 +27,28 @@
 //! level or layer: checking the texture behind a view would accept a view of the wrong mip
 //! level (and write a crop) and reject a correct one.
 
-use std::collections::HashMap;
 use std::hash::{Hash, Hasher};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
 
 use bytemuck::Zeroable;
 
 use crate::error::{Error, Result};
-use crate::gpu::pipeline::{bind_group, cached, fullscreen_pipeline, layout, module, Binding};
-use crate::gpu::wgsl::{wgsl_file, Wgsl};
-use crate::gpu::ShaderPrecision;
+use crate::gpu::pipeline::bind_group;
 use crate::gpu::{
     check_depth_texture, check_float_texture, check_size, depth_view, texture_2d, GpuTimer,
     UniformBuffer,
 };
-use crate::nodes::cache::CachedPipelines;
 use crate::nodes::uniforms::{CompositeUniform, SurfacesUniform, ViewUniform};
 use crate::nodes::Cache;
 use crate::nodes::{IssPhase, IssTableNode};
 use crate::pass::Pass;
 use crate::scene::{Camera, Light, Medium};
 
-/// The composite's binding table: `@binding(i)` of `shaders/composite.wgsl` is entry `i`.
-const BINDINGS: [Binding; 10 + MAX_LIGHTS] = [
-    Binding::Params,  // comp
-    Binding::Params,  // view
-    Binding::Texture, // scene_color
-    Binding::Depth,   // scene_depth
-    Binding::Texture, // inscatter0 ..
-    Binding::Texture,
-    Binding::Texture,
-    Binding::Texture,
-    Binding::Params,  // surf
-    Binding::Texture, // surface_normal
-    Binding::Texture, // surface_albedo
-    Binding::Texture, // iss_table
-    Binding::Params,  // surf_phase
-    Binding::Texture, // spot_lattice
-];
+mod pipelines;
 
-/// The composite's layout and its pipelines, one per output format and with or without the
-/// surface term (built on first use); held by the [`Cache`].
-#[derive(Clone)]
-pub(crate) struct Pipelines {
-    layout: wgpu::BindGroupLayout,
-    module: wgpu::ShaderModule,
-    precision: ShaderPrecision,
-    formats: Arc<Mutex<HashMap<(wgpu::TextureFormat, bool), wgpu::RenderPipeline>>>,
-    /// The compute pass's pipelines, per storage format and surface term, with the layout of
-    /// their second bind group (the output).
-    storing: Arc<Mutex<HashMap<(wgpu::TextureFormat, bool), Storing>>>,
-    /// The spot term's lattice pass (`cs_spot_lattice`), with its output's layout.
-    lattice: Arc<Mutex<HashMap<(), Storing>>>,
-}
+pub(crate) use pipelines::Pipelines;
 
-/// A compute composite writing one storage format.
-#[derive(Clone)]
-struct Storing {
-    pipeline: wgpu::ComputePipeline,
-    output_layout: wgpu::BindGroupLayout,
-}
-
-/// The compute composite's workgroup edge (`@workgroup_size` of `cs_composite`).
-const WORKGROUP: u32 = 8;
-
-/// The spot term's lattice texture format (E(P) in rgb, whether the node is a surface in a).
-const LATTICE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
-
-/// The lattice's size for a `width × height` frame at spacing `stride`: node `(i, j)` is pixel
-/// `min((i, j)·stride, size − 1)`, so the last pixel of each row and column is a node.
-fn lattice_size(width: u32, height: u32, stride: u32) -> (u32, u32) {
-    ((width - 1) / stride + 2, (height - 1) / stride + 2)
-}
-
-/// The WGSL name of `format` when the composite can write it as a storage texture on `device`
-/// (`None`: it writes it through the rasteriser only). sRGB formats are never storage formats.
-fn storage_format_name(device: &wgpu::Device, format: wgpu::TextureFormat) -> Option<&'static str> {
-    use wgpu::TextureFormat as F;
-    let name = match format {
-        F::Rgba8Unorm => "rgba8unorm",
-        F::Rgba8Snorm => "rgba8snorm",
-        F::Rgba16Float => "rgba16float",
-        F::Rgba32Float => "rgba32float",
-        F::Bgra8Unorm => "bgra8unorm",
-        _ => return None,
-    };
-    format
-        .guaranteed_format_features(device.features())
-        .allowed_usages
-        .contains(wgpu::TextureUsages::STORAGE_BINDING)
-        .then_some(name)
-}
-
-/// The composite's WGSL: the surface term's functions (`ISS_WGSL`'s), then the composite.
-const SOURCE: Wgsl<'static> = wgsl_file!("composite.wgsl");
-
-impl CachedPipelines for Pipelines {
-    fn build(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
-        Self::new(device, precision)
-    }
-}
-
-impl Pipelines {
-    pub(crate) fn new(device: &wgpu::Device, precision: ShaderPrecision) -> Self {
-        let label = "volshadow composite";
-        let stages = wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE;
-        Self {
-            layout: layout(device, label, stages, &BINDINGS),
-            module: module(device, &SOURCE, precision),
-            precision,
-            formats: Arc::default(),
-            storing: Arc::default(),
-            lattice: Arc::default(),
-        }
-    }
-
-    /// The compute pipeline of the spot term's lattice (see [`CompositeNode::set_spot_lattice`]):
-    /// the composite's bindings, and its output as `@group(1) @binding(0)`.
-    fn lattice(&self, device: &wgpu::Device) -> Storing {
-        cached(&self.lattice, (), || {
-            let label = "volshadow spot lattice";
-            let source = format!(
-                "#import composite.wgsl
-@group(1) @binding(0) var lattice_out: texture_storage_2d<rgba32float, write>;
-
-@compute @workgroup_size({WORKGROUP}, {WORKGROUP})
-fn cs_spot_lattice(@builtin(global_invocation_id) id: vec3<u32>) {{
-    if (any(id.xy >= textureDimensions(lattice_out))) {{
-        return;
-    }}
-    let s = surface_point(min(id.xy * surf.lattice, textureDimensions(scene_depth) - 1u));
-    var out = vec4<f32>(0.0);
-    if (s.ok) {{
-        out = vec4<f32>(spot_irradiance(s.p, s.n), 1.0);
-    }}
-    textureStore(lattice_out, id.xy, out);
-}}
-"
-            );
-            self.with_output(
-                device,
-                label,
-                &source,
-                "cs_spot_lattice",
-                LATTICE_FORMAT,
-                true,
-            )
-        })
-    }
-
-    /// A compute pipeline over the composite's bindings (group 0) and one storage texture of
-    /// `format` (group 1), from `source`: an import of the composite's WGSL and an entry point.
-    fn with_output(
-        &self,
-        device: &wgpu::Device,
-        label: &str,
-        source: &str,
-        entry: &str,
-        format: wgpu::TextureFormat,
-        surfaces: bool,
-    ) -> Storing {
-        let name = format!(
-            "{} (composite.wgsl and its entry point {entry})",
-            SOURCE.name
-        );
-        let module = module(
-            device,
-            &Wgsl {
-                name: &name,
-                text: source,
-            },
-            self.precision,
-        );
-        let output_layout = layout(
-            device,
-            label,
-            wgpu::ShaderStages::COMPUTE,
-            &[Binding::Storage(format)],
-        );
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some(label),
-            bind_group_layouts: &[Some(&self.layout), Some(&output_layout)],
-            immediate_size: 0,
-        });
-        let constants = [("SURFACES", if surfaces { 1.0 } else { 0.0 })];
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(label),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some(entry),
-            compilation_options: wgpu::PipelineCompilationOptions {
-                constants: &constants,
-                ..Default::default()
-            },
-            cache: None,
-        });
-        Storing {
-            pipeline,
-            output_layout,
-        }
-    }
-
-    /// The compute pipeline storing `format` (see [`storage_format_name`]), adding the surface
-    /// term if `surfaces`; `None` when `format` is not a storage format on `device`.
-    fn storing(
-        &self,
-        device: &wgpu::Device,
-        format: wgpu::TextureFormat,
-        surfaces: bool,
-    ) -> Option<Storing> {
-        let name = storage_format_name(device, format)?;
-        Some(cached(&self.storing, (format, surfaces), || {
-            let label = "volshadow composite (compute)";
-            let source = format!(
-                "#import composite.wgsl
-@group(1) @binding(0) var composite_out: texture_storage_2d<{name}, write>;
-
-@compute @workgroup_size({WORKGROUP}, {WORKGROUP})
-fn cs_composite(@builtin(global_invocation_id) id: vec3<u32>) {{
-    if (all(id.xy < textureDimensions(composite_out))) {{
-        textureStore(composite_out, id.xy, composite_pixel(id.xy));
-    }}
-}}
-"
-            );
-            self.with_output(device, label, &source, "cs_composite", format, surfaces)
-        }))
-    }
-
-    /// The pipeline writing `format`, adding the surface term if `surfaces` (a pipeline
-    /// constant: frames without surfaces do not pay for its code).
-    fn writing(
-        &self,
-        device: &wgpu::Device,
-        format: wgpu::TextureFormat,
-        surfaces: bool,
-    ) -> wgpu::RenderPipeline {
-        cached(&self.formats, (format, surfaces), || {
-            let (label, entry) = ("volshadow composite", "fs_composite");
-            let constants = [("SURFACES", if surfaces { 1.0 } else { 0.0 })];
-            fullscreen_pipeline(
-                device,
-                label,
-                &self.layout,
-                &self.module,
-                entry,
-                format,
-                &constants,
-            )
-        })
-    }
-}
+use pipelines::{lattice_size, Storing, LATTICE_FORMAT, WORKGROUP};
 
 /// What the composite reads in a frame.
 #[derive(Debug, Clone, Copy)]
@@ -579,29 +349,47 @@ impl CompositeNode {
         queue: &wgpu::Queue,
         inputs: &CompositeInputs<'_>,
     ) -> Result<bool> {
-        check_float_texture("scene_color", inputs.scene_color)?;
-        check_depth_texture("scene_depth", inputs.scene_depth)?;
-        let (width, height) = (inputs.scene_color.width(), inputs.scene_color.height());
-        check_size("scene_depth", inputs.scene_depth, width, height)?;
-        if inputs.inscatter.len() > MAX_LIGHTS {
-            return Err(Error::InvalidSetting {
-                field: "inscatter",
-                problem: format!(
-                    "{} in-scatter inputs, at most {MAX_LIGHTS}",
-                    inputs.inscatter.len()
-                ),
-            });
-        }
-        for t in inputs.inscatter {
-            check_float_texture("inscatter", t)?;
-            check_size("inscatter", t, width, height)?;
-        }
+        let (width, height) = check_inputs(inputs)?;
         self.set_surfaces(queue, inputs.medium, inputs.surfaces)?;
         if let Some([normal, albedo, _]) = &self.surfaces {
             check_size("surface_normal", normal, width, height)?;
             check_size("surface_albedo", albedo, width, height)?;
         }
+        // The spot term's lattice, when a spot light adds a surface term.
+        let stride = self.spot_lattice;
+        let lattice = (self.surfaces.is_some() && self.spots && stride > 1)
+            .then(|| lattice_size(width, height, stride));
+        let textures = self.textures(device, inputs, lattice);
+        if self.bound.as_ref().is_none_or(|b| b.textures != textures) {
+            self.bound = Some(self.bind(device, textures, lattice));
+        }
+        let surf = SurfacesUniform {
+            lattice: if lattice.is_some() { stride } else { 0 },
+            ..self.surf_value
+        };
+        self.surf.write(queue, surf);
+        self.uniform.write(
+            queue,
+            CompositeUniform {
+                sigma_t: inputs.medium.sigma_t().to_array(),
+                count: inputs.inscatter.len() as u32,
+            },
+        );
+        self.view
+            .write(queue, ViewUniform::new(inputs.camera, width, height));
+        Ok(true)
+    }
 
+    /// The textures the composite reads this frame, in binding order: the scene's colour and
+    /// depth, the in-scatter textures (the placeholder for each one missing), the surfaces'
+    /// normal, albedo and ISS table (or placeholders), and the spot lattice of size `lattice`
+    /// ((re)created when its size changed; the placeholder without).
+    fn textures(
+        &mut self,
+        device: &wgpu::Device,
+        inputs: &CompositeInputs<'_>,
+        lattice: Option<(u32, u32)>,
+    ) -> Vec<wgpu::Texture> {
         let mut textures = vec![inputs.scene_color.clone(), inputs.scene_depth.clone()];
         textures.extend((0..MAX_LIGHTS).map(|i| {
             inputs
@@ -614,10 +402,6 @@ impl CompositeNode {
             Some(s) => textures.extend(s.iter().cloned()),
             None => textures.extend([0, 1, 2].map(|_| self.placeholder.clone())),
         }
-        // The spot term's lattice, when a spot light adds a surface term.
-        let stride = self.spot_lattice;
-        let lattice = (self.surfaces.is_some() && self.spots && stride > 1)
-            .then(|| lattice_size(width, height, stride));
         match lattice {
             Some((w, h)) => {
                 if self
@@ -637,72 +421,66 @@ impl CompositeNode {
             }
             None => textures.push(self.placeholder.clone()),
         }
-        if self.bound.as_ref().is_none_or(|b| b.textures != textures) {
-            let color = textures[0].create_view(&Default::default());
-            let depth = depth_view(&textures[1]);
-            // In-scatter 0..4, then surface normal, albedo, ISS table and the spot lattice.
-            let views: Vec<wgpu::TextureView> = textures[2..]
-                .iter()
-                .map(|t| t.create_view(&Default::default()))
-                .collect();
-            let placeholder = self.placeholder.create_view(&Default::default());
-            let view = wgpu::BindingResource::TextureView;
-            let group = |label, lattice: &wgpu::TextureView| {
-                bind_group(
-                    device,
-                    label,
-                    &self.layout,
-                    [
-                        self.uniform.binding(),
-                        self.view.binding(),
-                        view(&color),
-                        view(&depth),
-                        view(&views[0]),
-                        view(&views[1]),
-                        view(&views[2]),
-                        view(&views[3]),
-                        self.surf.binding(),
-                        view(&views[4]),
-                        view(&views[5]),
-                        view(&views[6]),
-                        self.surf_phase.binding(),
-                        wgpu::BindingResource::TextureView(lattice),
-                    ],
-                )
-            };
-            let composite_group = group("volshadow composite", &views[7]);
-            // The lattice pass writes the lattice, so its composite bindings hold the
-            // placeholder there (a texture is not written and read in one dispatch).
-            let lattice = lattice.map(|size| {
-                let output = bind_group(
-                    device,
-                    "volshadow spot lattice output",
-                    &self.lattice.output_layout,
-                    [view(&views[7])],
-                );
-                (group("volshadow spot lattice", &placeholder), output, size)
-            });
-            self.bound = Some(Bound {
-                textures,
-                bind_group: composite_group,
-                lattice,
-            });
-        }
-        let surf = SurfacesUniform {
-            lattice: if lattice.is_some() { stride } else { 0 },
-            ..self.surf_value
+        textures
+    }
+
+    /// The bind groups of `textures` (see [`textures`](Self::textures)): the composite's, and
+    /// with a `lattice` of that size the lattice pass's and its output's.
+    fn bind(
+        &self,
+        device: &wgpu::Device,
+        textures: Vec<wgpu::Texture>,
+        lattice: Option<(u32, u32)>,
+    ) -> Bound {
+        let color = textures[0].create_view(&Default::default());
+        let depth = depth_view(&textures[1]);
+        // In-scatter 0..4, then surface normal, albedo, ISS table and the spot lattice.
+        let views: Vec<wgpu::TextureView> = textures[2..]
+            .iter()
+            .map(|t| t.create_view(&Default::default()))
+            .collect();
+        let placeholder = self.placeholder.create_view(&Default::default());
+        let view = wgpu::BindingResource::TextureView;
+        let group = |label, lattice: &wgpu::TextureView| {
+            bind_group(
+                device,
+                label,
+                &self.layout,
+                [
+                    self.uniform.binding(),
+                    self.view.binding(),
+                    view(&color),
+                    view(&depth),
+                    view(&views[0]),
+                    view(&views[1]),
+                    view(&views[2]),
+                    view(&views[3]),
+                    self.surf.binding(),
+                    view(&views[4]),
+                    view(&views[5]),
+                    view(&views[6]),
+                    self.surf_phase.binding(),
+                    wgpu::BindingResource::TextureView(lattice),
+                ],
+            )
         };
-        self.surf.write(queue, surf);
-        self.uniform.write(
-            queue,
-            CompositeUniform {
-                sigma_t: inputs.medium.sigma_t().to_array(),
-                count: inputs.inscatter.len() as u32,
-            },
-        );
-        self.view
-            .write(queue, ViewUniform::new(inputs.camera, width, height));
-        Ok(true)
+        let composite_group = group("volshadow composite", &views[7]);
+        // The lattice pass writes the lattice, so its composite bindings hold the
+        // placeholder there (a texture is not written and read in one dispatch).
+        let lattice = lattice.map(|size| {
+            let output = bind_group(
+                device,
+                "volshadow spot lattice output",
+                &self.lattice.output_layout,
+                [view(&views[7])],
+            );
+            (group("volshadow spot lattice", &placeholder), output, size)
+        });
+        Bound {
+            textures,
+            bind_group: composite_group,
+            lattice,
+        }
     }
 
     /// Checks that the composite can write `output` (see the module docs for what it must be)
@@ -989,21 +767,25 @@ fn output_view(output: &OutputTarget<'_>) -> wgpu::TextureView {
     })
 }
 
-#[cfg(test)]
-#[test]
-fn params_layouts_match_the_wgsl() {
-    use crate::nodes::layout::{assert_same, rust_layout};
-    use crate::nodes::uniforms::{CompositeUniform, SurfacesUniform};
-    assert_same(
-        rust_layout!(CompositeUniform { sigma_t, count }),
-        SOURCE.text,
-        "Composite",
-    );
-    let surfaces = rust_layout!(SurfacesUniform {
-        sigma_s,
-        count,
-        lights,
-        lattice,
-    });
-    assert_same(surfaces, SOURCE.text, "Surfaces");
+/// Checks the scene's colour and depth and the in-scatter textures (their number, formats and
+/// sizes); returns the colour's size.
+fn check_inputs(inputs: &CompositeInputs<'_>) -> Result<(u32, u32)> {
+    check_float_texture("scene_color", inputs.scene_color)?;
+    check_depth_texture("scene_depth", inputs.scene_depth)?;
+    let (width, height) = (inputs.scene_color.width(), inputs.scene_color.height());
+    check_size("scene_depth", inputs.scene_depth, width, height)?;
+    if inputs.inscatter.len() > MAX_LIGHTS {
+        return Err(Error::InvalidSetting {
+            field: "inscatter",
+            problem: format!(
+                "{} in-scatter inputs, at most {MAX_LIGHTS}",
+                inputs.inscatter.len()
+            ),
+        });
+    }
+    for t in inputs.inscatter {
+        check_float_texture("inscatter", t)?;
+        check_size("inscatter", t, width, height)?;
+    }
+    Ok((width, height))
 }
