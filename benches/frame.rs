@@ -46,20 +46,17 @@
 //! `textbook:STEPS`, `analytic`). Prints a table and writes JSON (default
 //! `target/bench-frame.json`). Adapter choice: `WGPU_BACKEND`, `WGPU_ADAPTER_NAME`.
 
-#[path = "../examples/common/mod.rs"]
-mod common;
-
 use std::path::PathBuf;
 use std::time::Instant;
 
-use common::render_scene::{GpuScene, RenderMethod};
-use common::report::moved_lights;
-use common::{parse_size, with_aspect, BoxError};
 use lexopt::prelude::*;
 use volshadow::glam::Mat4;
 use volshadow::plan::Pass;
 use volshadow::scene_file::{Method, SceneDescription};
 use volshadow::{Cache, Camera, FrameLight, HeadlessGpu, Settings, VolumetricShadows};
+use volshadow_harness::app::{parse_size, with_aspect, BoxError};
+use volshadow_harness::render_scene::{GpuScene, RenderMethod};
+use volshadow_harness::report::moved_lights;
 
 struct Options {
     size: Option<(u32, u32)>,
@@ -481,7 +478,7 @@ fn bench_scene(gpu: &HeadlessGpu, o: &Options, path: &PathBuf) -> Result<Row, Bo
 }
 
 fn main() {
-    common::headless_env::quiet_display_probe();
+    volshadow_harness::headless_env::quiet_display_probe();
     if let Err(e) = run() {
         eprintln!("error: {e}");
         std::process::exit(1);

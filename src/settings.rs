@@ -166,7 +166,7 @@ pub(crate) fn validate(settings: &Settings) -> Result<()> {
 }
 
 /// A configuration the error target can pick, with what the report
-/// (`cargo run --release --example report -- --scenes all`, at 512×512) measured for it on the
+/// (`cargo run --release -p volshadow_tools --bin report -- --scenes all`, at 512×512) measured for it on the
 /// standard scenes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MeasuredConfig {

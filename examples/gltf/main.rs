@@ -7,19 +7,16 @@
 //! cargo run --release --features gltf --example gltf -- MODEL.gltf|MODEL.glb [-o OUT] [--size WxH]
 //! ```
 //!
-//! How the scene is set up around the model is documented in `examples/common/gltf_scene.rs`;
+//! How the scene is set up around the model is documented in `volshadow_harness::gltf_scene` (`harness/src/gltf_scene.rs`);
 //! `--help` prints the options. The plan and per-pass GPU times are printed. A run that would
 //! write over an input is refused. Bad arguments or files print the error and exit with
 //! status 1.
 
-#[path = "../common/mod.rs"]
-mod common;
-
-use common::cli::Parsed;
-use common::gltf_scene::{render, Options, HELP};
+use volshadow_harness::cli::Parsed;
+use volshadow_harness::gltf_scene::{render, Options, HELP};
 
 fn main() {
-    common::headless_env::quiet_display_probe();
+    volshadow_harness::headless_env::quiet_display_probe();
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = Options::parse(&args).and_then(|parsed| match parsed {
         Parsed::Help => {

@@ -10,7 +10,7 @@
 //! ```
 //!
 //! Controls (printed at start and by `--help`, listed in the window's title; the table is
-//! `KEYS` in `examples/common/cli.rs`, which the key handler reads): dragging with the left
+//! `KEYS` in `volshadow_harness::cli`, which the key handler reads): dragging with the left
 //! mouse button moves the light (in a plane behind the spheres; it starts above and between
 //! them, where the shafts show, and stays there until dragged); M cycles the march method
 //! (exact → hybrid → brute force → textbook → exact); Up / Down double / halve the steps
@@ -48,15 +48,11 @@ use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop, OwnedDisplayHan
 use winit::keyboard::{Key, NamedKey};
 use winit::window::{Window, WindowId};
 
-#[path = "../common/cli.rs"]
-mod cli;
-#[path = "../common/fullscreen.rs"]
-mod fullscreen;
-#[path = "../common/quickstart_scene.rs"]
-mod quickstart_scene;
-
-use fullscreen::texture_desc;
-use quickstart_scene::{camera, ScenePass, EYE, LIGHT_INTENSITY, LIGHT_POSITION};
+use volshadow_harness::cli;
+use volshadow_harness::fullscreen::texture_desc;
+use volshadow_harness::quickstart_scene::{
+    self, camera, ScenePass, EYE, LIGHT_INTENSITY, LIGHT_POSITION,
+};
 
 /// Offscreen colour format: the app's frame, and volshadow's output.
 const HDR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba16Float;

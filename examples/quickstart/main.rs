@@ -9,27 +9,73 @@
 //! cargo run --release --example quickstart [-- -o OUTPUT.png] [--size WxH]
 //! ```
 //!
-//! `--help` prints the options (`examples/common/cli.rs`). The scene is built in code, so no
+//! `--help` prints the options (`volshadow_harness::cli`). The scene is built in code, so no
 //! input file exists that the output could overwrite.
+//!
+//! Every volshadow call is in this file; what comes from `volshadow_harness` is the
+//! application's side: the command line, the app's own full-screen pass that draws the ground
+//! and the spheres (`ScenePass`, `SPHERES`), and the quiet headless start. Its test,
+//! `quickstart.rs` beside this file, runs [`run`] against the f64 reference (`cargo test
+//! --example quickstart`; the crate's `cargo test` runs it too).
 
 use std::time::Instant;
 
-#[path = "../common/cli.rs"]
-mod cli;
-#[path = "../common/fullscreen.rs"]
-mod fullscreen;
-#[path = "../common/headless_env.rs"]
-mod headless_env;
-#[path = "../common/quickstart_scene.rs"]
-pub mod quickstart_scene;
+use volshadow::glam::{camera::rh, Mat4, Vec3};
+use volshadow::scene::shapes;
+use volshadow::{
+    AdapterKind, Camera, Frame, HeadlessGpu, Light, Medium, Occluder, OccluderMesh, PhaseFunction,
+    PointLight, Settings, VolumetricShadows,
+};
+use volshadow_harness::fullscreen::texture_desc;
+use volshadow_harness::quickstart_scene::{ScenePass, SPHERES};
+use volshadow_harness::{cli, headless_env};
 
-use fullscreen::texture_desc;
-pub use quickstart_scene::{reference_occluders, scene, surface_distance};
-use volshadow::glam::Mat4;
-use volshadow::{AdapterKind, Frame, HeadlessGpu, Light, Occluder, Settings, VolumetricShadows};
+#[cfg(test)]
+mod quickstart;
 
 /// The PNG's exposure.
 pub const EXPOSURE: f32 = 1.6;
+
+/// The light's position: about level with the spheres and behind them, so that both cut dark
+/// shafts that open towards the camera.
+pub const LIGHT_POSITION: Vec3 = Vec3::new(-0.1, 2.1, -5.0);
+/// The light's intensity (RGB).
+pub const LIGHT_INTENSITY: Vec3 = Vec3::new(90.0, 78.0, 60.0);
+
+/// The scene for a frame of `width × height`: the camera, the light at [`LIGHT_POSITION`] and
+/// hazy air.
+pub fn scene(width: u32, height: u32) -> volshadow::Result<(Camera, PointLight, Medium)> {
+    let camera = Camera::new(
+        rh::view::look_at_mat4(Vec3::new(0.0, 1.6, 7.0), Vec3::new(0.0, 1.3, 0.0), Vec3::Y),
+        rh::proj::directx::perspective(
+            55f32.to_radians(),
+            width as f32 / height as f32,
+            0.05,
+            200.0,
+        ),
+    )?;
+    let light = PointLight::new(LIGHT_POSITION, LIGHT_INTENSITY)?;
+    let medium = Medium::new(
+        Vec3::new(0.10, 0.11, 0.13), // σs per RGB channel
+        Vec3::splat(0.01),           // σa
+        PhaseFunction::HenyeyGreenstein { g: 0.7 },
+    )?;
+    Ok((camera, light, medium))
+}
+
+/// The spheres the app draws ([`SPHERES`]) as volshadow's occluder meshes (48 × 24 segments),
+/// uploaded once.
+pub fn sphere_meshes(device: &wgpu::Device) -> volshadow::Result<Vec<OccluderMesh>> {
+    SPHERES
+        .iter()
+        .map(|&(centre, radius)| {
+            Ok(OccluderMesh::new(
+                device,
+                &shapes::uv_sphere(centre, radius, 48, 24)?,
+            ))
+        })
+        .collect()
+}
 
 /// What a run produced: the composited image and the in-scatter alone (linear, row-major).
 pub struct Rendered {
@@ -48,14 +94,7 @@ pub fn run(
     settings: Settings,
     frames: usize,
 ) -> Result<Rendered, Box<dyn std::error::Error>> {
-    run_with(
-        gpu,
-        (width, height),
-        settings,
-        frames,
-        true,
-        quickstart_scene::LIGHT_POSITION,
-    )
+    run_with(gpu, (width, height), settings, frames, true, LIGHT_POSITION)
 }
 
 /// [`run`], with the spheres passed to volshadow as occluders or not (`false`: the same app
@@ -67,10 +106,10 @@ pub fn run_with(
     settings: Settings,
     frames: usize,
     shadows: bool,
-    light: volshadow::glam::Vec3,
+    light: Vec3,
 ) -> Result<Rendered, Box<dyn std::error::Error>> {
     let (camera, _, medium) = scene(width, height)?;
-    let point = volshadow::PointLight::new(light, quickstart_scene::LIGHT_INTENSITY)?;
+    let point = PointLight::new(light, LIGHT_INTENSITY)?;
 
     // The application's own frame: colour (linear radiance) and depth.
     let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
@@ -81,7 +120,7 @@ pub fn run_with(
     let color = texture("scene colour", wgpu::TextureFormat::Rgba16Float);
     let depth = texture("scene depth", wgpu::TextureFormat::Depth32Float);
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    quickstart_scene::ScenePass::new(&gpu.device).encode(
+    ScenePass::new(&gpu.device).encode(
         &gpu.queue,
         &mut encoder,
         (&color, &depth),
@@ -92,7 +131,7 @@ pub fn run_with(
 
     // volshadow: a shared cache, the occluder meshes (uploaded once), the facade.
     let cache = volshadow::Cache::new(&gpu.device);
-    let meshes = quickstart_scene::sphere_meshes(&gpu.device);
+    let meshes = sphere_meshes(&gpu.device)?;
     let occluders: Vec<Occluder> = meshes
         .iter()
         .filter(|_| shadows)

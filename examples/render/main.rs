@@ -10,18 +10,15 @@
 //! `volshadow::SHADOW_WGSL`), then records volshadow's passes through `VolumetricShadows` into
 //! its encoder — or, with `--method reference`, computes the in-scatter with the f64 CPU
 //! reference. The options, methods and outputs are documented in
-//! `examples/common/render_scene.rs`; `--help` prints them. Outputs go to `out/` unless `-o`
+//! `volshadow_harness::render_scene` (`harness/src/render_scene.rs`); `--help` prints them. Outputs go to `out/` unless `-o`
 //! says otherwise, and a run that would write over an input is refused. Bad arguments or
 //! files print the error and exit with status 1.
 
-#[path = "../common/mod.rs"]
-mod common;
-
-use common::cli::Parsed;
-use common::render_scene::{help, render, Options};
+use volshadow_harness::cli::Parsed;
+use volshadow_harness::render_scene::{help, render, Options};
 
 fn main() {
-    common::headless_env::quiet_display_probe();
+    volshadow_harness::headless_env::quiet_display_probe();
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = Options::parse(&args).and_then(|parsed| match parsed {
         Parsed::Help => {

@@ -5,7 +5,7 @@
 //! Every test builds its own files under a fresh temporary folder.
 #![cfg(feature = "gltf")]
 
-use crate::common::files;
+use volshadow_harness::files;
 
 use std::path::Path;
 use std::time::Duration;
@@ -414,8 +414,8 @@ fn parent_after_a_link_leaves_the_links_target() {
 #[cfg(unix)]
 #[test]
 fn random_paths_in_a_tree_of_links_stay_inside_and_reach_every_inside_file() {
-    use crate::common::rng::{seeds, Rng};
     use std::os::unix::fs::symlink;
+    use volshadow_harness::rng::{seeds, Rng};
     let mut checked = 0usize;
     for seed in seeds(0..48) {
         let mut rng = Rng::new(seed);

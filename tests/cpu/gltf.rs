@@ -2,7 +2,7 @@
 //! `std::env::temp_dir()`, or bytes for `load_slice`).
 #![cfg(feature = "gltf")]
 
-use crate::common::files;
+use volshadow_harness::files;
 
 use std::path::Path;
 

@@ -4,9 +4,7 @@
 //! README as a front door (issue 38): its size, CI's exact test command, no dated narrative,
 //! and generated measurement documents that match the runs they are generated from.
 
-#[path = "../../examples/measurements/docs.rs"]
-mod docs;
-use crate::common::metric;
+use volshadow_harness::{docs, metric};
 
 use std::path::Path;
 
@@ -136,7 +134,7 @@ fn readme_is_a_front_door() {
         "docs/PERFORMANCE.md",
         "docs/METHOD.md",
         ".ci/measure",
-        "cargo run --example measurements",
+        "cargo run -p volshadow_tools --bin measurements",
     ] {
         assert!(readme.contains(named), "the README does not name {named}");
     }
@@ -151,8 +149,8 @@ fn readme_is_a_front_door() {
     assert!(has_date("on 2026-11-26,") && !has_date("2026-1-26"));
 }
 
-/// `docs/ACCURACY.md` and `docs/PERFORMANCE.md` are exactly what `cargo run --example
-/// measurements -- --docs-only` writes from `docs/measurements/*.tsv`: a hand edit, or a run's
+/// `docs/ACCURACY.md` and `docs/PERFORMANCE.md` are exactly what `cargo run -p volshadow_tools
+/// --bin measurements -- --docs-only` writes from `docs/measurements/*.tsv`: a hand edit, or a run's
 /// file committed without its documents, fails here.
 #[test]
 fn generated_documents_match_their_runs() {
@@ -167,7 +165,7 @@ fn generated_documents_match_their_runs() {
         let committed = read(file);
         assert!(
             committed == expected,
-            "{file} is not what `cargo run --example measurements -- --docs-only` writes from \
+            "{file} is not what `cargo run -p volshadow_tools --bin measurements -- --docs-only` writes from \
              docs/measurements/*.tsv (edited by hand, or not regenerated)"
         );
         let rows = committed.lines().filter(|l| l.starts_with("| ")).count();

@@ -2,8 +2,8 @@
 //! independent closed form (2), shadowed rays against a brute-force Riemann sum, exact lit
 //! intervals against brute-force sampling, degenerate rays, and the per-frame image helper.
 
-use crate::common::metric;
-use crate::common::rng::{self, rel_err};
+use volshadow_harness::metric;
+use volshadow_harness::rng::{self, rel_err};
 
 use std::f64::consts::PI;
 use std::time::Instant;

@@ -6,8 +6,8 @@
 //! `cargo test --test cpu reference_directional:: -- --nocapture` prints the measured figures;
 //! `VOLSHADOW_SEED=<n>` runs one seed of the random test alone.
 
-use crate::common::metric;
-use crate::common::rng::{self, rel_err};
+use volshadow_harness::metric;
+use volshadow_harness::rng::{self, rel_err};
 
 use volshadow::glam::{DQuat, DVec3, Vec3};
 use volshadow::reference::*;

@@ -3,8 +3,8 @@
 //! function of two numbers, its isotropic `σt → 0` limit, and a table model's interpolation
 //! error (the accuracy a GPU table of `G` on the same axes gets).
 
-use crate::common::metric;
-use crate::common::rng;
+use volshadow_harness::metric;
+use volshadow_harness::rng;
 
 use std::f64::consts::{FRAC_PI_2, PI};
 

@@ -4,8 +4,8 @@
 //!
 //! `cargo test --test cpu reference_mesh:: -- --nocapture` prints the counts and the timing.
 
-use crate::common::metric;
-use crate::common::rng;
+use volshadow_harness::metric;
+use volshadow_harness::rng;
 
 use std::f64::consts::PI;
 use std::time::Instant;

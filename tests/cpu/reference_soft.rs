@@ -3,10 +3,10 @@
 //! reference, a penumbra profile across a shaft edge, and seeded random rays against a brute
 //! midpoint rule.
 
-use crate::common::metric;
-use crate::common::rng::{self, rel_err};
 use std::f64::consts::PI;
 use std::time::Instant;
+use volshadow_harness::metric;
+use volshadow_harness::rng::{self, rel_err};
 
 use volshadow::glam::camera::rh::proj::directx;
 use volshadow::glam::camera::rh::view::look_at_mat4;

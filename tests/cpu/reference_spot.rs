@@ -6,7 +6,7 @@
 //! (`direction·(X − P) ≥ cos_half_angle·|X − P|`, the light's f32 values converted to f64), so
 //! the sampling shares nothing with the reference's ray–cone quadratic.
 
-use crate::common::rng::{self, rel_err};
+use volshadow_harness::rng::{self, rel_err};
 
 use std::f64::consts::PI;
 

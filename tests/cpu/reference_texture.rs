@@ -6,7 +6,7 @@
 //! view matrix from glam's own f64 `look_to`, the bilinear filter written out), so they share
 //! nothing with the reference's projection, lookup or kink breakpoints.
 
-use crate::common::rng::{self, rel_err};
+use volshadow_harness::rng::{self, rel_err};
 
 use std::f64::consts::PI;
 use std::time::Instant;

@@ -1,5 +1,5 @@
 //! The examples as tests: `render` on every scene file and `gltf` on a box written here, run
-//! through the same code the example binaries call (`examples/common/`), at 64×64.
+//! through the same code the example binaries call (`volshadow_harness`), at 64×64.
 //!
 //! The GPU's in-scatter with each scene's own (hybrid) method is compared with the f64
 //! reference on the same scene and size: RMSE over all pixels and channels at most 2% of the
@@ -8,21 +8,16 @@
 //! the image; and a scene with a light of some radius must show its penumbrae: its PNG differs
 //! by the same measure from the scene drawn hard (every radius 0).
 
-#[path = "../../examples/common/mod.rs"]
-mod common_examples;
-// The measurements tool's own copies of `cli.rs` and `metric.rs` (it is a binary of its own).
-#[allow(clippy::duplicate_mod)]
-#[path = "../../examples/measurements/main.rs"]
-mod measurements;
-use crate::common::visibility;
-
-use common_examples::report::metric;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use common_examples::cli::{self, Parsed, WouldOverwriteInput};
-use common_examples::render_scene::{self, RenderMethod};
-use visibility::{visible_fraction, MIN_LEVELS, MIN_PIXEL_CHANGE, MIN_VISIBLE_FRACTION};
+use volshadow_harness::cli::{self, Parsed};
+use volshadow_harness::files::{assert_refused, snapshot};
+use volshadow_harness::render_scene::{self, RenderMethod};
+use volshadow_harness::visibility::{
+    visible_fraction, MIN_LEVELS, MIN_PIXEL_CHANGE, MIN_VISIBLE_FRACTION,
+};
+use volshadow_harness::{app, metric, scene_files};
 
 /// Test image size: keeps the f64 reference (O(triangles) per ray) fast.
 const SIZE: u32 = 64;
@@ -31,19 +26,6 @@ const MAX_RMSE: f64 = 0.02;
 
 fn args(list: &[&str]) -> Vec<String> {
     list.iter().map(|s| s.to_string()).collect()
-}
-
-/// Every `scenes/*.json`, sorted.
-fn scene_files() -> Vec<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
-    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .unwrap_or_else(|e| panic!("cannot list {}: {e}", dir.display()))
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "json"))
-        .collect();
-    files.sort();
-    assert!(!files.is_empty(), "no scene files in {}", dir.display());
-    files
 }
 
 /// Reads an EXR's RGB, checking its size and that every value is finite.
@@ -77,7 +59,7 @@ fn check_outputs(rendered: &render_scene::Rendered) -> Vec<[f32; 3]> {
     let depth = read_exr(depth);
     assert!(depth
         .iter()
-        .all(|d| d[0] > 0.0 && d[0] <= common_examples::SKY_DISTANCE));
+        .all(|d| d[0] > 0.0 && d[0] <= app::SKY_DISTANCE));
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
     // What the example returned is what it wrote (floats may differ in the last digit).
@@ -120,7 +102,7 @@ fn relative_rmse(test: &[[f32; 3]], reference: &[[f32; 3]], skip: &[usize]) -> f
 /// The pixels (at `SIZE`²) that contain a light of the scene.
 fn light_pixels(scene: &Path) -> Vec<usize> {
     let description = volshadow::scene_file::SceneDescription::load(scene).unwrap();
-    let camera = common_examples::with_aspect(&description.camera, 1.0).unwrap();
+    let camera = app::with_aspect(&description.camera, 1.0).unwrap();
     let clip_from_world = camera.projection() * camera.view();
     description
         .lights
@@ -394,7 +376,7 @@ fn render_surface_scatter_writes_the_added_radiance() {
         read_exr(&path(&without, ".exr")),
     );
     let depth = read_exr(&path(&with, ".depth.exr"));
-    let sky = |k: usize| depth[k][0] >= common_examples::SKY_DISTANCE;
+    let sky = |k: usize| depth[k][0] >= app::SKY_DISTANCE;
     let max = a.iter().flatten().fold(0.0f32, |m, &v| m.max(v));
     let mut worst = 0.0f32;
     let mut positive = 0;
@@ -443,46 +425,6 @@ fn render_rejects_bad_arguments_and_files() {
         assert!(result.is_err(), "{bad:?} should be an error");
         println!("{bad:?}: {}", result.err().unwrap());
     }
-}
-
-/// The bytes of every file in `dir` (names and contents), to show a refused run wrote nothing.
-fn snapshot(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
-    let mut files: Vec<(PathBuf, Vec<u8>)> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.is_file())
-        .map(|p| {
-            let bytes = std::fs::read(&p).unwrap();
-            (p, bytes)
-        })
-        .collect();
-    files.sort();
-    files
-}
-
-/// A refused run: the error is [`WouldOverwriteInput`] naming the input (its file name) and
-/// the output, and nothing in `dir` changed.
-fn assert_refused<T>(
-    result: Result<T, common_examples::BoxError>,
-    input: &str,
-    dir: &Path,
-    before: &[(PathBuf, Vec<u8>)],
-    case: &str,
-) {
-    let error = match result {
-        Ok(_) => panic!("{case}: the run was not refused"),
-        Err(e) => e,
-    };
-    let refusal = error
-        .downcast_ref::<WouldOverwriteInput>()
-        .unwrap_or_else(|| panic!("{case}: another error than the refusal: {error}"));
-    let message = error.to_string();
-    println!("{case}: {message}");
-    assert!(
-        refusal.input.ends_with(input) && message.contains(&refusal.output.display().to_string()),
-        "{case}: {message}"
-    );
-    assert_eq!(snapshot(dir), before, "{case}: files changed");
 }
 
 /// `render` never writes over its input: an output path naming the scene file (`-o` with its
@@ -598,7 +540,7 @@ fn render_never_overwrites_a_file_the_scene_names() {
 /// the separator) is the base `sub`, whose outputs are `sub.png` and so on beside it.
 #[test]
 fn output_naming_a_folder_is_refused() {
-    use common_examples::gltf_scene;
+    use volshadow_harness::gltf_scene;
     for out in ["sub/", "out/sub/", ".", "..", "sub/.", "/"] {
         let line = args(&["scenes/sphere.json", "-o", out]);
         let e = render_scene::Options::parse(&line).expect_err(out);
@@ -619,7 +561,7 @@ fn output_naming_a_folder_is_refused() {
 #[cfg(unix)]
 #[test]
 fn fifo_input_is_an_error_not_a_hang() {
-    use common_examples::gltf_scene;
+    use volshadow_harness::gltf_scene;
     let dir = tempfile::tempdir().unwrap();
     let fifo = dir.path().join("pipe.json");
     assert!(std::process::Command::new("mkfifo")
@@ -647,7 +589,7 @@ fn fifo_input_is_an_error_not_a_hang() {
 
 /// `--help` and `-h` are a request for the usage, not an error, for every example's parser,
 /// whatever else is on the line; and `render`'s help lists every method its parser accepts
-/// (both come from `METHODS`).
+/// (both come from `METHODS`). The tools' parsers: `tools/tests/tools/help.rs`.
 #[test]
 fn every_example_answers_help() {
     for flag in ["--help", "-h"] {
@@ -664,23 +606,15 @@ fn every_example_answers_help() {
             );
             #[cfg(feature = "gltf")]
             assert!(
-                common_examples::gltf_scene::Options::parse(&line)
+                volshadow_harness::gltf_scene::Options::parse(&line)
                     .unwrap()
                     .is_help(),
                 "gltf {line:?}"
             );
         }
         let line = args(&[flag]);
-        assert!(
-            common_examples::report::Options::parse(&args(&["--size", "64", flag]))
-                .unwrap()
-                .is_help()
-        );
         assert!(cli::parse_quickstart(&line).unwrap().is_help());
         assert!(cli::parse_interactive(&line).unwrap().is_help());
-        assert!(cli::parse_probe(&args(&["storage", flag]))
-            .unwrap()
-            .is_help());
     }
     // Without --help, the same parsers run (or refuse) as before.
     assert!(!render_scene::Options::parse(&args(&["s.json"]))
@@ -722,7 +656,7 @@ fn every_example_answers_help() {
 }
 
 /// The small examples' options: quickstart writes to `out/quickstart.png` unless told
-/// otherwise (one PNG path); uniform_probe's arguments are checked, not unwrapped.
+/// otherwise (one PNG path). uniform_probe's: `tools/tests/tools/help.rs`.
 #[test]
 fn small_examples_parse_their_options() {
     let run = |list: &[&str]| match cli::parse_quickstart(&args(list)).unwrap() {
@@ -739,31 +673,6 @@ fn small_examples_parse_their_options() {
         &["-o"],
     ] {
         assert!(cli::parse_quickstart(&args(bad)).is_err(), "{bad:?}");
-    }
-    let probe = |list: &[&str]| cli::parse_probe(&args(list));
-    assert_eq!(
-        probe(&["storage", "100", "composite"]).unwrap(),
-        Parsed::Run(cli::ProbeOptions {
-            storage: true,
-            frames: 100,
-            composite: true
-        })
-    );
-    assert_eq!(
-        probe(&[]).unwrap(),
-        Parsed::Run(cli::ProbeOptions {
-            storage: false,
-            frames: 2000,
-            composite: false
-        })
-    );
-    for bad in [
-        &["bogus"][..],
-        &["uniform", "x"],
-        &["uniform", "0"],
-        &["uniform", "9", "y"],
-    ] {
-        assert!(probe(bad).is_err(), "{bad:?}");
     }
 }
 
@@ -795,13 +704,13 @@ fn box_glb() -> Vec<u8> {
         "accessors": [{"bufferView": 0, "componentType": 5126, "count": 8, "type": "VEC3",
                        "min": [-1, -0.5, -0.75], "max": [1, 0.5, 0.75]},
                       {"bufferView": 1, "componentType": 5123, "count": 36, "type": "SCALAR"}]}"#;
-    crate::common::files::glb(json, &bin)
+    volshadow_harness::files::glb(json, &bin)
 }
 
 #[cfg(feature = "gltf")]
 #[test]
 fn gltf_renders_a_box() {
-    use common_examples::gltf_scene;
+    use volshadow_harness::gltf_scene;
 
     let dir = tempfile::tempdir().unwrap();
     let model = dir.path().join("box.glb");
@@ -865,7 +774,7 @@ fn gltf_renders_a_box() {
 #[cfg(feature = "gltf")]
 #[test]
 fn gltf_never_overwrites_its_input() {
-    use common_examples::gltf_scene;
+    use volshadow_harness::gltf_scene;
     let dir = tempfile::tempdir().unwrap();
     // A GLB under a PNG's name: `-o box` would write box.png over it.
     let glb = dir.path().join("box.png");
@@ -913,353 +822,12 @@ fn gltf_never_overwrites_its_input() {
     assert_eq!(options.out, Path::new(cli::OUT_DIR).join("box"));
 }
 
-#[test]
-fn report_metrics_measure_what_they_say() {
-    use common_examples::report::errors;
-    use volshadow::glam::DVec3;
-    // A ramp of in-scatter (2..=101: every pixel above 1% of the maximum, so all count).
-    let reference: Vec<DVec3> = (2..=101).map(|i| DVec3::splat(f64::from(i))).collect();
-    let keep = vec![true; 100];
-    let exact = errors(&reference, &reference, &keep);
-    assert_eq!((exact.rmse, exact.p95, exact.p99), (0.0, 0.0, 0.0));
-    let mut image: Vec<DVec3> = reference.iter().map(|r| *r * 1.1).collect();
-    let scaled = errors(&image, &reference, &keep);
-    assert!((scaled.p95 - 0.1).abs() < 1e-12 && (scaled.p99 - 0.1).abs() < 1e-12);
-    // RMSE relative to the mean: 0.1·sqrt(mean r²)/mean r for r = 2..=101.
-    let mean_sq = (2..=101).map(|i| f64::from(i * i)).sum::<f64>() / 100.0;
-    assert!((scaled.rmse - 0.1 * mean_sq.sqrt() / 51.5).abs() < 1e-12);
-    // One pixel 5x off moves p99 (the 99th of 100 values) but not p95; a pixel left out of
-    // the mask (a light's own) moves nothing.
-    image[99] = reference[99] * 6.0;
-    let outlier = errors(&image, &reference, &keep);
-    assert!((outlier.p95 - 0.1).abs() < 1e-12 && (outlier.p99 - 0.1).abs() < 1e-12);
-    let mut masked = keep.clone();
-    masked[99] = false;
-    image[50] = reference[50] * 6.0;
-    let two = errors(&image, &reference, &masked);
-    assert!((two.p99 - 5.0).abs() < 1e-12, "{}", two.p99);
-    // A light's glow in view: one pixel a million times brighter does not set the scale (1% of
-    // the maximum would count that pixel alone and see none of the errors on the ramp).
-    let mut glow = reference.clone();
-    glow[0] = DVec3::splat(1e6);
-    let mut off = glow.clone();
-    for r in &mut off[10..20] {
-        *r *= 1.5;
-    }
-    let lit = errors(&off, &glow, &keep);
-    assert!((lit.p95 - 0.5).abs() < 1e-12, "{}", lit.p95);
-}
-
-#[test]
-fn report_runs_every_kind_of_configuration_and_writes_its_files() {
-    // The report's own code path at a small size: two scenes (one with a textured spot), a
-    // few configurations each, one timed frame. Checks the outputs exist and agree, and that
-    // the measured errors order as the methods should.
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().to_string_lossy().into_owned();
-    let report = common_examples::report::run(&args(&[
-        "--quick",
-        "--size",
-        "48",
-        "--frames",
-        "1",
-        "--scenes",
-        &format!(
-            "{}/scenes/sphere.json,{}/scenes/stained_glass.json",
-            env!("CARGO_MANIFEST_DIR"),
-            env!("CARGO_MANIFEST_DIR")
-        ),
-        "--out",
-        &out,
-    ]))
-    .unwrap();
-    for f in &report.files {
-        let len = std::fs::metadata(f).unwrap().len();
-        assert!(len > 100, "{} has {len} bytes", f.display());
-    }
-    let csv = std::fs::read_to_string(dir.path().join("report.csv")).unwrap();
-    assert_eq!(csv.lines().count(), report.rows.len() + 1);
-    let svg = std::fs::read_to_string(dir.path().join("error_vs_time.svg")).unwrap();
-    assert!(svg.contains("<svg") && svg.contains("brute force") && svg.contains("hybrid"));
-    for r in &report.rows {
-        assert!(r.total_ms.is_finite() && r.total_ms > 0.0, "{r:?}");
-        assert!(
-            r.errors.rmse.is_finite() && r.errors.p95.is_finite(),
-            "{r:?}"
-        );
-    }
-    // Three tolerances per scene were checked, none judged at 48x48 (the error table was
-    // built at 512x512): the run's verdict (the binary's exit status) is a success whatever
-    // the p95, and the report says why.
-    assert_eq!(report.checks.len(), 6);
-    use common_examples::report::Verdict;
-    assert!(report
-        .checks
-        .iter()
-        .all(|c| c.size == 48 && c.verdict() == Verdict::NotJudged));
-    assert!(report.verdict().is_ok());
-    let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
-    assert_eq!(
-        md.matches("not judged (table built at 512²)").count(),
-        6,
-        "{md}"
-    );
-    assert!(!md.contains("FAIL"), "{md}");
-    assert!(std::fs::read_to_string(dir.path().join("error_table.rs"))
-        .unwrap()
-        .contains("at 48x48"));
-    // On the sphere the hybrid at full resolution beats brute force at 16 steps (measured at
-    // 48x48: p95 0.2% vs 16%), and the unshadowed floor is far off (89%).
-    use common_examples::report::Curve;
-    let p95 = |curve: Curve, steps: u32| {
-        report
-            .rows
-            .iter()
-            .find(|r| r.scene == "sphere" && r.curve == curve && r.steps == steps)
-            .map(|r| r.errors.p95)
-            .unwrap()
-    };
-    let hybrid = p95(
-        Curve::Hybrid(1, common_examples::report::Filter::None, 0),
-        8,
-    );
-    let brute = p95(Curve::Brute, 16);
-    let floor = p95(Curve::Analytic, 0);
-    println!("sphere 48x48 p95: hybrid 8 {hybrid:.4}, brute force 16 {brute:.4}, floor {floor:.4}");
-    // The 2% accuracy target, met by the hybrid at 8 steps; brute force at 16 does worse.
-    const TARGET_P95: f64 = 0.02;
-    assert!(hybrid < TARGET_P95 && hybrid < brute && brute < floor);
-}
-
-/// The error-target checks are judged only at the size the planner's table was built for
-/// (512²): there a p95 over the tolerance is a FAIL, the summary says so and the run's verdict
-/// (the binary's exit status 1) is an error; at another size the same p95 is "not judged"
-/// and the verdict a success.
-#[test]
-fn report_judges_error_targets_at_the_table_size_only() {
-    use common_examples::report::{summary, Check, Report, Verdict, ERROR_TABLE_SIZE};
-    assert_eq!(ERROR_TABLE_SIZE, 512);
-    let check = |size: u32, p95: f64| Check {
-        scene: "window".into(),
-        tolerance: 0.05,
-        p95,
-        size,
-    };
-    let report = |checks: Vec<Check>| Report {
-        rows: Vec::new(),
-        checks,
-        files: Vec::new(),
-    };
-    assert_eq!(check(512, 0.071).verdict(), Verdict::Fail);
-    assert_eq!(check(512, f64::INFINITY).verdict(), Verdict::Fail);
-    assert_eq!(check(512, 0.049).verdict(), Verdict::Pass);
-    assert_eq!(check(256, 0.071).verdict(), Verdict::NotJudged);
-    assert_eq!(check(256, 0.001).verdict(), Verdict::NotJudged);
-
-    let judged = report(vec![check(512, 0.049), check(512, 0.071)]);
-    let error = judged.verdict().unwrap_err().to_string();
-    println!("{error}");
-    assert!(error.contains("1 error-target check(s) FAIL") && error.contains("window"));
-    let text = summary(&[], &judged.checks);
-    assert!(
-        text.contains("| window | 5% | 0.049% | pass |")
-            || text.contains("| window | 5% | 4.900% | pass |"),
-        "{text}"
-    );
-    assert!(text.contains("FAIL by 2.10 points"), "{text}");
-
-    let elsewhere = report(vec![check(256, 0.071), check(256, 0.001)]);
-    assert!(elsewhere.verdict().is_ok());
-    let text = summary(&[], &elsewhere.checks);
-    assert_eq!(
-        text.matches("not judged (table built at 512²)").count(),
-        2,
-        "{text}"
-    );
-    assert!(!text.contains("FAIL") && !text.contains("pass"), "{text}");
-}
-
-/// `measurements` never writes over its input: a log saved where the run's table would go
-/// (`docs/measurements/NAME.tsv` under its root) is refused before anything is written, and
-/// the same log elsewhere is read and the documents written (so the refusal, not a failing
-/// read, kept the files).
-#[test]
-fn measurements_never_overwrites_its_input() {
-    let dir = tempfile::tempdir().unwrap();
-    let folder = dir.path().join("docs/measurements");
-    std::fs::create_dir_all(&folder).unwrap();
-    let log = format!(
-        "{}\n",
-        metric::line(metric::Doc::Accuracy, "examples::x", "a check", "1%", "2%")
-    );
-    let in_place = folder.join("x.tsv");
-    std::fs::write(&in_place, &log).unwrap();
-    let before = snapshot(dir.path());
-    let run = |path: &Path| {
-        let args = ["--run", "x", "--date", "2026-01-01", path.to_str().unwrap()];
-        measurements::run(args.map(String::from).to_vec(), dir.path())
-    };
-    let message = run(&in_place).expect_err("not refused").to_string();
-    println!("{message}");
-    assert!(message.contains("refusing to write"), "{message}");
-    assert_eq!(snapshot(dir.path()), before, "files changed");
-    let elsewhere = dir.path().join("x.log");
-    std::fs::write(&elsewhere, &log).unwrap();
-    run(&elsewhere).unwrap();
-    assert!(dir.path().join("docs/ACCURACY.md").exists());
-    assert_ne!(std::fs::read(&in_place).unwrap(), log.as_bytes());
-}
-
-/// The report never writes over its input: a scene file where an output would go (here a
-/// scene saved as `report.md` in the output folder) is refused before anything is written
-/// (no cache folder, no other file). Its default output folder is `target/volshadow-report`,
-/// and its default run the quick set.
-#[test]
-fn report_never_overwrites_its_input() {
-    let dir = tempfile::tempdir().unwrap();
-    let scene = dir.path().join("report.md");
-    std::fs::copy(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sphere.json"),
-        &scene,
-    )
-    .unwrap();
-    let before = snapshot(dir.path());
-    let d = dir.path().to_str().unwrap();
-    for out in [d.to_string(), format!("{d}/.")] {
-        let result = common_examples::report::run(&args(&[
-            "--quick",
-            "--size",
-            "8",
-            "--frames",
-            "1",
-            "--scenes",
-            scene.to_str().unwrap(),
-            "--out",
-            &out,
-        ]));
-        assert_refused(result, "report.md", dir.path(), &before, &out);
-        assert!(
-            !dir.path().join("cache").exists(),
-            "{out}: the cache folder was made"
-        );
-    }
-    use common_examples::report::Options;
-    let Parsed::Run(defaults) = Options::parse(&[]).unwrap() else {
-        panic!("not a run")
-    };
-    assert_eq!(defaults.out, Path::new("target/volshadow-report"));
-    assert_eq!(defaults.size, common_examples::report::DEFAULT_SIZE);
-    assert_eq!(
-        defaults.scenes,
-        common_examples::report::DEFAULT_SCENES
-            .map(|n| Path::new("scenes").join(format!("{n}.json")))
-    );
-    assert!(!defaults.full);
-    // `--full`: every scene file at the table's size; `--size` still applies.
-    let Parsed::Run(full) = Options::parse(&args(&["--full"])).unwrap() else {
-        panic!("not a run")
-    };
-    assert_eq!(full.size, 512);
-    assert_eq!(full.scenes.len(), scene_files().len());
-    let Parsed::Run(full) = Options::parse(&args(&["--full", "--size", "64"])).unwrap() else {
-        panic!("not a run")
-    };
-    assert!(full.full && full.size == 64);
-    // Scenes named on the command line: at the table's size, as before the quick set.
-    let Parsed::Run(named) = Options::parse(&args(&["--scenes", "soft"])).unwrap() else {
-        panic!("not a run")
-    };
-    assert_eq!(named.size, 512);
-    assert_eq!(named.scenes, [Path::new("scenes/soft.json")]);
-}
-
-/// `error_vs_time.svg`: every series the report can plot (13 in a full run) has its own
-/// colour, and its own colour and marker together; none is the analytic floor's grey; and
-/// the legend's entries, at the widths their names need, neither overlap nor leave the header.
-#[test]
-fn report_plot_series_and_legend_are_distinct() {
-    use common_examples::report::FLOOR_GREY;
-    use common_examples::report::{legend_box, legend_layout, series_style, Curve, Filter};
-    let mut curves = vec![Curve::Brute, Curve::Paper003, Curve::Textbook];
-    for (d, f) in [(1, Filter::None), (2, Filter::Box3), (2, Filter::Separable)] {
-        curves.push(Curve::Exact(d, f));
-        curves.push(Curve::Hybrid(d, f, 2));
-    }
-    for f in [Filter::Box3, Filter::Separable] {
-        curves.push(Curve::Exact(4, f));
-        curves.push(Curve::Hybrid(4, f, 2));
-    }
-    assert_eq!(curves.len(), 13);
-    let styles: Vec<_> = (0..curves.len()).map(series_style).collect();
-    for (i, a) in styles.iter().enumerate() {
-        assert_ne!(a.0, FLOOR_GREY);
-        for (j, b) in styles.iter().enumerate().skip(i + 1) {
-            assert_ne!(a.0, b.0, "series {i} and {j} share a colour");
-        }
-    }
-    let pairs: Vec<_> = (0..60).map(series_style).collect();
-    for (i, a) in pairs.iter().enumerate() {
-        assert!(!pairs[i + 1..].contains(a), "style {i} repeats");
-    }
-    let mut names: Vec<String> = curves.iter().map(|c| c.name()).collect();
-    names.push("analytic floor (its time)".into());
-    for width in [1200, 800] {
-        let (places, header) = legend_layout(&names, width);
-        let boxes: Vec<_> = names
-            .iter()
-            .zip(&places)
-            .map(|(n, &p)| legend_box(n, p))
-            .collect();
-        for (i, a) in boxes.iter().enumerate() {
-            assert!(
-                a.2 <= width && a.3 <= header,
-                "{:?} leaves the header",
-                names[i]
-            );
-            for (j, b) in boxes.iter().enumerate().skip(i + 1) {
-                let apart = a.2 <= b.0 || b.2 <= a.0 || a.3 <= b.1 || b.3 <= a.1;
-                assert!(apart, "{:?} and {:?} overlap", names[i], names[j]);
-            }
-        }
-    }
-}
-
-/// The report's reference cache is keyed by every source the reference depends on: the files
-/// the old hand-written list missed (the BVH, the JSON layer, the scene types) are in it, and
-/// every listed file exists (a renamed file would otherwise silently drop out of the key).
-#[test]
-fn report_cache_key_covers_the_reference_sources() {
-    let sources = common_examples::report::reference_sources();
-    let names: Vec<String> = sources
-        .iter()
-        .map(|p| p.to_string_lossy().replace('\\', "/"))
-        .collect();
-    for needed in [
-        "src/reference/bvh.rs",
-        "src/scene_file/spec.rs",
-        "src/scene/shapes.rs",
-        "src/scene/medium.rs",
-        "src/scene/light.rs",
-        "src/scene/camera.rs",
-        "src/scene/mesh.rs",
-        "examples/common/render_scene.rs",
-    ] {
-        assert!(
-            names.iter().any(|n| n.ends_with(needed)),
-            "{needed} is not in the reference cache key: {names:?}"
-        );
-    }
-    for p in &sources {
-        assert!(p.is_file(), "{} does not exist", p.display());
-    }
-}
-
 /// The child of [`headless_runs_print_no_error_lines`]: what `render`'s `main` does, on the
 /// sphere scene at 32×32. Ignored in a normal run; the parent runs it in a fresh process.
 #[test]
 #[ignore = "run in a child process by headless_runs_print_no_error_lines"]
 fn headless_child_render() {
-    common_examples::headless_env::quiet_display_probe();
+    volshadow_harness::headless_env::quiet_display_probe();
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/sphere.json");
     let dir = tempfile::tempdir().unwrap();
     render_scene::run(&args(&[
@@ -1275,7 +843,7 @@ fn headless_child_render() {
 /// A run on a machine without a desktop session prints no line starting with `error:` unless
 /// something failed: Mesa's Vulkan device-selection layer used to make libwayland print
 /// `error: XDG_RUNTIME_DIR is invalid or not set in the environment.` twice per run
-/// (`examples/common/headless_env.rs`). The render runs in a child process, since the message
+/// (`volshadow_harness::headless_env`). The render runs in a child process, since the message
 /// is written by C code straight to the process's standard error.
 #[test]
 fn headless_runs_print_no_error_lines() {
@@ -1321,9 +889,9 @@ fn headless_runs_print_no_error_lines() {
 #[cfg(feature = "gltf")]
 #[test]
 fn gltf_mesh_report_says_open_and_non_manifold() {
-    use common_examples::gltf_scene::mesh_report;
     use volshadow::glam::{Mat4, Vec3};
     use volshadow::scene::Mesh;
+    use volshadow_harness::gltf_scene::mesh_report;
     let corners: Vec<Vec3> = (0..8)
         .map(|i| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32))
         .collect();
@@ -1368,9 +936,9 @@ fn gltf_mesh_report_says_open_and_non_manifold() {
 /// scenes' surfaces are unchanged).
 #[test]
 fn a_light_at_the_eye_does_not_flood_the_surfaces_with_ambient() {
-    use common_examples::raster::{default_ambient, DrawLight, DrawObject};
     use volshadow::glam::{Mat4, Vec2, Vec3};
     use volshadow::scene::shapes;
+    use volshadow_harness::raster::{default_ambient, DrawLight, DrawObject};
     let eye = Vec3::new(0.0, 1.6, 6.0);
     let camera = volshadow::Camera::new(
         volshadow::glam::camera::rh::view::look_at_mat4(eye, Vec3::ZERO, Vec3::Y),

@@ -1,14 +1,7 @@
-//! The examples as tests: each example's code is included and run small (the quickstart against
-//! the f64 reference, the render and gltf runs, the report, the soak, the measurements tool),
-//! so an example that no longer builds or works fails the suite. One test binary.
-// Each example is a complete program that includes the shared files it needs
-// (`examples/common/`); this binary includes several examples, so some files load twice.
-#![allow(clippy::duplicate_mod)]
-
-#[macro_use]
-#[path = "../common/mod.rs"]
-mod common;
+//! The examples as tests: each example's code is run small (the render and gltf runs against
+//! the f64 reference, their command lines and refusals), so an example that no longer builds or
+//! works fails the suite. One test binary. The shared code is `volshadow_harness`; the
+//! quickstart's own test sits beside it (`examples/quickstart/quickstart.rs`, run with the
+//! crate's tests), the tools' in `tools/tests/`.
 
 mod examples;
-mod quickstart;
-mod soak;

@@ -2,7 +2,6 @@
 //! issue 2): σt·D from 1e-4 to 100, γ from 1e-3 to π − 1e-3 (light in front of and behind the
 //! eye), isotropic, HG(±0.9) and Rayleigh phases.
 
-use crate::common;
 use volshadow::nodes::{Encode, Node};
 
 use glam::{DVec3, Vec3};
@@ -111,15 +110,15 @@ fn table_error(
     worst
 }
 
-crate::at_each_precision!(
+volshadow_harness::at_each_precision!(
     table_matches_reference_at => table_matches_reference_over_optical_depths_angles_and_phases,
     table_matches_reference_worst_case,
-    common::WORST_CASES
+    volshadow_harness::WORST_CASES
 );
 
 fn table_matches_reference_at(precision: ShaderPrecision) {
-    let gpu = common::gpu();
-    let cache = common::cache_with(&gpu, precision);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache_with(&gpu, precision);
     let phases = [
         PhaseFunction::Isotropic,
         PhaseFunction::HenyeyGreenstein { g: 0.9 },
@@ -140,7 +139,7 @@ fn table_matches_reference_at(precision: ShaderPrecision) {
         "{precision:?}: F' table: max relative error over all entries checked: {overall:.3e} on {}",
         gpu.adapter_summary()
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!(
             "{precision:?}: F′ table entries against the f64 reference, σt·D 1e-4…100, every phase"
         ),
@@ -169,17 +168,17 @@ fn frame_error(
     let (camera, light) = frame_scene();
     let depths: Vec<f32> = (0..N * N)
         .map(|i| {
-            let (o, d) = common::pixel_ray(&camera, N, N, i % N, i / N);
+            let (o, d) = volshadow_harness::pixel_ray(&camera, N, N, i % N, i / N);
             let t = ground(o, d);
             if t.is_finite() {
-                common::ndc_depth(&camera, o + t * d)
+                volshadow_harness::ndc_depth(&camera, o + t * d)
             } else {
                 camera.far_depth()
             }
         })
         .collect();
-    let depth = common::depth_texture(gpu, N, N, &depths);
-    let texels = common::march_frame(gpu, cache, size, &camera, &light, medium, &depth);
+    let depth = volshadow_harness::depth_texture(gpu, N, N, &depths);
+    let texels = volshadow_harness::march_frame(gpu, cache, size, &camera, &light, medium, &depth);
     let keep = reference::ImageError::keep_away_from_lights(&camera, &[light.into()], N, N);
     let near_light = |i: usize| !keep[i];
     let max_ref = reference_image
@@ -213,7 +212,7 @@ fn ground(o: DVec3, d: DVec3) -> f64 {
 }
 
 fn frame_scene() -> (volshadow::Camera, PointLight) {
-    let camera = common::look_at(
+    let camera = volshadow_harness::look_at(
         Vec3::new(0.0, 1.5, 6.0),
         Vec3::new(0.0, 1.0, 0.0),
         60.0,
@@ -230,8 +229,8 @@ fn frame_scene() -> (volshadow::Camera, PointLight) {
 /// of 57–875%).
 #[test]
 fn table_size_minimum_is_where_the_frame_error_stays_within_a_fifth_of_a_percent() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let (camera, light) = frame_scene();
     let media = [
         Medium::new(
@@ -307,7 +306,7 @@ fn table_size_minimum_is_where_the_frame_error_stays_within_a_fifth_of_a_percent
         );
         worst_at_min = worst_at_min.max(p95);
     }
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "the smallest F′ table: frame p95 against the reference",
         format!("p95 {:.3}%", 100.0 * worst_at_min),
         format!("p95 {}%", 100.0 * BOUND),

@@ -15,16 +15,14 @@
 //! reference's. Each scene is checked to be one where ignoring the small occluders fails the
 //! bounds.
 
-use crate::common;
+use volshadow_harness::rng;
 
-use crate::common::rng;
-
-use common::scene::{Errors, MeshScene, SceneMesh, Shot};
 use glam::{DVec3, Mat4, Vec3};
 use rng::Rng;
 use volshadow::nodes::{MarchMethod, MarchSettings};
 use volshadow::scene::{shapes, Mesh};
 use volshadow::{Cache, Camera, DirectionalLight, HeadlessGpu, Light, Medium, PhaseFunction};
+use volshadow_harness::scene::{Errors, MeshScene, SceneMesh, Shot};
 
 const SIZE: u32 = 64;
 /// The exact method's bounds for a directional light (tests/gpu/directional.rs, window scene).
@@ -94,7 +92,8 @@ fn measure(
         .iter()
         .map(|v: &DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0])
         .collect();
-    let ignored = common::scene::errors(&open_as_image, &reference, camera, light, (SIZE, SIZE));
+    let ignored =
+        volshadow_harness::scene::errors(&open_as_image, &reference, camera, light, (SIZE, SIZE));
     methods
         .iter()
         .map(|&method| {
@@ -167,8 +166,8 @@ fn ball_over(far: Mesh) -> (MeshScene, Camera, Light) {
 /// darkens the rays through it markedly.
 #[test]
 fn far_occluders_keep_a_small_shadow() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let cases = [
         (
             "20 x 1 x 20 slab 1,000 below",
@@ -228,8 +227,8 @@ fn far_occluders_keep_a_small_shadow() {
 /// (log-uniform), the sun 3° to 90° above the horizon in any azimuth.
 #[test]
 fn small_occluders_over_terrain_at_every_scale() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let seeds: Vec<u64> = match std::env::var("CASCADES_SEEDS") {
         Ok(s) => s.split(',').map(|v| v.trim().parse().unwrap()).collect(),
         Err(_) => (1..=12).collect(),
@@ -338,8 +337,8 @@ fn small_occluders_over_terrain_at_every_scale() {
 fn field_over_two_kilometres_at_the_defaults() {
     use volshadow::{Frame, FrameLight, Occluder, OccluderMesh, Settings, VolumetricShadows};
     const REDUCED_RMSE: f64 = 0.03;
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let mut rng = Rng::new(0x5eed_f1e1d);
     let mut occluders = Vec::new();
     for k in 0..60 {
@@ -375,8 +374,9 @@ fn field_over_two_kilometres_at_the_defaults() {
     let reference = Shot::new(&scene, &camera, &light, &medium, SIZE).reference();
     let open_ref = Shot::new(&scene, &camera, &light, &medium, SIZE).reference_casting(&[]);
 
-    let depth = common::depth_texture(&gpu, SIZE, SIZE, &scene.depths(&camera, SIZE, SIZE));
-    let tex = |format, usage| common::texture(&gpu, format, usage, (SIZE, SIZE, 1), 1);
+    let depth =
+        volshadow_harness::depth_texture(&gpu, SIZE, SIZE, &scene.depths(&camera, SIZE, SIZE));
+    let tex = |format, usage| volshadow_harness::texture(&gpu, format, usage, (SIZE, SIZE, 1), 1);
     let color = tex(
         wgpu::TextureFormat::Rgba32Float,
         wgpu::TextureUsages::TEXTURE_BINDING,
@@ -411,7 +411,8 @@ fn field_over_two_kilometres_at_the_defaults() {
         .iter()
         .map(|v| [v.x as f32, v.y as f32, v.z as f32, 0.0])
         .collect();
-    let ignored = common::scene::errors(&open_image, &reference, &camera, &light, (SIZE, SIZE));
+    let ignored =
+        volshadow_harness::scene::errors(&open_image, &reference, &camera, &light, (SIZE, SIZE));
     eprintln!("field over 2 km, shadows ignored: {ignored}");
     assert!(
         ignored.rmse > REDUCED_RMSE,
@@ -434,7 +435,8 @@ fn field_over_two_kilometres_at_the_defaults() {
         vs.encode(&mut encoder, &output).unwrap();
         gpu.submit_and_wait(encoder).unwrap();
         let image = gpu.read_rgba32f(vs.inscatter(0).unwrap()).unwrap();
-        let errors = common::scene::errors(&image, &reference, &camera, &light, (SIZE, SIZE));
+        let errors =
+            volshadow_harness::scene::errors(&image, &reference, &camera, &light, (SIZE, SIZE));
         let kept = kept(&image, &reference, &open_ref);
         eprintln!(
             "field over 2 km, {name}: {errors}; shadows kept {:.1}%",

@@ -3,9 +3,7 @@
 //! be `Ls·exp(−σt·d) + Σ L_sctr` for the distance `d` the depth buffer encodes (computed here
 //! in f64 from the camera's matrices, not by the crate's shaders).
 
-use crate::common;
-
-use crate::common::rng;
+use volshadow_harness::rng;
 
 use glam::Vec3;
 use rng::Rng;
@@ -25,7 +23,7 @@ struct Inputs {
 }
 
 fn rgba32f(gpu: &HeadlessGpu, values: &[[f32; 4]]) -> wgpu::Texture {
-    common::rgba_texture(gpu, W, H, values)
+    volshadow_harness::rgba_texture(gpu, W, H, values)
 }
 
 /// Seeded colour, in-scatter and distances (a tenth of the pixels sky), an odd size so that
@@ -76,14 +74,14 @@ fn inputs(gpu: &HeadlessGpu, seed: u64) -> Inputs {
             }
         })
         .collect();
-    let depths = common::depths_at(&camera, W, H, |_, _| f64::NAN);
+    let depths = volshadow_harness::depths_at(&camera, W, H, |_, _| f64::NAN);
     let depths: Vec<f32> = depths
         .iter()
         .enumerate()
         .map(|(i, &far)| {
-            let (o, d) = common::pixel_ray(&camera, W, H, i as u32 % W, i as u32 / W);
+            let (o, d) = volshadow_harness::pixel_ray(&camera, W, H, i as u32 % W, i as u32 / W);
             if distance[i].is_finite() {
-                common::ndc_depth(&camera, o + distance[i] * d)
+                volshadow_harness::ndc_depth(&camera, o + distance[i] * d)
             } else {
                 far
             }
@@ -91,7 +89,7 @@ fn inputs(gpu: &HeadlessGpu, seed: u64) -> Inputs {
         .collect();
     let textures = vec![
         rgba32f(gpu, &color),
-        common::depth_texture(gpu, W, H, &depths),
+        volshadow_harness::depth_texture(gpu, W, H, &depths),
         rgba32f(gpu, &inscatter[0]),
         rgba32f(gpu, &inscatter[1]),
     ];
@@ -140,7 +138,7 @@ fn composite(
     usage: wgpu::TextureUsages,
 ) -> (bool, Vec<[f32; 4]>) {
     let node = prepared(gpu, cache, inputs, format);
-    let target = common::texture(
+    let target = volshadow_harness::texture(
         gpu,
         format,
         usage | wgpu::TextureUsages::COPY_SRC,
@@ -163,8 +161,8 @@ fn composite(
 /// fragment pass; one that skips the last partial workgroup leaves its pixels at zero.
 #[test]
 fn compute_and_fragment_composites_write_the_same_values() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let storage = wgpu::TextureUsages::STORAGE_BINDING;
     let render = wgpu::TextureUsages::RENDER_ATTACHMENT;
     for (seed, format) in [
@@ -202,7 +200,7 @@ fn compute_and_fragment_composites_write_the_same_values() {
             worst = worst.max((f64::from(f[3]) - alpha).abs() / alpha.max(1e-3));
         }
         println!("{format:?}: {differ} pixels differ between the passes; worst relative error against f64 {worst:.2e}");
-        common::metric::accuracy(
+        volshadow_harness::metric::accuracy(
             &format!("{format:?}, {W}×{H}: pixels where the compute and fragment composites differ; the output against the f64 Ls·exp(−σt·d) + ΣL_sctr"),
             format!("{differ}; max {worst:.1e}"),
             if half {
@@ -229,8 +227,8 @@ fn compute_and_fragment_composites_write_the_same_values() {
 /// format has no storage usage) is refused with a typed error naming it, before recording.
 #[test]
 fn a_storage_only_target_is_written_and_a_target_with_neither_usage_is_refused() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let inputs = inputs(&gpu, 3);
     let (stored, image) = composite(
         &gpu,
@@ -244,7 +242,7 @@ fn a_storage_only_target_is_written_and_a_target_with_neither_usage_is_refused()
         image.iter().all(|p| p.iter().all(|v| v.is_finite())) && image.iter().any(|p| p[0] > 0.0)
     );
     let node = prepared(&gpu, &cache, &inputs, wgpu::TextureFormat::Rgba32Float);
-    let target = common::texture(
+    let target = volshadow_harness::texture(
         &gpu,
         wgpu::TextureFormat::Rgba32Float,
         wgpu::TextureUsages::COPY_SRC,

@@ -6,7 +6,6 @@
 //! Checked against the intersections computed here in f64 from the mesh, the light and the
 //! camera's matrices.
 
-use crate::common;
 use volshadow::nodes::{Encode, Node};
 
 use glam::{DMat4, DVec3, Mat4, Quat, Vec3};
@@ -58,8 +57,8 @@ fn raster_built_crossing_depths_are_where_each_pixel_ray_meets_its_face() {
 }
 
 fn depths_of_build(build: CrossingsBuild) {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let mut node = ExtentsNode::new(&gpu.device, &cache).unwrap();
     let (mut judged, mut over, mut worst) = (0usize, 0usize, 0.0f64);
     for seed in 0..12u64 {
@@ -87,8 +86,9 @@ fn depths_of_build(build: CrossingsBuild) {
             .into();
         // The eye below and beside the box, looking up along the volume's sides.
         let eye = Vec3::new(u(-3.0, 3.0) as f32, u(-1.5, 1.0) as f32, u(2.0, 5.0) as f32);
-        let camera = common::look_at(eye, Vec3::new(0.0, u(0.0, 1.5) as f32, 0.0), 70.0, 1.0);
-        let depth = common::depth_texture(
+        let camera =
+            volshadow_harness::look_at(eye, Vec3::new(0.0, u(0.0, 1.5) as f32, 0.0), 70.0, 1.0);
+        let depth = volshadow_harness::depth_texture(
             &gpu,
             SIZE,
             SIZE,
@@ -135,7 +135,8 @@ fn depths_of_build(build: CrossingsBuild) {
         let forward = -view.inverse().z_axis.truncate().normalize();
         for p in 0..(SIZE * SIZE) as usize {
             let count = (heads[4 * p] & 0x7fff_ffff).min(PER_PIXEL) as usize;
-            let (o, d) = common::pixel_ray(&camera, SIZE, SIZE, p as u32 % SIZE, p as u32 / SIZE);
+            let (o, d) =
+                volshadow_harness::pixel_ray(&camera, SIZE, SIZE, p as u32 % SIZE, p as u32 / SIZE);
             for k in 0..count {
                 let z = f64::from(list[PER_PIXEL as usize * p + k].abs());
                 let best = planes
@@ -163,7 +164,7 @@ fn depths_of_build(build: CrossingsBuild) {
         }
     }
     println!("{judged} crossings judged, {over} beyond the bound; worst error × |cos| {worst:.2e} (bound 32 · 2^-24 = {:.2e})", 32.0 * 2f64.powi(-24));
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!("{build:?} build, 12 seeded boxes and spheres, {SIZE}²: crossing depths against the f64 ray–plane intersections, worst relative error × |cos| in ULPs of 2^-24; crossings beyond the bound"),
         format!(
             "{:.1}; {over} of {judged}",
@@ -209,8 +210,8 @@ fn lists_of(
 /// exactly on an edge and the near plane (neither case occurs on these scenes).
 #[test]
 fn compute_and_raster_builds_write_the_same_lists() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let mut node = ExtentsNode::new(&gpu.device, &cache).unwrap();
     let (w, h) = (80u32, 64u32);
     let mut worst = 0.0f64;
@@ -264,16 +265,17 @@ fn compute_and_raster_builds_write_the_same_lists() {
             u(-3.0, 3.0) as f32,
         );
         let target = Vec3::new(u(-0.5, 0.5) as f32, u(0.5, 1.5) as f32, u(-0.5, 0.5) as f32);
-        let camera = common::look_at(eye, target, u(40.0, 110.0) as f32, w as f32 / h as f32);
+        let camera =
+            volshadow_harness::look_at(eye, target, u(40.0, 110.0) as f32, w as f32 / h as f32);
         // A ground at y = 0: crossings beyond it are behind the surface.
-        let values = common::depths_at(&camera, w, h, |o, d| {
+        let values = volshadow_harness::depths_at(&camera, w, h, |o, d| {
             if d.y < 0.0 && o.y > 0.0 {
                 -o.y / d.y
             } else {
                 f64::INFINITY
             }
         });
-        let depth = common::depth_texture(&gpu, w, h, &values);
+        let depth = volshadow_harness::depth_texture(&gpu, w, h, &values);
         let occluders: Vec<Occluder> = meshes
             .iter()
             .zip(&transforms)
@@ -335,7 +337,7 @@ fn compute_and_raster_builds_write_the_same_lists() {
         "worst seed: {:.3}% of pixels differ; {covered} pixels crossed by a volume",
         100.0 * worst
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!("compute against raster crossing lists, 16 seeded scenes, {w}×{h}: pixels that differ, worst seed; pixels crossed by a volume"),
         format!("{:.3}%; {covered}", 100.0 * worst),
         "0.5% (the rasteriser's sub-pixel snapping); > 5000",

@@ -8,10 +8,8 @@
 //! * shimmer: a camera moving by sub-texel steps over 16 frames changes the in-scatter of
 //!   pixels away from shadow edges by ≤ 0.5% between consecutive frames.
 
-use crate::common;
 use volshadow::nodes::{Encode, Node};
 
-use common::scene::{MeshScene, Shot};
 use glam::{DVec3, Vec3};
 use volshadow::nodes::{
     AirlightTableNode, MarchInputs, MarchMethod, MarchNode, MarchSettings, ShadowMapNode, TableSize,
@@ -19,6 +17,7 @@ use volshadow::nodes::{
 use volshadow::reference;
 use volshadow::scene::shapes;
 use volshadow::{Cache, Camera, DirectionalLight, HeadlessGpu, Light, Medium, PhaseFunction};
+use volshadow_harness::scene::{MeshScene, Shot};
 
 /// The closed form's bar (the issue's): relative error per channel.
 const CLOSED_FORM_TOLERANCE: f64 = 1e-4;
@@ -107,18 +106,18 @@ fn naive_f32(sigma_t: f32, x: f32) -> f32 {
 
 #[test]
 fn closed_form_matches_reference_on_unshadowed_rays() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let camera = camera(Vec3::new(0.0, 2.0, 8.0), Vec3::new(0.0, 1.0, 0.0), 70.0);
     let light = sun();
     // Half the image sees the floor (surface pixels out to the horizon), half the sky.
     let mut depths = Vec::new();
     let mut rays = Vec::new();
     for i in 0..SMALL * SMALL {
-        let (o, d) = common::pixel_ray(&camera, SMALL, SMALL, i % SMALL, i / SMALL);
+        let (o, d) = volshadow_harness::pixel_ray(&camera, SMALL, SMALL, i % SMALL, i / SMALL);
         let ds = floor_distance(o, d);
         depths.push(if ds.is_finite() {
-            common::ndc_depth(&camera, o + ds * d)
+            volshadow_harness::ndc_depth(&camera, o + ds * d)
         } else {
             camera.far_depth()
         });
@@ -126,7 +125,7 @@ fn closed_form_matches_reference_on_unshadowed_rays() {
     }
     let sky = rays.iter().filter(|r| r.2.is_infinite()).count();
     assert!(sky > 0 && sky < rays.len(), "{sky} sky pixels");
-    let depth = common::depth_texture(&gpu, SMALL, SMALL, &depths);
+    let depth = volshadow_harness::depth_texture(&gpu, SMALL, SMALL, &depths);
     let phases = [
         ("isotropic", PhaseFunction::Isotropic),
         ("HG +0.9", PhaseFunction::HenyeyGreenstein { g: 0.9 }),
@@ -169,7 +168,7 @@ fn closed_form_matches_reference_on_unshadowed_rays() {
         }
     }
     eprintln!("closed form: worst relative error over every case {worst_overall:.2e}");
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!("closed-form airlight, unshadowed sky and floor rays, {SMALL}², σt 0…100 per scene size, 4 phases: worst channel"),
         format!("max {worst_overall:.1e}; {non_finite_overall} non-finite"),
         format!("{CLOSED_FORM_TOLERANCE:.0e} (the issue's); 0"),
@@ -181,7 +180,7 @@ fn closed_form_matches_reference_on_unshadowed_rays() {
     let exact = -(-f64::from(sigma) * f64::from(x)).exp_m1() / f64::from(sigma);
     let naive = relative(naive_f32(sigma, x), exact);
     eprintln!("naive f32 closed form at sigma_t = 1e-6/size, x = 10: relative error {naive:.2e}");
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "the naive f32 closed form (1 − e^(−σt·x))/σt at σt = 1e-6 per scene size, x = 10 (must fail)",
         format!("{naive:.1e}"),
         format!("> {CLOSED_FORM_TOLERANCE:.0e}"),
@@ -245,8 +244,8 @@ fn exact() -> MarchSettings {
 
 #[test]
 fn window_scene_exact_mode_matches_reference() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let (scene, sun, dust) = window_room();
     let camera = window_camera(Vec3::ZERO);
     let light = Light::from(sun);
@@ -278,7 +277,7 @@ fn window_scene_exact_mode_matches_reference() {
         "window {WINDOW_SIZE}²: exact {}\n  hybrid {}\n  shadows ignored {}\n  crossings {:?}; reference {reference_s:.1} s",
         m.errors, hybrid.errors, lit.errors, m.frame.stats
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!(
             "window scene (sun through a window frame), exact, {WINDOW_SIZE}²; occluders ignored (the sun everywhere)"
         ),
@@ -335,8 +334,8 @@ fn away_from_edges(image: &[[f32; 4]], size: u32) -> Vec<usize> {
 
 #[test]
 fn moving_camera_does_not_make_shafts_shimmer() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let (scene, sun, dust) = window_room();
     // A shadow distance that covers the room in view: texels of about 2 cm.
     let sun = sun.with_shadow_distance(SHIMMER_DISTANCE).unwrap();
@@ -424,14 +423,14 @@ fn moving_camera_does_not_make_shafts_shimmer() {
             100.0 * spurious
         );
         if method == MarchMethod::Exact {
-            common::metric::accuracy(
+            volshadow_harness::metric::accuracy(
                 &format!("shimmer: camera moving 0.37 shadow-map texel a frame, {size}², 16 frames, {name}: largest change between frames, pixels away from shadow edges"),
                 format!("{:.3}% ({kept} pixels)", 100.0 * worst),
                 format!("{}%; > 200 pixels", 100.0 * SHIMMER),
             );
         }
         if steps == 1024 {
-            common::metric::accuracy(
+            volshadow_harness::metric::accuracy(
                 &format!("shimmer, {name}: change between frames beyond the reference's"),
                 format!("{:.3}% ({kept} pixels)", 100.0 * spurious),
                 format!(
@@ -460,24 +459,24 @@ fn facade_mixes_point_and_directional_lights() {
     use volshadow::plan::{Pass, Reason};
     use volshadow::{Frame, FrameLight, Occluder, OccluderMesh, PointLight, Settings};
     const SIZE: u32 = 48;
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let camera = camera(Vec3::new(0.0, 1.5, 6.0), Vec3::new(0.0, 1.0, 0.0), 60.0);
     let mut rays = Vec::new();
     let depths: Vec<f32> = (0..SIZE * SIZE)
         .map(|i| {
-            let (o, d) = common::pixel_ray(&camera, SIZE, SIZE, i % SIZE, i / SIZE);
+            let (o, d) = volshadow_harness::pixel_ray(&camera, SIZE, SIZE, i % SIZE, i / SIZE);
             let ds = floor_distance(o, d);
             rays.push((o, d, ds));
             if ds.is_finite() {
-                common::ndc_depth(&camera, o + ds * d)
+                volshadow_harness::ndc_depth(&camera, o + ds * d)
             } else {
                 camera.far_depth()
             }
         })
         .collect();
-    let depth = common::depth_texture(&gpu, SIZE, SIZE, &depths);
-    let tex = |format, usage| common::texture(&gpu, format, usage, (SIZE, SIZE, 1), 1);
+    let depth = volshadow_harness::depth_texture(&gpu, SIZE, SIZE, &depths);
+    let tex = |format, usage| volshadow_harness::texture(&gpu, format, usage, (SIZE, SIZE, 1), 1);
     let color = tex(
         wgpu::TextureFormat::Rgba32Float,
         wgpu::TextureUsages::TEXTURE_BINDING,
@@ -547,10 +546,15 @@ fn facade_mixes_point_and_directional_lights() {
             .iter()
             .map(|&(o, d, ds)| reference::inscatter_directional(o, d, ds, &medium, &sun, &occ))
             .collect();
-        let errors =
-            common::scene::errors(&image, &reference, &camera, &Light::from(sun), (SIZE, SIZE));
+        let errors = volshadow_harness::scene::errors(
+            &image,
+            &reference,
+            &camera,
+            &Light::from(sun),
+            (SIZE, SIZE),
+        );
         eprintln!("facade, {name}, the sun's in-scatter: {errors}");
-        common::metric::accuracy(
+        volshadow_harness::metric::accuracy(
             &format!("facade, a point light and the sun, {SIZE}², {name}: the sun's in-scatter"),
             errors.short(),
             if settings.march.scale == volshadow::nodes::Scale::Full {
@@ -587,9 +591,15 @@ fn facade_mixes_point_and_directional_lights() {
         .iter()
         .map(|&(o, d, ds)| reference::inscatter_directional(o, d, ds, &medium, &sun, &occ))
         .collect();
-    let ignored = common::scene::errors(&open, &shadowed, &camera, &Light::from(sun), (SIZE, SIZE));
+    let ignored = volshadow_harness::scene::errors(
+        &open,
+        &shadowed,
+        &camera,
+        &Light::from(sun),
+        (SIZE, SIZE),
+    );
     eprintln!("facade, the board's shadow ignored: {ignored}");
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!("facade, {SIZE}²: the board's shadow ignored (must fail)"),
         ignored.short(),
         format!("p95 > {}%", 100.0 * WINDOW_P95),

@@ -7,10 +7,8 @@
 //! at its defaults RMSE ≤ 2% (it still takes shadow edges from the shadow map). Each scene is
 //! checked to be one where ignoring the shadow the eye stands in fails the same bars.
 
-use crate::common;
-use crate::common::rng;
+use volshadow_harness::rng;
 
-use common::scene::{Errors, MeshScene, SceneMesh, Shot};
 use glam::{Mat4, Vec3};
 use volshadow::nodes::{MarchMethod, MarchSettings};
 use volshadow::reference::TexturedSpot;
@@ -19,6 +17,7 @@ use volshadow::{
     Cache, Camera, HeadlessGpu, Light, Medium, PhaseFunction, PointLight, ShaderPrecision,
     SpotLight,
 };
+use volshadow_harness::scene::{Errors, MeshScene, SceneMesh, Shot};
 
 const SIZE: u32 = 64;
 /// Exact mode: p95 and RMSE bounds of the issue (0.5%).
@@ -59,7 +58,7 @@ fn point_light(p: Vec3) -> Light {
 }
 
 fn look_at(eye: Vec3, target: Vec3, fov: f32) -> Camera {
-    common::look_at(eye, target, fov, 1.0)
+    volshadow_harness::look_at(eye, target, fov, 1.0)
 }
 
 fn eye_in_shadow(scene: &MeshScene, camera: &Camera, light: &Light) -> bool {
@@ -73,7 +72,12 @@ fn eye_in_shadow(scene: &MeshScene, camera: &Camera, light: &Light) -> bool {
 
 /// Renders `shot` with the exact method, the hybrid and without occluders, prints the three
 /// errors, and checks the bars. Returns the exact method's measurement.
-fn check(name: &str, gpu: &HeadlessGpu, cache: &Cache, shot: &Shot<'_>) -> common::scene::Measured {
+fn check(
+    name: &str,
+    gpu: &HeadlessGpu,
+    cache: &Cache,
+    shot: &Shot<'_>,
+) -> volshadow_harness::scene::Measured {
     check_with(name, gpu, cache, shot, Some(HYBRID_RMSE))
 }
 
@@ -84,7 +88,7 @@ fn check_with(
     cache: &Cache,
     shot: &Shot<'_>,
     hybrid_rmse: Option<f64>,
-) -> common::scene::Measured {
+) -> volshadow_harness::scene::Measured {
     let reference = shot.reference();
     let m = shot.measure(gpu, cache, exact(), &reference);
     let hybrid = shot.measure(gpu, cache, hybrid(), &reference);
@@ -103,19 +107,19 @@ fn check_with(
         "{name}: exact {}\n  hybrid {}\n  shadows ignored {}\n  crossings: {:?}",
         m.errors, hybrid.errors, lit.errors, m.frame.stats
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!("{name}: exact method against the reference, {SIZE}²"),
         m.errors.short(),
         "p95 0.5%, RMSE 0.5%",
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!("{name}: hybrid at its defaults"),
         format!("RMSE {:.3}%", 100.0 * hybrid.errors.rmse),
         hybrid_rmse.map_or("none (characterised)".into(), |b| {
             format!("RMSE {}%", 100.0 * b)
         }),
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!("{name}: shadows ignored (must fail)"),
         lit.errors.short(),
         "p95 > 0.5% and RMSE > 2%",
@@ -151,8 +155,8 @@ fn assert_bars(name: &str, exact: &Errors, hybrid: &Errors, hybrid_rmse: Option<
 
 #[test]
 fn a_camera_in_the_shade_of_a_wide_roof() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     // A porch: a wide roof on two pillars. The pillars' shadow volumes lie inside the roof's,
     // so rays from the eye enter a pillar's volume (a front face) before they leave the roof's:
     // the piece before that face is in the roof's shadow, not lit.
@@ -178,8 +182,8 @@ fn a_camera_in_the_shade_of_a_wide_roof() {
 
 #[test]
 fn b_eye_inside_two_overlapping_volumes() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     // The eye is in the shadows of two stacked boards; most rays leave one and stay in the
     // other. A third board's volume starts beside the eye, so many rays enter it (a front
     // face) before leaving the first two.
@@ -214,8 +218,8 @@ fn b_eye_inside_two_overlapping_volumes() {
 
 #[test]
 fn c_thick_fog_light_behind_eye_in_shadow_near_the_edge() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let mut scene = MeshScene {
         ground: Some(0.0),
         ..Default::default()
@@ -255,7 +259,7 @@ fn c_thick_fog_light_behind_eye_in_shadow_near_the_edge() {
         &m.reference,
     );
     println!("  brute force 512 steps {}", brute.errors);
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "thick fog: brute force at 512 steps (shadow map's edges)",
         brute.errors.short(),
         "p95 > 10 × the exact method's",
@@ -287,8 +291,8 @@ fn blind(slats: u32) -> MeshScene {
 
 #[test]
 fn d_blind_of_slats_exact_and_overflowing() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let scene = blind(12);
     let light = point_light(Vec3::new(0.2, 4.5, -3.0));
     let camera = look_at(Vec3::new(0.4, 1.3, 3.5), Vec3::new(0.0, 1.9, -1.0), 60.0);
@@ -315,7 +319,7 @@ fn d_blind_of_slats_exact_and_overflowing() {
         &m.reference,
     );
     println!("  4 per pixel: {} {:?}", small.errors, small.frame.stats);
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "blind, lists of 4 crossings: overflowing pixels marched",
         format!(
             "{} pixels overflowed, RMSE {:.3}%",
@@ -339,8 +343,8 @@ fn d_blind_of_slats_exact_and_overflowing() {
 
 #[test]
 fn e_volume_cut_by_the_near_plane() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     // A camera with a far near plane (1.2) right next to the shaft: the caller's projection
     // clips the volume's front. The occluder is not in the caller's depth.
     let mut scene = MeshScene {
@@ -378,8 +382,8 @@ fn e_volume_cut_by_the_near_plane() {
 /// eye in no volume) fails: p95 1617% (lavapipe, 2026-12-02).
 #[test]
 fn h_eye_on_a_shadow_volume_face() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let mut scene = MeshScene {
         ground: Some(0.0),
         ..Default::default()
@@ -420,8 +424,8 @@ fn h_eye_on_a_shadow_volume_face() {
 /// here, which leaves every count's sign as it is, and passes.
 #[test]
 fn i_rays_through_shared_edges_and_a_vertex() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let r = 1.5;
     let c = Vec3::new(0.0, 2.0, 0.0);
     let positions: Vec<Vec3> = [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z]
@@ -461,7 +465,7 @@ fn i_rays_through_shared_edges_and_a_vertex() {
         "rays through edges and a vertex: exact {}\n  shadows ignored {}",
         m.errors, lit.errors
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!("rays through edges and a vertex: exact method against the reference, {size}²"),
         m.errors.short(),
         "p95 0.5%, RMSE 0.5%",
@@ -501,7 +505,7 @@ fn i_rays_through_shared_edges_and_a_vertex() {
         .filter(|c| c.2 > 0.01 * brightest)
         .map(|c| (c.0, c.1 / c.2))
         .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "rays through edges and a vertex: the middle column's largest error",
         format!("{:.3}% (row {row})", 100.0 * worst),
         "0.5%",
@@ -515,8 +519,8 @@ fn i_rays_through_shared_edges_and_a_vertex() {
 
 #[test]
 fn f_textured_spot_eye_in_its_occluders_shadow() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let spot = SpotLight::new(
         Vec3::new(0.3, 4.0, -0.2),
         Vec3::new(-0.1, -1.0, 0.05),
@@ -738,10 +742,10 @@ fn random_scene_in(seed: u64, regime: Regime) -> SeededMeshScene {
     }
 }
 
-crate::at_each_precision!(
+volshadow_harness::at_each_precision!(
     random_scenes_at => g_random_scenes_against_the_reference,
     g_random_scenes_against_the_reference_worst_case,
-    [common::WORST_CASE]
+    [volshadow_harness::WORST_CASE]
 );
 
 /// Random scenes nobody chose, exact mode against the reference: every scene p95 ≤ 1% (the
@@ -751,8 +755,8 @@ crate::at_each_precision!(
 /// The `_worst_case` test: the same with every transcendental built-in off by the most WGSL
 /// allows.
 fn random_scenes_at(precision: ShaderPrecision) {
-    let gpu = common::gpu();
-    let cache = common::cache_with(&gpu, precision);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache_with(&gpu, precision);
     let mut results = Vec::new();
     for seed in rng::seeds(0..200) {
         let s = random_scene(seed);
@@ -801,7 +805,7 @@ fn random_scenes_at(precision: ShaderPrecision) {
         worst.1,
         overflowed
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!(
             "{precision:?}: {} seeded random exact scenes, 24²–32²",
             results.len()
@@ -833,8 +837,8 @@ fn random_scenes_at(precision: ShaderPrecision) {
 #[test]
 fn reduced_resolution_with_the_upsample_filters() {
     use volshadow::nodes::{Scale, UpsampleFilter};
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let mut scene = MeshScene {
         ground: Some(0.0),
         ..Default::default()
@@ -867,7 +871,7 @@ fn reduced_resolution_with_the_upsample_filters() {
             scale.divisor(),
             m.errors
         );
-        common::metric::accuracy(
+        volshadow_harness::metric::accuracy(
             &format!("exact at 1/{} with {filter:?}, 128²", scale.divisor()),
             format!("RMSE {:.3}%", 100.0 * m.errors.rmse),
             format!("RMSE {}%", 100.0 * bound),
@@ -888,8 +892,8 @@ fn reduced_resolution_with_the_upsample_filters() {
 /// render of the cow scene before the fix).
 #[test]
 fn intersecting_occluders_with_a_low_light() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let mut scene = MeshScene {
         ground: Some(0.0),
         ..Default::default()
@@ -920,10 +924,10 @@ fn intersecting_occluders_with_a_low_light() {
     );
 }
 
-crate::at_each_precision!(
+volshadow_harness::at_each_precision!(
     thick_fog_spot_scenes_at => thick_fog_spot_scenes_against_the_reference,
     thick_fog_spot_scenes_against_the_reference_worst_case,
-    [common::WORST_CASE]
+    [volshadow_harness::WORST_CASE]
 );
 
 /// The reference's brightest value.
@@ -952,8 +956,8 @@ fn brightest(reference: &[glam::DVec3]) -> f64 {
 /// allows.
 fn thick_fog_spot_scenes_at(precision: ShaderPrecision) {
     const BRIGHTER: f32 = 1e15;
-    let gpu = common::gpu();
-    let cache = common::cache_with(&gpu, precision);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache_with(&gpu, precision);
     let regime = |brighter| Regime {
         log_tau: (1.0, 2.0),
         spot: true,
@@ -993,7 +997,7 @@ fn thick_fog_spot_scenes_at(precision: ShaderPrecision) {
         "{precision:?}: 200 thick-fog spot scenes: {within} within p95 1%, worst p95 {:.3}%",
         100.0 * worst
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!("{precision:?}: 200 seeded spot lights in thick fog (σt·D 10–100)"),
         format!("{within} within p95 1%, worst p95 {:.3}%", 100.0 * worst),
         "at least 198 within p95 1%, all within 2% (measured limits)",

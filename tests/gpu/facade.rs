@@ -2,8 +2,6 @@
 //! the pass is not recorded (GPU timestamps are written only by recorded passes) and that the
 //! image is what it would be with the pass.
 
-use crate::common;
-
 use glam::{DVec3, Mat4, Vec3};
 use volshadow::nodes::MarchMethod;
 use volshadow::plan::{Pass, Reason};
@@ -37,9 +35,9 @@ fn ground(o: DVec3, d: DVec3) -> f64 {
 
 /// A ground plane seen from above it, a constant scene colour of 0.5.
 fn rig() -> Rig {
-    let gpu = common::gpu_timed();
-    let cache = common::cache(&gpu);
-    let camera = common::look_at(
+    let gpu = volshadow_harness::gpu_timed();
+    let cache = volshadow_harness::cache(&gpu);
+    let camera = volshadow_harness::look_at(
         Vec3::new(0.0, 1.5, 5.0),
         Vec3::new(0.0, 1.0, 0.0),
         60.0,
@@ -47,17 +45,17 @@ fn rig() -> Rig {
     );
     let depths: Vec<f32> = (0..SIZE * SIZE)
         .map(|i| {
-            let (o, d) = common::pixel_ray(&camera, SIZE, SIZE, i % SIZE, i / SIZE);
+            let (o, d) = volshadow_harness::pixel_ray(&camera, SIZE, SIZE, i % SIZE, i / SIZE);
             let ds = ground(o, d);
             if ds.is_finite() {
-                common::ndc_depth(&camera, o + ds * d)
+                volshadow_harness::ndc_depth(&camera, o + ds * d)
             } else {
                 camera.far_depth()
             }
         })
         .collect();
-    let depth = common::depth_texture(&gpu, SIZE, SIZE, &depths);
-    let tex = |format, usage| common::texture(&gpu, format, usage, (SIZE, SIZE, 1), 1);
+    let depth = volshadow_harness::depth_texture(&gpu, SIZE, SIZE, &depths);
+    let tex = |format, usage| volshadow_harness::texture(&gpu, format, usage, (SIZE, SIZE, 1), 1);
     let color = tex(
         wgpu::TextureFormat::Rgba32Float,
         wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
@@ -197,8 +195,13 @@ fn no_occluders_means_no_shadow_map_no_extents_and_the_analytic_image() {
         reference::inscatter_image(&rig.camera, SIZE, SIZE, ground, &medium(), &light(), &[]);
     let expected: Vec<[f32; 4]> = (0..reference.len())
         .map(|i| {
-            let (o, d) =
-                common::pixel_ray(&rig.camera, SIZE, SIZE, i as u32 % SIZE, i as u32 / SIZE);
+            let (o, d) = volshadow_harness::pixel_ray(
+                &rig.camera,
+                SIZE,
+                SIZE,
+                i as u32 % SIZE,
+                i as u32 / SIZE,
+            );
             let t = reference::transmittance(&medium(), ground(o, d));
             let v = reference[i] + 0.5 * t;
             [v.x as f32, v.y as f32, v.z as f32, 1.0]
@@ -206,7 +209,7 @@ fn no_occluders_means_no_shadow_map_no_extents_and_the_analytic_image() {
         .collect();
     let err = max_rel(&r.image, &expected);
     println!("no occluders: max relative error against the reference composite {err:.2e}");
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "no occluders: the facade's composite against the reference composite",
         format!("max {err:.1e}"),
         "5e-3",
@@ -254,14 +257,15 @@ fn non_scattering_medium_only_attenuates() {
     assert_eq!(r.passes, vec!["composite".to_string()]);
     let mut worst: f64 = 0.0;
     for (i, px) in r.image.iter().enumerate() {
-        let (o, d) = common::pixel_ray(&rig.camera, SIZE, SIZE, i as u32 % SIZE, i as u32 / SIZE);
+        let (o, d) =
+            volshadow_harness::pixel_ray(&rig.camera, SIZE, SIZE, i as u32 % SIZE, i as u32 / SIZE);
         let t = reference::transmittance(&clear, ground(o, d));
         for c in 0..3 {
             worst = worst.max((f64::from(px[c]) - 0.5 * t[c]).abs());
         }
     }
     println!("sigma_s = 0: max |output - colour x transmittance| = {worst:.2e}");
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "σs = 0: output against colour × transmittance",
         format!("max {worst:.1e}"),
         "1e-5",
@@ -323,7 +327,7 @@ fn untextured_light_needs_no_light_texture_and_equals_a_white_texture() {
     println!("untextured vs white texture: max relative difference {err:.2e}");
     // The textured path marches before and after the extents where the plain one is analytic;
     // with a white texture its F′ differences telescope to the same values.
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "an untextured spot against the same spot with a white texture",
         format!("max {err:.1e}"),
         "1e-2",
@@ -358,7 +362,7 @@ fn full_resolution_needs_no_upsample() {
     assert!(half.plan.runs(Pass::Upsample, Some(0)) && half.passes.iter().any(|p| p == "upsample"));
     let err = max_rel(&full.image, &half.image);
     println!("full vs half resolution: max relative difference {err:.2e}");
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "full against half resolution",
         format!("max {err:.1e}"),
         format!("{HALF_VS_FULL:.0e}"),
@@ -464,7 +468,7 @@ fn optically_deep_occluder_is_culled_without_changing_the_image() {
     println!("culled vs kept: max relative difference {err:.2e}");
     // The bound promises < 1e-3 of the in-scatter; the composite adds the (unchanged)
     // attenuated colour, so the image moves by less.
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "an occluder culled by the optical-depth bound, against it kept",
         format!("max {err:.1e}"),
         "1e-3 (the bound's promise)",
@@ -1020,7 +1024,13 @@ fn two_soft_lights_in_one_frame_each_against_the_reference() {
             light,
             &reference_occluders,
         );
-        let e = common::scene::errors(&both[i], &reference, &rig.camera, light, (SIZE, SIZE));
+        let e = volshadow_harness::scene::errors(
+            &both[i],
+            &reference,
+            &rig.camera,
+            light,
+            (SIZE, SIZE),
+        );
         let hard_light = match *light {
             Light::Point(l) => l.with_radius(0.0).unwrap().into(),
             Light::Spot(l) => l.with_radius(0.0).unwrap().into(),
@@ -1036,7 +1046,7 @@ fn two_soft_lights_in_one_frame_each_against_the_reference() {
             &medium(),
             &occluders,
         );
-        let hard = common::scene::errors(
+        let hard = volshadow_harness::scene::errors(
             &read(&alone, 0),
             &reference,
             &rig.camera,
@@ -1045,7 +1055,7 @@ fn two_soft_lights_in_one_frame_each_against_the_reference() {
         );
         println!("light {i}: {e}\n  hard: {hard}");
         let (p95_bar, rmse_bar) = BARS[i];
-        common::metric::accuracy(
+        volshadow_harness::metric::accuracy(
             &format!("two soft lights through the facade, 96²: light {i} against the reference for it alone; drawn hard"),
             format!("{}; hard p95 {:.2}%", e.short(), 100.0 * hard.p95),
             format!("p95 {}%, RMSE {}% (measured limits); hard beyond the p95 bar", 100.0 * p95_bar, 100.0 * rmse_bar),
@@ -1294,7 +1304,8 @@ fn texture_samples(rig: &Rig, texture: &LightTexture, texels: u32) -> (f64, f64)
     let light_at = SPOT_AT.as_dvec3();
     let (mut lit, mut samples, mut rule, mut worst) = (0u64, 0u64, 0.0f64, 0.0f64);
     for p in 0..(SIZE * SIZE) as usize {
-        let (o, d) = common::pixel_ray(&rig.camera, SIZE, SIZE, p as u32 % SIZE, p as u32 / SIZE);
+        let (o, d) =
+            volshadow_harness::pixel_ray(&rig.camera, SIZE, SIZE, p as u32 % SIZE, p as u32 / SIZE);
         let end = o + ground(o, d).min(1e6) * d;
         let swept = (o - light_at).angle_between(end - light_at) / texel;
         // f32's rounding of the step count's inputs: a texel more.
@@ -1329,7 +1340,7 @@ fn a_textured_spots_steps_follow_the_texels_its_rays_cross() {
     let rig = rig();
     let texture = LightTexture::checkerboard(SPOT_TEXELS, 4, Vec3::ONE, Vec3::splat(0.2)).unwrap();
     let (mean, _) = texture_samples(&rig, &texture, SPOT_TEXELS);
-    common::metric::performance(
+    volshadow_harness::metric::performance(
         "a textured spot, 32 texels across, texture_steps 256: texture samples per lit pixel",
         format!("{mean:.1}"),
         "≤ 2 (texels swept + pieces) per pixel",
@@ -1346,7 +1357,7 @@ fn a_textured_spot_crosses_flat_panes_in_one_step() {
     let rig = rig();
     let texture = volshadow::scene_file::stained_glass(256, 8, 2024).unwrap();
     let (mean, rule) = texture_samples(&rig, &texture, 256);
-    common::metric::performance(
+    volshadow_harness::metric::performance(
         "a stained-glass spot, 256 texels across, texture_steps 256: texture samples per lit pixel",
         format!("{mean:.1}, 2 per texel swept {rule:.1}"),
         "≤ ¼ of 2 per texel swept",

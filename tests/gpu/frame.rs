@@ -1,8 +1,6 @@
 //! Whole frames of unshadowed airlight against the f64 reference (issue 2): a ground plane,
 //! sky pixels and the light in view; the light behind the camera; absorption ≫ scattering.
 
-use crate::common;
-
 use glam::{DVec3, Vec3};
 use volshadow::nodes::TableSize;
 use volshadow::reference;
@@ -40,17 +38,17 @@ fn compare_frame(
 ) -> Comparison {
     let depths: Vec<f32> = (0..SIZE * SIZE)
         .map(|i| {
-            let (eye, dir) = common::pixel_ray(camera, SIZE, SIZE, i % SIZE, i / SIZE);
+            let (eye, dir) = volshadow_harness::pixel_ray(camera, SIZE, SIZE, i % SIZE, i / SIZE);
             let ds = ground_distance(eye, dir);
             if ds.is_finite() {
-                common::ndc_depth(camera, eye + ds * dir)
+                volshadow_harness::ndc_depth(camera, eye + ds * dir)
             } else {
                 camera.far_depth()
             }
         })
         .collect();
-    let depth = common::depth_texture(gpu, SIZE, SIZE, &depths);
-    let texels = common::march_frame(
+    let depth = volshadow_harness::depth_texture(gpu, SIZE, SIZE, &depths);
+    let texels = volshadow_harness::march_frame(
         gpu,
         cache,
         TableSize::default(),
@@ -97,7 +95,7 @@ fn compare_frame(
 }
 
 fn camera() -> Camera {
-    common::look_at(
+    volshadow_harness::look_at(
         Vec3::new(0.0, 1.5, 6.0),
         Vec3::new(0.0, 1.0, 0.0),
         60.0,
@@ -109,15 +107,15 @@ fn camera() -> Camera {
 // the frame's maximum.
 const FRAME_TOLERANCE: f64 = 5e-3;
 
-crate::at_each_precision!(
+volshadow_harness::at_each_precision!(
     ground_plane_with_sky_and_light_in_view_at => ground_plane_with_sky_and_light_in_view,
     ground_plane_with_sky_and_light_in_view_worst_case,
-    common::WORST_CASES
+    volshadow_harness::WORST_CASES
 );
 
 fn ground_plane_with_sky_and_light_in_view_at(precision: ShaderPrecision) {
-    let gpu = common::gpu();
-    let cache = common::cache_with(&gpu, precision);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache_with(&gpu, precision);
     let camera = camera();
     let light = PointLight::new(Vec3::new(0.6, 2.2, -1.0), Vec3::new(40.0, 36.0, 30.0)).unwrap();
     for phase in [
@@ -130,7 +128,7 @@ fn ground_plane_with_sky_and_light_in_view_at(precision: ShaderPrecision) {
             "{precision:?}: light in view, {phase:?}: max relative error {:.3e} over {} channel-pixels",
             cmp.max_rel, cmp.compared
         );
-        common::metric::accuracy(
+        volshadow_harness::metric::accuracy(
             &format!("{precision:?}: 128² ground and sky, light in view, {phase:?}"),
             format!("max {:.1e}", cmp.max_rel),
             format!("{FRAME_TOLERANCE:.0e}"),
@@ -156,15 +154,15 @@ fn ground_plane_with_sky_and_light_in_view_at(precision: ShaderPrecision) {
     }
 }
 
-crate::at_each_precision!(
+volshadow_harness::at_each_precision!(
     light_behind_the_camera_at => light_behind_the_camera,
     light_behind_the_camera_worst_case,
-    common::WORST_CASES
+    volshadow_harness::WORST_CASES
 );
 
 fn light_behind_the_camera_at(precision: ShaderPrecision) {
-    let gpu = common::gpu();
-    let cache = common::cache_with(&gpu, precision);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache_with(&gpu, precision);
     let camera = camera();
     let light = PointLight::new(Vec3::new(-0.5, 2.5, 9.0), Vec3::splat(50.0)).unwrap();
     let medium = Medium::new(
@@ -178,7 +176,7 @@ fn light_behind_the_camera_at(precision: ShaderPrecision) {
         "{precision:?}: light behind the camera: max relative error {:.3e} over {} channel-pixels",
         cmp.max_rel, cmp.compared
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!("{precision:?}: light behind the camera, Rayleigh"),
         format!("max {:.1e}", cmp.max_rel),
         format!("{FRAME_TOLERANCE:.0e}"),
@@ -191,15 +189,15 @@ fn light_behind_the_camera_at(precision: ShaderPrecision) {
     );
 }
 
-crate::at_each_precision!(
+volshadow_harness::at_each_precision!(
     absorption_three_times_scattering_at => absorption_three_times_scattering,
     absorption_three_times_scattering_worst_case,
-    [common::WORST_CASE]
+    [volshadow_harness::WORST_CASE]
 );
 
 fn absorption_three_times_scattering_at(precision: ShaderPrecision) {
-    let gpu = common::gpu();
-    let cache = common::cache_with(&gpu, precision);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache_with(&gpu, precision);
     let camera = camera();
     let light = PointLight::new(Vec3::new(0.6, 2.2, -1.0), Vec3::splat(40.0)).unwrap();
     let sigma_s = Vec3::splat(0.08);
@@ -214,7 +212,7 @@ fn absorption_three_times_scattering_at(precision: ShaderPrecision) {
         "{precision:?}: σa = 3σs: max relative error {:.3e} over {} channel-pixels",
         cmp.max_rel, cmp.compared
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!("{precision:?}: σa = 3σs (a wrong σs/σt split is off by 300%)"),
         format!("max {:.1e}", cmp.max_rel),
         format!("{FRAME_TOLERANCE:.0e}"),
@@ -248,17 +246,17 @@ fn absorption_three_times_scattering_at(precision: ShaderPrecision) {
     );
 }
 
-crate::at_each_precision!(
+volshadow_harness::at_each_precision!(
     stiff_optical_depths_random_distances_at => stiff_optical_depths_random_distances,
     stiff_optical_depths_random_distances_worst_case,
-    common::WORST_CASES
+    volshadow_harness::WORST_CASES
 );
 
 /// Random rays with random surface distances (1e-2·D … 1e3·D, and sky) at every optical depth of
 /// DESIGN §5, seen through a reversed-Z infinite projection, with the light in view and behind.
 fn stiff_optical_depths_random_distances_at(precision: ShaderPrecision) {
-    let gpu = common::gpu();
-    let cache = common::cache_with(&gpu, precision);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache_with(&gpu, precision);
     let eye = Vec3::new(1.0, 2.0, 3.0);
     let camera = Camera::new(
         glam::camera::rh::view::look_to_mat4(eye, Vec3::new(0.2, -0.1, -1.0), Vec3::Y),
@@ -287,14 +285,15 @@ fn stiff_optical_depths_random_distances_at(precision: ShaderPrecision) {
         .map(|i| {
             let ds = distances[i as usize];
             if ds.is_finite() {
-                let (o, dir) = common::pixel_ray(&camera, SIZE, SIZE, i % SIZE, i / SIZE);
-                common::ndc_depth(&camera, o + ds * dir)
+                let (o, dir) =
+                    volshadow_harness::pixel_ray(&camera, SIZE, SIZE, i % SIZE, i / SIZE);
+                volshadow_harness::ndc_depth(&camera, o + ds * dir)
             } else {
                 camera.far_depth()
             }
         })
         .collect();
-    let depth = common::depth_texture(&gpu, SIZE, SIZE, &depths);
+    let depth = volshadow_harness::depth_texture(&gpu, SIZE, SIZE, &depths);
     let pixel_of = |o: DVec3, dir: DVec3| -> usize {
         // Recover the pixel index from the ray (the reference hands us rays, not indices).
         let clip =
@@ -322,7 +321,7 @@ fn stiff_optical_depths_random_distances_at(precision: ShaderPrecision) {
                 PhaseFunction::HenyeyGreenstein { g: 0.5 },
             )
             .unwrap();
-            let texels = common::march_frame(
+            let texels = volshadow_harness::march_frame(
                 &gpu,
                 &cache,
                 TableSize::default(),
@@ -365,7 +364,7 @@ fn stiff_optical_depths_random_distances_at(precision: ShaderPrecision) {
             worst = worst.max(max_rel);
         }
     }
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!(
             "{precision:?}: random rays and distances, σt·D 1e-4…100, light in view and behind"
         ),

@@ -3,8 +3,6 @@
 //! wrong size, output formats the composite cannot write, layered light textures, and occluder
 //! sets beyond the device's buffer limits.
 
-use crate::common;
-
 use glam::{Mat4, Vec3};
 use volshadow::nodes::{OutputTarget, TableSize};
 use volshadow::scene::shapes;
@@ -22,7 +20,7 @@ struct Rig {
     size: u32,
 }
 
-use common::texture;
+use volshadow_harness::texture;
 
 fn output(gpu: &HeadlessGpu, size: u32, mips: u32) -> wgpu::Texture {
     texture(
@@ -36,8 +34,8 @@ fn output(gpu: &HeadlessGpu, size: u32, mips: u32) -> wgpu::Texture {
 
 /// A ground plane at y = 0 seen from above, scene colour 0.5, `size`².
 fn rig_on(gpu: HeadlessGpu, size: u32) -> Rig {
-    let cache = common::cache(&gpu);
-    let camera = common::look_at(
+    let cache = volshadow_harness::cache(&gpu);
+    let camera = volshadow_harness::look_at(
         Vec3::new(0.0, 1.5, 5.0),
         Vec3::new(0.0, 1.0, 0.0),
         60.0,
@@ -45,15 +43,15 @@ fn rig_on(gpu: HeadlessGpu, size: u32) -> Rig {
     );
     let depths: Vec<f32> = (0..size * size)
         .map(|i| {
-            let (o, d) = common::pixel_ray(&camera, size, size, i % size, i / size);
+            let (o, d) = volshadow_harness::pixel_ray(&camera, size, size, i % size, i / size);
             if d.y < 0.0 {
-                common::ndc_depth(&camera, o + (-o.y / d.y) * d)
+                volshadow_harness::ndc_depth(&camera, o + (-o.y / d.y) * d)
             } else {
                 camera.far_depth()
             }
         })
         .collect();
-    let depth = common::depth_texture(&gpu, size, size, &depths);
+    let depth = volshadow_harness::depth_texture(&gpu, size, size, &depths);
     let color = texture(
         &gpu,
         wgpu::TextureFormat::Rgba32Float,
@@ -83,7 +81,7 @@ fn rig_on(gpu: HeadlessGpu, size: u32) -> Rig {
 }
 
 fn rig(size: u32) -> Rig {
-    rig_on(common::gpu(), size)
+    rig_on(volshadow_harness::gpu(), size)
 }
 
 fn settings() -> Settings {
@@ -431,8 +429,8 @@ fn output_size_is_checked_at_the_written_mip_level() {
 
 #[test]
 fn output_formats_the_composite_cannot_write_are_rejected_by_new() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     use wgpu::TextureFormat as F;
     for format in [
         F::Rgba8Uint,
@@ -657,7 +655,7 @@ fn a_lights_texture_as_the_output_is_refused() {
 /// were `Ok` with garbage and a validation error).
 #[test]
 fn reading_back_without_copy_src_is_a_typed_error() {
-    let gpu = common::gpu();
+    let gpu = volshadow_harness::gpu();
     let no_copy = texture(
         &gpu,
         wgpu::TextureFormat::Rgba32Float,
@@ -930,7 +928,7 @@ fn a_light_with_a_radius_is_accepted() {
 /// The test adapter's device with storage buffers limited to 1 MiB (bindings) and 4 MiB
 /// (buffers): what a large frame meets at the core limits (128 MiB, 256 MiB), at test sizes.
 fn small_buffers() -> HeadlessGpu {
-    let gpu = common::gpu();
+    let gpu = volshadow_harness::gpu();
     let required_limits = wgpu::Limits {
         max_storage_buffer_binding_size: 1 << 20,
         max_buffer_size: 4 << 20,

@@ -2,8 +2,6 @@
 //! the values written, `tone_map`'s curve at known points, and `save_png` writing exactly the
 //! tone-mapped bytes.
 
-use crate::common;
-
 use volshadow::{tone_map, Error};
 
 fn texture(
@@ -53,7 +51,7 @@ const VALUES: [[f32; 4]; 4] = [
 
 #[test]
 fn rgba16f_and_rgba32f_read_back_as_written() {
-    let gpu = common::gpu();
+    let gpu = volshadow_harness::gpu();
     let halves: Vec<half::f16> = VALUES
         .iter()
         .flatten()
@@ -94,7 +92,7 @@ fn tone_map_follows_reinhard_and_srgb() {
 #[cfg(feature = "image")]
 #[test]
 fn save_png_writes_the_tone_mapped_bytes() {
-    let gpu = common::gpu();
+    let gpu = volshadow_harness::gpu();
     let t32 = texture(
         &gpu,
         wgpu::TextureFormat::Rgba32Float,

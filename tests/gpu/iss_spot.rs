@@ -13,9 +13,8 @@
 //! (`VOLSHADOW_COST_SIZE=WxH` sets the frame, default 1920x1080 on a GPU and 256x144 on a CPU
 //! adapter.)
 
-use crate::common;
-use crate::common::rng;
 use volshadow::nodes::{Encode, Node};
+use volshadow_harness::rng;
 
 use std::f64::consts::PI;
 use std::sync::OnceLock;
@@ -53,13 +52,18 @@ fn surface_inputs(
 ) -> SurfaceInputs {
     let hits: Vec<Option<Hit>> = (0..width * height)
         .map(|k| {
-            let (eye, dir) = common::pixel_ray(camera, width, height, k % width, k / width);
+            let (eye, dir) =
+                volshadow_harness::pixel_ray(camera, width, height, k % width, k / width);
             trace(eye, dir)
         })
         .collect();
     let depth: Vec<f32> = hits
         .iter()
-        .map(|h| h.map_or(camera.far_depth(), |(p, ..)| common::ndc_depth(camera, p)))
+        .map(|h| {
+            h.map_or(camera.far_depth(), |(p, ..)| {
+                volshadow_harness::ndc_depth(camera, p)
+            })
+        })
         .collect();
     let normal: Vec<[f32; 4]> = hits
         .iter()
@@ -70,10 +74,10 @@ fn surface_inputs(
         .map(|h| h.map_or([0.0; 4], |(.., a)| [a as f32, a as f32, a as f32, 1.0]))
         .collect();
     SurfaceInputs {
-        depth: common::depth_texture(gpu, width, height, &depth),
-        normal: common::rgba_texture(gpu, width, height, &normal),
-        albedo: common::rgba_texture(gpu, width, height, &albedo),
-        black: common::rgba_texture(
+        depth: volshadow_harness::depth_texture(gpu, width, height, &depth),
+        normal: volshadow_harness::rgba_texture(gpu, width, height, &normal),
+        albedo: volshadow_harness::rgba_texture(gpu, width, height, &albedo),
+        black: volshadow_harness::rgba_texture(
             gpu,
             width,
             height,
@@ -107,7 +111,7 @@ fn surface_term_output(
     stride: u32,
 ) -> Vec<[f32; 4]> {
     let (width, height) = (inputs.depth.width(), inputs.depth.height());
-    let output = common::texture(
+    let output = volshadow_harness::texture(
         gpu,
         wgpu::TextureFormat::Rgba32Float,
         wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
@@ -295,14 +299,14 @@ fn reference_spot_term_against_brute_force() {
 /// (the "before"), and its error on these pixels is checked to exceed the bar (so the test
 /// tells the two apart).
 fn issue_spot_scene(precision: ShaderPrecision) {
-    let gpu = common::gpu();
-    let cache = common::cache_with(&gpu, precision);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache_with(&gpu, precision);
     let medium = issue_medium();
     let spot = issue_spot();
     let edge = (30f64).to_radians().tan();
     // Looking down from 2.6 above the floor, slightly off the axis: the floor out to about
     // 0.75 from it fills the view.
-    let camera = common::look_at(Vec3::new(0.0, 2.6, 0.02), Vec3::ZERO, 32.0, 1.0);
+    let camera = volshadow_harness::look_at(Vec3::new(0.0, 2.6, 0.02), Vec3::ZERO, 32.0, 1.0);
     let floor = |eye: DVec3, dir: DVec3| {
         let t = -eye.y / dir.y;
         (t > 0.0).then(|| (eye + dir * t, DVec3::Y, 0.8))
@@ -365,7 +369,7 @@ fn issue_spot_scene(precision: ShaderPrecision) {
         100.0 * before[0],
         100.0 * before[1]
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!("{precision:?}: a 60° spot 1 above a floor (HG 0.3, σt·D ≈ 0.3), 40²: the surface term against the f64 reference, p95 inside the cone; on the band within 0.2 × its radius outside; the point light's term cut at the cone (must fail)"),
         format!(
             "{:.3}%; {:.3}%; {:.1}% / {:.1}%",
@@ -380,10 +384,10 @@ fn issue_spot_scene(precision: ShaderPrecision) {
     assert!(p95[0] <= 0.02 && p95[1] <= 0.02, "p95 {p95:?}");
 }
 
-crate::at_each_precision!(
+volshadow_harness::at_each_precision!(
     issue_spot_scene => issue_spot_scene_native,
     issue_spot_scene_worst_case,
-    [common::WORST_CASE]
+    [volshadow_harness::WORST_CASE]
 );
 
 /// The spot term's lattice (`CompositeNode::set_spot_lattice`) against the term evaluated at
@@ -395,8 +399,8 @@ crate::at_each_precision!(
 /// at spacings 2 and 4. Prints the share of pixels that interpolate (the rest are evaluated).
 #[test]
 fn lattice_against_every_pixel() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let medium = issue_medium();
     let spot = issue_spot();
     // `VOLSHADOW_LATTICE_SIZE=WxH` measures another size (the share interpolated grows with it).
@@ -407,7 +411,7 @@ fn lattice_against_every_pixel() {
             Some((w.parse().ok()?, h.parse().ok()?))
         })
         .unwrap_or((320u32, 180u32));
-    let camera = common::look_at(
+    let camera = volshadow_harness::look_at(
         Vec3::new(0.3, 1.4, 1.7),
         Vec3::new(0.0, 0.1, 0.0),
         60.0,
@@ -499,7 +503,7 @@ fn lattice_against_every_pixel() {
             lattice[worst.1][0],
             every[worst.1][0]
         );
-        common::metric::accuracy(
+        volshadow_harness::metric::accuracy(
             &format!("the spot term's lattice every {stride} pixels against every pixel evaluated, floor, wall, ball and rod, {width}x{height}: worst difference; share of lit pixels interpolated"),
             format!("{:.3}%; {:.1}%", 100.0 * worst.0, 100.0 * share),
             "0.5% (a quarter of the issue's 2%)",
@@ -576,7 +580,7 @@ fn spot_scene(seed: u64) -> SpotScene {
     let view_dir = (normal + side.cross(normal) * rng.range(-1.0, 1.0)).normalize();
     let eye = centre + view_dir * (1.5 * d);
     let fov = 2.0 * (0.4 * d / (1.5 * d)).atan();
-    let camera = common::look_at(
+    let camera = volshadow_harness::look_at(
         eye.as_vec3(),
         centre.as_vec3(),
         fov.to_degrees() as f32,
@@ -605,8 +609,8 @@ fn seeded_spot_scenes(precision: ShaderPrecision) {
     /// the camera's, the same at every precision).
     static SEEDED_REFERENCE: [OnceLock<Vec<(usize, f64)>>; SEEDS as usize] =
         [const { OnceLock::new() }; SEEDS as usize];
-    let gpu = common::gpu();
-    let cache = common::cache_with(&gpu, precision);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache_with(&gpu, precision);
     let size = 8;
     let mut worst = (0.0f64, 0u64);
     let mut failures = Vec::new();
@@ -672,7 +676,7 @@ fn seeded_spot_scenes(precision: ShaderPrecision) {
         worst.1,
         100.0 * worst.0
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!("{precision:?}: 24 seeded spot scenes (apex 20°–120°, inside / across / outside the cone, σt·D 0.01–5), 8²: the surface term against the f64 reference, the worst seed's p95"),
         format!("{:.3}% (seed {})", 100.0 * worst.0, worst.1),
         "3% (the issue's)",
@@ -680,11 +684,11 @@ fn seeded_spot_scenes(precision: ShaderPrecision) {
     assert!(failures.is_empty(), "{failures:?}");
 }
 
-crate::at_each_precision!(
+volshadow_harness::at_each_precision!(
     #[cfg_attr(not(feature = "sweeps"), ignore = "an accuracy sweep: --features sweeps")]
     seeded_spot_scenes => seeded_spot_scenes_native,
     seeded_spot_scenes_worst_case,
-    [common::WORST_CASE]
+    [volshadow_harness::WORST_CASE]
 );
 
 /// Stiff spot cases, each a 12² frame of a wall: every pixel finite and non-negative, and the
@@ -697,8 +701,8 @@ crate::at_each_precision!(
 #[test]
 #[ignore = "slow in the debug test build (the f64 reference at the stiff cases): cargo test --release --features gltf,image --test gpu iss_spot:: -- --ignored"]
 fn stiff_spot_cases() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let wall = |eye: DVec3, dir: DVec3| {
         let t = (-2.0 - eye.z) / dir.z;
         (t > 0.0).then(|| (eye + dir * t, DVec3::Z, 0.7))
@@ -794,7 +798,7 @@ fn stiff_spot_cases() {
         )
         .unwrap();
         let spot = SpotLight::new(apex, axis, angle.to_radians(), Vec3::splat(intensity)).unwrap();
-        let camera = common::look_at(eye, Vec3::new(0.0, 0.0, -2.0), 50.0, 1.0);
+        let camera = volshadow_harness::look_at(eye, Vec3::new(0.0, 0.0, -2.0), 50.0, 1.0);
         let (out, hits) = surface_frame(&gpu, &cache, &camera, &medium, spot.into(), 12, trace);
         assert!(out.iter().all(|v| *v >= 0.0), "{name}: a negative pixel");
         let e = eye.as_dvec3();
@@ -836,7 +840,7 @@ fn stiff_spot_cases() {
 #[test]
 #[ignore]
 fn composite_cost() {
-    let gpu = common::gpu_timed();
+    let gpu = volshadow_harness::gpu_timed();
     let cpu = gpu.adapter.get_info().device_type == wgpu::DeviceType::Cpu;
     let (width, height) = std::env::var("VOLSHADOW_COST_SIZE")
         .ok()
@@ -846,12 +850,12 @@ fn composite_cost() {
         })
         .unwrap_or(if cpu { (256, 144) } else { (1920, 1080) });
     eprintln!("adapter: {}", gpu.adapter_summary());
-    let cache = common::cache(&gpu);
+    let cache = volshadow_harness::cache(&gpu);
     let medium = issue_medium();
     let spot = issue_spot();
     let point = volshadow::PointLight::new(spot.position(), spot.intensity()).unwrap();
     // The issue's floor, seen at an angle: the cone's footprint and its surroundings fill it.
-    let camera = common::look_at(
+    let camera = volshadow_harness::look_at(
         Vec3::new(0.0, 1.6, 1.6),
         Vec3::ZERO,
         60.0,
@@ -863,7 +867,7 @@ fn composite_cost() {
     };
     let inputs = surface_inputs(&gpu, &camera, (width, height), &floor);
     let table = table(&gpu, &cache, &medium);
-    let output = common::texture(
+    let output = volshadow_harness::texture(
         &gpu,
         wgpu::TextureFormat::Rgba16Float,
         wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::RENDER_ATTACHMENT,

@@ -3,7 +3,6 @@
 //! shared): entries over σt·D ∈ [1e-3, 50], α ∈ [0, π], isotropic, Henyey–Greenstein 0.8 and
 //! Rayleigh phases, and the bilinear interpolation of the default table between entries.
 
-use crate::common;
 use volshadow::nodes::{Encode, Node};
 
 use std::f64::consts::PI;
@@ -66,10 +65,10 @@ fn build(
     gpu.read_rgba32f(node.texture()).unwrap()
 }
 
-crate::at_each_precision!(
+volshadow_harness::at_each_precision!(
     entries_match_the_reference_at => entries_match_the_reference,
     entries_match_the_reference_worst_case,
-    [common::WORST_CASE]
+    [volshadow_harness::WORST_CASE]
 );
 
 /// The table's entries against the reference: within 1e-3 relative wherever G is above 1e-6 of
@@ -80,8 +79,8 @@ crate::at_each_precision!(
 /// The `_worst_case` test: the same with every transcendental built-in off by the most WGSL
 /// allows.
 fn entries_match_the_reference_at(precision: ShaderPrecision) {
-    let gpu = common::gpu();
-    let cache = common::cache_with(&gpu, precision);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache_with(&gpu, precision);
     let size = IssTableSize { tau: 33, alpha: 65 };
     let (nu, nv) = (size.tau as usize, size.alpha as usize);
     let mut failures = Vec::new();
@@ -124,7 +123,7 @@ fn entries_match_the_reference_at(precision: ShaderPrecision) {
             worst.2,
             t.elapsed()
         );
-        common::metric::accuracy(
+        volshadow_harness::metric::accuracy(
             &format!("{precision:?}: ISS table (33 × 65) entries against the f64 reference, σt·D 1e-3…50, {name}"),
             format!("max {:.1e} ({} entries)", worst.0, checked.len()),
             "1e-3 where G > 1e-6 of its maximum",
@@ -147,8 +146,8 @@ fn entries_match_the_reference_at(precision: ShaderPrecision) {
 /// gives 2.1–2.5e-3, 96 × 96 up to 9.4e-4: the τ axis sets the size).
 #[test]
 fn default_table_interpolates_within_1e_3() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let size = IssTableSize::default();
     let (nu, nv) = (size.tau as usize, size.alpha as usize);
     let mut failures = Vec::new();
@@ -186,7 +185,7 @@ fn default_table_interpolates_within_1e_3() {
             worst.1,
             worst.2
         );
-        common::metric::accuracy(
+        volshadow_harness::metric::accuracy(
             &format!("the default ISS table ({} × {}) interpolated at cell centres, σt·D 1e-3…50, {name}", size.tau, size.alpha),
             format!("max {:.1e} ({} cells)", worst.0, checked.len()),
             "1e-3 where G > 1e-6 of its maximum",
@@ -225,13 +224,17 @@ fn surface_frame(
 ) -> (Vec<[f32; 4]>, Vec<Option<Hit>>) {
     let hits: Vec<Option<Hit>> = (0..size * size)
         .map(|k| {
-            let (eye, dir) = common::pixel_ray(camera, size, size, k % size, k / size);
+            let (eye, dir) = volshadow_harness::pixel_ray(camera, size, size, k % size, k / size);
             trace(eye, dir)
         })
         .collect();
     let depth: Vec<f32> = hits
         .iter()
-        .map(|h| h.map_or(camera.far_depth(), |(p, ..)| common::ndc_depth(camera, p)))
+        .map(|h| {
+            h.map_or(camera.far_depth(), |(p, ..)| {
+                volshadow_harness::ndc_depth(camera, p)
+            })
+        })
         .collect();
     let normal: Vec<[f32; 4]> = hits
         .iter()
@@ -241,11 +244,12 @@ fn surface_frame(
         .iter()
         .map(|h| h.map_or([0.0; 4], |(.., a)| [a as f32, a as f32, a as f32, 1.0]))
         .collect();
-    let depth = common::depth_texture(gpu, size, size, &depth);
-    let normal = common::rgba_texture(gpu, size, size, &normal);
-    let albedo = common::rgba_texture(gpu, size, size, &albedo);
-    let black = common::rgba_texture(gpu, size, size, &vec![[0.0; 4]; (size * size) as usize]);
-    let output = common::texture(
+    let depth = volshadow_harness::depth_texture(gpu, size, size, &depth);
+    let normal = volshadow_harness::rgba_texture(gpu, size, size, &normal);
+    let albedo = volshadow_harness::rgba_texture(gpu, size, size, &albedo);
+    let black =
+        volshadow_harness::rgba_texture(gpu, size, size, &vec![[0.0; 4]; (size * size) as usize]);
+    let output = volshadow_harness::texture(
         gpu,
         wgpu::TextureFormat::Rgba32Float,
         wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
@@ -347,8 +351,8 @@ fn frame_error(
 /// included). The table has the facade's default size (interpolation included).
 #[test]
 fn frame_of_ground_and_wall_matches_the_reference() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let medium = Medium::new(
         Vec3::splat(0.3),
         Vec3::splat(0.05),
@@ -362,7 +366,7 @@ fn frame_of_ground_and_wall_matches_the_reference() {
     let t = Instant::now();
     gpu.submit_and_wait(encoder).unwrap();
     eprintln!("default table built in {:.0?}", t.elapsed());
-    let camera = common::look_at(
+    let camera = volshadow_harness::look_at(
         Vec3::new(0.3, 1.5, 4.0),
         Vec3::new(0.0, 0.6, -1.0),
         60.0,
@@ -393,7 +397,7 @@ fn frame_of_ground_and_wall_matches_the_reference() {
         &light,
     );
     eprintln!("  reference {:.1?}", t.elapsed());
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "128² ground and wall near a point light, HG 0.6: the composite's surface term against the reference (every 4th pixel)",
         format!("max {worst:.1e}"),
         "1e-2 where above 1% of the frame's maximum",
@@ -412,8 +416,8 @@ fn frame_of_ground_and_wall_matches_the_reference() {
 /// frame (I0 = 1e30 keeps the radiance inside f32); and normals facing away from the light.
 #[test]
 fn stiff_cases_match_the_reference() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let wall = |eye: DVec3, dir: DVec3| {
         let t = (-2.0 - eye.z) / dir.z;
         (t > 0.0).then(|| (eye + dir * t, DVec3::Z, 0.7))
@@ -461,7 +465,7 @@ fn stiff_cases_match_the_reference() {
             table.encode(&mut encoder, None).unwrap();
             gpu.submit_and_wait(encoder).unwrap();
         }
-        let camera = common::look_at(eye, Vec3::new(0.0, 0.0, -2.0), 50.0, 1.0);
+        let camera = volshadow_harness::look_at(eye, Vec3::new(0.0, 0.0, -2.0), 50.0, 1.0);
         let light = PointLight::new(light_pos, Vec3::splat(intensity)).unwrap();
         let (out, hits) = surface_frame(
             &gpu,
@@ -481,7 +485,7 @@ fn stiff_cases_match_the_reference() {
         eprintln!("{name}: σt·D from {:.2e} to {:.2e}", d[0], d[1]);
         let all = 0..(size * size) as usize;
         let worst = frame_error(name, &out, &hits, all, eye.as_dvec3(), &medium, &light);
-        common::metric::accuracy(
+        volshadow_harness::metric::accuracy(
             &format!("stiff case, {size}² wall, {name}: the surface term against the reference"),
             format!("max {worst:.1e} (σt·D {:.1e}…{:.1e})", d[0], d[1]),
             "1e-2 where above 1% of the frame's maximum",
@@ -501,10 +505,10 @@ fn stiff_cases_match_the_reference() {
 fn planner_runs_the_table_only_with_surfaces_and_scattering() {
     use volshadow::plan::{Pass, Reason};
     use volshadow::{Frame, Settings, Surfaces, VolumetricShadows};
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let size = 16;
-    let camera = common::look_at(
+    let camera = volshadow_harness::look_at(
         Vec3::new(0.0, 0.0, 1.0),
         Vec3::new(0.0, 0.0, -2.0),
         50.0,
@@ -522,12 +526,14 @@ fn planner_runs_the_table_only_with_surfaces_and_scattering() {
             Light::from(PointLight::new(Vec3::new(0.0, 0.0, -1.5), Vec3::splat(5.0)).unwrap())
                 .into(),
         ];
-    let depth_values = vec![common::ndc_depth(&camera, DVec3::new(0.0, 0.0, -2.0)); 256];
-    let depth = common::depth_texture(&gpu, size, size, &depth_values);
-    let color = common::rgba_texture(&gpu, size, size, &vec![[0.0; 4]; 256]);
-    let normal = common::rgba_texture(&gpu, size, size, &vec![[0.0, 0.0, 1.0, 0.0]; 256]);
-    let albedo = common::rgba_texture(&gpu, size, size, &vec![[0.5, 0.5, 0.5, 1.0]; 256]);
-    let output = common::texture(
+    let depth_values = vec![volshadow_harness::ndc_depth(&camera, DVec3::new(0.0, 0.0, -2.0)); 256];
+    let depth = volshadow_harness::depth_texture(&gpu, size, size, &depth_values);
+    let color = volshadow_harness::rgba_texture(&gpu, size, size, &vec![[0.0; 4]; 256]);
+    let normal =
+        volshadow_harness::rgba_texture(&gpu, size, size, &vec![[0.0, 0.0, 1.0, 0.0]; 256]);
+    let albedo =
+        volshadow_harness::rgba_texture(&gpu, size, size, &vec![[0.5, 0.5, 0.5, 1.0]; 256]);
+    let output = volshadow_harness::texture(
         &gpu,
         wgpu::TextureFormat::Rgba32Float,
         wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
@@ -580,7 +586,7 @@ fn planner_runs_the_table_only_with_surfaces_and_scattering() {
         centre.push(gpu.read_rgba32f(&output).unwrap()[8 * 16 + 8][0]);
     }
     eprintln!("centre pixel per frame: {centre:?}");
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "the surface term reaching the output: centre pixel with surfaces over without; the reused table's frame against the building one",
         format!(
             "{:.3}×; {}",
@@ -601,9 +607,9 @@ fn planner_runs_the_table_only_with_surfaces_and_scattering() {
 #[test]
 fn bad_surface_textures_are_typed_errors() {
     use volshadow::{Error, Frame, Settings, Surfaces, VolumetricShadows};
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
-    let camera = common::look_at(
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
+    let camera = volshadow_harness::look_at(
         Vec3::new(0.0, 0.0, 1.0),
         Vec3::new(0.0, 0.0, -2.0),
         50.0,
@@ -617,18 +623,18 @@ fn bad_surface_textures_are_typed_errors() {
     .unwrap();
     let light = PointLight::new(Vec3::new(0.0, 0.0, -1.5), Vec3::splat(5.0)).unwrap();
     let lights = [Light::from(light).into()];
-    let depth = common::depth_texture(&gpu, 16, 16, &[0.5; 256]);
-    let color = common::rgba_texture(&gpu, 16, 16, &[[0.0; 4]; 256]);
-    let good = common::rgba_texture(&gpu, 16, 16, &[[0.0, 0.0, 1.0, 0.0]; 256]);
-    let small = common::rgba_texture(&gpu, 8, 8, &[[0.0, 0.0, 1.0, 0.0]; 64]);
-    let no_binding = common::texture(
+    let depth = volshadow_harness::depth_texture(&gpu, 16, 16, &[0.5; 256]);
+    let color = volshadow_harness::rgba_texture(&gpu, 16, 16, &[[0.0; 4]; 256]);
+    let good = volshadow_harness::rgba_texture(&gpu, 16, 16, &[[0.0, 0.0, 1.0, 0.0]; 256]);
+    let small = volshadow_harness::rgba_texture(&gpu, 8, 8, &[[0.0, 0.0, 1.0, 0.0]; 64]);
+    let no_binding = volshadow_harness::texture(
         &gpu,
         wgpu::TextureFormat::Rgba16Float,
         wgpu::TextureUsages::COPY_DST,
         (16, 16, 1),
         1,
     );
-    let integer = common::texture(
+    let integer = volshadow_harness::texture(
         &gpu,
         wgpu::TextureFormat::Rgba8Uint,
         wgpu::TextureUsages::TEXTURE_BINDING,
@@ -658,7 +664,7 @@ fn bad_surface_textures_are_typed_errors() {
             "{err:?}"
         );
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        let output = common::texture(
+        let output = volshadow_harness::texture(
             &gpu,
             wgpu::TextureFormat::Rgba16Float,
             wgpu::TextureUsages::RENDER_ATTACHMENT,
@@ -748,7 +754,7 @@ fn spot_cone_approximation_error() {
         model / exact
     };
     let &(_, at_08, model_08) = rows.iter().find(|row| row.0 == 0.8).unwrap();
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "a 60° spot's surface term approximated by its point light's inside the cone, none outside, against the cone alone (a characterisation): approximation over exact on the axis, at 0.3, 0.5; at 0.8 (outside)",
         format!(
             "{:.2}×, {:.2}×, {:.2}×; {model_08:.0} where the cone gives {:.0}% of the on-axis term",

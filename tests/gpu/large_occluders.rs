@@ -5,7 +5,6 @@
 //! hybrid's extents and the rasterised crossing lists lost it from the eye. Every method, and
 //! both crossing builds, against the f64 reference of the same scene, at half-sizes 1e2 to 1e10.
 
-use crate::common;
 use glam::{DVec3, Mat4, Vec2, Vec3};
 use volshadow::gpu::{Occluder, OccluderMesh};
 use volshadow::nodes::{CrossingsBuild, MarchMethod, MarchSettings};
@@ -109,11 +108,11 @@ fn errors_of(
     light: &Light,
     meshes: &[(&Mesh, Mat4)],
 ) -> (Vec<(&'static str, f64, ImageError, usize)>, f64) {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let medium = medium();
-    let depths = common::depths_at(camera, N, N, ground);
-    let depth = common::depth_texture(&gpu, N, N, &depths);
+    let depths = volshadow_harness::depths_at(camera, N, N, ground);
+    let depth = volshadow_harness::depth_texture(&gpu, N, N, &depths);
     let occluder: Vec<reference::Occluder> = meshes
         .iter()
         .map(|(mesh, transform)| {
@@ -142,14 +141,15 @@ fn errors_of(
     let measured = CONFIGS
         .iter()
         .map(|&(name, method, build, steps, bar)| {
-            let passes = common::ShadowPasses::new(camera, light, &medium, &depth, &occluders)
-                .settings(MarchSettings {
-                    method,
-                    crossings_build: build,
-                    steps,
-                    ..MarchSettings::default()
-                });
-            let image: Vec<DVec3> = common::shadow_frame(&gpu, &cache, &passes)
+            let passes =
+                volshadow_harness::ShadowPasses::new(camera, light, &medium, &depth, &occluders)
+                    .settings(MarchSettings {
+                        method,
+                        crossings_build: build,
+                        steps,
+                        ..MarchSettings::default()
+                    });
+            let image: Vec<DVec3> = volshadow_harness::shadow_frame(&gpu, &cache, &passes)
                 .inscatter
                 .iter()
                 .map(|p| DVec3::new(p[0].into(), p[1].into(), p[2].into()))
@@ -193,7 +193,7 @@ fn check(what: &str, measured: &[(&str, f64, ImageError, usize)], shadow: f64) {
 /// rasterised lists (the CPU adapter's default), the hybrid 30%, the triangle's 11%.
 #[test]
 fn a_roof_far_larger_than_its_distance_keeps_its_shadow() {
-    let camera = common::look_at(
+    let camera = volshadow_harness::look_at(
         Vec3::new(0.0, 1.6, 5.5),
         Vec3::new(0.0, 1.5, 0.0),
         60.0,
@@ -219,8 +219,8 @@ fn a_roof_far_larger_than_its_distance_keeps_its_shadow() {
 /// units from under the light, looking away from it and 5° to 25° up. Prints the failing seed.
 #[test]
 fn seeded_huge_roofs_match_the_reference() {
-    for seed in common::rng::seeds(0..10) {
-        let mut rng = common::rng::Rng::new(seed);
+    for seed in volshadow_harness::rng::seeds(0..10) {
+        let mut rng = volshadow_harness::rng::Rng::new(seed);
         let mut next = || rng.next() as f32;
         let s = 10f32.powf(2.0 + 8.0 * next());
         let height = 2.0 + 2.0 * next();
@@ -238,7 +238,7 @@ fn seeded_huge_roofs_match_the_reference() {
         let away = Vec3::new(yaw.cos(), 0.0, yaw.sin());
         let eye = Vec3::new(light_at.x, height - 0.5 - 1.5 * next(), light_at.z) + 3.0 * away;
         let pitch = (5.0 + 20.0 * next()).to_radians();
-        let camera = common::look_at(eye, eye + away + Vec3::Y * pitch.tan(), 60.0, 1.0);
+        let camera = volshadow_harness::look_at(eye, eye + away + Vec3::Y * pitch.tan(), 60.0, 1.0);
         let light: Light = if next() < 0.5 {
             PointLight::new(light_at, Vec3::splat(30.0)).unwrap().into()
         } else {
@@ -268,7 +268,7 @@ fn sun() -> Light {
 
 /// The camera under the roofs of the sun tests, looking up through them.
 fn under_the_roof() -> Camera {
-    common::look_at(
+    volshadow_harness::look_at(
         Vec3::new(0.0, 1.6, 5.5),
         Vec3::new(0.0, 2.5, 0.0),
         60.0,
@@ -332,7 +332,7 @@ fn a_roof_vastly_larger_than_its_distance_shadows_a_sun() {
 /// 2026-12-04); without the shadow distance the hybrid was 2.24% at 1e5 (bar 2%).
 #[test]
 fn a_ground_far_larger_than_the_view_keeps_a_small_occluders_sun_shadow() {
-    let camera = common::look_at(
+    let camera = volshadow_harness::look_at(
         Vec3::new(0.0, 1.6, 5.5),
         Vec3::new(0.0, 1.5, 0.0),
         60.0,

@@ -3,13 +3,11 @@
 //! near plane accounted for that, a 165° cone clipped a sphere 84° off axis out of its shadow
 //! map and the exact method lit the whole shadow (p95 10.4%, the same as ignoring the sphere).
 
-use crate::common;
-
-use common::scene::{MeshScene, Shot};
 use glam::Vec3;
 use volshadow::nodes::{MarchMethod, MarchSettings};
 use volshadow::scene::shapes;
 use volshadow::{Light, Medium, PhaseFunction, PointLight, ShaderPrecision, SpotLight};
+use volshadow_harness::scene::{MeshScene, Shot};
 
 /// The exact method's bound everywhere else (tests/gpu/exact.rs): p95 and RMSE ≤ 0.5%.
 const EXACT_P95: f64 = 0.005;
@@ -43,13 +41,13 @@ fn haze_over_ground() -> (Medium, MeshScene) {
 
 #[test]
 fn a_wide_spot_cone_keeps_an_occluder_near_its_edge_in_the_shadow_map() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let (medium, mut scene) = haze_over_ground();
     // Seen from the light, 84° off the cone's axis and 0.3 units below the light: along the
     // axis its nearest point is 0.4 units *behind* the light's plane, its farthest 1.0 ahead.
     scene.add(shapes::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.7, 48, 24).unwrap());
-    let camera = common::look_at(EYE, TARGET, 60.0, 1.0);
+    let camera = volshadow_harness::look_at(EYE, TARGET, 60.0, 1.0);
     let exact = exact();
     for cone_degrees in [165.0f32, 178.0] {
         let light: Light = SpotLight::new(
@@ -73,7 +71,7 @@ fn a_wide_spot_cone_keeps_an_occluder_near_its_edge_in_the_shadow_map() {
             "cone {cone_degrees}°: exact {}\n  sphere ignored {}",
             m.errors, lit.errors
         );
-        common::metric::accuracy(
+        volshadow_harness::metric::accuracy(
             &format!("spot cone {cone_degrees}° with a sphere 84° off its axis, exact, 64²; the sphere ignored"),
             format!("{}; ignored p95 {:.1}%", m.errors.short(), 100.0 * lit.errors.p95),
             "p95 0.5%, RMSE 0.5%; ignored p95 > 0.5%",
@@ -96,10 +94,10 @@ fn a_wide_spot_cone_keeps_an_occluder_near_its_edge_in_the_shadow_map() {
     }
 }
 
-crate::at_each_precision!(
+volshadow_harness::at_each_precision!(
     a_light_a_millionth_above_a_sphere_at => a_light_a_millionth_above_a_sphere_keeps_its_shadow,
     a_light_a_millionth_above_a_sphere_keeps_its_shadow_worst_case,
-    common::WORST_CASES
+    volshadow_harness::WORST_CASES
 );
 
 /// A light 1e-6 above a unit sphere (about 4 f32 steps of its coordinates): the shadow map's
@@ -107,11 +105,11 @@ crate::at_each_precision!(
 /// shadow below the light. Hardening reports quoted up to 1900% error here; the exact method
 /// must meet its usual bar.
 fn a_light_a_millionth_above_a_sphere_at(precision: ShaderPrecision) {
-    let gpu = common::gpu();
-    let cache = common::cache_with(&gpu, precision);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache_with(&gpu, precision);
     let (medium, mut scene) = haze_over_ground();
     scene.add(shapes::uv_sphere(Vec3::new(0.0, 1.0, 0.0), 1.0, 48, 24).unwrap());
-    let camera = common::look_at(EYE, TARGET, 60.0, 1.0);
+    let camera = volshadow_harness::look_at(EYE, TARGET, 60.0, 1.0);
     let exact = exact();
     let p = Vec3::new(0.0, 2.0 + 1e-6, 0.0);
     let intensity = Vec3::new(30.0, 28.0, 25.0);
@@ -138,7 +136,7 @@ fn a_light_a_millionth_above_a_sphere_at(precision: ShaderPrecision) {
             "{precision:?}: {name}: exact {}\n  sphere ignored {}",
             m.errors, lit.errors
         );
-        common::metric::accuracy(
+        volshadow_harness::metric::accuracy(
             &format!("{precision:?}: {name}, exact, 64²; the sphere ignored"),
             format!(
                 "{}; ignored p95 {:.1}%",
@@ -163,11 +161,11 @@ fn a_light_a_millionth_above_a_sphere_at(precision: ShaderPrecision) {
 /// wide patch of the image (before the fix: p95 6.6%, RMSE 47% of the mean).
 #[test]
 fn a_175_degree_view_clamps_the_glow_by_each_pixel_footprint() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let (medium, mut scene) = haze_over_ground();
     scene.add(shapes::uv_sphere(Vec3::new(2.0, 1.5, 3.0), 0.5, 48, 24).unwrap());
-    let camera = common::look_at(EYE, TARGET, 175.0, 1.0);
+    let camera = volshadow_harness::look_at(EYE, TARGET, 175.0, 1.0);
     // 70° to the right of the view axis, level with the eye.
     let off_axis = 70f32.to_radians();
     let light_pos = EYE + 3.0 * Vec3::new(off_axis.sin(), 0.0, -off_axis.cos());
@@ -179,7 +177,7 @@ fn a_175_degree_view_clamps_the_glow_by_each_pixel_footprint() {
     let reference = shot.reference();
     let m = shot.measure(&gpu, &cache, exact, &reference);
     println!("175° view: exact {}", m.errors);
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "a 175° view with the light 70° off axis, exact, 64²",
         m.errors.short(),
         "p95 0.5%, RMSE 0.5%",
@@ -192,10 +190,10 @@ fn a_175_degree_view_clamps_the_glow_by_each_pixel_footprint() {
     );
 }
 
-crate::at_each_precision!(
+volshadow_harness::at_each_precision!(
     the_widest_spot_cone_at => the_widest_spot_cone_renders_right_up_to_its_edge,
     the_widest_spot_cone_renders_right_up_to_its_edge_worst_case,
-    common::WORST_CASES
+    volshadow_harness::WORST_CASES
 );
 
 /// The widest cone `SpotLight::new` accepts (`SpotLight::MAX_CONE_ANGLE`, 179°) renders within
@@ -211,8 +209,8 @@ crate::at_each_precision!(
 ///    89.5°), under the camera: the map covers the cone to its edge, so the slab keeps its
 ///    shadow (leaving it out fails the bar).
 fn the_widest_spot_cone_at(precision: ShaderPrecision) {
-    let gpu = common::gpu();
-    let cache = common::cache_with(&gpu, precision);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache_with(&gpu, precision);
     let (medium, mut scene) = haze_over_ground();
     let exact = exact();
     let widest = SpotLight::MAX_CONE_ANGLE;
@@ -229,7 +227,7 @@ fn the_widest_spot_cone_at(precision: ShaderPrecision) {
     let light: Light = SpotLight::new(position, Vec3::NEG_Y, widest, Vec3::new(30.0, 28.0, 25.0))
         .unwrap()
         .into();
-    let black = |m: &common::scene::Measured| {
+    let black = |m: &volshadow_harness::scene::Measured| {
         m.frame
             .inscatter
             .iter()
@@ -238,11 +236,11 @@ fn the_widest_spot_cone_at(precision: ShaderPrecision) {
             .count()
     };
 
-    let apex_view = common::look_at(Vec3::new(0.0, 1.5, 6.0), position, 0.2, 1.0);
+    let apex_view = volshadow_harness::look_at(Vec3::new(0.0, 1.5, 6.0), position, 0.2, 1.0);
     let shot = Shot::new(&scene, &apex_view, &light, &medium, 64);
     let m = shot.measure(&gpu, &cache, exact, &shot.reference());
     println!("{precision:?}: 179° around its apex: exact {}", m.errors);
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!("{precision:?}: a 179° spot seen around its apex, exact, 64²"),
         m.errors.short(),
         "p95 0.5%, RMSE 0.5%",
@@ -257,7 +255,7 @@ fn the_widest_spot_cone_at(precision: ShaderPrecision) {
 
     // From x = 1 to 4 (1.5 to 4.5 from the light), 0.05 to 0.06 below it.
     scene.add(shapes::cuboid(Vec3::new(2.5, 1.945, 0.0), Vec3::new(1.5, 0.005, 1.5)).unwrap());
-    let edge_view = common::look_at(
+    let edge_view = volshadow_harness::look_at(
         Vec3::new(8.0, 1.9, 4.0),
         Vec3::new(0.0, 1.9, 0.0),
         60.0,
@@ -276,7 +274,7 @@ fn the_widest_spot_cone_at(precision: ShaderPrecision) {
         "{precision:?}: 179°, a slab at its edge: exact {}\n  slab ignored {}",
         m.errors, lit.errors
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!("{precision:?}: a 179° spot, a slab at its edge, exact, 64²"),
         m.errors.short(),
         "p95 0.5%, RMSE 0.5%",

@@ -1,11 +1,8 @@
 //! The tests that render: every node and the facade on a wgpu adapter (lavapipe where there is
 //! no GPU), each image against the f64 reference, at the driver's precision and at WGSL's worst
-//! case. One test binary (one link step); each file beside this one is a topic.
+//! case. One test binary (one link step); each file beside this one is a topic. What the tiers share
+//! (the device, metric lines, scenes) is `volshadow_harness`.
 //! `cargo test --test gpu` runs them alone; `cargo test --test gpu -- soft` one topic.
-
-#[macro_use]
-#[path = "../common/mod.rs"]
-mod common;
 
 mod airlight_table;
 mod cascades;

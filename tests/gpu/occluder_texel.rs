@@ -1,7 +1,6 @@
 //! Scene types validated like scene files: an occluder's transform (affine, not mirrored,
 //! invertible) and a light texture's texels (within the f16 range they upload in).
 
-use crate::common;
 use volshadow::nodes::Node;
 
 use std::path::Path;
@@ -30,8 +29,8 @@ fn scene_with_matrix(m: Mat4) -> String {
 /// translation and non-uniform scale passes both.
 #[test]
 fn occluder_transform_validated_as_scene_files_do() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let mut node = ShadowMapNode::new(&gpu.device, &cache, ShadowMapSettings::default()).unwrap();
     let mesh = OccluderMesh::new(&gpu.device, &shapes::cuboid(Vec3::ZERO, Vec3::ONE).unwrap());
     let light = Light::Point(PointLight::new(Vec3::new(0.0, 5.0, 0.0), Vec3::ONE).unwrap());
@@ -63,7 +62,7 @@ fn occluder_transform_validated_as_scene_files_do() {
         let inputs = ShadowMapInputs {
             light: &light,
             occluders: &occluders,
-            camera: &common::unread_camera(),
+            camera: &volshadow_harness::unread_camera(),
             fallback: None,
         };
         let got = node.prepare(&gpu.device, &gpu.queue, &inputs);
@@ -94,7 +93,7 @@ fn occluder_transform_validated_as_scene_files_do() {
     let inputs = ShadowMapInputs {
         light: &light,
         occluders: &occluders,
-        camera: &common::unread_camera(),
+        camera: &volshadow_harness::unread_camera(),
         fallback: None,
     };
     node.prepare(&gpu.device, &gpu.queue, &inputs)

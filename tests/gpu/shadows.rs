@@ -1,15 +1,13 @@
 //! Volumetric shadows against the f64 reference with exact visibility (issue 3): shadow maps,
 //! shadow-volume extents, hybrid and brute-force march.
 
-use crate::common;
-
-use common::ShadowPasses;
 use glam::{DVec3, Mat4, Vec3};
 use volshadow::gpu::{Occluder, OccluderMesh};
 use volshadow::nodes::{MarchMethod, MarchSettings, Scale, UpsampleFilter};
 use volshadow::reference::{self, TriangleMesh};
 use volshadow::scene::{shapes, Mesh};
 use volshadow::{Cache, Camera, HeadlessGpu, Light, Medium, PhaseFunction, PointLight, SpotLight};
+use volshadow_harness::ShadowPasses;
 
 const SIZE: u32 = 128;
 const SHADOW_RES: u32 = 1024;
@@ -60,7 +58,7 @@ struct Metrics {
     /// Largest per-pixel relative error outside a 2-pixel band around shadow boundaries,
     /// where the reference is above 1% of its maximum.
     max_rel_outside_band: f64,
-    frame: common::ShadowFrame,
+    frame: volshadow_harness::ShadowFrame,
 }
 
 fn render(
@@ -96,20 +94,20 @@ fn render_upsampled(
     filter: UpsampleFilter,
 ) -> Metrics {
     let rays: Vec<(DVec3, DVec3)> = (0..SIZE * SIZE)
-        .map(|i| common::pixel_ray(camera, SIZE, SIZE, i % SIZE, i / SIZE))
+        .map(|i| volshadow_harness::pixel_ray(camera, SIZE, SIZE, i % SIZE, i / SIZE))
         .collect();
     let depths: Vec<f32> = rays
         .iter()
         .map(|&(o, d)| {
             let ds = scene.distance(o, d);
             if ds.is_finite() {
-                common::ndc_depth(camera, o + ds * d)
+                volshadow_harness::ndc_depth(camera, o + ds * d)
             } else {
                 camera.far_depth()
             }
         })
         .collect();
-    let depth = common::depth_texture(gpu, SIZE, SIZE, &depths);
+    let depth = volshadow_harness::depth_texture(gpu, SIZE, SIZE, &depths);
     let meshes: Vec<OccluderMesh> = scene
         .occluders
         .iter()
@@ -127,7 +125,7 @@ fn render_upsampled(
         .settings(settings)
         .shadow_resolution(SHADOW_RES)
         .filter(filter);
-    let frame = common::shadow_frame(gpu, cache, &passes);
+    let frame = volshadow_harness::shadow_frame(gpu, cache, &passes);
     assert!(
         frame
             .inscatter
@@ -220,7 +218,7 @@ fn near_light(camera: &Camera, light: &Light) -> Vec<bool> {
 }
 
 fn look_at(eye: Vec3, target: Vec3) -> Camera {
-    common::look_at(eye, target, 60.0, 1.0)
+    volshadow_harness::look_at(eye, target, 60.0, 1.0)
 }
 
 fn sphere_scene() -> Scene {
@@ -266,8 +264,8 @@ fn brute(steps: u32) -> MarchSettings {
 
 #[test]
 fn sphere_above_plane_hybrid_and_brute_force() {
-    let gpu = common::gpu_timed();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu_timed();
+    let cache = volshadow_harness::cache(&gpu);
     let camera = look_at(Vec3::new(0.0, 1.2, 5.0), Vec3::new(0.0, 0.9, 0.0));
     let light = point_light(Vec3::new(0.4, 4.2, -0.3));
     let scene = sphere_scene();
@@ -279,7 +277,7 @@ fn sphere_above_plane_hybrid_and_brute_force() {
         h.max_rel_outside_band,
         h.frame.time_ms("march")
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "sphere shadow, 128², hybrid at 64 steps: RMSE; max outside 2 px of shadow edges",
         format!(
             "RMSE {:.3}%, max {:.2}%",
@@ -303,7 +301,7 @@ fn sphere_above_plane_hybrid_and_brute_force() {
         b.rmse_rel,
         b.frame.time_ms("march")
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "sphere shadow, 128², brute force at 512 steps",
         format!("RMSE {:.3}%", 100.0 * b.rmse_rel),
         "RMSE 1%",
@@ -348,8 +346,8 @@ fn sphere_above_plane_hybrid_and_brute_force() {
 
 #[test]
 fn hybrid_is_cheaper_and_at_least_as_accurate_as_brute_force_at_equal_steps() {
-    let gpu = common::gpu_timed();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu_timed();
+    let cache = volshadow_harness::cache(&gpu);
     let camera = look_at(Vec3::new(0.0, 1.2, 5.0), Vec3::new(0.0, 0.9, 0.0));
     let light = point_light(Vec3::new(0.4, 4.2, -0.3));
     let scene = sphere_scene();
@@ -380,7 +378,7 @@ fn hybrid_is_cheaper_and_at_least_as_accurate_as_brute_force_at_equal_steps() {
             "{steps} steps: hybrid RMSE {:.4}, {hs} steps, march {:.3} ms | brute force RMSE {:.4}, {bs} steps, march {:.3} ms",
             h.rmse_rel, h.frame.time_ms("march"), b.rmse_rel, b.frame.time_ms("march")
         );
-        common::metric::accuracy(
+        volshadow_harness::metric::accuracy(
             &format!("hybrid against brute force at {steps} steps"),
             format!(
                 "RMSE {:.3}% against {:.3}%; {hs} against {bs} steps",
@@ -409,8 +407,8 @@ fn bisection_locates_shadow_edges_between_steps() {
     // to 1/16 of a step. The visibility error should shrink accordingly (measured at 128x128
     // on lavapipe: RMSE 0.57% without, 0.14% with): we ask for at least a third less,
     // and for the steps the bisections executed to be counted.
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let camera = look_at(Vec3::new(0.0, 1.2, 5.0), Vec3::new(0.0, 0.9, 0.0));
     let light = point_light(Vec3::new(0.4, 4.2, -0.3));
     let scene = sphere_scene();
@@ -437,7 +435,7 @@ fn bisection_locates_shadow_edges_between_steps() {
         refined.rmse_rel,
         steps(&refined)
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "brute force at 16 steps without / with 4 bisections locating shadow edges",
         format!(
             "RMSE {:.3}% / {:.3}%",
@@ -457,8 +455,8 @@ fn bisection_locates_shadow_edges_between_steps() {
 
 #[test]
 fn pixels_without_extents_execute_no_steps() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let camera = look_at(Vec3::new(0.0, 1.2, 5.0), Vec3::new(0.0, 0.9, 0.0));
     let light = point_light(Vec3::new(0.4, 4.2, -0.3));
     let m = render(
@@ -493,8 +491,8 @@ fn pixels_without_extents_execute_no_steps() {
 /// boundary band), and that the scene's shadow is big enough for the check to notice if it
 /// were missing (the unshadowed reference breaks the per-pixel bound).
 fn check_no_missing_shadow(name: &str, camera: &Camera, light: &Light, scene: &Scene) {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let m = render(&gpu, &cache, camera, light, &medium(), scene, hybrid(64));
     let ref_occ = scene.reference_occluders();
     let shadowed = reference::inscatter_image(
@@ -532,7 +530,7 @@ fn check_no_missing_shadow(name: &str, camera: &Camera, light: &Light, scene: &S
         missing > 0.10,
         "{name}: the shadow is too faint to test ({missing:.3})"
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!("{name}: hybrid at 64 steps, RMSE; max outside 2 px of shadow edges"),
         format!(
             "RMSE {:.3}%, max {:.2}%",
@@ -678,8 +676,8 @@ fn open_mesh_cylinder_without_caps() {
 fn spot_light_with_a_2d_shadow_map() {
     // A spot light pointing down at a sphere, seen from the side: rays that miss the cone get
     // exactly nothing from it; the rest match the reference (cone and shadow both exact there).
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let spot = SpotLight::new(
         Vec3::new(0.2, 4.0, 0.0),
         Vec3::new(-0.1, -1.0, 0.05),
@@ -715,7 +713,7 @@ fn spot_light_with_a_2d_shadow_map() {
         outside.len() > 1000,
         "the view should include rays that miss the cone"
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "spot light: rays outside the cone that received light; RMSE",
         format!(
             "{lit_outside} of {}; RMSE {:.3}%",
@@ -730,8 +728,8 @@ fn spot_light_with_a_2d_shadow_map() {
 
 #[test]
 fn sphere_at_quarter_resolution_with_bilateral_upsampling() {
-    let gpu = common::gpu_timed();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu_timed();
+    let cache = volshadow_harness::cache(&gpu);
     let camera = look_at(Vec3::new(0.0, 1.2, 5.0), Vec3::new(0.0, 0.9, 0.0));
     let light = point_light(Vec3::new(0.4, 4.2, -0.3));
     let scene = sphere_scene();
@@ -770,7 +768,7 @@ fn sphere_at_quarter_resolution_with_bilateral_upsampling() {
             "1/4 resolution + {name}: RMSE {:.4} of mean; march {:.3} ms vs full {:.3} ms; {quarter_steps} vs {full_steps} steps",
             q.rmse_rel, q.frame.time_ms("march"), full.frame.time_ms("march")
         );
-        common::metric::accuracy(
+        volshadow_harness::metric::accuracy(
             &format!("sphere at ¼ resolution + {name} upsample"),
             format!("RMSE {:.3}%", 100.0 * q.rmse_rel),
             "RMSE 3%",
@@ -799,16 +797,16 @@ fn p95_with_shadow_resolution(
 ) -> f64 {
     let depths: Vec<f32> = (0..SIZE * SIZE)
         .map(|i| {
-            let (o, d) = common::pixel_ray(camera, SIZE, SIZE, i % SIZE, i / SIZE);
+            let (o, d) = volshadow_harness::pixel_ray(camera, SIZE, SIZE, i % SIZE, i / SIZE);
             let ds = scene.distance(o, d);
             if ds.is_finite() {
-                common::ndc_depth(camera, o + ds * d)
+                volshadow_harness::ndc_depth(camera, o + ds * d)
             } else {
                 camera.far_depth()
             }
         })
         .collect();
-    let depth = common::depth_texture(gpu, SIZE, SIZE, &depths);
+    let depth = volshadow_harness::depth_texture(gpu, SIZE, SIZE, &depths);
     let meshes: Vec<OccluderMesh> = scene
         .occluders
         .iter()
@@ -826,7 +824,7 @@ fn p95_with_shadow_resolution(
     let passes = ShadowPasses::new(camera, light, &medium, &depth, &occluders)
         .settings(hybrid(64))
         .shadow_resolution(resolution);
-    let frame = common::shadow_frame(gpu, cache, &passes);
+    let frame = volshadow_harness::shadow_frame(gpu, cache, &passes);
     let near = near_light(camera, light);
     let max = reference_image
         .iter()
@@ -855,8 +853,8 @@ fn p95_with_shadow_resolution(
 #[test]
 fn shadow_map_minimum_resolution_is_where_the_p95_error_stays_within_two_percent() {
     use volshadow::nodes::{ShadowMapNode, ShadowMapSettings};
-    let gpu = common::gpu_timed();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu_timed();
+    let cache = volshadow_harness::cache(&gpu);
     let camera = look_at(Vec3::new(0.0, 1.2, 5.0), Vec3::new(0.0, 0.9, 0.0));
     let light = point_light(Vec3::new(0.4, 4.2, -0.3));
     let scene = sphere_scene();
@@ -884,7 +882,7 @@ fn shadow_map_minimum_resolution_is_where_the_p95_error_stays_within_two_percent
         );
         println!("shadow map {resolution}²: p95 relative error {p95:.4}");
         if resolution == min {
-            common::metric::accuracy(
+            volshadow_harness::metric::accuracy(
                 &format!("the smallest shadow map ({resolution}²), sphere scene"),
                 format!("p95 {:.3}%", 100.0 * p95),
                 "p95 2%",
@@ -914,8 +912,8 @@ fn shadow_map_minimum_resolution_is_where_the_p95_error_stays_within_two_percent
 /// was floored at 1e-4 of the largest occluder, 2.8 m here, and the sphere's shadow vanished).
 #[test]
 fn a_terrain_sized_occluder_does_not_cost_a_small_one_its_shadow() {
-    let gpu = common::gpu_timed();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu_timed();
+    let cache = volshadow_harness::cache(&gpu);
     let camera = look_at(Vec3::new(0.0, 1.2, 5.0), Vec3::new(0.0, 1.5, 0.0));
     let light_pos = Vec3::new(0.4, 4.2, -0.3);
     let light = point_light(light_pos);
@@ -958,7 +956,7 @@ fn a_terrain_sized_occluder_does_not_cost_a_small_one_its_shadow() {
         alone.max_rel_outside_band,
         with_terrain.max_rel_outside_band
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "small sphere near the light, alone / with a 20 km occluder below the ground: hybrid RMSE",
         format!(
             "{:.3}% / {:.3}%",

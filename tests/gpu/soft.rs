@@ -6,9 +6,6 @@
 //! hard more than 10% from the soft reference in the penumbra (so the bars can tell); a light
 //! looked at straight on finite and within 5%; radius 0 bit-identical to a light without one.
 
-use crate::common;
-
-use common::scene::errors;
 use glam::{DVec3, Vec3};
 use volshadow::glam::camera::rh::{proj::directx, view::look_at_mat4};
 use volshadow::gpu::{Occluder, OccluderMesh};
@@ -16,6 +13,7 @@ use volshadow::nodes::{MarchMethod, MarchSettings};
 use volshadow::reference::{self, Sphere};
 use volshadow::scene::shapes;
 use volshadow::{Cache, Camera, HeadlessGpu, Light, Medium, PhaseFunction, PointLight};
+use volshadow_harness::scene::errors;
 
 const SIZE: u32 = 128;
 /// The bars.
@@ -60,7 +58,7 @@ fn wall(e: DVec3, d: DVec3) -> f64 {
 }
 
 fn gpu() -> HeadlessGpu {
-    common::gpu_timed()
+    volshadow_harness::gpu_timed()
 }
 
 /// The GPU frame of `light` with `settings`, the sphere tessellated finely (64 × 32: its faces
@@ -71,19 +69,19 @@ fn render(
     s: &Scene,
     light: &Light,
     settings: MarchSettings,
-) -> common::ShadowFrame {
+) -> volshadow_harness::ShadowFrame {
     let depths: Vec<f32> = (0..SIZE * SIZE)
         .map(|i| {
-            let (o, d) = common::pixel_ray(&s.camera, SIZE, SIZE, i % SIZE, i / SIZE);
+            let (o, d) = volshadow_harness::pixel_ray(&s.camera, SIZE, SIZE, i % SIZE, i / SIZE);
             let t = wall(o, d);
             if t.is_finite() {
-                common::ndc_depth(&s.camera, o + t * d)
+                volshadow_harness::ndc_depth(&s.camera, o + t * d)
             } else {
                 s.camera.far_depth()
             }
         })
         .collect();
-    let depth = common::depth_texture(gpu, SIZE, SIZE, &depths);
+    let depth = volshadow_harness::depth_texture(gpu, SIZE, SIZE, &depths);
     let mesh = OccluderMesh::new(
         &gpu.device,
         &shapes::uv_sphere(s.center, s.rho, 64, 32).unwrap(),
@@ -92,9 +90,10 @@ fn render(
         mesh: &mesh,
         transform: glam::Mat4::IDENTITY,
     }];
-    let passes = common::ShadowPasses::new(&s.camera, light, &s.medium, &depth, &occluders)
-        .settings(settings);
-    common::shadow_frame(gpu, cache, &passes)
+    let passes =
+        volshadow_harness::ShadowPasses::new(&s.camera, light, &s.medium, &depth, &occluders)
+            .settings(settings);
+    volshadow_harness::shadow_frame(gpu, cache, &passes)
 }
 
 fn reference_soft(s: &Scene, light: &PointLight) -> Vec<DVec3> {
@@ -125,7 +124,7 @@ fn row_error(gpu: &[[f32; 4]], reference: &[DVec3], row: usize) -> (f64, usize) 
 fn sphere_penumbra_against_the_reference() {
     let (gpu, cache) = {
         let gpu = gpu();
-        let cache = common::cache(&gpu);
+        let cache = volshadow_harness::cache(&gpu);
         (gpu, cache)
     };
     let s = scene();
@@ -160,7 +159,7 @@ fn sphere_penumbra_against_the_reference() {
         .filter(|(a, b)| a.map(f32::to_bits) != b.map(f32::to_bits))
         .count();
     eprintln!("radius 0 vs no radius: {differing} pixels differ");
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "a sphere under a light of radius 0.2 × their distance, drawn hard: worst pixel of a row across the shaft's edge; radius 0 against no radius",
         format!("{:.1}%; {differing} pixels differ", 100.0 * hard_row),
         format!("> {}% (the soft bars can tell); 0", 100.0 * HARD_GAP),
@@ -169,7 +168,7 @@ fn sphere_penumbra_against_the_reference() {
 
     // Each method natively and in WGSL's worst case for the transcendental built-ins (the
     // reference computed once for both).
-    let worst_case = common::cache_with(&gpu, common::WORST_CASE);
+    let worst_case = volshadow_harness::cache_with(&gpu, volshadow_harness::WORST_CASE);
     for (cache, m) in [&cache, &worst_case].into_iter().flat_map(|c| {
         [
             MarchMethod::Exact,
@@ -195,7 +194,7 @@ fn sphere_penumbra_against_the_reference() {
             100.0 * worst_row,
             hard_frame.time_ms("march")
         );
-        common::metric::accuracy(
+        volshadow_harness::metric::accuracy(
             &format!("{precision:?}: a sphere under a light of radius 0.2 × their distance, 128², {m}; a row across the shaft's edge"),
             format!("{}; row ≤ {:.2}%", e.short(), 100.0 * worst_row),
             format!("p95 {}%, RMSE {}%; row {}%", 100.0 * P95_BAR, 100.0 * RMSE_BAR, 100.0 * ROW_BAR),
@@ -228,7 +227,7 @@ fn sphere_penumbra_against_the_reference() {
 fn a_caller_s_cube_faces_give_the_node_s_image() {
     const N: u32 = 48;
     let gpu = gpu();
-    let cache = common::cache(&gpu);
+    let cache = volshadow_harness::cache(&gpu);
     let eye = Vec3::new(3.0, 2.5, 2.0);
     let camera = Camera::new(
         look_at_mat4(eye, Vec3::ZERO, Vec3::Y),
@@ -241,7 +240,8 @@ fn a_caller_s_cube_faces_give_the_node_s_image() {
         PhaseFunction::Isotropic,
     )
     .unwrap();
-    let depth = common::depth_texture(&gpu, N, N, &vec![camera.far_depth(); (N * N) as usize]);
+    let depth =
+        volshadow_harness::depth_texture(&gpu, N, N, &vec![camera.far_depth(); (N * N) as usize]);
     let meshes: Vec<OccluderMesh> = [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z]
         .iter()
         .map(|&axis| {
@@ -288,10 +288,11 @@ fn a_caller_s_cube_faces_give_the_node_s_image() {
         ),
     ] {
         let frame = |face_scale| {
-            let passes = common::ShadowPasses::new(&camera, &light, &medium, &depth, &occluders)
-                .settings(method(m))
-                .by_hand(face_scale);
-            common::shadow_frame(&gpu, &cache, &passes).inscatter
+            let passes =
+                volshadow_harness::ShadowPasses::new(&camera, &light, &medium, &depth, &occluders)
+                    .settings(method(m))
+                    .by_hand(face_scale);
+            volshadow_harness::shadow_frame(&gpu, &cache, &passes).inscatter
         };
         let (own, caller) = (frame(1.0), frame(1.001));
         let mean = own.iter().map(|p| f64::from(p[0])).sum::<f64>() / own.len() as f64;
@@ -308,7 +309,7 @@ fn a_caller_s_cube_faces_give_the_node_s_image() {
         eprintln!(
             "{name}: the node's faces against a caller's: RMSE {rmse:.2e} of the mean, worst pixel {worst:.2e}"
         );
-        common::metric::accuracy(
+        volshadow_harness::metric::accuracy(
             &format!("{name}: a caller's cube faces against the shadow-map node's own, 48²"),
             format!("RMSE {rmse:.1e}, worst pixel {worst:.1e}"),
             format!("RMSE {rmse_bar:.0e}, worst {worst_bar:.0e}"),
@@ -331,8 +332,8 @@ fn looking_straight_at_a_soft_light() {
     const N: u32 = 64;
     const BAR: f64 = 0.05;
     let gpu = gpu();
-    let cache = common::cache(&gpu);
-    let camera = common::look_at(Vec3::new(0.0, 0.0, 6.0), Vec3::ZERO, 20.0, 1.0);
+    let cache = volshadow_harness::cache(&gpu);
+    let camera = volshadow_harness::look_at(Vec3::new(0.0, 0.0, 6.0), Vec3::ZERO, 20.0, 1.0);
     let medium = Medium::new(
         Vec3::splat(0.1),
         Vec3::splat(0.02),
@@ -346,7 +347,8 @@ fn looking_straight_at_a_soft_light() {
     let occ: Vec<reference::Occluder> = vec![Sphere::new(center.as_dvec3(), f64::from(rho)).into()];
     let sky = |_: DVec3, _: DVec3| f64::INFINITY;
     let reference = reference::soft::inscatter_image_soft(&camera, N, N, sky, &medium, &soft, &occ);
-    let depth = common::depth_texture(&gpu, N, N, &vec![camera.far_depth(); (N * N) as usize]);
+    let depth =
+        volshadow_harness::depth_texture(&gpu, N, N, &vec![camera.far_depth(); (N * N) as usize]);
     let mesh = OccluderMesh::new(
         &gpu.device,
         &shapes::uv_sphere(center, rho, 64, 32).unwrap(),
@@ -357,14 +359,15 @@ fn looking_straight_at_a_soft_light() {
     }];
     let within: Vec<usize> = (0..(N * N) as usize)
         .filter(|&i| {
-            let (o, d) = common::pixel_ray(&camera, N, N, i as u32 % N, i as u32 / N);
+            let (o, d) = volshadow_harness::pixel_ray(&camera, N, N, i as u32 % N, i as u32 / N);
             (-o).cross(d.normalize()).length() < f64::from(radius)
         })
         .collect();
     assert!(within.len() > 50, "{} pixels see the light", within.len());
     let worst = |light: &Light| {
-        let passes = common::ShadowPasses::new(&camera, light, &medium, &depth, &occluders);
-        let frame = common::shadow_frame(&gpu, &cache, &passes);
+        let passes =
+            volshadow_harness::ShadowPasses::new(&camera, light, &medium, &depth, &occluders);
+        let frame = volshadow_harness::shadow_frame(&gpu, &cache, &passes);
         within
             .iter()
             .map(|&i| {
@@ -382,7 +385,7 @@ fn looking_straight_at_a_soft_light() {
         100.0 * soft_error,
         100.0 * hard_error
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!("looking at a light of radius 0.4: the {} pixels whose ray passes within the radius; drawn hard", within.len()),
         format!("worst {:.2}%; hard {:.2}%", 100.0 * soft_error, 100.0 * hard_error),
         format!("{}%; hard beyond it", 100.0 * BAR),
@@ -414,7 +417,7 @@ fn torus_spot_penumbra_dense() {
 fn torus_spot(stride: u32, grid: u32) {
     const N: u32 = 64;
     let gpu = gpu();
-    let cache = common::cache(&gpu);
+    let cache = volshadow_harness::cache(&gpu);
     let eye = Vec3::new(3.0, 0.6, 0.0);
     let view = look_at_mat4(eye, Vec3::new(0.0, 0.6, 0.0), Vec3::Y);
     let camera = Camera::new(view, directx::perspective(1.2, 1.0, 0.1, 100.0)).unwrap();
@@ -458,7 +461,7 @@ fn torus_spot(stride: u32, grid: u32) {
         chunk
             .iter()
             .map(|&i| {
-                let (o, d) = common::pixel_ray(&camera, N, N, i % N, i / N);
+                let (o, d) = volshadow_harness::pixel_ray(&camera, N, N, i % N, i / N);
                 reference::soft::inscatter_soft(o, d, wall(o, d), &medium, &soft, &occ)
             })
             .collect()
@@ -477,25 +480,26 @@ fn torus_spot(stride: u32, grid: u32) {
     );
     let depths: Vec<f32> = (0..N * N)
         .map(|i| {
-            let (o, d) = common::pixel_ray(&camera, N, N, i % N, i / N);
+            let (o, d) = volshadow_harness::pixel_ray(&camera, N, N, i % N, i / N);
             let t = wall(o, d);
             if t.is_finite() {
-                common::ndc_depth(&camera, o + t * d)
+                volshadow_harness::ndc_depth(&camera, o + t * d)
             } else {
                 camera.far_depth()
             }
         })
         .collect();
-    let depth = common::depth_texture(&gpu, N, N, &depths);
+    let depth = volshadow_harness::depth_texture(&gpu, N, N, &depths);
     let mesh = OccluderMesh::new(&gpu.device, &torus);
     let occluders = [Occluder {
         mesh: &mesh,
         transform: glam::Mat4::IDENTITY,
     }];
     let measure = |light: &Light, m: MarchMethod| {
-        let passes = common::ShadowPasses::new(&camera, light, &medium, &depth, &occluders)
-            .settings(method(m));
-        let frame = common::shadow_frame(&gpu, &cache, &passes);
+        let passes =
+            volshadow_harness::ShadowPasses::new(&camera, light, &medium, &depth, &occluders)
+                .settings(method(m));
+        let frame = volshadow_harness::shadow_frame(&gpu, &cache, &passes);
         let rel: Vec<f64> = pixels
             .iter()
             .zip(&reference)
@@ -530,7 +534,7 @@ fn torus_spot(stride: u32, grid: u32) {
             100.0 * rmse,
             100.0 * p95
         );
-        common::metric::accuracy(
+        volshadow_harness::metric::accuracy(
             &format!("a torus under a spot of radius 0.2 × their distance, 64² (sampled pixels), {m}; drawn hard"),
             format!(
                 "row ≤ {:.2}%, RMSE {:.2}%, p95 {:.2}%; hard row {:.1}%",

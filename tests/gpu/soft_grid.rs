@@ -4,10 +4,8 @@
 //!
 //! Bars: the issue's, in-scatter RMSE ≤ 2% of the mean and p95 ≤ 3% against the reference.
 
-use crate::common;
 use volshadow::nodes::{Encode, Node};
 
-use common::scene::errors;
 use glam::{DVec3, Quat, Vec3};
 use volshadow::glam::camera::rh::{proj::directx, view::look_at_mat4};
 use volshadow::gpu::{Occluder, OccluderMesh};
@@ -21,6 +19,7 @@ use volshadow::{
     Camera, DirectionalLight, Error, Light, Medium, PhaseFunction, PointLight, ShaderPrecision,
     SpotLight,
 };
+use volshadow_harness::scene::errors;
 
 const RMSE_BAR: f64 = 0.02;
 const P95_BAR: f64 = 0.03;
@@ -96,7 +95,11 @@ impl SoftScene {
 
     /// How far the reference moves when the boxes' corners are rounded to f32
     /// (`rounded_occluders`): its image at `size`² against `reference`, the scene's own.
-    fn moved_by_rounding(&self, size: u32, reference: &[DVec3]) -> common::scene::Errors {
+    fn moved_by_rounding(
+        &self,
+        size: u32,
+        reference: &[DVec3],
+    ) -> volshadow_harness::scene::Errors {
         let rounded: Vec<[f32; 4]> = self
             .reference_image(size, &self.rounded_occluders())
             .iter()
@@ -372,7 +375,13 @@ fn random_soft_scenes_against_the_reference_worst_case() {
     let scenes: Vec<SoftScene> = (0..SEEDS)
         .map(|seed| random_scene(seed, (-4.0, 0.0)))
         .collect();
-    let worst = check_scenes_sized(&scenes, (RMSE_BAR, P95_BAR), SIZE, common::WORST_CASE).worst;
+    let worst = check_scenes_sized(
+        &scenes,
+        (RMSE_BAR, P95_BAR),
+        SIZE,
+        volshadow_harness::WORST_CASE,
+    )
+    .worst;
     eprintln!("worst case: worst p95 {:.2}%", 100.0 * worst);
 }
 
@@ -487,11 +496,11 @@ fn ground_scene() -> SoftScene {
 }
 
 // One sign (mixed): each costs the scene's reference again (about 30 s).
-crate::at_each_precision!(
+volshadow_harness::at_each_precision!(
     #[cfg_attr(not(feature = "sweeps"), ignore = "an accuracy sweep: --features sweeps")]
     a_ground_that_casts_shadows_at => a_ground_that_casts_shadows_under_a_soft_light,
     a_ground_that_casts_shadows_under_a_soft_light_worst_case,
-    [common::WORST_CASE]
+    [volshadow_harness::WORST_CASE]
 );
 
 /// A ground that casts shadows (`ground_scene`), 32² (the reference takes the light's disc
@@ -684,7 +693,7 @@ fn check_scenes_sized(
 }
 
 /// `check_scenes_sized`, with the nodes wired by hand instead of the facade when `by_hand`
-/// (`common::by_hand`: for a light the facade would draw hard).
+/// (`volshadow_harness::by_hand`: for a light the facade would draw hard).
 ///
 /// A scene beyond the bars, finite, is not held to them when its image is not determined by
 /// its occluders as f32 holds them: when the reference of its boxes' corners rounded to f32
@@ -703,8 +712,8 @@ fn check_scenes_wired(
 ) -> Checked {
     let mut within = 0;
     let mut telling = 0;
-    let gpu = common::gpu();
-    let cache = common::cache_with(&gpu, precision);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache_with(&gpu, precision);
     let mut hard_worst: f64 = 0.0;
     let mut unshadowed_least = f64::INFINITY;
     let mut worst: f64 = 0.0;
@@ -714,8 +723,8 @@ fn check_scenes_wired(
     for s in scenes {
         let wall = |e: DVec3, d: DVec3| wall_distance(s.wall, e, d);
         let reference = s.reference_image(size, &s.reference_occluders());
-        let depths = common::depths_at(&s.camera, size, size, wall);
-        let depth = common::depth_texture(&gpu, size, size, &depths);
+        let depths = volshadow_harness::depths_at(&s.camera, size, size, wall);
+        let depth = volshadow_harness::depth_texture(&gpu, size, size, &depths);
         let meshes = sphere_meshes(&gpu, &s.spheres);
         let box_meshes = box_meshes(&gpu, &s.boxes);
         let other_meshes: Vec<OccluderMesh> = s
@@ -731,13 +740,15 @@ fn check_scenes_wired(
             ..MarchSettings::default()
         };
         let render_with = |light: &Light, occluders: &[Occluder]| {
-            let passes = common::ShadowPasses::new(&s.camera, light, &s.medium, &depth, occluders)
-                .settings(settings);
+            let passes = volshadow_harness::ShadowPasses::new(
+                &s.camera, light, &s.medium, &depth, occluders,
+            )
+            .settings(settings);
             let passes = match by_hand {
                 true => passes.by_hand(1.0),
                 false => passes,
             };
-            common::shadow_frame(&gpu, &cache, &passes)
+            volshadow_harness::shadow_frame(&gpu, &cache, &passes)
         };
         let render = |light: &Light| render_with(light, &occluders);
         let soft = s.light;
@@ -772,7 +783,7 @@ fn check_scenes_wired(
             100.0 * hard_errors.p95,
             100.0 * unshadowed.p95
         );
-        let beyond = |e: &common::scene::Errors| !(e.rmse <= bars.0 && e.p95 <= bars.1);
+        let beyond = |e: &volshadow_harness::scene::Errors| !(e.rmse <= bars.0 && e.p95 <= bars.1);
         if e.non_finite == 0 && beyond(&e) {
             let moved = s.moved_by_rounding(size, &reference);
             eprintln!("  its reference with the boxes' corners rounded to f32: {moved}");
@@ -800,7 +811,7 @@ fn check_scenes_wired(
             .join("; "),
         _ => format!("{} seeded scenes", scenes.len()),
     };
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!(
             "{what}, {size}², {precision:?}: exact method through the soft-shadow grid against \
              reference::soft; the same drawn hard; the shadow ignored"
@@ -902,8 +913,8 @@ fn sphere_occluder(gpu: &volshadow::HeadlessGpu, at: Vec3) -> OccluderMesh {
 /// otherwise; a rebuild that were skipped would leave last frame's penumbra in the grid.
 #[test]
 fn the_grid_is_rebuilt_only_when_the_shadow_map_changes() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let light: Light = PointLight::new(Vec3::ZERO, Vec3::ONE)
         .unwrap()
         .with_radius(0.3)
@@ -920,7 +931,7 @@ fn the_grid_is_rebuilt_only_when_the_shadow_map_changes() {
         let inputs = ShadowMapInputs {
             light: &light,
             occluders: &occluders,
-            camera: &common::unread_camera(),
+            camera: &volshadow_harness::unread_camera(),
             fallback: None,
         };
         let rendered = shadow.prepare(&gpu.device, &gpu.queue, &inputs).unwrap();
@@ -954,8 +965,8 @@ fn the_grid_is_rebuilt_only_when_the_shadow_map_changes() {
 /// of range and a grid too large to build on the device are typed errors naming the input.
 #[test]
 fn the_grid_rejects_what_it_cannot_use() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     for size in [
         SoftShadowSize {
             directions: 1,
@@ -986,7 +997,7 @@ fn the_grid_rejects_what_it_cannot_use() {
             &ShadowMapInputs {
                 light: &point,
                 occluders: &occluders,
-                camera: &common::unread_camera(),
+                camera: &volshadow_harness::unread_camera(),
                 fallback: None,
             },
         )
@@ -1157,8 +1168,8 @@ fn the_grid_rejects_what_it_cannot_use() {
 /// 26991).
 #[test]
 fn a_ground_adds_no_march_above_it() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let light: Light = PointLight::new(Vec3::new(0.0, 3.0, 0.0), Vec3::splat(4.0))
         .unwrap()
         .with_radius(0.3)
@@ -1174,7 +1185,7 @@ fn a_ground_adds_no_march_above_it() {
     let view = look_at_mat4(eye, Vec3::new(0.0, 1.0, 0.0), Vec3::Y);
     let camera = Camera::new(view, directx::perspective(1.2, 1.0, 1e-2, 1e3)).unwrap();
     // Rays end on the ground (y = 0) or on a wall at z = −10.
-    let depths = common::depths_at(&camera, SIZE, SIZE, |o, d| {
+    let depths = volshadow_harness::depths_at(&camera, SIZE, SIZE, |o, d| {
         let ground = if d.y < 0.0 { -o.y / d.y } else { f64::INFINITY };
         let wall = if d.z < 0.0 {
             (-10.0 - o.z) / d.z
@@ -1183,7 +1194,7 @@ fn a_ground_adds_no_march_above_it() {
         };
         ground.min(wall)
     });
-    let depth = common::depth_texture(&gpu, SIZE, SIZE, &depths);
+    let depth = volshadow_harness::depth_texture(&gpu, SIZE, SIZE, &depths);
     let sphere = OccluderMesh::new(
         &gpu.device,
         &shapes::uv_sphere(Vec3::new(0.0, 1.6, 0.0), 0.4, 32, 16).unwrap(),
@@ -1205,9 +1216,10 @@ fn a_ground_adds_no_march_above_it() {
                 transform: glam::Mat4::IDENTITY,
             })
             .collect();
-        let passes = common::ShadowPasses::new(&camera, &light, &medium, &depth, &occluders)
-            .settings(settings);
-        let frame = common::shadow_frame(&gpu, &cache, &passes);
+        let passes =
+            volshadow_harness::ShadowPasses::new(&camera, &light, &medium, &depth, &occluders)
+                .settings(settings);
+        let frame = volshadow_harness::shadow_frame(&gpu, &cache, &passes);
         (
             frame.steps.iter().filter(|&&s| s > 0).count(),
             frame.steps.iter().map(|&s| u64::from(s)).sum(),
@@ -1223,7 +1235,7 @@ fn a_ground_adds_no_march_above_it() {
         with_ground.1,
         SIZE * SIZE
     );
-    common::metric::performance(
+    volshadow_harness::metric::performance(
         "a ground under a soft light and a sphere, 48², exact: pixels whose ray is marched (steps), sphere alone / with the ground",
         format!(
             "{} ({}) / {} ({}) of {}",
@@ -1359,8 +1371,8 @@ fn grid_cells_against_the_reference_visible_fraction() {
     const DEEP_BIAS_BAR: f64 = 0.06;
     const DEEP_ABS_BAR: f64 = 0.21;
     const OFF_BAR: f64 = 0.0002;
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let size = SoftShadowSize::default();
     let mut shadow = ShadowMapNode::new(
         &gpu.device,
@@ -1385,7 +1397,7 @@ fn grid_cells_against_the_reference_visible_fraction() {
         let inputs = ShadowMapInputs {
             light: &s.light,
             occluders: &occluders,
-            camera: &common::unread_camera(),
+            camera: &volshadow_harness::unread_camera(),
             fallback: None,
         };
         shadow.prepare(&gpu.device, &gpu.queue, &inputs).unwrap();
@@ -1471,7 +1483,7 @@ fn grid_cells_against_the_reference_visible_fraction() {
         all_bias / penumbra_errors.len() as f64,
         100.0 * off
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "the grid's cells against the reference's visible fraction, 12 seeded scenes: penumbra mean |error|, p95, bias; deep penumbra mean relative error, mean |relative error|; other cells off by > 0.1",
         format!(
             "{mean:.4}, {p95:.4}, {:+.4}; {deep_bias:+.3}, {deep_abs:.3}; {:.4}%",
@@ -1513,8 +1525,8 @@ fn grid_cells_against_the_reference_visible_fraction() {
 /// plates' blocks reach over the layers, and the copy is the whole build's without it.)
 #[test]
 fn the_grid_built_where_the_cones_reach_is_the_whole_build() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let size = SoftShadowSize::default();
     let mut shadow = ShadowMapNode::new(&gpu.device, &cache, ShadowMapSettings::default()).unwrap();
     let mut kept = SoftShadowNode::new(&gpu.device, &cache, size).unwrap();
@@ -1539,7 +1551,7 @@ fn the_grid_built_where_the_cones_reach_is_the_whole_build() {
         let inputs = ShadowMapInputs {
             light: &s.light,
             occluders: &occluders,
-            camera: &common::unread_camera(),
+            camera: &volshadow_harness::unread_camera(),
             fallback: None,
         };
         shadow.prepare(&gpu.device, &gpu.queue, &inputs).unwrap();
@@ -2010,7 +2022,7 @@ fn random_gap_scenes_against_the_issues_bars() {
                 .expect("GAP_SEEDS is a range, like 400..448");
             (lo.trim().parse().unwrap()..hi.trim().parse().unwrap()).collect()
         }
-        Err(_) => common::rng::seeds(400..408),
+        Err(_) => volshadow_harness::rng::seeds(400..408),
     };
     gap_sweep(seeds);
 }
@@ -2025,7 +2037,7 @@ fn random_gap_scenes_against_the_issues_bars() {
 )]
 fn random_gap_scenes_against_the_issues_bars_second_half() {
     if std::env::var("GAP_SEEDS").is_err() && std::env::var("VOLSHADOW_SEED").is_err() {
-        gap_sweep(common::rng::seeds(408..416));
+        gap_sweep(volshadow_harness::rng::seeds(408..416));
     }
 }
 
@@ -2066,12 +2078,12 @@ fn gap_sweep(seeds: Vec<u64>) {
 fn a_hole_in_a_turned_plate_per_point() {
     let s = random_gap_scene(406);
     let size = GAP_SIZE;
-    let gpu = common::gpu();
-    let cache = common::cache_with(&gpu, ShaderPrecision::Native);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache_with(&gpu, ShaderPrecision::Native);
     let wall = |e: DVec3, d: DVec3| wall_distance(s.wall, e, d);
     let reference = s.reference_image(size, &s.reference_occluders());
-    let depths = common::depths_at(&s.camera, size, size, wall);
-    let depth = common::depth_texture(&gpu, size, size, &depths);
+    let depths = volshadow_harness::depths_at(&s.camera, size, size, wall);
+    let depth = volshadow_harness::depth_texture(&gpu, size, size, &depths);
     let box_meshes = box_meshes(&gpu, &s.boxes);
     let occluders = placed(&box_meshes, &s.boxes);
     let settings = MarchSettings {
@@ -2079,9 +2091,10 @@ fn a_hole_in_a_turned_plate_per_point() {
         steps: 256,
         ..MarchSettings::default()
     };
-    let passes = common::ShadowPasses::new(&s.camera, &s.light, &s.medium, &depth, &occluders)
-        .settings(settings);
-    let frame = common::shadow_frame(&gpu, &cache, &passes);
+    let passes =
+        volshadow_harness::ShadowPasses::new(&s.camera, &s.light, &s.medium, &depth, &occluders)
+            .settings(settings);
+    let frame = volshadow_harness::shadow_frame(&gpu, &cache, &passes);
     let e = errors(
         &frame.inscatter,
         &reference,
@@ -2090,7 +2103,7 @@ fn a_hole_in_a_turned_plate_per_point() {
         (size, size),
     );
     eprintln!("{}\n  brute force, 256 steps: {e}", s.describe);
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         &format!("{}, {size}²: brute force at 256 steps (the per-point estimate) against reference::soft", s.describe),
         format!("p95 {:.2}%, RMSE {:.2}%", 100.0 * e.p95, 100.0 * e.rmse),
         format!("p95 {}%, RMSE {}% (the issue's bars)", 100.0 * P95_BAR, 100.0 * RMSE_BAR),
@@ -2132,8 +2145,8 @@ fn gap_grid_cells_against_the_reference_visible_fraction() {
     const MAX_BAR: f64 = 0.04;
     const UMBRA_MEAN_BAR: f64 = 1e-5;
     const UMBRA_MAX_BAR: f64 = 2.0 / 256.0;
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let size = SoftShadowSize::default();
     let (n, slices) = (size.directions as usize, size.slices as usize);
     let mut shadow = ShadowMapNode::new(&gpu.device, &cache, Default::default()).unwrap();
@@ -2146,7 +2159,7 @@ fn gap_grid_cells_against_the_reference_visible_fraction() {
         let inputs = ShadowMapInputs {
             light: &s.light,
             occluders: &occluders,
-            camera: &common::unread_camera(),
+            camera: &volshadow_harness::unread_camera(),
             fallback: None,
         };
         shadow.prepare(&gpu.device, &gpu.queue, &inputs).unwrap();
@@ -2235,7 +2248,7 @@ fn gap_grid_cells_against_the_reference_visible_fraction() {
         }
     }
     let [(p95, max), (map_p95, map_max)] = worst;
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "the grid's cells of 6 gap scenes against the reference's visible fraction (penumbra): worst p95 |error|, worst max; the shadow map's estimate alone",
         format!("{p95:.4}, {max:.4}; {map_p95:.4}, {map_max:.4}"),
         format!("{P95_BAR}, {MAX_BAR} (the 256 directions' sampling); the map alone beyond them"),
@@ -2249,7 +2262,7 @@ fn gap_grid_cells_against_the_reference_visible_fraction() {
         "the shadow map alone within the bars: p95 {map_p95:.4}, max {map_max:.4}"
     );
     let (umbra_mean, umbra_max) = umbra_worst;
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "the grid's cells of 6 gap scenes in the reference's umbra (fraction 0): worst mean, worst max",
         format!("{umbra_mean:.2e}, {umbra_max:.4}"),
         format!("{UMBRA_MEAN_BAR:.0e}, {UMBRA_MAX_BAR:.4} (two directions)"),
@@ -2270,8 +2283,8 @@ fn gap_grid_cells_against_the_reference_visible_fraction() {
 /// broken variant) would leave every corner of either box at least 2 off (their translations).
 #[test]
 fn the_triangles_are_gathered_where_the_soft_shadows_take_them() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let half = Vec3::new(0.5, 0.3, 0.1);
     let cube = shapes::cuboid(Vec3::ZERO, half).unwrap();
     let mesh = OccluderMesh::new(&gpu.device, &cube);
@@ -2297,7 +2310,7 @@ fn the_triangles_are_gathered_where_the_soft_shadows_take_them() {
         let inputs = ShadowMapInputs {
             light,
             occluders,
-            camera: &common::unread_camera(),
+            camera: &volshadow_harness::unread_camera(),
             fallback: None,
         };
         node.prepare(&gpu.device, &gpu.queue, &inputs).unwrap();

@@ -5,7 +5,6 @@
 //! under a point and a spot light with a radius, its soft visibility against the f64
 //! reference's exact visible fraction of the light's disc.
 
-use crate::common;
 use volshadow::nodes::{Encode, Node};
 
 use glam::{DVec3, Vec3};
@@ -29,7 +28,7 @@ fn visibility(
     hard: bool,
 ) -> Vec<f32> {
     let device = &gpu.device;
-    let cache = common::cache(gpu);
+    let cache = volshadow_harness::cache(gpu);
     let mesh = OccluderMesh::new(device, &uv_sphere(CENTRE, RADIUS, 64, 32).unwrap());
     let occluders = [Occluder {
         mesh: &mesh,
@@ -165,7 +164,7 @@ fn clearance(p: DVec3, light: DVec3) -> f64 {
 /// sphere's lit side reads shadowed in places (self-shadowing acne), so the count is not zero.
 #[test]
 fn helper_matches_exact_geometry() {
-    let gpu = common::gpu();
+    let gpu = volshadow_harness::gpu();
     let lights: [(&str, Light); 3] = [
         (
             "point",
@@ -242,7 +241,7 @@ fn helper_matches_exact_geometry() {
         eprintln!(
             "{name}: {bad} of {checked} misclassified; without the normal offset {no_offset}"
         );
-        common::metric::accuracy(
+        volshadow_harness::metric::accuracy(
             &format!("{name}: SHADOW_WGSL surface visibility against exact geometry, 1024² map; without the normal offset"),
             format!("{bad} of {checked} misclassified; {no_offset}"),
             "0; acne without the offset in one light at least",
@@ -295,7 +294,7 @@ fn mean_p95(errors: &mut [f64]) -> (f64, f64) {
 /// wide (see `docs/METHOD.md`).
 #[test]
 fn soft_matches_reference() {
-    let gpu = common::gpu();
+    let gpu = volshadow_harness::gpu();
     const R: f32 = 0.4;
     let position = Vec3::new(0.2, 3.0, 0.1);
     let lights: [(&str, Light); 2] = [
@@ -396,7 +395,7 @@ fn soft_matches_reference() {
         let soft = measure(&visibility(&gpu, light, &points, None, false));
         let hard = measure(&visibility(&gpu, light, &points, None, true));
         eprintln!("{name}: soft {}; hard {}", pct(soft), pct(hard));
-        common::metric::accuracy(
+        volshadow_harness::metric::accuracy(
             &format!("{name} light of radius 0.4, sphere 0.5 at 1.52: SHADOW_WGSL soft surface visibility against the exact visible fraction ({} ground points umbra to lit, {} on the sphere), 1024² map; the hard lookup (radius 0 in the params)", ground.len(), sphere.len()),
             format!("{}; hard {}", pct(soft), pct(hard)),
             format!("{} (ground: measured + about 20%; sphere: about twice the measured, p95 held to 1%); the hard lookup above the ground's bars", pct(bars)),

@@ -3,7 +3,6 @@
 //! texture's flat regions in one step each; and the map of those regions against its
 //! definition.
 
-use crate::common;
 use volshadow::nodes::{Encode, Node};
 
 use glam::{DVec3, Mat4, Vec3};
@@ -84,7 +83,7 @@ fn rig() -> Rig {
             Vec3::new(0.1, 0.35, 1.0),
         )
         .unwrap(),
-        camera: common::look_at(
+        camera: volshadow_harness::look_at(
             Vec3::new(0.0, 1.6, 5.5),
             Vec3::new(0.0, 1.5, 0.0),
             60.0,
@@ -105,20 +104,21 @@ fn textured_inscatter(
     mesh: &volshadow::scene::Mesh,
     size: u32,
 ) -> Vec<[f32; 4]> {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
-    let depths = common::depths_at(&rig.camera, size, size, ground);
-    let depth = common::depth_texture(&gpu, size, size, &depths);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
+    let depths = volshadow_harness::depths_at(&rig.camera, size, size, ground);
+    let depth = volshadow_harness::depth_texture(&gpu, size, size, &depths);
     let gpu_mesh = OccluderMesh::new(&gpu.device, mesh);
     let occluders = [Occluder {
         mesh: &gpu_mesh,
         transform: Mat4::IDENTITY,
     }];
     let uploaded = rig.texture.upload(&gpu.device, &gpu.queue);
-    let passes = common::ShadowPasses::new(&rig.camera, light, medium, &depth, &occluders)
-        .settings(rig.march)
-        .texture(Some(&uploaded));
-    common::shadow_frame(&gpu, &cache, &passes).inscatter
+    let passes =
+        volshadow_harness::ShadowPasses::new(&rig.camera, light, medium, &depth, &occluders)
+            .settings(rig.march)
+            .texture(Some(&uploaded));
+    volshadow_harness::shadow_frame(&gpu, &cache, &passes).inscatter
 }
 
 /// RMSE of the GPU in-scatter against the reference, relative to the reference's mean.
@@ -168,7 +168,7 @@ fn checkerboard_spot_matches_reference() {
     let medium = hg_medium();
     let rmse = textured_rmse(&medium);
     println!("textured spot, HG 0.5: RMSE {rmse:.4} of mean");
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "checkerboard textured spot, HG 0.5",
         format!("RMSE {:.2}%", 100.0 * rmse),
         format!("RMSE {}%", 100.0 * MAX_RMSE),
@@ -188,7 +188,7 @@ fn checkerboard_spot_hoffman_preetham_matches_reference() {
     .unwrap();
     let rmse = textured_rmse(&medium);
     println!("textured spot, Hoffman-Preetham: RMSE {rmse:.4} of mean");
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "checkerboard textured spot, Hoffman–Preetham",
         format!("RMSE {:.2}%", 100.0 * rmse),
         format!("RMSE {}%", 100.0 * MAX_RMSE),
@@ -199,8 +199,8 @@ fn checkerboard_spot_hoffman_preetham_matches_reference() {
 /// A texture of 1-texel lines and dots on a flat ground (`size`², lines about every 11 texels
 /// each way, one dot in about 60 texels), deterministic in `seed`.
 fn thin_lines(size: u32, seed: u64) -> LightTexture {
-    let mut rng = common::rng::Rng::new(seed);
-    let lines = |rng: &mut common::rng::Rng| {
+    let mut rng = volshadow_harness::rng::Rng::new(seed);
+    let lines = |rng: &mut volshadow_harness::rng::Rng| {
         let mut at = vec![false; size as usize];
         let mut i = rng.range(2.0, 11.0) as usize;
         while i < size as usize {
@@ -270,7 +270,7 @@ fn thin_lines_between_flat_regions_match_the_reference() {
     let n = 3.0 * with.len() as f64;
     let ground_rmse = (sq / n).sqrt() / (sum / n);
     println!("thin lines: RMSE {rmse:.4} of mean; the ground alone {ground_rmse:.4}");
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "textured spot, 1-texel lines and dots between flat regions",
         format!(
             "RMSE {:.2}% (the ground alone {:.1}%)",
@@ -368,8 +368,8 @@ fn flats_of(texture: &LightTexture) -> Vec<u8> {
 /// short), 7 of the 9 textures differ.
 #[test]
 fn the_flat_region_map_is_its_definition() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let c = |v: f32| Vec3::new(v, 1.0 - v, 0.5);
     let mut dot = vec![c(0.25); 120 * 100];
     dot[40 * 120 + 90] = c(0.75);
@@ -474,15 +474,15 @@ fn invalid_spot_and_texture_inputs_are_errors() {
     ));
 
     // A texture that cannot be filtered: a typed error, no wgpu validation error.
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
     let mut node = LightTextureNode::new(&gpu.device, &cache).unwrap();
     for format in [
         wgpu::TextureFormat::R32Uint,
         wgpu::TextureFormat::Rgba32Float,
     ] {
-        let t = common::texture(
+        let t = volshadow_harness::texture(
             &gpu,
             format,
             wgpu::TextureUsages::TEXTURE_BINDING,
@@ -536,7 +536,7 @@ fn soft_textured_spot_against_the_reference() {
         &camera, SOFT_SIZE, SOFT_SIZE, ground, &medium, &textured, &ref_occ,
     );
     let light = Light::from(spot);
-    let soft = common::scene::errors(
+    let soft = volshadow_harness::scene::errors(
         &render(&light),
         &reference,
         &camera,
@@ -544,7 +544,7 @@ fn soft_textured_spot_against_the_reference() {
         (SOFT_SIZE, SOFT_SIZE),
     );
     let hard_light = Light::from(spot.with_radius(0.0).unwrap());
-    let hard = common::scene::errors(
+    let hard = volshadow_harness::scene::errors(
         &render(&hard_light),
         &reference,
         &camera,
@@ -565,7 +565,7 @@ fn soft_textured_spot_against_the_reference() {
         },
         &ref_occ,
     );
-    let hard_own = common::scene::errors(
+    let hard_own = volshadow_harness::scene::errors(
         &render(&hard_light),
         &hard_reference,
         &camera,
@@ -576,7 +576,7 @@ fn soft_textured_spot_against_the_reference() {
         "soft textured spot: {soft}\n  hard against the soft reference: {hard}\n  hard \
          against the hard reference: {hard_own}"
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "textured spot of radius 0.3, soft through the grid, 64²; drawn hard against the soft reference",
         format!("{}; hard p95 {:.1}%", soft.short(), 100.0 * hard.p95),
         format!("p95 3%, RMSE {}%; hard p95 > 10%", 100.0 * MAX_RMSE),
@@ -618,7 +618,7 @@ fn relative_rmse(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
 fn a_red_mask_turned_by_the_spots_up_hint_matches_the_reference() {
     let medium = hg_medium();
     let size = 16u32;
-    let mut rng = common::rng::Rng::new(7);
+    let mut rng = volshadow_harness::rng::Rng::new(7);
     let mut blocks = || -> Vec<f32> { (0..16).map(|_| rng.range(0.05, 1.0) as f32).collect() };
     let (red, green, blue) = (blocks(), blocks(), blocks());
     let at = |b: &[f32], i: u32| b[((i / size / 4) * 4 + (i % size) / 4) as usize];
@@ -638,10 +638,10 @@ fn a_red_mask_turned_by_the_spots_up_hint_matches_the_reference() {
     rig.spot = rig.spot.with_texture_up(hint).unwrap();
     rig.texture = colour.clone();
     let mesh = shapes::uv_sphere(rig.center, 0.5, 24, 12).unwrap();
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
-    let depths = common::depths_at(&rig.camera, SIZE, SIZE, ground);
-    let depth = common::depth_texture(&gpu, SIZE, SIZE, &depths);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
+    let depths = volshadow_harness::depths_at(&rig.camera, SIZE, SIZE, ground);
+    let depth = volshadow_harness::depth_texture(&gpu, SIZE, SIZE, &depths);
     let gpu_mesh = OccluderMesh::new(&gpu.device, &mesh);
     let occluders = [Occluder {
         mesh: &gpu_mesh,
@@ -649,10 +649,11 @@ fn a_red_mask_turned_by_the_spots_up_hint_matches_the_reference() {
     }];
     let uploaded = colour.upload(&gpu.device, &gpu.queue);
     let light = Light::from(rig.spot);
-    let passes = common::ShadowPasses::new(&rig.camera, &light, &medium, &depth, &occluders)
-        .texture(Some(&uploaded))
-        .channels(TextureChannels::Red);
-    let image: Vec<[f64; 3]> = common::shadow_frame(&gpu, &cache, &passes)
+    let passes =
+        volshadow_harness::ShadowPasses::new(&rig.camera, &light, &medium, &depth, &occluders)
+            .texture(Some(&uploaded))
+            .channels(TextureChannels::Red);
+    let image: Vec<[f64; 3]> = volshadow_harness::shadow_frame(&gpu, &cache, &passes)
         .inscatter
         .iter()
         .map(|t| [0, 1, 2].map(|c| f64::from(t[c])))
@@ -676,7 +677,7 @@ fn a_red_mask_turned_by_the_spots_up_hint_matches_the_reference() {
         100.0 * unturned,
         100.0 * coloured
     );
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "red-mask textured spot, turned frame",
         format!("RMSE {:.2}%", 100.0 * rmse),
         format!("RMSE {}%", 100.0 * MAX_RMSE),

@@ -1,7 +1,5 @@
 //! Low-resolution scattering and bilateral upsampling across a depth edge (issue 4).
 
-use crate::common;
-
 use glam::Vec3;
 use volshadow::gpu::{Occluder, OccluderMesh};
 use volshadow::nodes::{MarchSettings, Scale, UpsampleFilter, UpsampleNode};
@@ -32,11 +30,11 @@ fn inscatter(
         scale,
         ..Default::default()
     };
-    let passes = common::ShadowPasses::new(camera, light, medium, depth, occluders)
+    let passes = volshadow_harness::ShadowPasses::new(camera, light, medium, depth, occluders)
         .settings(settings)
         .shadow_resolution(512)
         .filter(filter);
-    common::shadow_frame(gpu, cache, &passes).inscatter
+    volshadow_harness::shadow_frame(gpu, cache, &passes).inscatter
 }
 
 /// Largest pull towards the other side of the edge among pixels within 3 pixels of it:
@@ -64,9 +62,9 @@ fn worst_pull(truth: &[[f32; 4]], test: &[[f32; 4]]) -> f64 {
 
 #[test]
 fn bilateral_filters_do_not_blend_across_a_depth_edge() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
-    let camera = common::look_at(
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
+    let camera = volshadow_harness::look_at(
         Vec3::new(0.0, 1.0, 6.0),
         Vec3::new(0.0, 1.0, 0.0),
         50.0,
@@ -96,13 +94,13 @@ fn bilateral_filters_do_not_blend_across_a_depth_edge() {
     let depths: Vec<f32> = (0..SIZE * SIZE)
         .map(|i| {
             let (x, y) = (i % SIZE, i / SIZE);
-            let (eye, dir) = common::pixel_ray(&camera, SIZE, SIZE, x, y);
+            let (eye, dir) = volshadow_harness::pixel_ray(&camera, SIZE, SIZE, x, y);
             // Near occluder: the plane z = 5 (1 from the eye); far wall: z = −12.
             let plane_z = if x < EDGE { 5.0 } else { -12.0 };
-            common::ndc_depth(&camera, eye + dir * ((plane_z - eye.z) / dir.z))
+            volshadow_harness::ndc_depth(&camera, eye + dir * ((plane_z - eye.z) / dir.z))
         })
         .collect();
-    let depth = common::depth_texture(&gpu, SIZE, SIZE, &depths);
+    let depth = volshadow_harness::depth_texture(&gpu, SIZE, SIZE, &depths);
     let truth = inscatter(
         &gpu,
         &cache,
@@ -149,7 +147,7 @@ fn bilateral_filters_do_not_blend_across_a_depth_edge() {
         assert!(up.iter().all(|t| t[0..3].iter().all(|v| v.is_finite())));
         let pull = worst_pull(&truth, &up);
         println!("1/4 resolution + {name}: worst pull across the edge {pull:.4}");
-        common::metric::accuracy(
+        volshadow_harness::metric::accuracy(
             &format!("depth edge at ¼ resolution, {name}: worst pull across the edge"),
             format!("{:.1}%", 100.0 * pull),
             format!("{}%", 100.0 * MAX_PULL),
@@ -170,7 +168,7 @@ fn bilateral_filters_do_not_blend_across_a_depth_edge() {
     );
     let pull = worst_pull(&truth, &up);
     println!("1/4 resolution + plain bilinear: worst pull across the edge {pull:.4}");
-    common::metric::accuracy(
+    volshadow_harness::metric::accuracy(
         "depth edge at ¼ resolution, plain bilinear (must fail)",
         format!("{:.1}%", 100.0 * pull),
         "> 5%",
@@ -195,8 +193,8 @@ fn invalid_scales_and_filters_are_errors() {
         Err(volshadow::Error::InvalidSetting { .. })
     ));
     assert_eq!(Scale::from_divisor(4), Ok(Scale::Quarter));
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     for (taps, ss, sz) in [
         (0, 1.0, 0.1),
         (4, 1.0, 0.1),

@@ -1,7 +1,6 @@
 //! Every kind of invalid input returns its own error variant, never a panic (issue 2 item 3),
 //! and nothing the caller passed is modified.
 
-use crate::common;
 use volshadow::nodes::Node;
 
 use glam::{Mat4, Vec3};
@@ -224,8 +223,8 @@ fn every_depth_convention_is_accepted_and_detected() {
 
 #[test]
 fn table_size_below_two_is_rejected() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     for size in [
         TableSize {
             along_ray: 1,
@@ -252,12 +251,12 @@ fn table_size_below_two_is_rejected() {
 
 #[test]
 fn bad_textures_are_typed_errors_not_validation_errors() {
-    let gpu = common::gpu();
-    let cache = common::cache(&gpu);
+    let gpu = volshadow_harness::gpu();
+    let cache = volshadow_harness::cache(&gpu);
     let camera = Camera::new(view(), projection()).unwrap();
     let light = volshadow::Light::from(PointLight::new(Vec3::Y, Vec3::ONE).unwrap());
     let medium = Medium::new(Vec3::splat(0.1), Vec3::ZERO, PhaseFunction::Isotropic).unwrap();
-    let tex = |format, usage, w, h| common::texture(&gpu, format, usage, (w, h, 1), 1);
+    let tex = |format, usage, w, h| volshadow_harness::texture(&gpu, format, usage, (w, h, 1), 1);
     let sampled = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::RENDER_ATTACHMENT;
     let table = AirlightTableNode::new(&gpu.device, &cache, TableSize::default()).unwrap();
     let mut march = MarchNode::new(&gpu.device, &cache, MarchSettings::default()).unwrap();

@@ -5,8 +5,6 @@
 //! bookkeeping. The same frames on a cold cache build some, which shows the count sees them.
 //! `VolumetricShadows::is_first_frame` marks exactly the frames that bring a new form.
 
-use crate::common;
-
 use glam::{Mat4, Vec3};
 use volshadow::nodes::{MarchMethod, Scale};
 use volshadow::scene::shapes;
@@ -46,19 +44,20 @@ struct Rig {
 /// share its instance with tests that build pipelines at the same time.
 fn rig() -> Rig {
     let gpu = HeadlessGpu::new().expect("GPU tests need a wgpu adapter (lavapipe works)");
-    let camera = common::look_at(
+    let camera = volshadow_harness::look_at(
         Vec3::new(0.0, 1.5, 6.0),
         Vec3::new(0.0, 1.0, 0.0),
         60.0,
         1.0,
     );
-    let depth = common::depth_texture(&gpu, SIZE, SIZE, &vec![0.99; (SIZE * SIZE) as usize]);
+    let depth =
+        volshadow_harness::depth_texture(&gpu, SIZE, SIZE, &vec![0.99; (SIZE * SIZE) as usize]);
     let sampled = wgpu::TextureUsages::TEXTURE_BINDING;
-    let tex = |format| common::texture(&gpu, format, sampled, (SIZE, SIZE, 1), 1);
+    let tex = |format| volshadow_harness::texture(&gpu, format, sampled, (SIZE, SIZE, 1), 1);
     let color = tex(wgpu::TextureFormat::Rgba32Float);
     let normal = tex(wgpu::TextureFormat::Rgba16Float);
     let albedo = tex(wgpu::TextureFormat::Rgba16Float);
-    let light_texture = common::texture(
+    let light_texture = volshadow_harness::texture(
         &gpu,
         wgpu::TextureFormat::Rgba16Float,
         sampled,

@@ -1,10 +1,8 @@
-//! The `compare` example as a test: both renderers draw the scene, and the key that switches
-//! them really switches (the two pictures differ).
+//! The `compare` example's scene as a test: both renderers draw the scene, and the key that
+//! switches them really switches (the two pictures differ). The scene and its headless render
+//! are `volshadow_bevy_scene`, which the example and this test share.
 
-#[path = "../examples/compare/main.rs"]
-mod compare;
-
-use compare::{render, Mode};
+use volshadow_bevy_scene::{render, Mode};
 
 const W: u32 = 96;
 const H: u32 = 54;

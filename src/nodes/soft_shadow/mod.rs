@@ -126,7 +126,7 @@
 //! penumbra), a cell interpolated from its neighbours none. The build runs once per frame in
 //! which the shadow map changed, and its cost grows with the cells inside the penumbra cones,
 //! not with the output's pixels; the march reads the grid with about half a step per cell the
-//! ray crosses. The report's soft scene (`cargo run --release --example report -- --scenes
+//! ray crosses. The report's soft scene (`cargo run --release -p volshadow_tools --bin report -- --scenes
 //! scenes/soft.json`) times the build against the hard frame (`docs/PERFORMANCE.md`).
 //!
 //! # Memory

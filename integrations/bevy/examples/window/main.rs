@@ -1,11 +1,8 @@
-//! The `compare` example's scene in a window: `V` switches the camera between volshadow and
-//! Bevy's own `VolumetricFog` (64 steps) on the same scene; the window's title says which.
+//! The `compare` example's scene (`volshadow_bevy_scene`) in a window: `V` switches the camera
+//! between volshadow and Bevy's own `VolumetricFog` (64 steps) on the same scene; the window's
+//! title says which.
 //!
 //! `cargo run --release -p volshadow_bevy --features window --example window --ignore-rust-version`
-
-#[path = "../compare/main.rs"]
-#[allow(dead_code)]
-mod compare;
 
 use bevy::camera::RenderTarget;
 use bevy::input::keyboard::KeyCode;
@@ -16,7 +13,7 @@ use bevy::render::view::Msaa;
 use bevy::window::{PrimaryWindow, WindowRef};
 use volshadow_bevy::{VolshadowLight, VolshadowMedium, VolshadowPlugin};
 
-use compare::{Look, Mode};
+use volshadow_bevy_scene::{Look, Mode};
 
 const TITLE_VOLSHADOW: &str = "volshadow (V: Bevy's VolumetricFog)";
 const TITLE_BEVY: &str = "Bevy's VolumetricFog, 64 steps (V: volshadow)";
@@ -41,14 +38,14 @@ fn main() {
 /// its fog volume and the light's `VolumetricLight` (each ignored while the other is in use).
 fn setup(world: &mut World) {
     let target = RenderTarget::Window(WindowRef::Primary);
-    compare::spawn(
+    volshadow_bevy_scene::spawn(
         world,
         Mode::Volshadow,
         Look::Picture,
         Msaa::default(),
         target,
     );
-    world.spawn(compare::fog_volume());
+    world.spawn(volshadow_bevy_scene::fog_volume());
     let lights: Vec<Entity> = world
         .query_filtered::<Entity, With<VolshadowLight>>()
         .iter(world)
@@ -73,13 +70,13 @@ fn switch(
             commands
                 .entity(camera)
                 .remove::<VolshadowMedium>()
-                .insert(compare::bevy_fog(64));
+                .insert(volshadow_bevy_scene::bevy_fog(64));
             TITLE_BEVY
         } else {
             commands
                 .entity(camera)
                 .remove::<VolumetricFog>()
-                .insert(compare::medium());
+                .insert(volshadow_bevy_scene::medium());
             TITLE_VOLSHADOW
         };
         for mut window in &mut windows {
