@@ -1,5 +1,6 @@
 #import prelude.wgsl
 #import pcss.wgsl
+#import light.wgsl
 // March node: in-scattered radiance per pixel (Wyman and Ramsey 2008, §3.1; Biri et al. 2006).
 //
 // Everything is done in the normalised scattering angle s of the F′ table: the airlight over
@@ -105,19 +106,9 @@ struct SoftGrid {
 // cells from the cell into that quadrant; 0 where the cell is not flat).
 @group(0) @binding(16) var light_flats: texture_2d<u32>;
 
-// Distance along the ray of the point with normalised scattering angle s (law of sines in the
-// eye–point–light triangle: x = D sin δ / sin β, δ = s w, β = (1 − s) w). Each sine is taken
-// of the angle or its supplement (sin β = sin(γ + δ), sin δ = sin(γ + β)), whichever is smaller,
-// by `vs_sin_poly`: a small sine keeps its relative precision.
+// Distance along the ray of the point with normalised scattering angle s (light.wgsl).
 fn x_of_s(r: AirRay, s: f32) -> f32 {
-    if (LIGHT == LIGHT_DIRECTIONAL) {
-        return directional_x(air, s);
-    }
-    let sc = min(s, 1.0 - 1.0e-6);
-    let beta = (1.0 - sc) * r.w;
-    let delta = sc * r.w;
-    let sin_beta = sin_supplement(beta, r.gamma + delta);
-    return air.distance * sin_supplement(delta, r.gamma + beta) / max(sin_beta, 1.0e-30);
+    return light_x_of_s(air, r, s);
 }
 
 fn vis_at(ray: PixelRay, r: AirRay, s: f32) -> f32 {
@@ -909,12 +900,7 @@ fn march_textbook(ray: PixelRay, r: AirRay, x_end: f32, n: u32) -> Textbook {
     let sigma_min = min(air.sigma_t.x, min(air.sigma_t.y, air.sigma_t.z));
     let x_cap = min(x_end, select(100.0 * d_light, TEXTBOOK_DEPTH / sigma_min, sigma_min > 0.0));
     let log_si = vs_log3(air.sigma_s) + vs_log3(air.intensity);
-    var sup: Support;
-    sup.count = 1u;
-    sup.x[0] = vec2<f32>(0.0, x_cap);
-    if (LIGHT == LIGHT_SPOT) {
-        sup = cone_support(air, shadow.light, ray.dir, x_cap);
-    }
+    let sup = support_x(air, shadow.light, ray.dir, x_cap);
     // The pixel footprint at the light bounds 1/d² as the closed form's prefactor is bounded.
     let d_min = d_light * max(air.pixel_radius * ray.footprint, 1.0e-6);
     for (var i = 0u; i < sup.count; i++) {

@@ -1,20 +1,19 @@
 // volshadow prelude: the maths shared by every node (phase functions, the bounded airlight
 // integrand of the stable airlight form, the F′ table lookup). Each node's WGSL file is appended to this one.
 
-// The kinds of light (`LightUniform::kind` in src/nodes/light.rs).
+// The kinds of light (`LightUniform::kind` in src/light/gpu.rs).
 const LIGHT_POINT: u32 = 0u;
 const LIGHT_SPOT: u32 = 1u;
 const LIGHT_DIRECTIONAL: u32 = 2u;
 
 // Pipeline constant of every per-pixel node: the kind of light, so that a point light's pixels
 // do not pay for a spot's cone (a support that may start away from the eye) and a directional
-// light's parallel rays are a separate path. With a directional light `Airlight` holds the
-// direction of travel d in `light_pos`, the irradiance E in `intensity`, and in `distance` the
-// length L of the ray parameter s = x / (x + L); no F′ table is read: T is in closed form.
+// light's parallel rays are a separate path. What a pass asks of a light goes through
+// light.wgsl, which chooses among the kinds' files in light/ by this constant.
 override LIGHT: u32 = LIGHT_POINT;
 
 // A light as every node reads it, resolved once from the scene's light (`LightUniform` in
-// src/nodes/light.rs, its only constructor).
+// src/light/gpu.rs, which each kind of light fills in its own file of src/light/).
 struct Light {
     position: vec3<f32>,   // a point or spot light's position; a directional light's unit
                            // direction of travel
@@ -86,94 +85,6 @@ struct AirRay {
     c: f32,                // |v × (P − E)| = D sin γ
     dotv: f32,             // v · (P − E) = D cos γ
     prefactor: vec3<f32>,  // I0 σs exp(−σt D) w / (D sin γ), sin γ clamped by the pixel footprint
-}
-
-fn air_ray(a: Airlight, ray: PixelRay) -> AirRay {
-    if (LIGHT == LIGHT_DIRECTIONAL) {
-        return air_ray_directional(a, ray);
-    }
-    let dir = ray.dir;
-    let to_light = a.light_pos - a.eye;
-    let d = a.distance;
-    var r: AirRay;
-    r.c = length(cross(dir, to_light));
-    r.dotv = dot(dir, to_light);
-    // Both angles from their own well-conditioned atan2 (relative precision to the last few
-    // bits whichever is small): γ near π (the light behind the eye) makes w small, and the
-    // table's integrand divides by the sines of fractions of w.
-    r.gamma = vs_atan2_poly(r.c, r.dotv);
-    r.w = vs_atan2_poly(r.c, -r.dotv);
-    r.sin_half_gamma = vs_sin_poly(0.5 * r.gamma);
-    // The singular 1/h of form (2): clamped by the pixel's footprint at the light when looking
-    // towards it (a point light seen through fog is infinitely bright at γ = 0); towards γ = π
-    // the ratio w / sin γ tends to 1 and needs no clamp.
-    var sin_gamma = r.c / d;
-    var ratio = 1.0;
-    if (r.gamma < 0.5 * PI) {
-        sin_gamma = max(sin_gamma, a.pixel_radius * ray.footprint);
-        ratio = r.w / sin_gamma;
-    } else if (sin_gamma > 1.0e-30) {
-        ratio = r.w / sin_gamma;
-    }
-    // In log space, every factor in the one exponent: at σt·D = 100, exp(−σt D) = 4e-44 is
-    // below f32's normal range (a GPU may flush it to zero) while I0 · exp(−σt D) · w / (D sin γ)
-    // may still be a visible radiance. log(0) = −inf gives exp = 0, no NaN.
-    r.prefactor = vs_exp3(vs_log3(a.intensity) + vs_log3(a.sigma_s) - a.sigma_t * d
-                          + vec3<f32>(vs_log(ratio / d)));
-    return r;
-}
-
-// A directional light's ray: the scattering angle θ is the same at every point, so the
-// prefactor is σs·p(cos θ)·E and T(x) = ∫₀ˣ e^{−σt x'} dx' (see `directional_t`). With d the
-// direction of travel, cos θ = −v·d; 1 ∓ cos θ = |v ± d|²/2 keep their relative precision.
-fn air_ray_directional(a: Airlight, ray: PixelRay) -> AirRay {
-    let v = ray.dir;
-    let d = a.light_pos;
-    var r: AirRay;
-    r.gamma = 0.0;
-    r.w = 1.0;
-    r.sin_half_gamma = 0.0;
-    r.c = 0.0;
-    r.dotv = 0.0;
-    let one_minus_mu = 0.5 * dot(v + d, v + d);
-    let one_plus_mu = 0.5 * dot(v - d, v - d);
-    r.prefactor = a.sigma_s * phase(a, one_minus_mu, one_plus_mu) * a.intensity;
-    return r;
-}
-
-// (1 − e^{−z}) / z for z ≥ 0 per channel, to f32 precision: its alternating Taylor series below
-// z = 1 (no cancellation, and exactly 1 at z = 0), the direct form above.
-fn one_minus_exp_ratio(z: vec3<f32>) -> vec3<f32> {
-    var f = vec3<f32>(1.0);
-    for (var k = 11.0; k >= 2.0; k -= 1.0) {
-        f = 1.0 - z / k * f;
-    }
-    return select(f, (1.0 - vs_exp3(-z)) / max(z, vec3<f32>(1.0e-30)), z >= vec3<f32>(1.0));
-}
-
-// A directional light's T(x) = ∫₀ˣ e^{−σt x'} dx' = (1 − e^{−σt x}) / σt per channel: x at
-// σt = 0, 1/σt at x = ∞ (x = FAR), finite for any σt·x (σt·FAR may overflow to ∞: then 1/σt).
-fn directional_t(a: Airlight, x: f32) -> vec3<f32> {
-    let z = a.sigma_t * x;
-    let small = x * one_minus_exp_ratio(min(z, vec3<f32>(1.0)));
-    let large = (1.0 - vs_exp3(-z)) / max(a.sigma_t, vec3<f32>(1.0e-38));
-    return select(small, large, z >= vec3<f32>(1.0));
-}
-
-// A directional light's ray parameter: s = x / (x + L) maps [0, ∞] onto [0, 1] (the sky is
-// s = 1), and its inverse.
-fn directional_s(a: Airlight, x: f32) -> f32 {
-    if (x >= FAR) {
-        return 1.0;
-    }
-    return x / (x + a.distance);
-}
-
-fn directional_x(a: Airlight, s: f32) -> f32 {
-    if (s >= 1.0) {
-        return FAR;
-    }
-    return min(a.distance * s / (1.0 - s), FAR);
 }
 
 // (cos h, sin h) of an angle h ∈ [0, π/2] whose complement π/2 − h the caller computed
@@ -255,19 +166,6 @@ fn table_row_mix(table: texture_2d<f32>, a: Airlight, gamma: f32, j: u32) -> vec
 // above 1.2, 199 and worst 1.04%. The table's own test and the frame tests are unchanged.
 const ROW_RATIO: f32 = 1.2;
 
-// T(γ, s): the table entry at or below s (rows interpolated in γ), plus the rest of the cell
-// integrated exactly at this ray's own γ by 3-point Gauss–Legendre. Interpolating T along s
-// would be wrong exactly where the image is brightest (steep rise near the light, optically
-// deep media); the partial cell costs three integrand evaluations and removes that error.
-fn table_t(table: texture_2d<f32>, a: Airlight, r: AirRay, s: f32) -> vec3<f32> {
-    if (LIGHT == LIGHT_DIRECTIONAL) {
-        return directional_t(a, directional_x(a, s));
-    }
-    let n = a.table_along;
-    let j = min(u32(s * f32(n - 1u)), n - 1u);
-    return table_row_mix(table, a, r.gamma, j) + table_partial(a, r, s, j);
-}
-
 // ∫ from the table's entry j (at or below s) to s, by 3-point Gauss–Legendre.
 fn table_partial(a: Airlight, r: AirRay, s: f32, j: u32) -> vec3<f32> {
     let s0 = f32(j) / f32(a.table_along - 1u);
@@ -290,21 +188,6 @@ struct TT {
     tail: vec3<f32>,
 }
 
-// The tail is the entry at or below s less the same partial cell the head adds: head + tail
-// is the row's total, and the cell's rounding stays within the cell.
-fn table_tt(table: texture_2d<f32>, a: Airlight, r: AirRay, s: f32) -> TT {
-    if (LIGHT == LIGHT_DIRECTIONAL) {
-        let t = directional_t(a, directional_x(a, s));
-        return TT(t, -t); // differences of heads (directional lights have no table)
-    }
-    let n = a.table_along;
-    let j = min(u32(s * f32(n - 1u)), n - 1u);
-    let partial = table_partial(a, r, s, j);
-    let head = table_row_mix(table, a, r.gamma, j) + partial;
-    let tail = max(table_row_mix(table, a, r.gamma, n + j) - partial, vec3<f32>(0.0));
-    return TT(head, tail);
-}
-
 // ∫ over [s_a, s_b] (s_a ≤ s_b) from T at its ends: the difference of the heads, whose
 // rounding is relative to the head at b, or of the tails, relative to the tail at a, per
 // channel whichever is smaller. In an optically thick medium the integrand peaks sharply, and
@@ -314,157 +197,17 @@ fn t_between(a: TT, b: TT) -> vec3<f32> {
     return select(b.head - a.head, a.tail - b.tail, b.head > a.tail);
 }
 
-// I0 · F′(x): in-scattered radiance from the eye to distance x (x < 0: sky).
-fn fprime(table: texture_2d<f32>, a: Airlight, r: AirRay, x: f32) -> vec3<f32> {
-    var s = 1.0;
-    if (x >= 0.0) {
-        s = scattering_s(a, r, x);
-    }
-    return r.prefactor * table_t(table, a, r, s);
-}
-
-// The spot cone along the ray, as up to two intervals of distance (−1 ends mean empty).
-// Roots of (a·(X − P))² = cos²α |X − P|² on the light's nappe a·(X − P) ≥ 0.
+// A ray's lit support (light.wgsl's `support_x`): up to two intervals of distance (a spot's
+// cone may cut the ray twice).
 struct Support {
     x: array<vec2<f32>, 2>,
     count: u32,
 }
 
-fn inside_cone(a: Airlight, light: Light, p: vec3<f32>) -> bool {
-    let rel = p - a.light_pos;
-    return dot(light.axis, rel) >= light.cos_half * length(rel);
-}
-
-// The ray eye + x·dir, x in [0, x_end], cut where it crosses the double cone with apex `apex`,
-// unit axis `axis` and squared cosine of the half-angle `c2`: pieces i = [x[i], x[i + 1]] for
-// i < count, each inside or outside the cone throughout. The quadratic's roots are taken
-// without cancellation.
-struct ConeCuts {
-    x: array<f32, 4>,
-    count: u32,
-}
-
-fn cone_cuts(apex: vec3<f32>, axis: vec3<f32>, c2: f32, eye: vec3<f32>, dir: vec3<f32>, x_end: f32) -> ConeCuts {
-    let w0 = eye - apex;
-    let av = dot(axis, dir);
-    let aw = dot(axis, w0);
-    let qa = av * av - c2;
-    let qb = 2.0 * (av * aw - c2 * dot(dir, w0));
-    let qc = aw * aw - c2 * dot(w0, w0);
-    var roots = array<f32, 2>(-1.0, -1.0);
-    // qa is dimensionless (qb a length, qc an area): whether it is zero is decided against its
-    // own terms' rounding, not against qb or qc, which grow with the scene's scale (at a unit of
-    // 8e4 a threshold of 1e-12 · |qc| took rays nearly parallel to the cone's surface for
-    // linear and cut them wrong, by up to 8%). Below it qa is rounding noise, and the linear
-    // root is the one kept.
-    if (abs(qa) > 1.0e-6 * max(av * av, c2)) {
-        // The discriminant qb² − 4·qa·qc in the closed form 4·c2·(|axis × n|² − c2·|n|²),
-        // n = dir × w0 (|n| is the ray's distance from the apex): a ray passing near the apex
-        // has two nearly equal roots, one on each nappe, and qb² − 4·qa·qc cancels to rounding
-        // noise there (relative 1e-7 of qb²), often negative. For a cone of nearly 180° the
-        // two nappes nearly coincide with the plane through the apex, so every ray that
-        // crosses that plane near the light was such a ray: its whole lit piece was lost
-        // (black pixels at 179.95°, the whole light's row at 179.999°).
-        let n = cross(dir, w0);
-        let an = cross(axis, n);
-        let disc = 4.0 * c2 * (dot(an, an) - c2 * dot(n, n));
-        if (disc >= 0.0) {
-            let q = -0.5 * (qb + select(-1.0, 1.0, qb >= 0.0) * vs_sqrt(disc));
-            let r0 = q / qa;
-            let r1 = select(r0, qc / q, q != 0.0);
-            roots = array<f32, 2>(min(r0, r1), max(r0, r1));
-        }
-    } else if (qb != 0.0) {
-        roots[0] = -qc / qb;
-    }
-    var cuts: ConeCuts;
-    // The roots inside (0, x_end), in order, written at fixed indices: a private array
-    // written or read at a variable index lives in memory on llvmpipe, for every lane.
-    let in0 = roots[0] > 0.0 && roots[0] < x_end;
-    let in1 = roots[1] > 0.0 && roots[1] < x_end;
-    let first = select(select(x_end, roots[1], in1), roots[0], in0);
-    let second = select(x_end, roots[1], in0 && in1);
-    cuts.x = array<f32, 4>(0.0, first, second, x_end);
-    cuts.count = 1u + select(0u, 1u, in0) + select(0u, 1u, in1);
-    return cuts;
-}
-
-// Piece i (< count) of `c`: [x[i], x[i + 1]], read at fixed indices (see `cone_cuts`).
-fn cut_piece(c: ConeCuts, i: u32) -> vec2<f32> {
-    let x = c.x;
-    return select(select(vec2<f32>(x[2], x[3]), vec2<f32>(x[1], x[2]), i == 1u), vec2<f32>(x[0], x[1]), i == 0u);
-}
-
-// The cone's apex is the airlight's light position (`air.light_pos`, where the eye–light
-// distance is kept above zero).
-fn cone_support(air: Airlight, light: Light, dir: vec3<f32>, x_end: f32) -> Support {
-    var sup: Support;
-    sup.count = 0u;
-    // Split [0, x_end] at the cone's crossings and keep the pieces whose midpoint is inside it.
-    var cuts = cone_cuts(air.light_pos, light.axis, light.cos_half * light.cos_half, air.eye, dir, x_end);
-    let k = cuts.count;
-    for (var i = 0u; i < k; i++) {
-        let piece = cut_piece(cuts, i);
-        let a = piece.x;
-        let b = piece.y;
-        var mid = 0.5 * (a + b);
-        if (b >= FAR) {
-            mid = a + 1.0 + 2.0 * abs(a) + 1.0e3 * air.distance; // far along an unbounded piece
-        }
-        if (b > a && inside_cone(air, light, air.eye + mid * dir)) {
-            if (sup.count > 0u && sup.x[sup.count - 1u].y == a) {
-                sup.x[sup.count - 1u].y = b;
-            } else if (sup.count < 2u) {
-                sup.x[sup.count] = vec2<f32>(a, b);
-                sup.count++;
-            }
-        }
-    }
-    return sup;
-}
-
-fn s_of_x(a: Airlight, r: AirRay, x: f32) -> f32 {
-    if (LIGHT == LIGHT_DIRECTIONAL) {
-        return directional_s(a, x);
-    }
-    if (x >= FAR) {
-        return 1.0;
-    }
-    return scattering_s(a, r, x);
-}
-
-// The lit support of a ray in s: [0, s(ds)] for a point light, its intersection with the cone
-// for a spot light (`light`'s cone; unused for other lights).
+// The same in the normalised scattering angle s (light.wgsl's `support_s`).
 struct SupportS {
     s: array<vec2<f32>, 2>,
     count: u32,
-}
-
-fn support_s(a: Airlight, r: AirRay, light: Light, dir: vec3<f32>, x_end: f32) -> SupportS {
-    var out: SupportS;
-    out.count = 1u;
-    out.s[0] = vec2<f32>(0.0, s_of_x(a, r, x_end));
-    if (LIGHT == LIGHT_SPOT) {
-        let cone = cone_support(a, light, dir, x_end);
-        out.count = cone.count;
-        for (var i = 0u; i < cone.count; i++) {
-            out.s[i] = vec2<f32>(s_of_x(a, r, cone.x[i].x), s_of_x(a, r, cone.x[i].y));
-        }
-    }
-    return out;
-}
-
-// Unshadowed T over the lit support.
-fn unshadowed_t(table: texture_2d<f32>, a: Airlight, r: AirRay, sup: SupportS) -> vec3<f32> {
-    var t = vec3<f32>(0.0);
-    for (var i = 0u; i < sup.count; i++) {
-        if (LIGHT == LIGHT_SPOT) {
-            t += t_between(table_tt(table, a, r, sup.s[i].x), table_tt(table, a, r, sup.s[i].y));
-        } else {
-            t += table_t(table, a, r, sup.s[i].y); // from the eye, where T = 0
-        }
-    }
-    return t;
 }
 
 fn clamp_radiance(v: vec3<f32>) -> vec3<f32> {

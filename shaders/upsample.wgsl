@@ -1,4 +1,5 @@
 #import prelude.wgsl
+#import light.wgsl
 // Upsample node: the low-resolution lit fraction (rgb in [0, 1], a = eye distance, −1 sky)
 // brought to the output resolution without blending across depth discontinuities (Wyman and
 // Ramsey 2008, §3.3; SoftBiF-VS 2017), times the full-resolution analytic airlight of each output pixel.

@@ -1,7 +1,7 @@
 //! `VolumetricShadows`: owns the nodes, asks the planner what to run, records it.
 
 use crate::error::{Error, Result};
-use crate::frame::{Frame, FrameLight};
+use crate::frame::Frame;
 use crate::gpu::headless::HeadlessGpu;
 use crate::gpu::scope::validated;
 use crate::gpu::{GpuTimer, Occluder, PassTime};
@@ -52,15 +52,14 @@ impl LightSlot {
         })
     }
 
-    /// Prepares this light's planned step `pass`; returns whether it records work.
-    #[allow(clippy::too_many_arguments)]
+    /// Prepares this light's planned step `pass` from its light's plan (`step.planned`);
+    /// returns whether it records work.
     fn prepare(
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         cache: &Cache,
         settings: &Settings,
-        plan: &Plan,
         pass: Pass,
         step: &StepInputs<'_, '_>,
     ) -> Result<bool> {
@@ -118,7 +117,7 @@ impl LightSlot {
                 let inputs = TableInputs { eye, light, medium };
                 self.table.prepare(device, queue, &inputs)?
             }
-            Pass::March => self.prepare_march(device, queue, settings, plan, step)?,
+            Pass::March => self.prepare_march(device, queue, settings, step)?,
             Pass::Upsample => {
                 self.upsample.set_settings(settings.upsample)?;
                 let inputs = UpsampleInputs {
@@ -170,7 +169,6 @@ impl LightSlot {
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         settings: &Settings,
-        plan: &Plan,
         step: &StepInputs<'_, '_>,
     ) -> Result<bool> {
         let (frame, i) = (step.frame, step.index);
@@ -180,16 +178,13 @@ impl LightSlot {
             scale,
             ..settings.march
         })?;
-        let light_index = Some(i);
-        let shadows = plan.runs(Pass::ShadowMap, light_index).then(|| {
+        // The shadow inputs the plan gives the march, as their steps made them.
+        let shadows = step.planned.shadows.and_then(|forms| {
             Some(Shadows {
                 shadow_map: self.shadow.shadow_map()?,
-                extents: plan
-                    .runs(Pass::Extents, light_index)
-                    .then(|| self.extents.extents())
-                    .flatten(),
-                soft: plan
-                    .runs(Pass::SoftShadow, light_index)
+                extents: forms.extents.then(|| self.extents.extents()).flatten(),
+                soft: forms
+                    .soft_grid
                     .then(|| self.soft.as_ref()?.output())
                     .flatten(),
             })
@@ -200,7 +195,7 @@ impl LightSlot {
             medium: frame.medium,
             table: &self.table,
             scene_depth: frame.scene_depth,
-            shadows: shadows.flatten(),
+            shadows,
             mode: step.planned.march,
             light_texture: fl.texture.and(self.texture.maps()),
         };
@@ -425,7 +420,7 @@ impl VolumetricShadows {
                         index: i,
                     };
                     let (cache, settings) = (&self.cache, &self.settings);
-                    self.slots[i].prepare(device, queue, cache, settings, &plan, pass, &inputs)?
+                    self.slots[i].prepare(device, queue, cache, settings, pass, &inputs)?
                 }
             };
             if !work {
@@ -436,7 +431,7 @@ impl VolumetricShadows {
         let scatters = plan.scatters;
         self.plan = plan;
         let surface_term = self.prepare_composite(device, queue, frame, scatters)?;
-        self.first_frame = self.note_forms(frame, surface_term);
+        self.first_frame = self.note_forms(surface_term);
         Ok(())
     }
 
@@ -486,17 +481,13 @@ impl VolumetricShadows {
 
     /// Records the forms this frame's steps take (see [`is_first_frame`](Self::is_first_frame));
     /// returns whether one is new.
-    fn note_forms(&mut self, frame: &Frame<'_>, surface_term: bool) -> bool {
+    fn note_forms(&mut self, surface_term: bool) -> bool {
         let plan = &self.plan;
         let mut first = false;
         for step in &plan.steps {
             let light = step.light.map(|i| {
                 let planned = &plan.lights[i];
-                let kind = FrameLight {
-                    light: planned.light,
-                    ..frame.lights[i]
-                }
-                .kind();
+                let kind = planned.kind;
                 let light = Some(i);
                 let forms = [
                     plan.present(Pass::ShadowMap, light),

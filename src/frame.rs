@@ -2,7 +2,7 @@
 //! [`VolumetricShadows::prepare`](crate::VolumetricShadows::prepare) takes it.
 
 use crate::gpu::Occluder;
-use crate::nodes::LightKind;
+use crate::light::LightKind;
 use crate::scene::{Camera, Light, Medium, TextureChannels};
 
 /// A light of the frame, with an optional texture for a spot light (any filterable format,
@@ -27,15 +27,7 @@ pub struct FrameLight<'a> {
 impl FrameLight<'_> {
     /// What decides which pipelines this light's frames use (see [`Settings::warm_up`](crate::Settings::warm_up)).
     pub fn kind(&self) -> LightKind {
-        let soft = self.light.radius() > 0.0;
-        match self.light {
-            Light::Point(_) => LightKind::Point { soft },
-            Light::Spot(_) => LightKind::Spot {
-                soft,
-                textured: self.texture.is_some(),
-            },
-            Light::Directional(_) => LightKind::Directional,
-        }
+        self.light.model().kind(self.texture.is_some())
     }
 }
 

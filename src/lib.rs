@@ -263,6 +263,7 @@ mod frame;
 #[cfg(feature = "gltf")]
 pub mod gltf;
 pub mod gpu;
+mod light;
 pub mod load;
 /// The method's maths: the model, the stable airlight form, the F′ table, shadows along the ray.
 #[doc = include_str!("../docs/METHOD.md")]

@@ -10,7 +10,7 @@ use std::fmt;
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::gpu::Occluder;
-use crate::nodes::shadow_map::cube_faces_touched;
+use crate::light::{LightKind, Source};
 use crate::nodes::{MarchMethod, MarchMode, Scale, ShadowForms, ShadowMapNode, UpsampleFilter};
 use crate::scene::Light;
 use crate::settings::Settings;
@@ -143,6 +143,8 @@ pub struct LightPlan {
     /// The light as drawn: the frame's, without its radius when its penumbrae are narrower
     /// than a shadow-map texel ([`Reason::PenumbraBelowTexel`]).
     pub light: Light,
+    /// The pipelines the light as drawn uses (a light drawn hard is not soft).
+    pub kind: LightKind,
     /// Indices into the frame's occluders of those that shadow it (the rest are [`Culled`]).
     pub occluders: Vec<usize>,
     /// The resolution its scattering runs at.
@@ -322,27 +324,22 @@ fn gather(frame: &Frame<'_>, settings: &Settings) -> Result<FrameFacts> {
             }
         }
         let nearest = nearest_occluder(&fl.light, kept.iter().map(|&j| &frame.occluders[j]));
-        let faces = match fl.light {
-            Light::Point(p) => {
-                let spheres: Vec<_> = kept
-                    .iter()
-                    .map(|&j| frame.occluders[j].world_sphere())
-                    .collect();
-                Some(cube_faces_touched(p.position(), &spheres))
-            }
-            _ => None,
-        };
+        let model = fl.light.model();
+        let spheres: Vec<_> = kept
+            .iter()
+            .map(|&j| frame.occluders[j].world_sphere())
+            .collect();
+        let faces = model.layers_reached(&spheres);
         let penumbra_below_texel =
             ShadowMapNode::penumbra_below_texel(&fl.light, nearest, settings.shadow_map.resolution);
-        let bounds = kept.iter().map(|&j| frame.occluders[j].world_bounds());
-        let light = with_sun_reach(fl.light, eye, frame.medium, bounds);
-        let sun_reach = match (light, fl.light) {
-            (Light::Directional(d), Light::Directional(given)) if d != given => d.shadow_distance(),
-            _ => None,
+        let mut bounds = kept.iter().map(|&j| frame.occluders[j].world_bounds());
+        let (light, sun_reach) = match model.within_reach(eye, frame.medium, &mut bounds) {
+            Some((light, reach)) => (light, Some(reach)),
+            None => (fl.light, None),
         };
         lights.push(LightFacts {
             light: if penumbra_below_texel {
-                without_radius(light)
+                light.model().without_radius()
             } else {
                 light
             },
@@ -380,46 +377,6 @@ fn nearest_occluder<'o>(light: &Light, occluders: impl Iterator<Item = &'o Occlu
             p.clamp(lo, hi).distance(p)
         })
         .fold(f32::INFINITY, f32::min)
-}
-
-/// A directional light without a shadow distance of its own gets the medium's
-/// [`shadow_reach`](crate::scene::Medium::shadow_reach) where its occluders reach farther from
-/// the eye than that: its cascades then cover the fog that can be seen, not the occluders'
-/// extent (the shadow map's default). A ground 1e5 wide spread them over its own size, and the
-/// map lost a roof's shadow above the eye (`tests/gpu/large_occluders.rs`). Other lights, and
-/// a sun whose occluders lie within the reach, are returned as they are.
-fn with_sun_reach(
-    light: Light,
-    eye: glam::Vec3,
-    medium: &crate::scene::Medium,
-    bounds: impl Iterator<Item = (glam::Vec3, glam::Vec3)>,
-) -> Light {
-    let Light::Directional(sun) = light else {
-        return light;
-    };
-    let Some(reach) = medium
-        .shadow_reach()
-        .filter(|_| sun.shadow_distance().is_none())
-    else {
-        return light;
-    };
-    let farthest = bounds
-        .map(|(lo, hi)| (eye - lo).abs().max((eye - hi).abs()).length())
-        .fold(0.0f32, f32::max);
-    if farthest > reach {
-        sun.with_shadow_distance(reach).map_or(light, Light::from)
-    } else {
-        light
-    }
-}
-
-/// The light with radius 0.
-fn without_radius(light: Light) -> Light {
-    match light {
-        Light::Point(l) => l.with_radius(0.0).map_or(light, Light::from),
-        Light::Spot(l) => l.with_radius(0.0).map_or(light, Light::from),
-        other => other,
-    }
 }
 
 /// The resolution a light's scattering runs at. Without shadows the analytic airlight is
@@ -495,14 +452,26 @@ fn plan_light(d: &mut Decisions, facts: &FrameFacts, i: usize, l: &LightFacts) -
     let light = Some(i);
     let shadowed = !l.occluders.is_empty();
     let soft = l.light.radius() > 0.0;
-    let directional = matches!(l.light, Light::Directional(_));
+    // Parallel rays: the scattering angle is the same along a ray, the airlight closed form.
+    let closed_form = matches!(l.light.model().source(), Source::Along(_));
     let scale = light_scale(facts.scale, shadowed, l.textured, facts.error_target);
+    // The shadow inputs the march gets (none where nothing scatters). The hybrid and the exact
+    // method bound the marched interval: by the shadow volumes' extents (with crossing lists
+    // for the exact method), or for a light with a radius by the penumbra cones of the
+    // soft-shadow grid.
+    let bounded = matches!(facts.method, MarchMethod::Hybrid | MarchMethod::Exact);
+    let forms = (shadowed && facts.scatters).then_some(ShadowForms {
+        extents: bounded && !soft,
+        crossings: facts.method == MarchMethod::Exact,
+        soft_grid: bounded && soft,
+    });
     let mut light_plan = LightPlan {
         light: l.light,
+        kind: l.light.model().kind(l.textured),
         occluders: l.occluders.clone(),
         scale,
-        march: MarchMode::choose(facts.method, soft, None),
-        shadows: None,
+        march: MarchMode::choose(facts.method, soft, forms),
+        shadows: forms,
         map_on_demand: false,
     };
     if !facts.scatters {
@@ -523,15 +492,6 @@ fn plan_light(d: &mut Decisions, facts: &FrameFacts, i: usize, l: &LightFacts) -
     } else {
         d.skip(Pass::LightTexture, light, Reason::Untextured);
     }
-    // The shadow inputs the march gets. The hybrid and the exact method bound the marched
-    // interval: by the shadow volumes' extents (with crossing lists for the exact method),
-    // or for a light with a radius by the penumbra cones of the soft-shadow grid.
-    let bounded = matches!(facts.method, MarchMethod::Hybrid | MarchMethod::Exact);
-    let forms = shadowed.then_some(ShadowForms {
-        extents: bounded && !soft,
-        crossings: facts.method == MarchMethod::Exact,
-        soft_grid: bounded && soft,
-    });
     match forms {
         None => {
             d.skip(Pass::ShadowMap, light, Reason::NoOccluders);
@@ -540,13 +500,11 @@ fn plan_light(d: &mut Decisions, facts: &FrameFacts, i: usize, l: &LightFacts) -
         }
         Some(f) => light_plan.map_on_demand = plan_shadows(d, facts, i, l, f, scale),
     }
-    if directional {
+    if closed_form {
         d.skip(Pass::AirlightTable, light, Reason::ClosedFormAirlight);
     } else {
         d.run(Pass::AirlightTable, light, "rebuilt".into());
     }
-    light_plan.march = MarchMode::choose(facts.method, soft, forms);
-    light_plan.shadows = forms;
     let method = march_detail(light_plan.march, forms, facts.steps);
     d.run(
         Pass::March,
@@ -661,48 +619,17 @@ fn march_detail(mode: MarchMode, forms: Option<ShadowForms>, steps: u32) -> Stri
     }
 }
 
-/// Upper bound of how much an occluder can change the in-scatter of any pixel, relative to the
-/// unshadowed in-scatter of a ray that reaches it: every point it shadows is at
-/// least `r` from the light and `e` from the eye, so its loss is at most
-/// `σs·p_max·I0·exp(−σt (r + e))·π/r`, while the first `l = min(e, D)/2` of that ray gather at
-/// least `l·σs·p_min·I0·exp(−σt (D + 2l))/(D + l)²`. Returns ∞ when no bound applies (the eye or
-/// the light inside the occluder's bounds, a spot light whose cone may exclude that segment).
-/// For a light of radius `R` a point it partially shadows is beyond the occluder on a line from
-/// a point of the light, so at least `r − 2R` from the centre: `r` is reduced by `2R` (∞ when
-/// that leaves nothing).
+/// Upper bound of how much an occluder with world `bounds` can change the in-scatter of any
+/// pixel, relative to the unshadowed in-scatter of a ray that reaches it: the light's own
+/// ([`LightModel::cull_bound`](crate::light::LightModel::cull_bound)); ∞ where no bound applies
+/// (a spot light, whose cone may exclude the segment that bound needs; a directional light).
 pub(crate) fn occluder_bound(
     eye: glam::Vec3,
     light: &crate::scene::Light,
     medium: &crate::scene::Medium,
     bounds: (glam::Vec3, glam::Vec3),
 ) -> f64 {
-    if !matches!(light, crate::scene::Light::Point(_)) {
-        return f64::INFINITY;
-    }
-    let Some(p) = light.position() else {
-        return f64::INFINITY;
-    };
-    let r = f64::from(p.clamp(bounds.0, bounds.1).distance(p)) - 2.0 * f64::from(light.radius());
-    let e = f64::from(eye.clamp(bounds.0, bounds.1).distance(eye));
-    let d = f64::from(p.distance(eye));
-    if r <= 0.0 || e <= 0.0 || d <= 0.0 {
-        return f64::INFINITY;
-    }
-    let l = 0.5 * e.min(d);
-    let (p_min, p_max) = medium.phase().range();
-    let sigma_s = medium.sigma_s();
-    let sigma_t = medium.sigma_t();
-    (0..3)
-        .filter(|&c| sigma_s[c] > 0.0)
-        .map(|c| {
-            let log = (f64::from(p_max[c]) / f64::from(p_min[c])).ln()
-                + (std::f64::consts::PI / r).ln()
-                + 2.0 * (d + l).ln()
-                - l.ln()
-                - f64::from(sigma_t[c]) * (r + e - d - 2.0 * l);
-            log.exp()
-        })
-        .fold(0.0, f64::max)
+    light.model().cull_bound(eye, medium, bounds)
 }
 
 #[cfg(test)]
@@ -754,13 +681,18 @@ mod tests {
             Light::Directional(d) => d.shadow_distance(),
             _ => None,
         };
+        let within = |light: Light, bounds: &[(Vec3, Vec3)], medium: &Medium| {
+            let mut bounds = bounds.iter().copied();
+            match light.model().within_reach(eye, medium, &mut bounds) {
+                Some((fitted, reach)) => {
+                    assert_eq!(distance(fitted), Some(reach));
+                    fitted
+                }
+                None => light,
+            }
+        };
         let planned = |light, bounds: &[(Vec3, Vec3)], medium: &Medium| {
-            distance(super::with_sun_reach(
-                light,
-                eye,
-                medium,
-                bounds.iter().copied(),
-            ))
+            distance(within(light, bounds, medium))
         };
         assert_eq!(planned(sun.into(), &[small, huge], &medium), Some(reach));
         assert_eq!(planned(sun.into(), &[small], &medium), None);
@@ -774,10 +706,7 @@ mod tests {
         .unwrap();
         assert_eq!(planned(sun.into(), &[huge], &clear_red), None);
         let point: Light = PointLight::new(Vec3::ZERO, Vec3::ONE).unwrap().into();
-        assert_eq!(
-            super::with_sun_reach(point, eye, &medium, [huge].into_iter()),
-            point
-        );
+        assert_eq!(within(point, &[huge], &medium), point);
         // The plan says so on the shadow map's step.
         let facts = FrameFacts {
             scatters: true,

@@ -36,6 +36,10 @@ pub(crate) const FILES: &[Wgsl<'static>] = &[
     wgsl_file!("crossings.wgsl"),
     wgsl_file!("composite.wgsl"),
     wgsl_file!("clip.wgsl"),
+    wgsl_file!("light.wgsl"),
+    wgsl_file!("light/point.wgsl"),
+    wgsl_file!("light/spot.wgsl"),
+    wgsl_file!("light/directional.wgsl"),
     #[cfg(test)]
     Wgsl {
         name: "broken.wgsl",

@@ -86,51 +86,6 @@ impl Cache {
     }
 }
 
-/// What decides which pipelines a light's frames use (see [`Cache::warm_up`]); a frame's
-/// light gives its own with [`FrameLight::kind`](crate::FrameLight::kind).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum LightKind {
-    /// A point light; `soft` when it has a radius.
-    Point {
-        /// The light has a radius (soft shadows).
-        soft: bool,
-    },
-    /// A spot light; `soft` when it has a radius, `textured` when frames give it a texture.
-    Spot {
-        /// The light has a radius (soft shadows).
-        soft: bool,
-        /// Frames give the spot a projected texture.
-        textured: bool,
-    },
-    /// A directional light.
-    Directional,
-}
-
-impl LightKind {
-    /// Every kind.
-    pub const ALL: [LightKind; 7] = [
-        LightKind::Point { soft: false },
-        LightKind::Point { soft: true },
-        LightKind::Spot {
-            soft: false,
-            textured: false,
-        },
-        LightKind::Spot {
-            soft: true,
-            textured: false,
-        },
-        LightKind::Spot {
-            soft: false,
-            textured: true,
-        },
-        LightKind::Spot {
-            soft: true,
-            textured: true,
-        },
-        LightKind::Directional,
-    ];
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -31,7 +31,6 @@ pub(crate) mod extents;
 pub(crate) mod iss_table;
 #[cfg(test)]
 pub(crate) mod layout;
-pub(crate) mod light;
 pub(crate) mod light_texture;
 pub(crate) mod march;
 pub(crate) mod pcss;
@@ -82,8 +81,9 @@ pub trait Encode {
     ) -> Result<()>;
 }
 
+pub use crate::light::LightKind;
 pub use airlight_table::{AirlightTableNode, TableInputs, TableSize};
-pub use cache::{Cache, LightKind};
+pub use cache::Cache;
 pub use composite::{CompositeInputs, CompositeNode, CompositeSurfaces, OutputTarget, MAX_LIGHTS};
 pub use extents::{
     Crossings, CrossingsBuild, CrossingsRequest, Extents, ExtentsInputs, ExtentsNode, EXTENTS_NEAR,

@@ -8,8 +8,8 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::gpu::pipeline::{bind_group, layout, Binding};
 use crate::gpu::{depth_array_view, texture_2d, UniformBuffer};
-use crate::nodes::light::LightUniform;
-use crate::nodes::shadow_map::{standard_cube_near, ShadowMap, GROUP_BYTES};
+use crate::light::LightUniform;
+use crate::nodes::shadow_map::{ShadowMap, GROUP_BYTES};
 use crate::scene::Light;
 
 /// Group 1's binding table (`shaders/pcss.wgsl`).
@@ -112,9 +112,7 @@ impl ShadowUniform {
             *slot = face.to_cols_array();
         }
         out.depth_bias = map.depth_bias;
-        if let Light::Point(point) = light {
-            out.cube_near = standard_cube_near(map.faces, point.position());
-        }
+        out.cube_near = light.model().cube_near(map.faces);
         if soft {
             (out.soft, out.spheres, out.planes) = soft_params(light, map);
         }

@@ -4,7 +4,7 @@
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 
-use crate::nodes::light::LightUniform;
+use crate::light::{LightUniform, Source};
 use crate::scene::{Camera, Light, Medium, PhaseFunction};
 
 /// WGSL `Airlight`, field by field (see there what each holds).
@@ -69,12 +69,11 @@ impl AirlightUniform {
         pixel_angular_radius: f32,
         table: crate::nodes::TableSize,
     ) -> Self {
-        let (light_pos, d) = match light {
+        let (light_pos, d) = match light.model().source() {
             // A directional light: its direction of travel, and the length of the ray
             // parameter s = x / (x + L) (see `shaders/prelude.wgsl`).
-            Light::Directional(l) => (l.direction(), directional_length(medium)),
-            _ => {
-                let mut light_pos = light.position().unwrap_or(eye);
+            Source::Along(direction) => (direction, directional_length(medium)),
+            Source::At(mut light_pos) => {
                 let min_d = MIN_EYE_LIGHT_DISTANCE * eye.abs().max_element().max(1.0);
                 if light_pos.distance(eye) < min_d {
                     light_pos = eye + Vec3::Y * min_d;
@@ -194,7 +193,30 @@ impl SurfacesUniform {
 #[cfg(test)]
 mod tests {
     use super::{AirlightUniform, ViewUniform};
-    use crate::nodes::layout::{assert_same, rust_layout};
+    use crate::light::{LightUniform, LIGHT_DIRECTIONAL, LIGHT_POINT, LIGHT_SPOT};
+    use crate::nodes::layout::{assert_constants, assert_same, rust_layout};
+
+    /// `crate::light`'s GPU form, which every node's shader holds, and the kinds' constants.
+    #[test]
+    fn the_light_s_layout_and_kinds_match_the_wgsl() {
+        let rust = rust_layout!(LightUniform {
+            position,
+            kind,
+            intensity,
+            radius,
+            axis,
+            cos_half,
+        });
+        assert_same(rust, "#import prelude.wgsl", "Light");
+        assert_constants(
+            "#import prelude.wgsl",
+            &[
+                ("LIGHT_POINT", LIGHT_POINT),
+                ("LIGHT_SPOT", LIGHT_SPOT),
+                ("LIGHT_DIRECTIONAL", LIGHT_DIRECTIONAL),
+            ],
+        );
+    }
 
     /// The prelude's structs, which every node's shader holds.
     #[test]

@@ -116,8 +116,8 @@ use crate::gpu::pipeline::{bind_group, cached, compute_pipeline, layout, module,
 use crate::gpu::wgsl::wgsl_file;
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{check_depth_texture, check_float_texture, GpuTimer, UniformBuffer};
+use crate::light::{light_constant, LightUniform};
 use crate::nodes::cache::CachedPipelines;
-use crate::nodes::light::{light_constant, LightUniform};
 use crate::nodes::uniforms::ViewUniform;
 use crate::nodes::Cache;
 use crate::pass::Pass;

@@ -19,7 +19,7 @@ const LAYERS: &[&[&str]] = &[
     &["error"],
     &["load"],
     &["scene"],
-    &["reference", "gltf", "pass"],
+    &["reference", "gltf", "pass", "light"],
     &["gpu"],
     &["nodes"],
     &["settings", "frame", "scene_file"],

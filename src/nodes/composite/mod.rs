@@ -328,7 +328,7 @@ impl CompositeNode {
             s.table.texture().clone(),
         ]);
         self.surf_value = SurfacesUniform::new(medium, s.lights);
-        self.spots = s.lights.iter().any(|l| matches!(l, Light::Spot(_)));
+        self.spots = s.lights.iter().any(|l| l.model().cone().is_some());
         self.surf.write(queue, self.surf_value);
         self.surf_phase.write(queue, IssPhase::new(medium));
         Ok(())

@@ -47,7 +47,7 @@ use glam::Mat4;
 use crate::error::{Error, Result};
 use crate::gpu::pipeline::bind_group;
 use crate::gpu::{check_target_size, wgsl_size, GpuTimer, Occluder, UniformBuffer};
-use crate::nodes::light::LightUniform;
+use crate::light::LightUniform;
 use crate::nodes::uniforms::ViewUniform;
 use crate::nodes::Cache;
 use crate::nodes::{Encode, Node};

@@ -4,8 +4,8 @@
 use crate::gpu::pipeline::{compute_pipeline, depth_pipeline, layout, module, Binding};
 use crate::gpu::wgsl::wgsl_file;
 use crate::gpu::ShaderPrecision;
+use crate::light::LightUniform;
 use crate::nodes::cache::CachedPipelines;
-use crate::nodes::light::LightUniform;
 
 /// Bytes of one shadow-volume vertex (`VolumeVertex` in `shaders/extents.wgsl`): position,
 /// flags, the face's plane and a point of it.

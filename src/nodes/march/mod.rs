@@ -49,9 +49,9 @@ use crate::gpu::{
     check_depth_layers, check_depth_texture, check_size, check_target_size, depth_view, texture_2d,
     texture_3d, GpuTimer, UniformBuffer,
 };
+use crate::light::{light_constant, Source};
 use crate::nodes::cache::CachedPipelines;
 use crate::nodes::extents::{CrossingsBuild, Extents};
-use crate::nodes::light::{light_constant, LightUniform};
 use crate::nodes::light_texture::LightTextureMaps;
 use crate::nodes::pcss::{cell_angle, shadow_layout, ShadowBinding, ShadowUniform};
 use crate::nodes::shadow_map::ShadowMap;
@@ -661,7 +661,7 @@ impl Node for MarchNode {
             work: self.work,
             ..Variant::new(
                 mode,
-                LightUniform::kind_of(inputs.light),
+                inputs.light.model().gpu().kind,
                 inputs.light_texture.is_some(),
                 soft,
                 (grid.is_some(), grid.is_some_and(|g| g.shafts)),
@@ -681,17 +681,7 @@ impl MarchNode {
         check_target_size("scene_depth size", device, full_width, full_height)?;
         let (width, height) = self.settings.scale.apply(full_width, full_height);
         if let Some(shadows) = &inputs.shadows {
-            let expected = match inputs.light {
-                Light::Point(_) => 6,
-                // One layer per cascade, as many as it has faces.
-                Light::Directional(_) => shadows
-                    .shadow_map
-                    .faces
-                    .len()
-                    .clamp(1, crate::DirectionalLight::MAX_CASCADES as usize)
-                    as u32,
-                _ => 1,
-            };
+            let expected = inputs.light.model().layers();
             check_depth_layers("shadow_map", shadows.shadow_map.texture, expected)?;
             shadows.shadow_map.check_back()?;
             shadows.shadow_map.check_triangles()?;
@@ -712,7 +702,7 @@ impl MarchNode {
             }
         }
 
-        if inputs.light_texture.is_some() && !matches!(inputs.light, Light::Spot(_)) {
+        if inputs.light_texture.is_some() && inputs.light.model().texture_frame().is_none() {
             return Err(Error::InvalidTexture {
                 field: "light_texture",
                 problem: "only a spot light can be textured".into(),
@@ -862,7 +852,7 @@ impl MarchNode {
             camera.pixel_angular_radius(height),
             table.size(),
         );
-        if let (Light::Directional(_), Some(s)) = (inputs.light, &inputs.shadows) {
+        if let (Source::Along(_), Some(s)) = (inputs.light.model().source(), &inputs.shadows) {
             // Steps uniform in s = x / (x + L) reach at least across the shadow map's region
             // (its last, widest cascade).
             if let Some(radius) = s.shadow_map.faces.last().and_then(ortho_half_width) {
@@ -882,11 +872,11 @@ impl MarchNode {
         );
         let extents_near = extents.map_or(0.0, |e| e.near);
         let (tex_frame, [tan_half_angle, tex_width, tex_mips]) =
-            match (inputs.light, inputs.light_texture) {
-                (Light::Spot(s), Some(t)) => (
-                    s.texture_frame().to_cols_array(),
+            match (inputs.light.model().texture_frame(), inputs.light_texture) {
+                (Some((frame, tan_half_angle)), Some(t)) => (
+                    frame.to_cols_array(),
                     [
-                        (0.5 * s.cone_angle()).tan(),
+                        tan_half_angle,
                         t.mips.width() as f32,
                         t.mips.mip_level_count() as f32,
                     ],

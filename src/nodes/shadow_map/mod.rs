@@ -49,24 +49,22 @@ use glam::{Mat4, Vec4};
 use crate::error::{finite, Error, Result};
 use crate::gpu::pipeline::bind_group;
 use crate::gpu::Occluder;
+use crate::light::Source;
 use crate::nodes::shadow_gate::{arguments, Gate};
 use crate::nodes::{Cache, Crossings, Node};
 use crate::scene::{Camera, Light};
 
 mod cascades;
-mod cube;
 mod draw;
 mod output;
 mod pipelines;
 mod spot;
 
 pub use cascades::{CASCADE_RANGE, DIRECTIONAL_BIAS_TEXELS};
-pub(crate) use cube::{cube_faces_touched, standard_cube_near};
 pub(crate) use output::GROUP_BYTES;
 pub use output::{ShadowMap, ShadowParams, MAX_EXACT_TRIANGLES};
 pub(crate) use pipelines::Pipelines;
 
-use cube::{cube_face_draws, cube_faces};
 use draw::{Draw, FAN};
 use pipelines::{slot, FACE_BYTES, INSTANCE_BYTES, SLOT};
 
@@ -158,7 +156,7 @@ pub struct ShadowMapNode {
     generation: u64,
     /// Per layer, the occluders (indices into `draws`) drawn there: a directional light's
     /// cascades, those that can shadow its region; a point light's cube faces, those whose
-    /// bounding sphere reaches the face ([`cube_faces_touched`]). `None`: every occluder in
+    /// bounding sphere reaches the face (its light's [`layers_reached`](crate::light::LightModel::layers_reached)). `None`: every occluder in
     /// every layer.
     layer_draws: Option<Vec<Vec<u32>>>,
     /// Per layer of `texture`, whether it holds depth drawn since it was last cleared: a layer
@@ -241,17 +239,7 @@ impl ShadowMapNode {
     /// light to an occluder). None for a directional light, whose face depends on the camera
     /// ([`directional_matrix`](Self::directional_matrix)).
     pub fn face_matrices(light: &Light, near: f32, occluder_distance: f32) -> Vec<Mat4> {
-        let p = light.position().unwrap_or_default();
-        match light {
-            Light::Directional(_) => Vec::new(),
-            Light::Point(_) => cube_faces(p, near).to_vec(),
-            Light::Spot(spot) => {
-                use glam::camera::rh::proj::directx::perspective_infinite_reverse;
-                let fov = Self::spot_fov(spot, occluder_distance);
-                let proj = perspective_infinite_reverse(fov, 1.0, near);
-                vec![proj * spot.texture_frame()]
-            }
-        }
+        light.model().faces(near, occluder_distance)
     }
 
     fn prepare_for(
@@ -343,11 +331,7 @@ impl ShadowMapNode {
     /// layers changed, and the occluders' transforms buffer when it is smaller than `needed`
     /// bytes. Returns whether the map was recreated.
     fn allocate(&mut self, device: &wgpu::Device, light: &Light, needed: u64) -> bool {
-        let layers = match light {
-            Light::Point(_) => 6,
-            Light::Directional(d) => d.cascades(),
-            _ => 1,
-        };
+        let layers = light.model().layers();
         let resolution = self.settings.resolution;
         let map = |label| {
             device.create_texture(&wgpu::TextureDescriptor {
@@ -420,12 +404,7 @@ impl ShadowMapNode {
                 .collect(),
             (None, None) => Vec::new(),
         };
-        if let Light::Spot(s) = light {
-            key.extend(bits(&s.direction().to_array()));
-            key.push(s.cone_angle().to_bits());
-            // The radius widens the map's field of view (`spot_fov`).
-            key.push(s.radius().to_bits());
-        }
+        key.extend(light.model().map_key());
         for o in occluders {
             key.extend([o.mesh.id() as u32, (o.mesh.id() >> 32) as u32]);
             key.extend(bits(&o.transform.to_cols_array()));
@@ -468,10 +447,7 @@ impl ShadowMapNode {
             self.faces = faces;
             self.layer_draws = Some(drawn);
         } else {
-            self.layer_draws = match light {
-                Light::Point(point) => Some(cube_face_draws(point.position(), &self.bounds)),
-                _ => None,
-            };
+            self.layer_draws = light.model().layer_draws(&self.bounds);
             let p = light.position().unwrap_or_default();
             let along_axis = (0.9 * Self::corner_cosine(light, self.occluder_distance)).min(0.5);
             let mut near = f32::INFINITY;
@@ -487,9 +463,9 @@ impl ShadowMapNode {
             self.faces = Self::face_matrices(light, near, self.occluder_distance);
         }
         self.gaps = occluders.len() > 1 || occluders.iter().any(|o| !o.mesh.is_convex());
-        self.back_layers = match light {
-            Light::Point(point) => cube_faces_touched(point.position(), &self.bounds).to_vec(),
-            _ => vec![true; self.faces.len()],
+        self.back_layers = match light.model().layers_reached(&self.bounds) {
+            Some(reached) => reached.to_vec(),
+            None => vec![true; self.faces.len()],
         };
         self.planes = occluders
             .iter()
@@ -598,7 +574,9 @@ impl Node for ShadowMapNode {
         queue: &wgpu::Queue,
         inputs: &ShadowMapInputs<'_>,
     ) -> Result<bool> {
-        let camera = matches!(inputs.light, Light::Directional(_)).then_some(inputs.camera);
+        // Only a direction-like light's faces are fitted to the camera.
+        let camera =
+            matches!(inputs.light.model().source(), Source::Along(_)).then_some(inputs.camera);
         self.prepare_for(device, queue, inputs, camera)
     }
 }

@@ -4,6 +4,7 @@
 use glam::{Mat4, Vec4};
 
 use crate::error::{Error, Result};
+use crate::light::Source;
 use crate::scene::Light;
 
 /// Bytes of one group of four triangles of [`ShadowMap::triangles`]: their corners and a
@@ -158,8 +159,8 @@ impl ShadowMap<'_> {
             *slot = m.to_cols_array();
         }
         let texels = self.texture.width().max(1) as f32;
-        let (light_position, directional, default_offset) = match light {
-            Light::Directional(d) => {
+        let (light_position, directional, default_offset) = match light.model().source() {
+            Source::Along(direction) => {
                 // The first cascade's half width, from its first row (1 / half width).
                 let half = self
                     .faces
@@ -167,15 +168,11 @@ impl ShadowMap<'_> {
                     .map(|m| 1.0 / m.row(0).truncate().length())
                     .filter(|h| h.is_finite() && *h > 0.0)
                     .unwrap_or(0.0);
-                (d.direction(), 1, 4.0 * half / texels)
+                (direction, 1, 4.0 * half / texels)
             }
-            _ => (light.position().unwrap_or_default(), 0, 4.0 / texels),
+            Source::At(position) => (position, 0, 4.0 / texels),
         };
-        let radius = if directional == 1 {
-            0.0
-        } else {
-            light.radius()
-        };
+        let radius = light.model().radius();
         ShadowParams {
             faces,
             light_position: light_position.to_array(),

@@ -1,5 +1,6 @@
-//! A spot map's field of view, and what a point or spot light's map resolves: whether its
-//! penumbrae are narrower than a texel (the planner's [`penumbra_below_texel`]).
+//! What a light's map resolves: a spot map's field of view, and whether a light's penumbrae
+//! are narrower than a texel (the planner's [`penumbra_below_texel`]). The answers are the
+//! light's own ([`crate::light`]); these are the node's public names for them.
 //!
 //! [`penumbra_below_texel`]: ShadowMapNode::penumbra_below_texel
 
@@ -19,16 +20,7 @@ impl ShadowMapNode {
     /// ([`SpotLight::MAX_CONE_ANGLE`](crate::SpotLight::MAX_CONE_ANGLE), the widest cone, which
     /// the map then covers without margin).
     pub fn spot_fov(spot: &crate::scene::SpotLight, occluder_distance: f32) -> f32 {
-        let cone = spot.cone_angle() * 1.02;
-        // The widest field: the widest cone a spot may have (see `MAX_CONE_ANGLE` for why), so
-        // every point of any cone is in its map.
-        let max = crate::scene::SpotLight::MAX_CONE_ANGLE;
-        if spot.radius() <= 0.0 {
-            return cone.min(max);
-        }
-        let widened = cone + 2.0 * (spot.radius() / occluder_distance.max(0.0)).atan();
-        let twice = 2.0 * (2.0 * (0.5 * cone).tan()).atan();
-        widened.min(twice).min(max)
+        crate::light::spot_fov(spot, occluder_distance)
     }
 
     /// Whether `light`'s penumbrae are narrower than the finest texel of its shadow map of
@@ -49,28 +41,17 @@ impl ShadowMapNode {
         if !(radius > 0.0 && occluder_distance > 0.0) || resolution == 0 {
             return false;
         }
-        let finest = match light {
-            Light::Point(_) => 2.0 / 3.0,
-            Light::Spot(spot) => {
-                // The map it would then be drawn with: the hard light's, the cone's own.
-                let hard = spot.with_radius(0.0).unwrap_or(*spot);
-                let half = 0.5 * Self::spot_fov(&hard, occluder_distance);
-                2.0 * half.tan() * half.cos().powi(2)
-            }
-            _ => return false,
-        } / resolution as f32;
-        2.0 * radius / occluder_distance <= finest
+        let Some(finest) = light.model().finest_texel(occluder_distance) else {
+            return false;
+        };
+        2.0 * radius / occluder_distance <= finest / resolution as f32
     }
 
     /// Cosine of the widest angle between a face's axis and a direction inside its frustum
     /// (a corner of the square): the near plane lies along the axis, so a point at distance r
     /// can be as near as r times this along it.
     pub(super) fn corner_cosine(light: &Light, occluder_distance: f32) -> f32 {
-        let half_tan = match light {
-            Light::Point(_) => 1.0,
-            Light::Spot(spot) => (0.5 * Self::spot_fov(spot, occluder_distance)).tan(),
-            Light::Directional(_) => 1.0,
-        };
+        let half_tan = light.model().map_half_tan(occluder_distance);
         1.0 / (1.0 + 2.0 * half_tan * half_tan).sqrt()
     }
 }

@@ -141,8 +141,8 @@ use crate::gpu::pipeline::{bind_group, compute_pipeline, layout, module, Binding
 use crate::gpu::wgsl::{wgsl_file, Wgsl};
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{check_depth_layers, texture_3d, GpuTimer, UniformBuffer};
+use crate::light::{light_constant, LightKind, Source};
 use crate::nodes::cache::CachedPipelines;
-use crate::nodes::light::{light_constant, LIGHT_POINT, LIGHT_SPOT};
 use crate::nodes::pcss::{cell_angle, shadow_layout, ShadowBinding, ShadowUniform};
 use crate::nodes::shadow_map::ShadowMap;
 use crate::nodes::Cache;
@@ -336,7 +336,8 @@ struct Build {
     mark: wgpu::ComputePipeline,
 }
 
-/// The node's layouts and its pipelines (point and spot), held by the [`Cache`].
+/// The node's layouts and its pipelines (one per kind of light that can have a radius), held
+/// by the [`Cache`].
 #[derive(Clone)]
 pub(crate) struct Pipelines {
     anchor_layout: wgpu::BindGroupLayout,
@@ -347,8 +348,8 @@ pub(crate) struct Pipelines {
     /// Group 1, the light and its shadow map ([`ShadowBinding`]).
     shadow_layout: wgpu::BindGroupLayout,
     mark_layout: wgpu::BindGroupLayout,
-    point: Build,
-    spot: Build,
+    /// Per `LIGHT` constant.
+    by_kind: Vec<(u32, Build)>,
 }
 
 impl CachedPipelines for Pipelines {
@@ -400,8 +401,16 @@ impl Pipelines {
                 ),
             }
         };
-        let point = build(LIGHT_POINT);
-        let spot = build(LIGHT_SPOT);
+        let mut by_kind: Vec<(u32, Build)> = Vec::new();
+        for kind in LightKind::ALL
+            .into_iter()
+            .filter(|k| k.soft())
+            .map(LightKind::gpu)
+        {
+            if by_kind.iter().all(|(k, _)| *k != kind) {
+                by_kind.push((kind, build(kind)));
+            }
+        }
         Self {
             anchor_layout,
             between_layout,
@@ -410,8 +419,7 @@ impl Pipelines {
             store_layout,
             shadow_layout,
             mark_layout,
-            point,
-            spot,
+            by_kind,
         }
     }
 }
@@ -687,33 +695,31 @@ impl Node for SoftShadowNode {
         queue: &wgpu::Queue,
         inputs: &SoftShadowInputs<'_>,
     ) -> Result<bool> {
-        let (layers, spot) = validate(inputs)?;
+        let layers = validate(inputs)?;
         self.allocate(device, layers)?;
         self.bind(device, inputs.shadow_map);
         self.upload(queue, inputs, layers);
-        self.pipeline = Some(if spot {
-            self.pipelines.spot.clone()
-        } else {
-            self.pipelines.point.clone()
-        });
+        let kind = inputs.light.model().gpu().kind;
+        self.pipeline = self
+            .pipelines
+            .by_kind
+            .iter()
+            .find(|(k, _)| *k == kind)
+            .map(|(_, build)| build.clone());
         Ok(self.pending)
     }
 }
 
-/// Checks the inputs (see [`SoftShadowNode::prepare`]); returns the light's shadow-map layers
-/// and whether it is a spot.
-fn validate(inputs: &SoftShadowInputs<'_>) -> Result<(u32, bool)> {
+/// Checks the inputs (see [`SoftShadowNode::prepare`]); returns the light's shadow-map layers.
+fn validate(inputs: &SoftShadowInputs<'_>) -> Result<u32> {
     let light = inputs.light;
-    let (layers, spot) = match light {
-        Light::Point(_) => (6, false),
-        Light::Spot(_) => (1, true),
-        _ => {
-            return Err(Error::InvalidSetting {
-                field: "light",
-                problem: "soft shadows need a point or spot light".into(),
-            })
-        }
-    };
+    if !matches!(light.model().source(), Source::At(_)) {
+        return Err(Error::InvalidSetting {
+            field: "light",
+            problem: "soft shadows need a point or spot light".into(),
+        });
+    }
+    let layers = light.model().layers();
     if light.radius() <= 0.0 {
         return Err(Error::InvalidSetting {
             field: "light",
@@ -741,7 +747,7 @@ fn validate(inputs: &SoftShadowInputs<'_>) -> Result<(u32, bool)> {
             });
         }
     }
-    Ok((layers, spot))
+    Ok(layers)
 }
 
 impl SoftShadowNode {

@@ -1,5 +1,5 @@
 //! A point light's cube faces: their matrices, which occluders reach each, and how the
-//! shaders recognise the node's own faces.
+//! shaders recognise the faces this module makes.
 
 use glam::{Mat4, Vec3, Vec4};
 
@@ -58,7 +58,7 @@ pub(crate) fn cube_faces_touched(position: Vec3, spheres: &[Vec4]) -> [bool; 6] 
 }
 
 /// The near plane of `faces` where they are the cube faces this node draws for a point light at
-/// `position` ([`ShadowMapNode::face_matrices`](super::ShadowMapNode::face_matrices)), entry by
+/// `position` ([`cube_faces`]), entry by
 /// entry to within 1e-5 of each entry's size, else 0. The shaders then project a point into a face
 /// with a few selects on its offset from the light (`cube_clip` in `shaders/pcss.wgsl`) in place of
 /// the face's matrix, which each SIMD lane reads for its own face: on the report's soft scene on
@@ -87,7 +87,16 @@ pub(crate) fn standard_cube_near(faces: &[Mat4], position: Vec3) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::nodes::shadow_map::tests::uniform;
+
+    /// Seeded numbers uniform in [−1, 1) (xorshift64).
+    fn uniform(mut seed: u64) -> impl FnMut() -> f32 {
+        move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f32 / (1u64 << 53) as f32 * 2.0 - 1.0
+        }
+    }
 
     /// `cube_clip` of shaders/pcss.wgsl, line for line: a face's clip coordinates as a signed
     /// permutation of the offset from the light.
