@@ -12,7 +12,7 @@ use crate::nodes::{
     SoftShadowInputs, SoftShadowNode, TableInputs, UpsampleInputs, UpsampleNode, MAX_LIGHTS,
 };
 use crate::nodes::{Cache, Encode, LightKind, Node};
-use crate::plan::{self, LightPlan, Pass, Plan};
+use crate::plan::{self, FrameReport, LightPlan, Pass, Plan};
 use crate::scene::Light;
 use crate::settings::{validate, Settings};
 
@@ -222,6 +222,8 @@ pub struct VolumetricShadows {
     /// The indirect single scattering table, made by the first frame with surfaces.
     iss: Option<IssTableNode>,
     plan: Plan,
+    /// What the last `prepare` found beside the plan.
+    report: FrameReport,
     timer: Option<GpuTimer>,
     /// `None` when the last `prepare` succeeded and nothing dropped its frame since; otherwise
     /// why `encode` has nothing to record.
@@ -277,6 +279,7 @@ impl VolumetricShadows {
             slots: Vec::new(),
             iss: None,
             plan: Plan::default(),
+            report: FrameReport::default(),
             timer,
             unprepared: Some("no frame has been prepared yet"),
             seen: Default::default(),
@@ -394,7 +397,7 @@ impl VolumetricShadows {
             self.slots.push(slot);
         }
         // The plan first (no GPU work), then exactly the planned steps.
-        let mut plan = plan::plan_frame(frame, &self.settings)?;
+        let plan = plan::plan_frame(frame, &self.settings)?;
         if plan.runs(Pass::IssTable, None) && self.iss.is_none() {
             let size = IssTableSize::default();
             self.iss = Some(IssTableNode::new(device, &self.cache, size)?);
@@ -427,7 +430,13 @@ impl VolumetricShadows {
                 unchanged.push(index);
             }
         }
-        plan.unchanged(&unchanged);
+        let reused = unchanged.iter().map(|&index| {
+            let step: &crate::plan::Step = &plan.steps[index];
+            (step.pass, step.light)
+        });
+        self.report = FrameReport {
+            reused: reused.collect(),
+        };
         let scatters = plan.scatters;
         self.plan = plan;
         let surface_term = self.prepare_composite(device, queue, frame, scatters)?;
@@ -490,9 +499,9 @@ impl VolumetricShadows {
                 let kind = planned.kind;
                 let light = Some(i);
                 let forms = [
-                    plan.present(Pass::ShadowMap, light),
-                    plan.present(Pass::Extents, light),
-                    plan.present(Pass::SoftShadow, light),
+                    plan.runs(Pass::ShadowMap, light),
+                    plan.runs(Pass::Extents, light),
+                    plan.runs(Pass::SoftShadow, light),
                     planned.scale == crate::nodes::Scale::Full,
                 ];
                 (kind, forms)
@@ -559,7 +568,8 @@ impl VolumetricShadows {
         })
     }
 
-    /// Records only step `index` of the plan (`plan().steps[index]`), untimed: for profilers
+    /// Records only step `index` of the plan (`plan().steps[index]`; nothing for a step the
+    /// [`report`](Self::report) says reused last frame's result), untimed: for profilers
     /// that submit each pass on its own and time the submission — the way to time passes on
     /// a CPU adapter such as lavapipe, whose timestamps do not bracket compute work. Steps
     /// must be recorded in plan order within a frame; each reads what earlier steps wrote.
@@ -622,6 +632,9 @@ impl VolumetricShadows {
         index: usize,
     ) -> Result<()> {
         let step = &self.plan.steps[index];
+        if self.report.reused(step.pass, step.light) {
+            return Ok(()); // last frame's result stands
+        }
         let mut timer = self.timer.as_mut();
         if let Some(t) = timer.as_deref_mut() {
             t.light = step.light;
@@ -673,9 +686,15 @@ impl VolumetricShadows {
         self.unprepared = Some("invalidate() dropped the prepared frame");
     }
 
-    /// The plan of the last `prepare`.
+    /// The plan of the last `prepare`: what it decided.
     pub fn plan(&self) -> &Plan {
         &self.plan
+    }
+
+    /// What the last `prepare` found beside its plan: the planned steps whose node had
+    /// nothing new to record, which reuse last frame's result (see [`FrameReport`]).
+    pub fn report(&self) -> &FrameReport {
+        &self.report
     }
 
     /// GPU time per pass of the last submitted frame (timestamp queries; empty when the device
@@ -753,7 +772,7 @@ impl VolumetricShadows {
     /// every map whole.
     pub fn shadow_map(&self, light: usize) -> Option<crate::nodes::ShadowMap<'_>> {
         let on_demand = self.plan.lights.get(light)?.map_on_demand;
-        (self.plan.present(Pass::ShadowMap, Some(light)) && !on_demand)
+        (self.plan.runs(Pass::ShadowMap, Some(light)) && !on_demand)
             .then(|| self.slots.get(light)?.shadow.shadow_map())
             .flatten()
     }
@@ -797,7 +816,7 @@ impl VolumetricShadows {
     /// The shadow volumes' extents of `light` in the last frame, when the plan has them.
     pub fn extents(&self, light: usize) -> Option<crate::nodes::Extents<'_>> {
         self.plan
-            .present(Pass::Extents, Some(light))
+            .runs(Pass::Extents, Some(light))
             .then(|| self.slots.get(light)?.extents.extents())
             .flatten()
     }

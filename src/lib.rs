@@ -293,7 +293,7 @@ pub use gpu::{ErrorSign, ShaderPrecision};
 pub use gpu::{Occluder, OccluderMesh};
 pub use load::{Limit, LoadOptions};
 pub use nodes::{Cache, LightKind};
-pub use plan::{AdapterKind, Plan};
+pub use plan::{AdapterKind, FrameReport, Plan};
 pub use scene::{Camera, DirectionalLight, Light, Medium, PhaseFunction, PointLight, SpotLight};
 pub use settings::Settings;
 

@@ -2,8 +2,9 @@
 //! the others are left out. From the frame and the settings it gathers cheap facts (the
 //! occluders left after culling, the lights drawn hard) and returns the steps, the skips and,
 //! per light, a [`LightPlan`]: the light as drawn, its occluders, its resolution and its
-//! march's [`MarchMode`]. The facade prepares exactly the planned steps from it, and the steps
-//! whose node found nothing changed are left out as [`Reason::Unchanged`].
+//! march's [`MarchMode`]. The facade prepares exactly the planned steps from it; the plan is
+//! what was decided and is not edited afterwards: the steps whose node found nothing changed
+//! (last frame's result stands) are in a [`FrameReport`] beside it.
 
 use std::fmt;
 
@@ -33,8 +34,6 @@ pub enum Reason {
     Untextured,
     /// Scattering runs at the output resolution.
     FullResolution,
-    /// Nothing it depends on changed since the last frame; last frame's result is reused.
-    Unchanged,
     /// Brute force (and the textbook march) marches the whole ray and needs no shadow-volume
     /// extents.
     BruteForce,
@@ -65,7 +64,6 @@ impl fmt::Display for Reason {
             Reason::NoScattering => "the medium does not scatter (sigma_s = 0): attenuation only",
             Reason::Untextured => "the light is not textured",
             Reason::FullResolution => "scattering already at output resolution",
-            Reason::Unchanged => "unchanged since last frame",
             Reason::BruteForce => "this method marches the whole ray",
             Reason::TexturedUnderErrorTarget => {
                 "error target: a textured spot scatters at full resolution"
@@ -174,25 +172,6 @@ impl Plan {
     pub fn count(&self, pass: Pass) -> usize {
         self.steps.iter().filter(|s| s.pass == pass).count()
     }
-    /// Whether `pass` is part of the frame for `light`: it runs, or its node found nothing
-    /// changed and last frame's result stands.
-    pub fn present(&self, pass: Pass, light: Option<usize>) -> bool {
-        self.runs(pass, light) || self.skip_reason(pass, light) == Some(&Reason::Unchanged)
-    }
-    /// Leaves out the steps at `indices` (ascending), whose nodes found nothing changed.
-    pub(crate) fn unchanged(&mut self, indices: &[usize]) {
-        for &index in indices.iter().rev() {
-            let step = self.steps.remove(index);
-            self.skipped.push(Skip {
-                pass: step.pass,
-                light: step.light,
-                reason: Reason::Unchanged,
-            });
-        }
-        // Per light (the frame's last), in pipeline order.
-        self.skipped
-            .sort_by_key(|s| (s.light.unwrap_or(usize::MAX), s.pass as u8));
-    }
     /// The reason `pass` is left out for `light`, if it is.
     pub fn skip_reason(&self, pass: Pass, light: Option<usize>) -> Option<&Reason> {
         self.skipped
@@ -231,6 +210,40 @@ impl fmt::Display for Plan {
                 f,
                 "  cull  light {:<2} occluder {} (effect below {:.1e} of the in-scatter)",
                 c.light, c.occluder, c.bound
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// What a prepared frame found beside its [`Plan`]: the planned steps whose node had nothing
+/// new to record, its inputs unchanged since the last frame, so that last frame's result
+/// stands (a shadow map, a table, a light texture, a soft-shadow grid). Recording such a step
+/// records nothing. `Display` prints one line per step.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct FrameReport {
+    /// The reused steps (pass and light), in the plan's order.
+    pub reused: Vec<(Pass, Option<usize>)>,
+}
+
+impl FrameReport {
+    /// Whether the planned `pass` of `light` reused last frame's result.
+    pub fn reused(&self, pass: Pass, light: Option<usize>) -> bool {
+        self.reused.contains(&(pass, light))
+    }
+}
+
+impl fmt::Display for FrameReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (pass, light) in &self.reused {
+            let who = match light {
+                Some(i) => format!("light {i}"),
+                None => "frame".to_string(),
+            };
+            writeln!(
+                f,
+                "  reuse {who:<8} {:<14} unchanged since last frame",
+                pass.to_string()
             )?;
         }
         Ok(())
@@ -392,7 +405,7 @@ fn light_scale(scale: Scale, shadowed: bool, textured: bool, error_target: Optio
 }
 
 /// Decides the passes of a frame. The light texture, shadow map and table are planned whenever
-/// they apply; [`Plan::unchanged`] leaves them out when their node has nothing new to record.
+/// they apply; the [`FrameReport`] says which of them had nothing new to record.
 fn plan(facts: &FrameFacts) -> Plan {
     let mut d = Decisions::default();
     let mut lights = Vec::new();

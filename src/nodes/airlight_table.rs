@@ -62,6 +62,13 @@ pub struct TableSize {
     pub across_rays: u32,
 }
 
+impl TableSize {
+    /// (entries along the ray, rows across rays): the airlight uniform's table fields.
+    pub(crate) fn dims(self) -> (u32, u32) {
+        (self.along_ray, self.across_rays)
+    }
+}
+
 impl Default for TableSize {
     fn default() -> Self {
         Self::DEFAULT
@@ -329,8 +336,14 @@ impl Node for AirlightTableNode {
         inputs: &TableInputs<'_>,
     ) -> Result<bool> {
         // The table depends on the light only through D = |P − E| (the key drops the rest).
-        let key = AirlightUniform::new(inputs.eye, inputs.light, inputs.medium, 0.0, self.size)
-            .table_key();
+        let key = AirlightUniform::new(
+            inputs.eye,
+            inputs.light,
+            inputs.medium,
+            0.0,
+            self.size.dims(),
+        )
+        .table_key();
         self.pending |= self.uniform.write(queue, key);
         Ok(self.pending)
     }

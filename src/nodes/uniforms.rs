@@ -67,7 +67,7 @@ impl AirlightUniform {
         light: &Light,
         medium: &Medium,
         pixel_angular_radius: f32,
-        table: crate::nodes::TableSize,
+        (table_along, table_across): (u32, u32),
     ) -> Self {
         let (light_pos, d) = match light.model().source() {
             // A directional light: its direction of travel, and the length of the ray
@@ -91,9 +91,9 @@ impl AirlightUniform {
             intensity: light.intensity().to_array(),
             hg_g: g,
             sigma_s: medium.sigma_s().to_array(),
-            table_along: table.along_ray,
+            table_along,
             sigma_t: medium.sigma_t().to_array(),
-            table_across: table.across_rays,
+            table_across,
             w_iso: rgb(lobes[0]),
             w_rayleigh: rgb(lobes[1]),
             w_hg: rgb(lobes[2]),

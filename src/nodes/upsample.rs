@@ -455,7 +455,7 @@ impl UpsampleNode {
                 inputs.light,
                 inputs.medium,
                 camera.pixel_angular_radius(h),
-                inputs.table.size(),
+                inputs.table.size().dims(),
             ),
         );
     }

@@ -66,10 +66,12 @@ fn root_reexports(lib: &str) -> BTreeMap<String, String> {
     let mut map = BTreeMap::new();
     let text = strip_comments(lib);
     for stmt in text.split(';') {
-        let stmt = stmt.trim();
-        let Some(path) = stmt.strip_prefix("pub use ") else {
+        // A statement may begin after an item's closing brace (`}` of a trait before the
+        // first `pub use`), so the re-export is found where it begins, not at the start.
+        let Some(at) = stmt.find("pub use ") else {
             continue;
         };
+        let path = &stmt[at + "pub use ".len()..];
         let Some((module, rest)) = path.split_once("::") else {
             continue;
         };
@@ -497,12 +499,20 @@ fn modules_inside_nodes_form_no_circle() {
         .map(|(p, t)| (p.to_string(), t.to_string()))
         .collect();
     let names: BTreeSet<String> = ["a", "b", "c", "d"].iter().map(|s| s.to_string()).collect();
-    let found = node_edges(&planted[..3], "pub use a::{ANode, AInputs};", &names);
-    assert_eq!(found.len(), 2, "{found:?}");
-    assert_eq!(
-        cycle(&found),
-        Some(vec!["a".to_string(), "b".to_string(), "a".to_string()])
-    );
+    // The re-export right after an item's closing brace (a trait, as in nodes/mod.rs) counts
+    // too: reading only statements that begin with `pub use`, it was lost, and with it the
+    // circle airlight_table -> uniforms -> airlight_table through `crate::nodes::TableSize`.
+    for mod_rs in [
+        "pub use a::{ANode, AInputs};",
+        "pub trait T {\n    fn f();\n}\n\npub use a::{ANode, AInputs};",
+    ] {
+        let found = node_edges(&planted[..3], mod_rs, &names);
+        assert_eq!(found.len(), 2, "{mod_rs}: {found:?}");
+        assert_eq!(
+            cycle(&found),
+            Some(vec!["a".to_string(), "b".to_string(), "a".to_string()])
+        );
+    }
     let mut planted = planted;
     planted[1].1 = "fn f(n: &super::DNode) {}".to_string();
     planted[0].1 = String::new();

@@ -850,7 +850,7 @@ impl MarchNode {
             inputs.light,
             inputs.medium,
             camera.pixel_angular_radius(height),
-            table.size(),
+            table.size().dims(),
         );
         if let (Source::Along(_), Some(s)) = (inputs.light.model().source(), &inputs.shadows) {
             // Steps uniform in s = x / (x + L) reach at least across the shadow map's region
