@@ -4,7 +4,7 @@
 // medium scatters onto the surface, when normals and albedo are given) into the caller's target
 // (the prelude's fullscreen triangle).
 
-// Mirrors `CompositeUniform` in src/nodes/uniforms.rs.
+// Mirrors `CompositeUniform` in src/nodes/groups/uniforms.rs.
 struct Composite {
     sigma_t: vec3<f32>,
     count: u32,   // how many in-scatter inputs (one per light, 0 ..= 4) to add
@@ -20,7 +20,7 @@ struct Composite {
 @group(0) @binding(7) var inscatter3: texture_2d<f32>;
 
 // The surface term (indirect single scattering, shaders/iss.wgsl precedes this file).
-// Mirrors `SurfacesUniform` in src/nodes/uniforms.rs (its layout test: the composite node's
+// Mirrors `SurfacesUniform` in src/nodes/groups/uniforms.rs (its layout test: the composite node's
 // `params_layouts_match_the_wgsl`); WGSL's alignment pads both structs.
 struct Surfaces {
     sigma_s: vec3<f32>,

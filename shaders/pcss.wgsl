@@ -1,7 +1,7 @@
 #import prelude.wgsl
 // Shadow-map visibility, hard and soft: shared by the march and the soft-shadow volume, which
 // import it (`#import pcss.wgsl`). It declares what it reads, bind group 1 of its importer's
-// pipelines: the light with its shadow map (`ShadowBinding` in src/nodes/pcss.rs, which
+// pipelines: the light with its shadow map (`ShadowBinding` in src/nodes/groups/shadow.rs, which
 // builds the layout, the group and the parameters for both importers).
 
 // A light with a radius, as the soft estimate reads it (`SoftLight` in src/nodes/soft_shadow.rs).
@@ -14,7 +14,7 @@ struct SoftLight {
                        // (`soft_exact`); 0: none
 }
 
-// The light and its shadow map's parameters (`ShadowUniform` in src/nodes/pcss.rs).
+// The light and its shadow map's parameters (`ShadowUniform` in src/nodes/groups/shadow.rs).
 struct LightShadow {
     light: Light,
     faces: array<mat4x4<f32>, 6>,  // each layer's clip_from_world
@@ -36,7 +36,7 @@ struct LightShadow {
 // the corners (w unused), a sphere bounding them (centre, radius), three unused (see
 // `soft_exact`; src/nodes/shadow_map.rs gathers them).
 @group(1) @binding(4) var<storage, read> soft_triangles: array<vec4<f32>>;
-// The half-plane table of `soft_exact` (`half_plane_masks` in src/nodes/pcss.rs): row k,
+// The half-plane table of `soft_exact` (`half_plane_masks` in src/nodes/groups/shadow.rs): row k,
 // the line whose normal makes the angle 2π(k + ½)/256 with the frame's first axis; texels 2j
 // and 2j + 1, its offset −1 + 2(j + ½)/128: the bits of the directions on the normal's side.
 @group(1) @binding(5) var soft_masks: texture_2d<u32>;

@@ -33,7 +33,7 @@ const FAR: f32 = 3.4e38;
 
 // Per-frame airlight parameters. The phase function is a per-channel mixture of
 // five lobes, so every PhaseFunction variant (and Hoffman–Preetham's RGB mix) is one code path.
-// Mirrors `AirlightUniform` in src/gpu/uniforms.rs field by field.
+// Mirrors `AirlightUniform` in src/nodes/groups/uniforms.rs field by field.
 struct Airlight {
     light_pos: vec3<f32>,
     distance: f32,          // D = |P − E|
@@ -216,7 +216,7 @@ fn clamp_radiance(v: vec3<f32>) -> vec3<f32> {
 
 // Camera constants shared by the per-pixel passes: rays are built in view space so that
 // large world coordinates do not cost the ray direction its precision.
-// Mirrors `ViewUniform` in src/gpu/uniforms.rs.
+// Mirrors `ViewUniform` in src/nodes/groups/uniforms.rs.
 struct View {
     view_from_clip: mat4x4<f32>,
     world_from_view: mat4x4<f32>,

@@ -56,7 +56,7 @@ use crate::gpu::wgsl::wgsl_file;
 use crate::gpu::ShaderPrecision;
 use crate::gpu::{texture_2d, GpuTimer, UniformBuffer};
 use crate::nodes::cache::CachedPipelines;
-use crate::nodes::uniforms::AirlightUniform;
+use crate::nodes::groups::uniforms::AirlightUniform;
 use crate::nodes::Cache;
 use crate::nodes::{Encode, Node};
 use crate::pass::Pass;

@@ -28,16 +28,15 @@ pub(crate) mod airlight_table;
 pub(crate) mod cache;
 pub(crate) mod composite;
 pub(crate) mod extents;
+pub(crate) mod groups;
 pub(crate) mod iss_table;
 #[cfg(test)]
 pub(crate) mod layout;
 pub(crate) mod light_texture;
 pub(crate) mod march;
-pub(crate) mod pcss;
 pub(crate) mod shadow_gate;
 pub(crate) mod shadow_map;
 pub(crate) mod soft_shadow;
-pub(crate) mod uniforms;
 pub(crate) mod upsample;
 mod warm_up;
 

@@ -118,7 +118,7 @@ use crate::gpu::ShaderPrecision;
 use crate::gpu::{check_depth_texture, check_float_texture, GpuTimer, UniformBuffer};
 use crate::light::{light_constant, LightUniform};
 use crate::nodes::cache::CachedPipelines;
-use crate::nodes::uniforms::ViewUniform;
+use crate::nodes::groups::uniforms::ViewUniform;
 use crate::nodes::Cache;
 use crate::pass::Pass;
 use crate::scene::Camera;
@@ -237,7 +237,7 @@ pub struct UpsampleNode {
     entry_points: Option<EntryPoints>,
     uniform: UniformBuffer<UpsampleUniform>,
     view: UniformBuffer<ViewUniform>,
-    airlight: UniformBuffer<crate::nodes::uniforms::AirlightUniform>,
+    airlight: UniformBuffer<crate::nodes::groups::uniforms::AirlightUniform>,
     light: UniformBuffer<LightUniform>,
     dummy: wgpu::Texture,
     output: Option<wgpu::Texture>,
@@ -450,7 +450,7 @@ impl UpsampleNode {
         let camera = inputs.camera;
         self.airlight.write(
             queue,
-            crate::nodes::uniforms::AirlightUniform::new(
+            crate::nodes::groups::uniforms::AirlightUniform::new(
                 camera.eye(),
                 inputs.light,
                 inputs.medium,

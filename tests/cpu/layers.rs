@@ -406,8 +406,8 @@ fn node_edges(files: &[(String, String)], mod_rs: &str, modules: &BTreeSet<Strin
     out
 }
 
-/// The modules inside `src/nodes/` use each other without a circle (a shared group, such as
-/// `pcss`, is imported by the nodes and imports none of them; the `Cache` finds each node's
+/// The modules inside `src/nodes/` use each other without a circle (the shared groups,
+/// `groups/`, are imported by the nodes and import none of them; the `Cache` finds each node's
 /// pipelines by type and names none). Also: a made-up circle through a re-export and a
 /// `super::` path is found.
 #[test]
@@ -452,7 +452,7 @@ fn modules_inside_nodes_form_no_circle() {
     // shadow group, and every node the cache.
     for (from, to) in [
         ("march", "shadow_map"),
-        ("march", "pcss"),
+        ("march", "groups"),
         ("shadow_map", "cache"),
     ] {
         assert!(

@@ -38,7 +38,7 @@ use crate::gpu::{
     check_depth_texture, check_float_texture, check_size, depth_view, texture_2d, GpuTimer,
     UniformBuffer,
 };
-use crate::nodes::uniforms::{CompositeUniform, SurfacesUniform, ViewUniform};
+use crate::nodes::groups::uniforms::{CompositeUniform, SurfacesUniform, ViewUniform};
 use crate::nodes::Cache;
 use crate::nodes::{IssPhase, IssTableNode};
 use crate::pass::Pass;

@@ -248,8 +248,8 @@ fn cs_composite(@builtin(global_invocation_id) id: vec3<u32>) {{
 #[cfg(test)]
 #[test]
 fn params_layouts_match_the_wgsl() {
+    use crate::nodes::groups::uniforms::{CompositeUniform, SurfacesUniform};
     use crate::nodes::layout::{assert_same, rust_layout};
-    use crate::nodes::uniforms::{CompositeUniform, SurfacesUniform};
     assert_same(
         rust_layout!(CompositeUniform { sigma_t, count }),
         SOURCE.text,

@@ -6,7 +6,7 @@ use glam::Mat4;
 use crate::error::{Error, Result};
 use crate::gpu::pipeline::bind_group;
 use crate::gpu::{check_depth_texture, depth_view, GpuTimer, UniformBuffer};
-use crate::nodes::uniforms::ViewUniform;
+use crate::nodes::groups::uniforms::ViewUniform;
 use crate::pass::Pass;
 use crate::scene::Camera;
 

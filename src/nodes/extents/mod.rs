@@ -48,7 +48,7 @@ use crate::error::{Error, Result};
 use crate::gpu::pipeline::bind_group;
 use crate::gpu::{check_target_size, wgsl_size, GpuTimer, Occluder, UniformBuffer};
 use crate::light::LightUniform;
-use crate::nodes::uniforms::ViewUniform;
+use crate::nodes::groups::uniforms::ViewUniform;
 use crate::nodes::Cache;
 use crate::nodes::{Encode, Node};
 use crate::pass::Pass;

@@ -52,11 +52,11 @@ use crate::gpu::{
 use crate::light::{light_constant, Source};
 use crate::nodes::cache::CachedPipelines;
 use crate::nodes::extents::{CrossingsBuild, Extents};
+use crate::nodes::groups::shadow::{cell_angle, shadow_layout, ShadowBinding, ShadowUniform};
+use crate::nodes::groups::uniforms::{AirlightUniform, ViewUniform};
 use crate::nodes::light_texture::LightTextureMaps;
-use crate::nodes::pcss::{cell_angle, shadow_layout, ShadowBinding, ShadowUniform};
 use crate::nodes::shadow_map::ShadowMap;
 use crate::nodes::soft_shadow::SoftShadow;
-use crate::nodes::uniforms::{AirlightUniform, ViewUniform};
 use crate::nodes::Cache;
 use crate::nodes::{AirlightTableNode, Scale};
 use crate::nodes::{Encode, Node};

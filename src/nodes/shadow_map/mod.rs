@@ -56,13 +56,12 @@ use crate::scene::{Camera, Light};
 
 mod cascades;
 mod draw;
-mod output;
 mod pipelines;
 mod spot;
 
+pub(crate) use crate::nodes::groups::shadow_map::GROUP_BYTES;
+pub use crate::nodes::groups::shadow_map::{ShadowMap, ShadowParams, MAX_EXACT_TRIANGLES};
 pub use cascades::{CASCADE_RANGE, DIRECTIONAL_BIAS_TEXELS};
-pub(crate) use output::GROUP_BYTES;
-pub use output::{ShadowMap, ShadowParams, MAX_EXACT_TRIANGLES};
 pub(crate) use pipelines::Pipelines;
 
 use draw::{Draw, FAN};

@@ -2,7 +2,7 @@
 //! reach (seen from the light, each cone's cap bounded in each layer's projection), every
 //! block where that cannot be bounded.
 
-use crate::nodes::pcss::{SoftLight, MAX_SOFT_SPHERES};
+use crate::nodes::groups::shadow::{SoftLight, MAX_SOFT_SPHERES};
 
 /// Per layer, a rectangle of blocks of 2 × 2 directions (indexed by their anchor, the
 /// direction at even indices), `[x0, y0, x1, y1]` from `(x0, y0)` to `(x1, y1)` exclusive;

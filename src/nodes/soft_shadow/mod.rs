@@ -143,7 +143,7 @@ use crate::gpu::ShaderPrecision;
 use crate::gpu::{check_depth_layers, texture_3d, GpuTimer, UniformBuffer};
 use crate::light::{light_constant, LightKind, Source};
 use crate::nodes::cache::CachedPipelines;
-use crate::nodes::pcss::{cell_angle, shadow_layout, ShadowBinding, ShadowUniform};
+use crate::nodes::groups::shadow::{cell_angle, shadow_layout, ShadowBinding, ShadowUniform};
 use crate::nodes::shadow_map::ShadowMap;
 use crate::nodes::Cache;
 use crate::nodes::{Encode, Node};

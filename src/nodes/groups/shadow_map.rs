@@ -1,5 +1,5 @@
-//! The node's output as the march reads it ([`ShadowMap`]), and the parameters
-//! [`SHADOW_WGSL`](crate::SHADOW_WGSL) takes to read it ([`ShadowParams`]).
+//! The shadow map node's output as the march and the soft-shadow grid read it ([`ShadowMap`]),
+//! and the parameters [`SHADOW_WGSL`](crate::SHADOW_WGSL) takes to read it ([`ShadowParams`]).
 
 use glam::{Mat4, Vec4};
 

@@ -6,10 +6,10 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use super::shadow_map::{ShadowMap, GROUP_BYTES};
 use crate::gpu::pipeline::{bind_group, layout, Binding};
 use crate::gpu::{depth_array_view, texture_2d, UniformBuffer};
 use crate::light::LightUniform;
-use crate::nodes::shadow_map::{ShadowMap, GROUP_BYTES};
 use crate::scene::Light;
 
 /// Group 1's binding table (`shaders/pcss.wgsl`).
@@ -412,7 +412,10 @@ fn the_exact_constants_match_the_wgsl() {
     crate::nodes::layout::assert_constants(
         "#import pcss.wgsl",
         &[
-            ("EXACT_BUDGET", crate::nodes::MAX_EXACT_TRIANGLES / 4),
+            (
+                "EXACT_BUDGET",
+                crate::nodes::groups::shadow_map::MAX_EXACT_TRIANGLES / 4,
+            ),
             ("EXACT_SAMPLES", EXACT_SAMPLES as u32),
             ("MASK_OFFSETS", MASK_OFFSETS),
         ],
