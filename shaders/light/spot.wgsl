@@ -70,8 +70,8 @@ fn cut_piece(c: ConeCuts, i: u32) -> vec2<f32> {
 }
 
 // The ray's pieces inside the cone, up to two (`Support`): roots of (a·(X − P))² = cos²α |X − P|²
-// on the light's nappe a·(X − P) ≥ 0. The cone's apex is the airlight's light position (`air.light_pos`, where the eye–light
-// distance is kept above zero).
+// on the light's nappe a·(X − P) ≥ 0. The cone's apex is the airlight's light position
+// (`air.light_pos`, where the eye–light distance is kept above zero).
 fn cone_support(air: Airlight, light: Light, dir: vec3<f32>, x_end: f32) -> Support {
     var sup: Support;
     sup.count = 0u;
