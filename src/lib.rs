@@ -322,7 +322,7 @@ pub use wgpu;
 /// composite does ([`nodes::CompositeNode::set_spot_lattice`]).
 pub const ISS_WGSL: &str = concat!(
     include_str!("../shaders/precision.wgsl"),
-    include_str!("../shaders/iss.wgsl")
+    include_str!("../shaders/shared/iss.wgsl")
 );
 
 /// A self-contained WGSL module for shadowing a caller's surfaces with the shadow maps volshadow
@@ -344,4 +344,4 @@ pub const ISS_WGSL: &str = concat!(
 /// ground, light radius 0.4 at 1.52 from the sphere's centre, lavapipe): on the ground, mean
 /// 4.5% and p95 12.5% (point light; spot 5.9%, 16.2%), the hard lookup 18.7% and 46%; on the
 /// sphere itself mean 0.2%, p95 0.5%.
-pub const SHADOW_WGSL: &str = include_str!("../shaders/shadow.wgsl");
+pub const SHADOW_WGSL: &str = include_str!("../shaders/public/shadow.wgsl");

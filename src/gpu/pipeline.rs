@@ -372,24 +372,43 @@ mod tests {
         Ok(())
     }
 
-    /// Every shader file in `shaders/` parses and validates at every precision, composed with
-    /// its imports as a node composes it: the pass files, the self-contained `SHADOW_WGSL` and
-    /// the shared files, the folder read when the test runs, so that no list of files can miss
-    /// one (`precision.wgsl`, the wrappers every composition begins with, is checked by all).
+    /// Every shader file under `shaders/` parses and validates at every precision, composed
+    /// with its imports as a node composes it: the pass files (`passes/`), the self-contained
+    /// `SHADOW_WGSL` (`public/`) and the shared files (`shared/`), the folders read when the test
+    /// runs, so that no list of files can miss one (`precision.wgsl`, the wrappers every
+    /// composition begins with, is checked by all).
     #[test]
     fn every_shader_compiles() {
+        fn wgsl_under(dir: &std::path::Path, files: &mut Vec<std::path::PathBuf>) {
+            for entry in std::fs::read_dir(dir).expect("a shaders folder") {
+                let path = entry.expect("a folder entry").path();
+                if path.is_dir() {
+                    wgsl_under(&path, files);
+                } else if path.extension().is_some_and(|e| e == "wgsl") {
+                    files.push(path);
+                }
+            }
+        }
         let folder = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
-        let mut names: Vec<String> = std::fs::read_dir(&folder)
+        let mut paths = Vec::new();
+        for sub in ["passes", "public", "shared"] {
+            wgsl_under(&folder.join(sub), &mut paths);
+        }
+        paths.sort();
+        // The pass files and the shared ones, each a dozen or more, and the public one.
+        assert!(paths.len() >= 23, "{paths:?}");
+        // Nothing else in the folder but the precision wrappers.
+        let mut top: Vec<String> = std::fs::read_dir(&folder)
             .expect("the shaders folder")
             .map(|entry| entry.expect("a folder entry").file_name())
             .filter_map(|name| name.into_string().ok())
-            .filter(|name| name.ends_with(".wgsl") && name != "precision.wgsl")
             .collect();
-        names.sort();
-        // The pass files and the shared ones, each a dozen or more.
-        assert!(names.len() >= 19, "{names:?}");
-        for name in &names {
-            let text = std::fs::read_to_string(folder.join(name)).expect("a shader file");
+        top.sort();
+        assert_eq!(top, ["passes", "precision.wgsl", "public", "shared"]);
+        for path in &paths {
+            let text = std::fs::read_to_string(path).expect("a shader file");
+            let name = path.strip_prefix(&folder).expect("under shaders/");
+            let name = name.to_str().expect("a UTF-8 path");
             let source = Wgsl { name, text: &text };
             for precision in ShaderPrecision::ALL {
                 if let Err(e) = check(&source, precision) {
@@ -422,10 +441,7 @@ mod tests {
     /// its own it parses and validates.
     #[test]
     fn every_shared_file_compiles_on_its_own() {
-        for file in crate::gpu::wgsl::FILES
-            .iter()
-            .filter(|f| f.name != "broken.wgsl")
-        {
+        for file in crate::gpu::wgsl::FILES {
             let alone = Wgsl {
                 name: "alone.wgsl",
                 text: &format!("#import {}\n", file.name),

@@ -15,37 +15,54 @@ pub(crate) struct Wgsl<'a> {
     pub text: &'a str,
 }
 
-/// The `shaders/` file `$name` (from the crate's root, so that a node in a folder of
-/// `src/nodes/` names it as one in a file does).
+/// A WGSL file of `shaders/`: `wgsl_file!("NAME.wgsl")` a pass's own, in `shaders/passes/`;
+/// `wgsl_file!(shared "NAME.wgsl")` a shared one (also in [`FILES`]), in `shaders/shared/`.
+/// Named as in the folder (from the crate's root, so that a node in a folder of `src/nodes/`
+/// names it as one in a file does).
 macro_rules! wgsl_file {
     ($name:literal) => {
         $crate::gpu::wgsl::Wgsl {
             name: $name,
-            text: include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/shaders/", $name)),
+            text: include_str!(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/shaders/passes/",
+                $name
+            )),
+        }
+    };
+    (shared $name:literal) => {
+        $crate::gpu::wgsl::Wgsl {
+            name: $name,
+            text: include_str!(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/shaders/shared/",
+                $name
+            )),
         }
     };
 }
 pub(crate) use wgsl_file;
 
-/// Every file an `#import` can name (in tests, also one with an error, for the check that
-/// errors name their file).
-pub(crate) const FILES: &[Wgsl<'static>] = &[
-    wgsl_file!("prelude.wgsl"),
-    wgsl_file!("pcss.wgsl"),
-    wgsl_file!("iss.wgsl"),
-    wgsl_file!("crossings.wgsl"),
-    wgsl_file!("composite.wgsl"),
-    wgsl_file!("clip.wgsl"),
-    wgsl_file!("light.wgsl"),
-    wgsl_file!("light/point.wgsl"),
-    wgsl_file!("light/spot.wgsl"),
-    wgsl_file!("light/directional.wgsl"),
+/// Every file an `#import` can name: each `.wgsl` file under `shaders/shared/`, named by its
+/// path there (`light/point.wgsl`), listed by the build script from the folder itself.
+pub(crate) const FILES: &[Wgsl<'static>] = include!(concat!(env!("OUT_DIR"), "/shared_wgsl.rs"));
+
+/// In tests, also a shared file with an error, for the check that errors name their file.
+#[cfg(test)]
+static BROKEN: Wgsl<'static> = Wgsl {
+    name: "broken.wgsl",
+    text:
+        "// a shared file with an error on line 3\n\nfn broken() -> f32 { return no_such_name; }\n",
+};
+
+/// The shared file an `#import` line names.
+fn shared(name: &str) -> Option<&'static Wgsl<'static>> {
     #[cfg(test)]
-    Wgsl {
-        name: "broken.wgsl",
-        text: "// a shared file with an error on line 3\n\nfn broken() -> f32 { return no_such_name; }\n",
-    },
-];
+    if name == BROKEN.name {
+        return Some(&BROKEN);
+    }
+    FILES.iter().find(|f| f.name == name)
+}
 
 /// The import directive: `#import NAME.wgsl` alone on a line.
 const IMPORT: &str = "#import ";
@@ -85,7 +102,7 @@ fn imports<'s>(source: &'s Wgsl<'_>) -> impl Iterator<Item = &'static Wgsl<'stat
         .text
         .lines()
         .filter_map(|l| l.trim_end().strip_prefix(IMPORT))
-        .map(|name| match FILES.iter().find(|f| f.name == name.trim()) {
+        .map(|name| match shared(name.trim()) {
             Some(f) => f,
             // The sources are the crate's own: every_shader_composes fails on an unknown name.
             None => panic!("{}: #import of unknown file `{name}`", source.name),
@@ -177,7 +194,8 @@ mod tests {
             "the prelude, which pcss imports, comes first"
         );
         let (file, line) = composed.locate(pcss);
-        let expected = 1 + super::super::wgsl::FILES[1]
+        let expected = 1 + super::shared("pcss.wgsl")
+            .expect("a shared file")
             .text
             .lines()
             .position(|l| l.contains("fn shadow_face("))

@@ -60,10 +60,10 @@ pub(crate) fn cube_faces_touched(position: Vec3, spheres: &[Vec4]) -> [bool; 6] 
 /// The near plane of `faces` where they are the cube faces this node draws for a point light at
 /// `position` ([`cube_faces`]), entry by
 /// entry to within 1e-5 of each entry's size, else 0. The shaders then project a point into a face
-/// with a few selects on its offset from the light (`cube_clip` in `shaders/pcss.wgsl`) in place of
-/// the face's matrix, which each SIMD lane reads for its own face: on the report's soft scene on
-/// llvmpipe the march at ½ resolution took about 0.9 of its time, and so did the soft-shadow grid's
-/// build. A caller's map with other faces keeps the matrices.
+/// with a few selects on its offset from the light (`cube_clip` in `shaders/shared/pcss.wgsl`) in
+/// place of the face's matrix, which each SIMD lane reads for its own face: on the report's soft
+/// scene on llvmpipe the march at ½ resolution took about 0.9 of its time, and so did the
+/// soft-shadow grid's build. A caller's map with other faces keeps the matrices.
 pub(crate) fn standard_cube_near(faces: &[Mat4], position: Vec3) -> f32 {
     // Reversed-Z infinite perspective: clip z = near (the matrix's column w, row z).
     let near = faces.first().map_or(0.0, |f| f.w_axis.z);
@@ -98,8 +98,8 @@ mod tests {
         }
     }
 
-    /// `cube_clip` of shaders/pcss.wgsl, line for line: a face's clip coordinates as a signed
-    /// permutation of the offset from the light.
+    /// `cube_clip` of shaders/shared/pcss.wgsl, line for line: a face's clip coordinates as a
+    /// signed permutation of the offset from the light.
     fn cube_clip(face: usize, rel: Vec3, near: f32) -> Vec4 {
         let sign = if face & 1 == 1 { -1.0 } else { 1.0 };
         match face {

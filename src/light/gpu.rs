@@ -1,4 +1,4 @@
-//! The light as every node's shader reads it: WGSL `Light` (`shaders/prelude.wgsl`), which
+//! The light as every node's shader reads it: WGSL `Light` (`shaders/shared/prelude.wgsl`), which
 //! each kind fills in its [`gpu`](super::LightModel::gpu), and the `LIGHT` pipeline constant
 //! that specialises a pipeline for a kind of light. A node copies the uniform into its
 //! parameters rather than matching on the light.

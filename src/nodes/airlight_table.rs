@@ -121,13 +121,14 @@ impl TableSize {
 /// the cell keeps f32 precision.
 const TAIL_PIECES: u32 = 12;
 
-/// The first pass's binding table: `@binding(i)` of `shaders/airlight_table.wgsl` is entry `i`.
+/// The first pass's binding table: `@binding(i)` of `shaders/passes/airlight_table.wgsl` is entry
+/// `i`.
 const CELL_BINDINGS: [Binding; 2] = [
     Binding::Params,    // air
     Binding::ReadWrite, // cells_out
 ];
 
-/// The second pass's: `@binding(i)` of `shaders/airlight_table_sum.wgsl` is entry `i`.
+/// The second pass's: `@binding(i)` of `shaders/passes/airlight_table_sum.wgsl` is entry `i`.
 const SUM_BINDINGS: [Binding; 3] = [
     Binding::Params,                                    // air
     Binding::Params,                                    // cells_in (read-only storage)
@@ -135,7 +136,7 @@ const SUM_BINDINGS: [Binding; 3] = [
 ];
 
 /// How the second pass sums each row: `sum_scan` or `sum_serial` of
-/// `shaders/airlight_table_sum.wgsl` (the same sums).
+/// `shaders/passes/airlight_table_sum.wgsl` (the same sums).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum RowSum {
     /// One workgroup of 256 a row, its runs' totals scanned across it (a GPU).

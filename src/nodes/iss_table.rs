@@ -135,7 +135,7 @@ impl IssTableSize {
     }
 }
 
-/// The table's binding table: `@binding(i)` of `shaders/iss_table.wgsl` is entry `i`.
+/// The table's binding table: `@binding(i)` of `shaders/passes/iss_table.wgsl` is entry `i`.
 const BINDINGS: [Binding; 2] = [
     Binding::Params,                                    // air
     Binding::Storage(wgpu::TextureFormat::Rgba32Float), // table_out

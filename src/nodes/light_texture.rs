@@ -15,7 +15,7 @@
 //!   texels are equal): per quadrant (+x+y, −x+y, +x−y, −x−y), the side of the largest square
 //!   of flat cells, at most 63, that has the cell at its corner and extends into that quadrant;
 //!   0 where the cell is not flat. Bilinear lookups anywhere in such a square return one value,
-//!   so the march crosses it in one step (`shaders/light_texture_flats.wgsl`).
+//!   so the march crosses it in one step (`shaders/passes/light_texture_flats.wgsl`).
 //!
 //! Both are rebuilt only when the input texture changes.
 
@@ -30,13 +30,13 @@ use crate::nodes::{Encode, Node};
 use crate::pass::Pass;
 use crate::scene::TextureChannels;
 
-/// The binding table: `@binding(i)` of `shaders/light_texture.wgsl` is entry `i`.
+/// The binding table: `@binding(i)` of `shaders/passes/light_texture.wgsl` is entry `i`.
 const BINDINGS: [Binding; 2] = [
     Binding::Filterable, // source
     Binding::Sampler,    // linear_sampler
 ];
 
-/// The flat-region passes' binding table (`shaders/light_texture_flats.wgsl`).
+/// The flat-region passes' binding table (`shaders/passes/light_texture_flats.wgsl`).
 const FLATS_BINDINGS: [Binding; 2] = [
     Binding::Texture,     // source (level 0 of the mip chain)
     Binding::UintTexture, // previous (the previous pass's output)

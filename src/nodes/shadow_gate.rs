@@ -2,8 +2,8 @@
 //! radius needs its map only for the pixels whose crossings cannot be counted (a list that
 //! overflowed, a face of an open or non-manifold mesh), which only the GPU knows. The map's
 //! render passes then load their layer instead of clearing it and draw indirectly, from
-//! arguments that are zero unless `shaders/shadow_gate.wgsl` found such a pixel in this frame's
-//! crossing lists and the map has not been drawn since its inputs last changed: a frame the
+//! arguments that are zero unless `shaders/passes/shadow_gate.wgsl` found such a pixel in this
+//! frame's crossing lists and the map has not been drawn since its inputs last changed: a frame the
 //! crossings decide draws nothing, clears nothing, and reads no texel of the map.
 
 use crate::gpu::pipeline::{bind_group, compute_pipeline, dispatch, layout, module, Binding};
@@ -12,7 +12,7 @@ use crate::gpu::{GpuTimer, ShaderPrecision};
 use crate::nodes::Crossings;
 use crate::pass::Pass;
 
-/// The binding table: `@binding(i)` of `shaders/shadow_gate.wgsl` is entry `i`.
+/// The binding table: `@binding(i)` of `shaders/passes/shadow_gate.wgsl` is entry `i`.
 const BINDINGS: [Binding; 5] = [
     Binding::Params,    // heads: the crossing lists' heads
     Binding::Params,    // template: the map's draw arguments
@@ -28,7 +28,7 @@ const WORKGROUP: u32 = 256;
 const CLEAR_WORDS: usize = 4;
 const DRAW_WORDS: usize = 5;
 
-/// WGSL `GateParams` of `shaders/shadow_gate.wgsl`.
+/// WGSL `GateParams` of `shaders/passes/shadow_gate.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct GateUniform {

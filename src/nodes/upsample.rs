@@ -123,7 +123,7 @@ use crate::nodes::Cache;
 use crate::pass::Pass;
 use crate::scene::Camera;
 
-/// The upsample's binding table: `@binding(i)` of `shaders/upsample.wgsl` is entry `i`.
+/// The upsample's binding table: `@binding(i)` of `shaders/passes/upsample.wgsl` is entry `i`.
 const BINDINGS: [Binding; 9] = [
     Binding::Params,                                    // up
     Binding::Params,                                    // view
@@ -209,7 +209,7 @@ pub struct UpsampleInputs<'a> {
     pub medium: &'a crate::scene::Medium,
 }
 
-/// `UpsampleUniform::kind` for each filter: WGSL `FILTER_*` of `shaders/upsample.wgsl`.
+/// `UpsampleUniform::kind` for each filter: WGSL `FILTER_*` of `shaders/passes/upsample.wgsl`.
 const FILTER_BILINEAR: u32 = 0;
 const FILTER_3X3: u32 = 1;
 const FILTER_SEPARABLE: u32 = 2;
@@ -528,7 +528,7 @@ fn params_layout_matches_the_wgsl() {
         low_size,
         out_size,
     });
-    let source = include_str!("../../shaders/upsample.wgsl");
+    let source = include_str!("../../shaders/passes/upsample.wgsl");
     assert_same(rust, source, "Upsample");
     crate::nodes::layout::assert_constants(
         source,

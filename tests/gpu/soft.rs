@@ -212,7 +212,7 @@ fn sphere_penumbra_against_the_reference() {
 }
 
 /// The shaders project a point into the node's own cube faces by a permutation of its offset
-/// from the light (`cube_clip` in shaders/pcss.wgsl), and into a caller's faces by their
+/// from the light (`cube_clip` in shaders/shared/pcss.wgsl), and into a caller's faces by their
 /// matrices. Faces scaled by 1.001 project the same (the same ndc) but are not the node's
 /// own, so they take the matrices: the two images agree. Six spheres around the light, one
 /// beside each axis, seen from a corner: every face holds a shadow. Hard (exact method), soft by the

@@ -1931,9 +1931,9 @@ fn a_sliver_of_the_light_past_a_door_ajar() {
 /// Doors ajar by 31° under a spot light and by 24° under a point light, seen from beside
 /// their shafts (the generator's seeds 439 and 443, outside the 16 the method was tuned on).
 /// The rays beside a shaft cross it at a slant within one or two of a refined step's pieces
-/// (`refined_step` in shaders/march.wgsl), and a midpoint a piece aliases it, the error
+/// (`refined_step` in shaders/passes/march.wgsl), and a midpoint a piece aliases it, the error
 /// changing sign from pixel to pixel; the grid's cells near the shaft, exact, are marked where
-/// their lookup cannot be trusted (`curved` and `mark_shafts` in shaders/soft_shadow.wgsl).
+/// their lookup cannot be trusted (`curved` and `mark_shafts` in shaders/passes/soft_shadow.wgsl).
 ///
 /// Bars: the (p95 3%, RMSE 2%). Measured (lavapipe, 12², 2026-11-29): 439 p95 2.35%,
 /// RMSE 1.74%; 443 2.30%, 1.89%. Broken variants: a midpoint a piece, no thirds, 439 at p95

@@ -11,7 +11,7 @@ use crate::nodes::cache::CachedPipelines;
 
 use super::MAX_LIGHTS;
 
-/// The composite's binding table: `@binding(i)` of `shaders/composite.wgsl` is entry `i`.
+/// The composite's binding table: `@binding(i)` of `shaders/shared/composite.wgsl` is entry `i`.
 const BINDINGS: [Binding; 10 + MAX_LIGHTS] = [
     Binding::Params,  // comp
     Binding::Params,  // view
@@ -86,7 +86,7 @@ pub(super) fn storage_format_name(
 }
 
 /// The composite's WGSL: the surface term's functions (`ISS_WGSL`'s), then the composite.
-const SOURCE: Wgsl<'static> = wgsl_file!("composite.wgsl");
+const SOURCE: Wgsl<'static> = wgsl_file!(shared "composite.wgsl");
 
 impl CachedPipelines for Pipelines {
     fn build(device: &wgpu::Device, precision: ShaderPrecision) -> Self {

@@ -14,7 +14,7 @@ use super::pipelines::{BinUniform, CrossingUniform};
 use super::ExtentsNode;
 
 const TILE: u32 = 16;
-/// Workgroups of the compute build's binning passes (`GROUPS` in `shaders/crossings.wgsl`).
+/// Workgroups of the compute build's binning passes (`GROUPS` in `shaders/shared/crossings.wgsl`).
 const BIN_GROUPS: u32 = 1024;
 /// Bytes of one face record of the compute build (5 `vec4<f32>`).
 const FACE_BYTES: u64 = 80;

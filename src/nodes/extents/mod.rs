@@ -269,7 +269,7 @@ impl Node for ExtentsNode {
     }
 }
 
-/// Whether this frame's volumes go through `vs_volume_clipped` (see `shaders/extents.wgsl`),
+/// Whether this frame's volumes go through `vs_volume_clipped` (see `shaders/passes/extents.wgsl`),
 /// and the exact method's lists are built by compute passes: where an occluder's bounds reach
 /// farther from the eye (in some axis) than [`RASTER_SAFE_REACH`] times their distance from it,
 /// or than the extents' near plane (the rasteriser clips nothing nearer). Within it every

@@ -1,5 +1,5 @@
 //! The extents node's binding tables, the parameter structs its shaders read
-//! (`shaders/extents.wgsl`, `shaders/crossings.wgsl`), and its pipelines.
+//! (`shaders/passes/extents.wgsl`, `shaders/shared/crossings.wgsl`), and its pipelines.
 
 use crate::gpu::pipeline::{compute_pipeline, depth_pipeline, layout, module, Binding};
 use crate::gpu::wgsl::wgsl_file;
@@ -7,11 +7,12 @@ use crate::gpu::ShaderPrecision;
 use crate::light::LightUniform;
 use crate::nodes::cache::CachedPipelines;
 
-/// Bytes of one shadow-volume vertex (`VolumeVertex` in `shaders/extents.wgsl`): position,
+/// Bytes of one shadow-volume vertex (`VolumeVertex` in `shaders/passes/extents.wgsl`): position,
 /// flags, the face's plane and a point of it.
 pub(super) const VOLUME_VERTEX_BYTES: u64 = 64;
 
-/// The extrusion's binding table (`@binding(i)` of the compute stage of `shaders/extents.wgsl`).
+/// The extrusion's binding table (`@binding(i)` of the compute stage of
+/// `shaders/passes/extents.wgsl`).
 const EXTRUDE_BINDINGS: [Binding; 6] = [
     Binding::Params,    // ex: the occluder's slot of the extrude parameters
     Binding::Params,    // positions
@@ -35,7 +36,7 @@ const CROSSINGS_BINDINGS: [Binding; 6] = [
     Binding::ReadWrite,    // crossings
 ];
 
-/// The compute build's binding table (`shaders/crossings.wgsl`).
+/// The compute build's binding table (`shaders/shared/crossings.wgsl`).
 const BIN_BINDINGS: [Binding; 9] = [
     Binding::Params,    // volume
     Binding::Params,    // count_args: the volume's vertex count
@@ -54,8 +55,9 @@ const CLIP_VOLUME_BINDINGS: [Binding; 1] = [Binding::VertexParams];
 /// after a cube's six planes).
 pub(super) const FAN: u32 = 7;
 
-/// Tiles of the compute build, in pixels across and down (`TILE` in `shaders/crossings.wgsl`).
-/// The node's layouts and pipelines, held by the [`Cache`](crate::nodes::Cache).
+/// Tiles of the compute build, in pixels across and down (`TILE` in
+/// `shaders/shared/crossings.wgsl`). The node's layouts and pipelines, held by the
+/// [`Cache`](crate::nodes::Cache).
 #[derive(Clone)]
 pub(crate) struct Pipelines {
     pub(super) extrude_layout: wgpu::BindGroupLayout,
@@ -172,7 +174,7 @@ impl Pipelines {
         }
     }
 
-    /// The compute build's layout and its five passes (`shaders/crossings.wgsl`): setup,
+    /// The compute build's layout and its five passes (`shaders/shared/crossings.wgsl`): setup,
     /// count, scan, fill, build.
     fn bins(
         device: &wgpu::Device,
@@ -185,7 +187,7 @@ impl Pipelines {
             &BIN_BINDINGS,
         );
         let bin_module =
-            crate::gpu::pipeline::module(device, &wgsl_file!("crossings.wgsl"), precision);
+            crate::gpu::pipeline::module(device, &wgsl_file!(shared "crossings.wgsl"), precision);
         let bin = ["setup", "count", "scan", "fill", "build"].map(|entry| {
             compute_pipeline(
                 device,
@@ -212,7 +214,7 @@ pub(super) struct ExtrudeUniform {
     pub(super) capacity: u32,
 }
 
-/// WGSL `Params` of `shaders/crossings.wgsl`.
+/// WGSL `Params` of `shaders/shared/crossings.wgsl`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub(super) struct BinUniform {
@@ -227,7 +229,7 @@ pub(super) struct BinUniform {
     pub(super) near: f32,
     pub(super) bin_capacity: u32,
     pub(super) face_capacity: u32,
-    /// 1: ray directions are affine in pixel coordinates (see `shaders/crossings.wgsl`).
+    /// 1: ray directions are affine in pixel coordinates (see `shaders/shared/crossings.wgsl`).
     pub(super) affine: u32,
 }
 
@@ -243,7 +245,7 @@ pub(super) struct CrossingUniform {
 #[test]
 fn params_layouts_match_the_wgsl() {
     use crate::nodes::layout::{assert_same, rust_layout};
-    let extents = include_str!("../../../shaders/extents.wgsl");
+    let extents = include_str!("../../../shaders/passes/extents.wgsl");
     let extrude = rust_layout!(ExtrudeUniform {
         world_from_object,
         light,
@@ -279,7 +281,7 @@ fn params_layouts_match_the_wgsl() {
     });
     assert_same(
         bin,
-        include_str!("../../../shaders/crossings.wgsl"),
+        include_str!("../../../shaders/shared/crossings.wgsl"),
         "Params",
     );
 }

@@ -1,5 +1,5 @@
 //! The light and its shadow map as the shared shadow-map visibility reads them
-//! (`shaders/pcss.wgsl`): bind group 1 of the march's and the soft-shadow grid's pipelines.
+//! (`shaders/shared/pcss.wgsl`): bind group 1 of the march's and the soft-shadow grid's pipelines.
 //! The WGSL file declares the group; this module builds its layout, its parameters
 //! ([`ShadowUniform`]) and its bind group ([`ShadowBinding`]) for both, and a light with a
 //! radius as both read it ([`SoftLight`], [`soft_params`], [`cell_angle`]).
@@ -12,7 +12,7 @@ use crate::gpu::{depth_array_view, texture_2d, UniformBuffer};
 use crate::light::LightUniform;
 use crate::scene::Light;
 
-/// Group 1's binding table (`shaders/pcss.wgsl`).
+/// Group 1's binding table (`shaders/shared/pcss.wgsl`).
 const BINDINGS: [Binding; 6] = [
     Binding::Params,      // shadow
     Binding::DepthArray,  // shadow_map
@@ -22,11 +22,11 @@ const BINDINGS: [Binding; 6] = [
     Binding::UintTexture, // soft_masks
 ];
 
-/// Directions `soft_exact` (`shaders/pcss.wgsl`) tests over the light's disc: 8 rings of 32,
+/// Directions `soft_exact` (`shaders/shared/pcss.wgsl`) tests over the light's disc: 8 rings of 32,
 /// one `u32` of bits each.
 pub(crate) const EXACT_SAMPLES: usize = 256;
 /// The half-plane table's angles (of the line's normal, over a turn) and offsets (over
-/// `[−1, 1]`, in units of the disc's radius): `soft_masks` in `shaders/pcss.wgsl`.
+/// `[−1, 1]`, in units of the disc's radius): `soft_masks` in `shaders/shared/pcss.wgsl`.
 pub(crate) const MASK_ANGLES: u32 = 256;
 pub(crate) const MASK_OFFSETS: u32 = 128;
 
@@ -82,7 +82,7 @@ pub(crate) fn shadow_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
     )
 }
 
-/// WGSL `LightShadow` (`shaders/pcss.wgsl`), field by field.
+/// WGSL `LightShadow` (`shaders/shared/pcss.wgsl`), field by field.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
 pub(crate) struct ShadowUniform {
@@ -302,8 +302,8 @@ pub(crate) fn soft_params(
     )
 }
 
-/// WGSL `SoftLight` (`shaders/pcss.wgsl`): a light with a radius as the soft estimate reads it,
-/// in the march's and the grid's parameters.
+/// WGSL `SoftLight` (`shaders/shared/pcss.wgsl`): a light with a radius as the soft estimate reads
+/// it, in the march's and the grid's parameters.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::Pod, bytemuck::Zeroable)]
 pub(crate) struct SoftLight {
@@ -315,10 +315,10 @@ pub(crate) struct SoftLight {
     pub cell_angle: f32,
     /// 1 where the shadow map's occluders may leave gaps ([`ShadowMap::gaps`]), outside the
     /// grid's build: each of the filter's taps moves to where its line crosses its own
-    /// blocker's distance (`soft_filter` in `shaders/pcss.wgsl`); else 0.
+    /// blocker's distance (`soft_filter` in `shaders/shared/pcss.wgsl`); else 0.
     pub reproject: u32,
     /// The groups of four of the occluders' triangles the exact visible fraction reads
-    /// ([`ShadowMap::triangles`], `soft_exact` in `shaders/pcss.wgsl`); 0: the estimate from
+    /// ([`ShadowMap::triangles`], `soft_exact` in `shaders/shared/pcss.wgsl`); 0: the estimate from
     /// the shadow map.
     pub groups: u32,
 }
@@ -402,7 +402,7 @@ fn the_exact_directions_and_their_half_planes() {
     );
 }
 
-/// `soft_exact`'s loop budget in `shaders/pcss.wgsl` is one turn over the most triangles the
+/// `soft_exact`'s loop budget in `shaders/shared/pcss.wgsl` is one turn over the most triangles the
 /// shadow-map node gathers, in groups of four: a larger budget would let a sliver's extra
 /// turns take a call past what `MAX_EXACT_TRIANGLES` was sized for (llvmpipe's loop limit).
 /// And the WGSL's directions and offsets are the table's.

@@ -8,7 +8,7 @@ use crate::light::Source;
 use crate::scene::Light;
 
 /// Bytes of one group of four triangles of [`ShadowMap::triangles`]: their corners and a
-/// sphere bounding them, in 16 `vec4<f32>` (`shaders/triangles.wgsl`).
+/// sphere bounding them, in 16 `vec4<f32>` (`shaders/passes/triangles.wgsl`).
 pub(crate) const GROUP_BYTES: u64 = 256;
 
 /// Most triangles (all occluders together) for which the node gathers
@@ -226,7 +226,10 @@ mod tests {
             rest[from..to].split_whitespace().collect()
         };
         let surface = body(crate::SHADOW_WGSL, "volshadow_turn");
-        let medium = body(include_str!("../../../shaders/pcss.wgsl"), "soft_turn");
+        let medium = body(
+            include_str!("../../../shaders/shared/pcss.wgsl"),
+            "soft_turn",
+        );
         assert!(surface.len() > 100, "the hash's text was not found");
         assert_eq!(
             surface, medium,

@@ -1,5 +1,5 @@
-//! GPU-side uniform structs (mirrors of the WGSL structs in `shaders/prelude.wgsl`) and their
-//! construction from the scene types.
+//! GPU-side uniform structs (mirrors of the WGSL structs in `shaders/shared/prelude.wgsl`) and
+//! their construction from the scene types.
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
@@ -71,7 +71,7 @@ impl AirlightUniform {
     ) -> Self {
         let (light_pos, d) = match light.model().source() {
             // A directional light: its direction of travel, and the length of the ray
-            // parameter s = x / (x + L) (see `shaders/prelude.wgsl`).
+            // parameter s = x / (x + L) (see `shaders/shared/prelude.wgsl`).
             Source::Along(direction) => (direction, directional_length(medium)),
             Source::At(mut light_pos) => {
                 let min_d = MIN_EYE_LIGHT_DISTANCE * eye.abs().max_element().max(1.0);

@@ -71,7 +71,7 @@ pub use stats::{MarchStats, MarchWork};
 
 use stats::stats_buffer;
 
-/// The march's binding table: `@binding(i)` of `shaders/march.wgsl`'s group 0 is entry `i`
+/// The march's binding table: `@binding(i)` of `shaders/passes/march.wgsl`'s group 0 is entry `i`
 /// (group 1, the light and its shadow map, is [`ShadowBinding`]'s).
 const BINDINGS: [Binding; 17] = [
     Binding::Params,                                    // air
@@ -387,7 +387,7 @@ pub struct MarchInputs<'a> {
 
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-/// WGSL `MarchParams` (`shaders/march.wgsl`), field by field.
+/// WGSL `MarchParams` (`shaders/passes/march.wgsl`), field by field.
 struct MarchUniform {
     tex_frame: [f32; 16],
     steps: u32,
@@ -401,7 +401,7 @@ struct MarchUniform {
     soft_grid: SoftGridUniform,
 }
 
-/// WGSL `SoftGrid` (`shaders/march.wgsl`): the soft-shadow grid the march reads.
+/// WGSL `SoftGrid` (`shaders/passes/march.wgsl`): the soft-shadow grid the march reads.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::Pod, bytemuck::Zeroable)]
 struct SoftGridUniform {

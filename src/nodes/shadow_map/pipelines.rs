@@ -8,7 +8,7 @@ use crate::gpu::ShaderPrecision;
 use crate::nodes::cache::CachedPipelines;
 use crate::nodes::shadow_gate::GatePipelines;
 
-/// The binding table: `@binding(i)` of `shaders/shadow_map.wgsl` is entry `i`.
+/// The binding table: `@binding(i)` of `shaders/passes/shadow_map.wgsl` is entry `i`.
 const BINDINGS: [Binding; 2] = [
     Binding::DynamicParams(FACE_BYTES), // face: clip_from_world and centre, one slot per face
     Binding::DynamicParams(INSTANCE_BYTES), // instance: world_from_object and clip reach
@@ -28,7 +28,7 @@ pub(super) const FACE_BYTES: u64 = 80;
 /// none).
 pub(super) const INSTANCE_BYTES: u64 = 80;
 
-/// The binding table of `shaders/triangles.wgsl` (the occluders' triangles for the exact
+/// The binding table of `shaders/passes/triangles.wgsl` (the occluders' triangles for the exact
 /// visible fraction, [`ShadowMap::triangles`](super::ShadowMap::triangles)).
 const TRIANGLE_BINDINGS: [Binding; 4] = [
     Binding::Params,    // instance: world_from_object, the occluder's slot
@@ -50,7 +50,7 @@ pub(crate) struct Pipelines {
     pub(super) clipped_layout: wgpu::BindGroupLayout,
     pub(super) depth_clipped: wgpu::RenderPipeline,
     pub(super) back_clipped: wgpu::RenderPipeline,
-    /// The occluders' triangles in world space (`shaders/triangles.wgsl`).
+    /// The occluders' triangles in world space (`shaders/passes/triangles.wgsl`).
     pub(super) gather_layout: wgpu::BindGroupLayout,
     pub(super) gather: wgpu::ComputePipeline,
     /// A gated map's clear: depth 0 over the layer, drawn indirectly (`vs_clear`).

@@ -10,7 +10,7 @@ use crate::nodes::groups::shadow::{SoftLight, MAX_SOFT_SPHERES};
 pub(super) type Blocks = [[u32; 4]; 6];
 
 /// The relative margin on the sine of a penumbra cone's half-angle: `PENUMBRA_CONE_MARGIN` of
-/// `shaders/pcss.wgsl` (a unit test holds them equal).
+/// `shaders/shared/pcss.wgsl` (a unit test holds them equal).
 const PENUMBRA_CONE_MARGIN: f64 = 1.10;
 
 /// Every block of a grid of `n`² directions, in each of `layers` layers.
@@ -20,8 +20,9 @@ pub(super) fn every_block(n: u32, layers: usize) -> Blocks {
 }
 
 /// The blocks of each layer a build must cover: those with a direction within two cells of
-/// one that meets a penumbra cone (`may_be_hidden` in `shaders/pcss.wgsl`; a rest direction's
-/// anchor neighbours lie one cell away). Outside them every cell is lit, as the whole build
+/// one that meets a penumbra cone (`may_be_hidden` in `shaders/shared/pcss.wgsl`; a rest
+/// direction's anchor neighbours lie one cell away). Outside them every cell is lit, as the whole
+/// build
 /// would leave it: a cell outside every cone is lit, and so is the mean of lit neighbours.
 ///
 /// Seen from the light, every point of the cone of occluder sphere `(c, ρ)` lies within the
@@ -160,7 +161,7 @@ mod tests {
     /// outside the blocks, which would stay lit).
     #[test]
     fn the_cone_margin_is_the_shaders() {
-        let line = include_str!("../../../shaders/pcss.wgsl")
+        let line = include_str!("../../../shaders/shared/pcss.wgsl")
             .lines()
             .find(|l| l.starts_with("const PENUMBRA_CONE_MARGIN: f32 = "))
             .expect("pcss.wgsl declares the margin");

@@ -154,7 +154,7 @@ mod blocks;
 
 use blocks::{every_block, penumbra_blocks, Blocks};
 
-/// The binding tables of the build's entry points in `shaders/soft_shadow.wgsl`
+/// The binding tables of the build's entry points in `shaders/passes/soft_shadow.wgsl`
 /// (`@binding(i)` of group 0 is entry `i`; group 1, the light and its shadow map, is
 /// [`ShadowBinding`]'s): each binds every slot, with the type its entry point declares where
 /// it uses the slot. Slots: 0 `mp`, 1 `volume` (the grid), 2 the anchors, 3 the cells before
@@ -230,7 +230,7 @@ const MARK_BINDINGS: [Binding; 3] = [
     Binding::StorageVolume(wgpu::TextureFormat::Rgba16Float),
 ];
 
-/// Cells before their marks (see `shaders/soft_shadow.wgsl`): exact f32, so that the marks
+/// Cells before their marks (see `shaders/passes/soft_shadow.wgsl`): exact f32, so that the marks
 /// are those of the values the estimates gave.
 const REST_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Float;
 /// The three lists' dispatches, each in its own slot of the dispatch buffer (a storage
@@ -310,7 +310,7 @@ pub struct SoftShadow<'a> {
 
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-/// WGSL `SoftShadowParams` (`shaders/soft_shadow.wgsl`), field by field.
+/// WGSL `SoftShadowParams` (`shaders/passes/soft_shadow.wgsl`), field by field.
 struct SoftShadowUniform {
     built: Blocks,
     lit: Blocks,
@@ -323,7 +323,7 @@ struct SoftShadowUniform {
 /// The grid's WGSL: the shared shadow-map visibility, then the grid's passes.
 const SOURCE: Wgsl<'static> = wgsl_file!("soft_shadow.wgsl");
 
-/// The passes of a build (see `shaders/soft_shadow.wgsl`) for one kind of light.
+/// The passes of a build (see `shaders/passes/soft_shadow.wgsl`) for one kind of light.
 #[derive(Clone)]
 struct Build {
     fill: wgpu::ComputePipeline,
@@ -442,7 +442,7 @@ struct Groups {
     store_rest: wgpu::BindGroup,
 }
 
-/// The build's own textures and buffers (see `shaders/soft_shadow.wgsl`), sized with the
+/// The build's own textures and buffers (see `shaders/passes/soft_shadow.wgsl`), sized with the
 /// grid.
 struct Scratch {
     /// The anchors' cells with what decides interpolation (`anchor_count()`² per layer).

@@ -161,8 +161,8 @@ fn composite(
     let device = &gpu.device;
     let mut src = format!(
         "{}\n{}",
-        include_str!("../../../shaders/prelude.wgsl"),
-        include_str!("../../../shaders/composite.wgsl")
+        include_str!("../../../shaders/shared/prelude.wgsl"),
+        include_str!("../../../shaders/shared/composite.wgsl")
     );
     if storage {
         src = src.replace("var<uniform>", "var<storage, read>");

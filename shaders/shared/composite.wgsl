@@ -19,7 +19,7 @@ struct Composite {
 @group(0) @binding(6) var inscatter2: texture_2d<f32>;
 @group(0) @binding(7) var inscatter3: texture_2d<f32>;
 
-// The surface term (indirect single scattering, shaders/iss.wgsl precedes this file).
+// The surface term (indirect single scattering, shaders/shared/iss.wgsl precedes this file).
 // Mirrors `SurfacesUniform` in src/nodes/groups/uniforms.rs (its layout test: the composite node's
 // `params_layouts_match_the_wgsl`); WGSL's alignment pads both structs.
 struct Surfaces {
@@ -60,7 +60,8 @@ fn surface_point(pixel: vec2<u32>) -> SurfacePoint {
     return SurfacePoint(p, n / max(len, 1.0e-30), ok);
 }
 
-// Σ over the spot lights of E(P), evaluated (the cone-limited quadrature of shaders/iss.wgsl).
+// Σ over the spot lights of E(P), evaluated (the cone-limited quadrature of
+// shaders/shared/iss.wgsl).
 fn spot_irradiance(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     var e = vec3<f32>(0.0);
     for (var i = 0u; i < min(surf.count, 4u); i++) {

@@ -66,7 +66,7 @@ struct MarchParams {
     tan_half_angle: f32,     // textured spot: tan(half apex angle)
     tex_width: f32,          // textured spot: texture width (texels)
     tex_mips: f32,           // textured spot: mip levels
-    soft_grid: SoftGrid,     // the soft-shadow grid (shaders/soft_shadow.wgsl)
+    soft_grid: SoftGrid,     // the soft-shadow grid (shaders/passes/soft_shadow.wgsl)
 }
 
 // The soft-shadow grid the march reads (`SoftGridUniform` in src/nodes/march.rs).
@@ -101,9 +101,10 @@ struct SoftGrid {
 // A light with a radius: the visible fraction of its disc on a light-space grid (read through
 // `light_sampler`, trilinear, clamped to the edges).
 @group(0) @binding(15) var soft_volume: texture_3d<f32>;
-// A textured spot: the flat regions of its texture's level 0 (`shaders/light_texture_flats.wgsl`:
-// per cell between four texel centres and per quadrant, the side of the largest square of flat
-// cells from the cell into that quadrant; 0 where the cell is not flat).
+// A textured spot: the flat regions of its texture's level 0
+// (`shaders/passes/light_texture_flats.wgsl`: per cell between four texel centres and per quadrant,
+// the side of the largest square of flat cells from the cell into that quadrant; 0 where the cell
+// is not flat).
 @group(0) @binding(16) var light_flats: texture_2d<u32>;
 
 // Distance along the ray of the point with normalised scattering angle s (light.wgsl).
@@ -124,7 +125,7 @@ fn vis_at(ray: PixelRay, r: AirRay, s: f32) -> f32 {
     return visibility(air.eye + x_of_s(r, s) * ray.dir);
 }
 
-// The soft-shadow grid at `p` (see shaders/soft_shadow.wgsl): x the visible fraction of the
+// The soft-shadow grid at `p` (see shaders/passes/soft_shadow.wgsl): x the visible fraction of the
 // light's disc, y > 0 where a cell around p is marked for a narrow penumbra, z > 0 for an
 // occluder's surface between two slices, w > 0 near a shaft narrower than a few cells. One
 // trilinear lookup between the cells around p (its layer's directions, and the slices in q =
@@ -230,7 +231,7 @@ const SHARP_STEP_BITS: u32 = 64u;
 // (a small light's penumbrae are sharp
 // almost everywhere: seed 2 of tests/gpu/soft_grid.rs, p95 3.9% at the grid's half step a cell,
 // 1.8% refined). Near a narrow shaft (the grid's w, see `mark_shafts` in
-// shaders/soft_shadow.wgsl) neither the grid nor the hard visibility holds: a step there is
+// shaders/passes/soft_shadow.wgsl) neither the grid nor the hard visibility holds: a step there is
 // refined with the per-point estimate, `visibility_soft` (the gap scenes of
 // tests/gpu/soft_grid.rs, seed 400, a slit 0.66 of the light's diameter: p95 10.2% → 1.8%).
 // Where the occluders' triangles are given (`soft_exact` in pcss.wgsl: the grid's cells and

@@ -1,7 +1,7 @@
 #import prelude.wgsl
 #import iss.wgsl
-// Indirect single scattering table builder (appended to the prelude and shaders/iss.wgsl): one
-// invocation per entry (τ_i, α_j) writes ln G(τ, α) per RGB channel, where
+// Indirect single scattering table builder (appended to the prelude and shaders/shared/iss.wgsl):
+// one invocation per entry (τ_i, α_j) writes ln G(τ, α) per RGB channel, where
 //
 //   G(τ, α) = ∫₀^π b(τ, γ) · W(α, γ) dγ,
 //   b(τ, γ) = 2 ∫_{γ/2}^{π/2} p(cos 2ξ) · exp(−2τ·sin(γ/2)·sin(ξ − γ/2) / cos ξ) dξ,

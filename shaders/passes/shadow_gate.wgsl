@@ -13,7 +13,7 @@ struct GateParams {
     pad: u32,
 }
 
-// Per pixel four u32 (`shaders/extents.wgsl`): the first is the crossing count, bit 31 set
+// Per pixel four u32 (`shaders/passes/extents.wgsl`): the first is the crossing count, bit 31 set
 // where an open or non-manifold mesh's face crossed the pixel.
 @group(0) @binding(0) var<storage, read> heads: array<u32>;
 @group(0) @binding(1) var<storage, read> arguments: array<u32>;

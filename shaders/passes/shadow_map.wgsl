@@ -95,8 +95,8 @@ fn vs_shadow_clipped(@builtin(vertex_index) v: u32, @builtin(instance_index) fan
     return face.clip_from_world * vec4<f32>(p[k], 1.0);
 }
 
-// The gated map's clear (`shaders/shadow_gate.wgsl`): a triangle covering the layer at depth 0
-// (at infinity: nothing), drawn with `Always` where a render pass cannot clear, because it
+// The gated map's clear (`shaders/passes/shadow_gate.wgsl`): a triangle covering the layer at depth
+// 0 (at infinity: nothing), drawn with `Always` where a render pass cannot clear, because it
 // loads the layer so that a frame that draws nothing costs nothing.
 @vertex
 fn vs_clear(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
