@@ -321,6 +321,9 @@ pub(crate) fn visible(
     points.sort_by(f64::total_cmp);
     points.dedup();
     let segments: Vec<(usize, f64, f64)> = points.windows(2).map(|w| (0, w[0], w[1])).collect();
+    // By their least row, so that a row reads only those that begin below it (the order of a
+    // row's intervals does not change what it sees: `row_seen` sorts them).
+    polygons.sort_by(|p, q| p.v.0.total_cmp(&q.v.0));
     // One list of a row's hidden intervals, reused by every row (an allocation per row was a
     // twentieth of the soft reference's time).
     let hidden = std::cell::RefCell::new(Vec::new());
@@ -340,8 +343,8 @@ pub(crate) fn visible(
 }
 
 /// What the row at angle `theta` sees of the cap of half-angle tangent `tan_a`: the rest of its
-/// width where `polygons` and `balls` hide none, weighted by the solid angle along it
-/// (`hidden`: scratch for the row's hidden intervals).
+/// width where `polygons` (in order of their least row, `v.0`) and `balls` hide none, weighted
+/// by the solid angle along it (`hidden`: scratch for the row's hidden intervals).
 fn row_seen(
     theta: f64,
     tan_a: f64,
@@ -358,7 +361,8 @@ fn row_seen(
     hidden.extend(
         polygons
             .iter()
-            .filter(|p| p.v.0 < v && v < p.v.1)
+            .take_while(|p| p.v.0 < v)
+            .filter(|p| v < p.v.1)
             .filter_map(|p| polygon_interval(p, y))
             .chain(
                 balls
