@@ -140,10 +140,9 @@ fn clip(input: &[DVec3], at: f64, sign: f64, out: &mut Vec<DVec3>) {
 /// The hidden interval of row `y` (directions `(x, y, 1)`) of a polygon: where the plane
 /// `Y = y·Z` meets it.
 ///
-/// The hot loop of the soft reference (a fifth of the GPU test binary's time, 2026-12-08): each
-/// corner's height above the plane is computed once, and an edge's crossing only in the two
-/// components the interval reads, each as the whole vector's would be (the same operations in
-/// the same order, so the same bits).
+/// The soft reference's hot loop: each corner's height above the plane is computed once, and an
+/// edge's crossing only in the two components the interval reads, each as the whole vector's
+/// would be (the same operations in the same order, so the same bits).
 fn polygon_interval(poly: &Polygon, y: f64) -> Option<(f64, f64)> {
     let c = &poly.corners[..poly.len];
     let mut h = [0.0; 5];
@@ -324,8 +323,7 @@ pub(crate) fn visible(
     // By their least row, so that a row reads only those that begin below it (the order of a
     // row's intervals does not change what it sees: `row_seen` sorts them).
     polygons.sort_by(|p, q| p.v.0.total_cmp(&q.v.0));
-    // One list of a row's hidden intervals, reused by every row (an allocation per row was a
-    // twentieth of the soft reference's time).
+    // One list of a row's hidden intervals, reused by every row.
     let hidden = std::cell::RefCell::new(Vec::new());
     let row = |theta: f64| row_seen(theta, tan_a, (&polygons, &balls), &mut hidden.borrow_mut());
     // The tolerance is relative to the cap's solid angle as well as to what is seen, which a
